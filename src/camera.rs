@@ -1,0 +1,176 @@
+//! [`Camera`]: a pinhole camera, by vertical field of view or by calibrated
+//! intrinsics. Gives rays through any point of the image plane and projects
+//! world points back to pixels.
+//!
+//! Image coordinates are continuous pixels: (0,0) is the top-left corner of
+//! the image, a pixel's centre is at (col+0.5, row+0.5), `y` grows down.
+
+use glam::DVec3;
+
+/// A pinhole camera. Built only through [`Camera::new`], which checks it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Camera {
+    pub width: u32,
+    pub height: u32,
+    pub position: DVec3,
+    /// Unit vectors: `forward` along the view axis, `right` and `up` spanning
+    /// the image plane (up points to decreasing row).
+    pub forward: DVec3,
+    pub right: DVec3,
+    pub up: DVec3,
+    /// Focal lengths and principal point, in pixels.
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
+}
+
+/// How the projection is given in `scene.toml`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Projection {
+    FovY { degrees: f64 },
+    Intrinsics { fx: f64, fy: f64, cx: f64, cy: f64 },
+}
+
+/// A ray: origin and unit direction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ray {
+    pub origin: DVec3,
+    pub direction: DVec3,
+}
+
+impl Camera {
+    /// Builds a camera, or says which input makes it impossible (the caller
+    /// attaches the key). The message names the offending quantity.
+    pub fn new(
+        width: u32,
+        height: u32,
+        position: DVec3,
+        look_at: DVec3,
+        up: DVec3,
+        projection: Projection,
+    ) -> Result<Camera, (&'static str, String)> {
+        let forward = look_at - position;
+        if forward.length() < 1e-9 {
+            return Err(("look_at", "must differ from position".into()));
+        }
+        let forward = forward.normalize();
+        if up.length() < 1e-12 {
+            return Err(("up", "must not be zero".into()));
+        }
+        let right = forward.cross(up.normalize());
+        if right.length() < 1e-6 {
+            return Err(("up", "must not be parallel to the viewing direction".into()));
+        }
+        let right = right.normalize();
+        let up = right.cross(forward);
+        let (fx, fy, cx, cy) = match projection {
+            Projection::FovY { degrees } => {
+                if !(degrees > 0.0 && degrees < 180.0) {
+                    return Err(("fov_y_deg", format!("must lie strictly between 0 and 180, found {degrees}")));
+                }
+                let f = 0.5 * height as f64 / (0.5 * degrees.to_radians()).tan();
+                (f, f, 0.5 * width as f64, 0.5 * height as f64)
+            }
+            Projection::Intrinsics { fx, fy, cx, cy } => {
+                if !(fx > 0.0 && fy > 0.0) {
+                    return Err(("intrinsics", format!("fx and fy must be positive, found fx={fx}, fy={fy}")));
+                }
+                (fx, fy, cx, cy)
+            }
+        };
+        Ok(Camera { width, height, position, forward, right, up, fx, fy, cx, cy })
+    }
+
+    pub fn pixel_count(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
+
+    /// The ray through image point (x, y) in continuous pixel coordinates.
+    pub fn ray(&self, x: f64, y: f64) -> Ray {
+        let d = self.forward + self.right * ((x - self.cx) / self.fx) - self.up * ((y - self.cy) / self.fy);
+        Ray { origin: self.position, direction: d.normalize() }
+    }
+
+    /// The ray through the centre of pixel (col, row).
+    pub fn pixel_ray(&self, col: u32, row: u32) -> Ray {
+        self.ray(col as f64 + 0.5, row as f64 + 0.5)
+    }
+
+    /// Image coordinates of a world point and its depth along the view axis,
+    /// or `None` for points at or behind the camera plane.
+    pub fn project(&self, p: DVec3) -> Option<(f64, f64, f64)> {
+        let d = p - self.position;
+        let z = d.dot(self.forward);
+        if z <= 1e-12 {
+            return None;
+        }
+        let x = self.cx + self.fx * d.dot(self.right) / z;
+        let y = self.cy - self.fy * d.dot(self.up) / z;
+        Some((x, y, z))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+
+    fn desk_like(projection: Projection) -> Camera {
+        Camera::new(
+            512,
+            384,
+            DVec3::new(0.7, 1.45, 2.7),
+            DVec3::new(-0.45, 0.6, -1.0),
+            DVec3::Y,
+            projection,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn project_inverts_ray_within_1e4_pixels() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        for cam in [
+            desk_like(Projection::FovY { degrees: 55.0 }),
+            desk_like(Projection::Intrinsics { fx: 610.0, fy: 590.0, cx: 250.3, cy: 199.7 }),
+        ] {
+            for _ in 0..1000 {
+                let (x, y) = (rng.random_range(-50.0..562.0), rng.random_range(-50.0..434.0));
+                let depth = rng.random_range(0.01..100.0);
+                let ray = cam.ray(x, y);
+                let p = ray.origin + ray.direction * depth;
+                let (px, py, _) = cam.project(p).unwrap();
+                assert!((px - x).abs() < 1e-4 && (py - y).abs() < 1e-4, "({x},{y}) -> ({px},{py})");
+            }
+        }
+    }
+
+    #[test]
+    fn right_of_the_axis_lands_right_of_centre_and_up_lands_up() {
+        let cam = desk_like(Projection::FovY { degrees: 55.0 });
+        let ahead = cam.position + cam.forward * 3.0;
+        let (x, y, _) = cam.project(ahead + cam.right * 0.5).unwrap();
+        assert!(x > 256.0 + 1.0 && (y - 192.0).abs() < 1e-9);
+        let (x, y, _) = cam.project(ahead + DVec3::Y * 0.5).unwrap();
+        assert!(y < 192.0 - 1.0 && (x - 256.0).abs() < 1.0);
+        assert!(cam.project(cam.position - cam.forward).is_none());
+    }
+
+    #[test]
+    fn fov_spans_the_image_height() {
+        let cam = desk_like(Projection::FovY { degrees: 55.0 });
+        let top = cam.ray(256.0, 0.0).direction;
+        let bottom = cam.ray(256.0, 384.0).direction;
+        assert!((top.angle_between(bottom).to_degrees() - 55.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn degenerate_cameras_are_refused() {
+        let p = DVec3::ZERO;
+        let fov = Projection::FovY { degrees: 50.0 };
+        assert_eq!(Camera::new(8, 8, p, p, DVec3::Y, fov).unwrap_err().0, "look_at");
+        assert_eq!(Camera::new(8, 8, p, DVec3::Y, DVec3::Y, fov).unwrap_err().0, "up");
+        assert_eq!(Camera::new(8, 8, p, DVec3::X, DVec3::Y, Projection::FovY { degrees: 180.0 }).unwrap_err().0, "fov_y_deg");
+    }
+}

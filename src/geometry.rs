@@ -1,0 +1,333 @@
+//! Triangle geometry: [`Mesh`] (named surfaces of triangles) loaded from OBJ
+//! files, with degenerate and non-finite triangles dropped and counted.
+//!
+//! OBJ parsing is `tobj`'s; a pre-pass checks each line first so that a
+//! malformed file is reported with its line number (tobj reports only a kind).
+
+use std::path::Path;
+
+use glam::{DVec3, Vec3};
+
+use crate::error::{Error, Result};
+
+/// A triangle's three corners, in metres.
+pub type Triangle = [Vec3; 3];
+
+/// One named surface of an OBJ file (an `o` or `g` group).
+#[derive(Debug, Clone)]
+pub struct MeshSurface {
+    pub name: String,
+    pub triangles: Vec<Triangle>,
+    /// The diffuse colour (`Kd`) of the group's material, when the OBJ has one.
+    pub material_rgb: Option<Vec3>,
+}
+
+/// The surfaces of one OBJ file, in order of first appearance.
+#[derive(Debug, Clone)]
+pub struct Mesh {
+    pub surfaces: Vec<MeshSurface>,
+    /// Triangles dropped because they had zero area or non-finite corners.
+    pub dropped_triangles: usize,
+}
+
+impl Mesh {
+    pub fn triangle_count(&self) -> usize {
+        self.surfaces.iter().map(|s| s.triangles.len()).sum()
+    }
+}
+
+/// Twice the area of a triangle, in f64 so that small triangles far from the
+/// origin do not lose their area to rounding.
+pub fn double_area(t: &Triangle) -> f64 {
+    let [a, b, c] = t.map(|p| p.as_dvec3());
+    (b - a).cross(c - a).length()
+}
+
+/// A triangle with non-finite corners, or with (relatively) zero area.
+pub fn is_degenerate(t: &Triangle) -> bool {
+    if !t.iter().all(|p| p.is_finite()) {
+        return true;
+    }
+    let [a, b, c] = t.map(|p| p.as_dvec3());
+    let longest = (b - a).length_squared().max((c - a).length_squared()).max((c - b).length_squared());
+    longest == 0.0 || double_area(t) <= 1e-9 * longest
+}
+
+/// Unit geometric normal of a non-degenerate triangle (winding order decides
+/// the sign; surfaces are two-sided, so callers orient it as they need).
+pub fn normal(t: &Triangle) -> DVec3 {
+    let [a, b, c] = t.map(|p| p.as_dvec3());
+    (b - a).cross(c - a).normalize_or_zero()
+}
+
+/// Distance from `p` to the closest point of triangle `t` (Ericson,
+/// Real-Time Collision Detection §5.1.5), in f64.
+pub fn distance_to_triangle(p: DVec3, t: &Triangle) -> f64 {
+    let [a, b, c] = t.map(|v| v.as_dvec3());
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return ap.length();
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return bp.length();
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return (p - (a + ab * v)).length();
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return cp.length();
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return (p - (a + ac * w)).length();
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return (p - (b + (c - b) * w)).length();
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let (v, w) = (vb * denom, vc * denom);
+    (p - (a + ab * v + ac * w)).length()
+}
+
+/// Whether the triangles close a volume: after welding corners that coincide,
+/// every edge is shared by an even number of triangles.
+pub fn is_closed(triangles: &[Triangle]) -> bool {
+    use std::collections::HashMap;
+    let key = |p: Vec3| (p * 1e5).round().as_ivec3().to_array();
+    let mut edges: HashMap<([i32; 3], [i32; 3]), u32> = HashMap::new();
+    for t in triangles {
+        for i in 0..3 {
+            let (a, b) = (key(t[i]), key(t[(i + 1) % 3]));
+            *edges.entry(if a < b { (a, b) } else { (b, a) }).or_default() += 1;
+        }
+    }
+    !edges.is_empty() && edges.values().all(|n| n % 2 == 0)
+}
+
+/// Whether `p` lies inside the closed volume bounded by `triangles`, by the
+/// parity of ray crossings, voted over three skew directions so that a ray
+/// grazing an edge cannot decide alone.
+pub fn encloses(triangles: &[Triangle], p: DVec3) -> bool {
+    let dirs = [
+        DVec3::new(0.5773, 0.5774, 0.5775),
+        DVec3::new(-0.6123, 0.3536, 0.7071),
+        DVec3::new(0.2673, -0.8018, 0.5345),
+    ];
+    let inside_votes = dirs
+        .iter()
+        .filter(|d| {
+            let crossings = triangles.iter().filter(|t| ray_hits_triangle(p, d.normalize(), t)).count();
+            crossings % 2 == 1
+        })
+        .count();
+    inside_votes >= 2
+}
+
+/// Möller-Trumbore in f64, for geometric checks outside the tracer.
+fn ray_hits_triangle(o: DVec3, d: DVec3, t: &Triangle) -> bool {
+    let [a, b, c] = t.map(|v| v.as_dvec3());
+    let (e1, e2) = (b - a, c - a);
+    let pv = d.cross(e2);
+    let det = e1.dot(pv);
+    if det.abs() < 1e-14 {
+        return false;
+    }
+    let inv = 1.0 / det;
+    let tv = o - a;
+    let u = tv.dot(pv) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return false;
+    }
+    let q = tv.cross(e1);
+    let v = d.dot(q) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return false;
+    }
+    e2.dot(q) * inv > 0.0
+}
+
+/// Loads an OBJ file. Every `o`/`g` name is one surface; repeated names
+/// (a group split by `usemtl`, or reopened later) are merged.
+pub fn load_obj(path: &Path) -> Result<Mesh> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, &e))?;
+    check_obj_lines(path, &text)?;
+    let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
+    let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+    let (models, materials) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |mtl| {
+        tobj::load_mtl(dir.join(mtl))
+    })
+    .map_err(|e| Error::file(path, format!("malformed OBJ: {e}")))?;
+    // A missing or broken .mtl only matters where its colour is needed; the
+    // caller reports that with the key that needed it.
+    let materials = materials.unwrap_or_default();
+
+    let mut surfaces: Vec<MeshSurface> = Vec::new();
+    let mut dropped = 0;
+    for model in &models {
+        let m = &model.mesh;
+        let corner = |i: u32| -> Vec3 {
+            let i = i as usize * 3;
+            Vec3::new(m.positions[i], m.positions[i + 1], m.positions[i + 2])
+        };
+        let mut triangles = Vec::with_capacity(m.indices.len() / 3);
+        for f in m.indices.chunks_exact(3) {
+            let t = [corner(f[0]), corner(f[1]), corner(f[2])];
+            if is_degenerate(&t) {
+                dropped += 1;
+            } else {
+                triangles.push(t);
+            }
+        }
+        let kd = m.material_id.and_then(|id| materials.get(id)).and_then(|mat| mat.diffuse).map(Vec3::from_array);
+        match surfaces.iter_mut().find(|s| s.name == model.name) {
+            Some(s) => {
+                s.triangles.extend(triangles);
+                s.material_rgb = s.material_rgb.or(kd);
+            }
+            None => surfaces.push(MeshSurface { name: model.name.clone(), triangles, material_rgb: kd }),
+        }
+    }
+    surfaces.retain(|s| !s.triangles.is_empty());
+    if surfaces.is_empty() {
+        let why = if dropped > 0 {
+            format!("no usable triangles ({dropped} degenerate or non-finite triangles dropped)")
+        } else {
+            "no triangles".to_string()
+        };
+        return Err(Error::file(path, why));
+    }
+    Ok(Mesh { surfaces, dropped_triangles: dropped })
+}
+
+/// Checks the statements arlux relies on (`v` and `f`) line by line, so that
+/// a malformed file is reported at its line.
+fn check_obj_lines(path: &Path, text: &str) -> Result<()> {
+    let mut positions = 0i64;
+    let mut texcoords = 0i64;
+    let mut normals = 0i64;
+    for (n, raw) in text.lines().enumerate() {
+        let line_no = n + 1;
+        let line = raw.split('#').next().unwrap_or("").trim();
+        let mut words = line.split_whitespace();
+        let Some(tag) = words.next() else { continue };
+        let args: Vec<&str> = words.collect();
+        let bad = |msg: String| Error::line(path, line_no, msg);
+        let floats = |min: usize, what: &str| -> Result<()> {
+            if args.len() < min {
+                return Err(bad(format!("{what} needs {min} numbers, found {}", args.len())));
+            }
+            for a in &args[..min] {
+                a.parse::<f32>().map_err(|_| bad(format!("{what}: '{a}' is not a number")))?;
+            }
+            Ok(())
+        };
+        match tag {
+            "v" => {
+                floats(3, "vertex")?;
+                positions += 1;
+            }
+            "vt" => {
+                floats(1, "texture coordinate")?;
+                texcoords += 1;
+            }
+            "vn" => {
+                floats(3, "normal")?;
+                normals += 1;
+            }
+            "f" => {
+                if args.len() < 3 {
+                    return Err(bad(format!("face needs at least 3 vertices, found {}", args.len())));
+                }
+                for a in &args {
+                    let mut parts = a.split('/');
+                    let counts = [positions, texcoords, normals];
+                    for (k, count) in counts.iter().enumerate() {
+                        let Some(p) = parts.next() else { break };
+                        if p.is_empty() && k > 0 {
+                            continue;
+                        }
+                        let index: i64 = p.parse().map_err(|_| bad(format!("face: '{a}' is not a vertex reference")))?;
+                        let resolved = if index < 0 { count + index + 1 } else { index };
+                        if index == 0 || resolved < 1 || resolved > *count {
+                            return Err(bad(format!(
+                                "face: '{a}' refers to {} {index}, but only {count} are defined above",
+                                ["vertex", "texture coordinate", "normal"][k]
+                            )));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(dir: &Path, name: &str, text: &str) -> std::path::PathBuf {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+
+    #[test]
+    fn groups_become_surfaces_and_degenerates_are_counted() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = write(
+            dir.path(),
+            "a.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nv nan 0 0\no first\nf 1 2 3\nf 1 2 4\ng second\nf 1 2 3\nf 5 2 3\no first\nf 3 2 1\n",
+        );
+        let mesh = load_obj(&p).unwrap();
+        let names: Vec<_> = mesh.surfaces.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(names, ["first", "second"]);
+        assert_eq!(mesh.surfaces[0].triangles.len(), 2);
+        assert_eq!(mesh.dropped_triangles, 2, "one collinear, one NaN");
+    }
+
+    #[test]
+    fn malformed_lines_are_reported_with_their_number() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = write(dir.path(), "bad.obj", "v 0 0 0\nv 1 0 x\nf 1 2 3\n");
+        let e = load_obj(&p).unwrap_err();
+        assert_eq!(e.location, crate::error::Location::Line(2), "{e}");
+        let p = write(dir.path(), "bad2.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n\nf 1 2 4\n");
+        let e = load_obj(&p).unwrap_err();
+        assert_eq!(e.location, crate::error::Location::Line(5), "{e}");
+        assert!(e.to_string().contains("only 3"), "{e}");
+    }
+
+    #[test]
+    fn closed_boxes_enclose_their_inside_only() {
+        let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/geometry/box.obj");
+        let b = load_obj(&p).unwrap();
+        let tris = &b.surfaces[0].triangles;
+        assert!(is_closed(tris));
+        assert!(encloses(tris, DVec3::new(0.01, 0.1, -0.02)));
+        assert!(!encloses(tris, DVec3::new(0.4, 0.1, 0.0)));
+        assert!(!is_closed(&tris[..10]));
+        let d = distance_to_triangle(DVec3::new(0.0, 0.5, 0.0), &tris[8]);
+        assert!((d - 0.2).abs() < 1e-6, "top face at y=0.3: {d}");
+    }
+
+    #[test]
+    fn a_file_of_only_degenerate_triangles_is_an_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = write(dir.path(), "flat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n");
+        let e = load_obj(&p).unwrap_err();
+        assert!(e.to_string().contains("1 degenerate"), "{e}");
+    }
+}

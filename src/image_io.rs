@@ -1,0 +1,303 @@
+//! [`Image`]: linear RGB float images, and their files. Reads EXR (half or
+//! float, RGB/RGBA/Y in any channel order, optionally inside a layer) and
+//! 8-bit PNG/JPEG (sRGB decoded to linear); writes float EXR with several
+//! layers in one file, and PNG (exposure + sRGB). Every write is atomic: a
+//! temporary file in the same folder, renamed over the target when complete.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use exr::prelude::{self as x, ReadChannels, ReadLayers, WritableImage};
+use glam::Vec3;
+
+use crate::error::{Error, Result};
+
+/// A linear RGB image, row-major from the top-left pixel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<Vec3>,
+}
+
+impl Image {
+    pub fn new(width: u32, height: u32) -> Image {
+        Image { width, height, pixels: vec![Vec3::ZERO; width as usize * height as usize] }
+    }
+
+    pub fn get(&self, x: u32, y: u32) -> Vec3 {
+        self.pixels[y as usize * self.width as usize + x as usize]
+    }
+
+    pub fn set(&mut self, x: u32, y: u32, v: Vec3) {
+        let w = self.width as usize;
+        self.pixels[y as usize * w + x as usize] = v;
+    }
+
+    /// Mean of the three channels over all pixels.
+    pub fn mean(&self) -> f64 {
+        let sum: f64 = self.pixels.iter().map(|p| p.as_dvec3().element_sum()).sum();
+        sum / (3.0 * self.pixels.len().max(1) as f64)
+    }
+}
+
+/// Reads a photograph or reference: EXR as linear radiance, PNG/JPEG as
+/// sRGB-encoded 8-bit values decoded to linear. Non-finite pixels are an error.
+pub fn read_image(path: &Path) -> Result<Image> {
+    let img = match extension(path).as_str() {
+        "exr" => read_exr_rgb(path)?,
+        "png" | "jpg" | "jpeg" => read_8bit(path)?,
+        other => {
+            return Err(Error::file(path, format!("unsupported image type '.{other}' (use .exr, .png, .jpg)")));
+        }
+    };
+    if let Some(i) = img.pixels.iter().position(|p| !p.is_finite()) {
+        let bad = img.pixels.iter().filter(|p| !p.is_finite()).count();
+        let (x, y) = (i as u32 % img.width, i as u32 / img.width);
+        return Err(Error::file(path, format!("{bad} pixels are NaN or infinite (the first at x={x}, y={y})")));
+    }
+    Ok(img)
+}
+
+fn extension(path: &Path) -> String {
+    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
+}
+
+fn read_8bit(path: &Path) -> Result<Image> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
+    let decoded = image::load_from_memory(&bytes).map_err(|e| Error::file(path, format!("malformed image: {e}")))?;
+    let rgb = decoded.to_rgb32f();
+    let pixels = rgb.pixels().map(|p| Vec3::from_array(p.0.map(srgb_to_linear))).collect();
+    Ok(Image { width: rgb.width(), height: rgb.height(), pixels })
+}
+
+/// All channels of the first part of an EXR file, by full name, as f32.
+struct ExrChannels {
+    width: usize,
+    height: usize,
+    channels: Vec<(String, Vec<f32>)>,
+}
+
+fn read_exr_channels(path: &Path) -> Result<ExrChannels> {
+    let malformed = |e: x::Error| Error::file(path, format!("malformed EXR: {e}"));
+    // Read from memory so that a missing file is reported as such.
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
+    let image = x::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(malformed)?;
+    let mut out: Option<ExrChannels> = None;
+    for layer in &image.layer_data {
+        let (w, h) = (layer.size.width(), layer.size.height());
+        let prefix = layer.attributes.layer_name.as_ref().map(|n| format!("{n}.")).unwrap_or_default();
+        let target = out.get_or_insert(ExrChannels { width: w, height: h, channels: Vec::new() });
+        if (target.width, target.height) != (w, h) {
+            continue;
+        }
+        for ch in &layer.channel_data.list {
+            let samples: Vec<f32> = match &ch.sample_data {
+                x::FlatSamples::F16(v) => v.iter().map(|s| s.to_f32()).collect(),
+                x::FlatSamples::F32(v) => v.clone(),
+                x::FlatSamples::U32(v) => v.iter().map(|&s| s as f32).collect(),
+            };
+            if samples.len() != w * h {
+                return Err(Error::file(path, format!("channel {} is subsampled; arlux reads full-resolution channels", ch.name)));
+            }
+            target.channels.push((format!("{prefix}{}", ch.name), samples));
+        }
+    }
+    out.ok_or_else(|| Error::file(path, "the EXR has no image layer"))
+}
+
+/// Reads one channel of an EXR file by its full name (e.g. `Y`, `direct.R`).
+pub fn read_exr_channel(path: &Path, name: &str) -> Result<(u32, u32, Vec<f32>)> {
+    let c = read_exr_channels(path)?;
+    let names: Vec<&str> = c.channels.iter().map(|(n, _)| n.as_str()).collect();
+    let found = c.channels.iter().find(|(n, _)| n == name);
+    match found {
+        Some((_, v)) => Ok((c.width as u32, c.height as u32, v.clone())),
+        None => Err(Error::file(path, format!("no channel '{name}' (channels: {})", names.join(", ")))),
+    }
+}
+
+/// Reads the RGB image of an EXR file: channels R, G, B (in any order, at
+/// the top level or in the first layer that has all three), or a lone Y as grey.
+fn read_exr_rgb(path: &Path) -> Result<Image> {
+    let c = read_exr_channels(path)?;
+    let find = |name: &str| c.channels.iter().find(|(n, _)| n == name).map(|(_, v)| v);
+    let mut prefixes: Vec<String> = vec![String::new()];
+    for (n, _) in &c.channels {
+        if let Some(p) = n.strip_suffix("R").filter(|p| p.ends_with('.')) {
+            prefixes.push(p.to_string());
+        }
+    }
+    let mut planes = None;
+    for p in &prefixes {
+        if let (Some(r), Some(g), Some(b)) = (find(&format!("{p}R")), find(&format!("{p}G")), find(&format!("{p}B"))) {
+            planes = Some([r, g, b]);
+            break;
+        }
+    }
+    let pixels: Vec<Vec3> = match (planes, find("Y")) {
+        (Some([r, g, b]), _) => (0..c.width * c.height).map(|i| Vec3::new(r[i], g[i], b[i])).collect(),
+        (None, Some(y)) => y.iter().map(|&v| Vec3::splat(v)).collect(),
+        (None, None) => {
+            let names: Vec<&str> = c.channels.iter().map(|(n, _)| n.as_str()).collect();
+            return Err(Error::file(path, format!("no R, G, B channels (channels: {})", names.join(", "))));
+        }
+    };
+    Ok(Image { width: c.width as u32, height: c.height as u32, pixels })
+}
+
+/// One named part of an EXR file to write.
+pub enum ExrLayer<'a> {
+    /// RGB channels, named `R,G,B` when the name is empty, else `name.R` etc.
+    Rgb(&'a str, &'a Image),
+    /// A single float channel with a full name (e.g. `A`, `Y`, `mask.Y`).
+    Channel(&'a str, &'a [f32]),
+}
+
+/// Writes a float EXR holding every layer as channels of one part (the
+/// multi-layer convention compositors read), atomically.
+pub fn write_exr(path: &Path, width: u32, height: u32, layers: &[ExrLayer]) -> Result<()> {
+    let (w, h) = (width as usize, height as usize);
+    let mut list: x::SmallVec<[x::AnyChannel<x::FlatSamples>; 4]> = x::SmallVec::new();
+    for layer in layers {
+        match layer {
+            ExrLayer::Rgb(name, img) => {
+                assert_eq!((img.width, img.height), (width, height), "layer '{name}' has the wrong size");
+                for (c, cname) in ["R", "G", "B"].iter().enumerate() {
+                    let full = if name.is_empty() { cname.to_string() } else { format!("{name}.{cname}") };
+                    let samples = img.pixels.iter().map(|p| p[c]).collect();
+                    list.push(x::AnyChannel::new(full.as_str(), x::FlatSamples::F32(samples)));
+                }
+            }
+            ExrLayer::Channel(name, data) => {
+                assert_eq!(data.len(), w * h, "channel '{name}' has the wrong size");
+                list.push(x::AnyChannel::new(*name, x::FlatSamples::F32(data.to_vec())));
+            }
+        }
+    }
+    let layer = x::Layer::new((w, h), x::LayerAttributes::default(), x::Encoding::SMALL_LOSSLESS, x::AnyChannels::sort(list));
+    let image = x::Image::from_layer(layer);
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    image.write().to_buffered(&mut bytes).map_err(|e| Error::file(path, format!("could not encode EXR: {e}")))?;
+    write_atomic(path, bytes.get_ref())
+}
+
+/// Writes `img` as an 8-bit sRGB PNG after multiplying by 2^exposure_ev, atomically.
+pub fn write_png(path: &Path, img: &Image, exposure_ev: f32) -> Result<()> {
+    let gain = exposure_ev.exp2();
+    let bytes: Vec<u8> =
+        img.pixels.iter().flat_map(|p| p.to_array().map(|c| (linear_to_srgb(c * gain) * 255.0).round() as u8)).collect();
+    write_png_rgb8(path, img.width, img.height, bytes)
+}
+
+/// Writes already-encoded 8-bit RGB bytes as PNG, atomically.
+pub fn write_png_rgb8(path: &Path, width: u32, height: u32, bytes: Vec<u8>) -> Result<()> {
+    let buf = image::RgbImage::from_raw(width, height, bytes).expect("buffer matches its size");
+    let mut out = std::io::Cursor::new(Vec::new());
+    buf.write_to(&mut out, image::ImageFormat::Png).map_err(|e| Error::file(path, format!("could not encode PNG: {e}")))?;
+    write_atomic(path, out.get_ref())
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same folder and
+/// a rename, so that `path` holds either its old content or the new, whole.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = path.file_name().ok_or_else(|| Error::file(path, "not a file name"))?;
+    let tmp = dir.join(format!(".{}.tmp{}", name.to_string_lossy(), std::process::id()));
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    result.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        Error::io(path, &e)
+    })
+}
+
+/// sRGB transfer function, encoding: linear [0,1] → encoded [0,1] (clamped).
+pub fn linear_to_srgb(c: f32) -> f32 {
+    let c = if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 };
+    if c <= 0.003_130_8 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 }
+}
+
+/// sRGB transfer function, decoding: encoded [0,1] → linear.
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.040_45 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ramp(w: u32, h: u32) -> Image {
+        let mut img = Image::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                img.set(x, y, Vec3::new(x as f32 * 0.1, y as f32 * 0.2 + 0.01, 3.5));
+            }
+        }
+        img
+    }
+
+    #[test]
+    fn exr_round_trips_with_layers() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.exr");
+        let (main, extra) = (ramp(5, 3), Image::new(5, 3));
+        let alpha = vec![0.5f32; 15];
+        write_exr(&p, 5, 3, &[ExrLayer::Rgb("", &main), ExrLayer::Rgb("direct", &extra), ExrLayer::Channel("A", &alpha)])
+            .unwrap();
+        assert_eq!(read_image(&p).unwrap(), main);
+        assert_eq!(read_exr_channel(&p, "A").unwrap().2, alpha);
+        assert_eq!(read_exr_channel(&p, "direct.G").unwrap().2, vec![0.0; 15]);
+        let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+        assert_eq!(leftovers.len(), 1, "no temporary file left behind");
+    }
+
+    #[test]
+    fn png_round_trips_through_srgb_within_quantisation() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.png");
+        let mut img = ramp(4, 4);
+        img.pixels.iter_mut().for_each(|c| *c = c.min(Vec3::ONE));
+        write_png(&p, &img, 0.0).unwrap();
+        let back = read_image(&p).unwrap();
+        for (a, b) in img.pixels.iter().zip(&back.pixels) {
+            // One 8-bit step of sRGB is at most ~0.9% of the linear value above black.
+            assert!((*a - *b).abs().max_element() <= 0.01 * a.max_element() + 2e-4, "{a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn srgb_curves_are_inverse() {
+        for i in 0..=100 {
+            let c = i as f32 / 100.0;
+            assert!((srgb_to_linear(linear_to_srgb(c)) - c).abs() < 1e-5);
+        }
+        assert_eq!(linear_to_srgb(f32::NAN), 0.0);
+    }
+
+    #[test]
+    fn truncated_exr_is_an_error_naming_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("cut.exr");
+        let good = dir.path().join("good.exr");
+        write_exr(&good, 5, 3, &[ExrLayer::Rgb("", &ramp(5, 3))]).unwrap();
+        let bytes = std::fs::read(&good).unwrap();
+        std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
+        let e = read_image(&p).unwrap_err();
+        assert!(e.to_string().contains("cut.exr") && e.to_string().contains("malformed EXR"), "{e}");
+    }
+}

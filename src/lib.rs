@@ -1,0 +1,18 @@
+//! arlux: per-pixel differential rendering. Inserts virtual objects and
+//! lights into a photograph of a real room, with their shadows and indirect
+//! light, after Grosch et al. 2003 and Loscos et al. 2000.
+//!
+//! Data flows one way: [`scene`] → estimates → radiosity → pixel data →
+//! composite. Each stage is a module taking plain data and returning plain data.
+//! Ray tracing is Embree's, bound in [`trace`] (the crate's only `unsafe`).
+
+pub mod camera;
+pub mod compare;
+pub mod error;
+pub mod geometry;
+pub mod image_io;
+pub mod scene;
+pub mod surface_ids;
+pub mod trace;
+
+pub use error::{Error, Result};

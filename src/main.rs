@@ -1,0 +1,348 @@
+//! The `arlux` command line: parses arguments and calls the library.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{Context, Result, bail};
+use clap::{Parser, Subcommand};
+use serde_json::json;
+
+use arlux::compare::{Comparison, compare, read_mask};
+use arlux::image_io::{self, Image};
+use arlux::scene::{Intensity, LightPosition, LightShape, Photo, Scene};
+use arlux::surface_ids::{SurfaceIds, id_colour};
+use arlux::trace::Layer;
+
+#[derive(Parser)]
+#[command(name = "arlux", version, about = "Per-pixel differential rendering of virtual objects and lights into photographs")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Describe a scene: surfaces, triangles, lights, objects, variants, motions, the photo's range.
+    Info {
+        scene: PathBuf,
+        /// Apply this variant first.
+        #[arg(long)]
+        variant: Option<String>,
+        /// Print a JSON report instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Colour each pixel by the surface it sees, beside the photo with the
+    /// surfaces' outlines: how to check that the model registers with the photo.
+    Ids {
+        scene: PathBuf,
+        /// Output PNG (2·width × height: surface colours | photo with outlines).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Also write the ids as an EXR (channel Y: surface index, -1 for none).
+        #[arg(long)]
+        exr: Option<PathBuf>,
+        /// Include the enabled virtual objects (of the variant, if given).
+        #[arg(long)]
+        with_virtual: bool,
+        #[arg(long)]
+        variant: Option<String>,
+    },
+    /// Error of an image against a reference: RMSE and relative RMSE in
+    /// linear radiance, PSNR of the sRGB-encoded images, and their means.
+    Compare {
+        image: PathBuf,
+        reference: PathBuf,
+        /// Compare only where this PNG is white (grey > 0.5).
+        #[arg(long)]
+        mask: Option<PathBuf>,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            // A closed pipe (`arlux info | head`) is not a failure.
+            if e.chain().any(|c| c.downcast_ref::<std::io::Error>().is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)) {
+                return ExitCode::SUCCESS;
+            }
+            eprintln!("error: {e}");
+            for cause in e.chain().skip(1) {
+                eprintln!("  caused by: {cause}");
+            }
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Info { scene, variant, json } => info(&scene, variant.as_deref(), json),
+        Command::Ids { scene, output, exr, with_virtual, variant } => {
+            ids(&scene, &output, exr.as_deref(), with_virtual, variant.as_deref())
+        }
+        Command::Compare { image, reference, mask, json } => compare_cmd(&image, &reference, mask.as_deref(), json),
+    }
+}
+
+fn load(path: &Path, variant: Option<&str>) -> Result<Scene> {
+    let scene = Scene::load(path)?;
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(match variant {
+        Some(v) => scene.with_variant(v)?,
+        None => scene,
+    })
+}
+
+fn rel(scene: &Scene, p: &Path) -> String {
+    p.strip_prefix(scene.dir()).unwrap_or(p).display().to_string()
+}
+
+fn fmt3(v: glam::DVec3) -> String {
+    format!("[{}, {}, {}]", v.x, v.y, v.z)
+}
+
+/// Range figures of the photo, per channel and over all.
+fn photo_range(img: &Image) -> serde_json::Value {
+    let mut min = [f32::INFINITY; 3];
+    let mut max = [f32::NEG_INFINITY; 3];
+    let mut min_positive = f32::INFINITY;
+    for p in &img.pixels {
+        for c in 0..3 {
+            min[c] = min[c].min(p[c]);
+            max[c] = max[c].max(p[c]);
+            if p[c] > 0.0 {
+                min_positive = min_positive.min(p[c]);
+            }
+        }
+    }
+    let peak = max.iter().copied().fold(0.0f32, f32::max);
+    json!({
+        "width": img.width, "height": img.height,
+        "min": min, "max": max, "mean": img.mean(),
+        "dynamic_range": if min_positive.is_finite() { Some(peak / min_positive) } else { None },
+    })
+}
+
+fn info(path: &Path, variant: Option<&str>, as_json: bool) -> Result<()> {
+    let scene = load(path, variant)?;
+    let names = scene.surface_names();
+    let photo = match &scene.photo {
+        Photo::Image(p) => {
+            let img = scene.load_photo()?;
+            json!({ "image": rel(&scene, p), "range": photo_range(&img) })
+        }
+        Photo::Brackets(bs) => json!({
+            "brackets": bs.iter().map(|b| json!({ "image": rel(&scene, &b.image), "ev": b.ev })).collect::<Vec<_>>(),
+        }),
+    };
+    let surfaces: Vec<_> = scene
+        .surfaces
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            let known = scene.reflectances.iter().find(|k| k.surface == i).map(|k| k.rgb.to_array());
+            json!({ "id": i, "name": s.name, "triangles": s.triangles.len(), "mesh": rel(&scene, &s.mesh), "known_reflectance": known })
+        })
+        .collect();
+    let lights: Vec<_> = scene
+        .lights
+        .iter()
+        .map(|l| {
+            let position = match &l.position {
+                LightPosition::Known(p) => fmt3(*p),
+                LightPosition::FromShadows(c) => {
+                    format!("from {} shadow lines and {} shadow planes", c.lines.len(), c.planes.len())
+                }
+            };
+            let shape = match l.shape {
+                LightShape::Point => "point".to_string(),
+                LightShape::Rect { u, v } => format!("rect {:.3} x {:.3} m", u.length(), v.length()),
+            };
+            let intensity = match &l.intensity {
+                Intensity::Uniform(rgb) => format!("uniform {}", fmt3(*rgb)),
+                Intensity::Lambertian { rgb, .. } => format!("lambertian {}", fmt3(*rgb)),
+                Intensity::Spot { rgb, beam_deg, cutoff_deg, .. } => {
+                    format!("spot {} beam {beam_deg}° cutoff {cutoff_deg}°", fmt3(*rgb))
+                }
+                Intensity::Ies { file, rgb, .. } => format!("ies {} x {}", rel(&scene, file), fmt3(*rgb)),
+                Intensity::Reconstruct => "reconstruct from the photo".to_string(),
+            };
+            json!({ "name": l.name, "real": l.real, "scale": l.scale, "position": position, "shape": shape, "intensity": intensity })
+        })
+        .collect();
+    let objects: Vec<_> = scene
+        .objects
+        .iter()
+        .map(|o| {
+            json!({
+                "name": o.name, "mesh": rel(&scene, &o.mesh), "enabled": o.enabled,
+                "triangles": o.surfaces.iter().map(|s| s.triangles.len()).sum::<usize>(),
+                "surfaces": o.surfaces.iter().map(|s| json!({ "name": s.name, "rgb": s.rgb.to_array() })).collect::<Vec<_>>(),
+                "translate": o.pose.translate.to_array(), "rotate_y_deg": o.pose.rotate_y_deg, "scale": o.pose.scale,
+            })
+        })
+        .collect();
+    let variants: Vec<_> = scene
+        .variants
+        .iter()
+        .map(|v| {
+            json!({
+                "name": v.name,
+                "lights": v.lights.iter().map(|(l, s)| json!({ "light": scene.lights[*l].name, "scale": s })).collect::<Vec<_>>(),
+                "objects": v.objects.iter().map(|(o, _)| scene.objects[*o].name.clone()).collect::<Vec<_>>(),
+                "hide": v.hide_objects.iter().map(|o| scene.objects[*o].name.clone())
+                    .chain(v.hide_lights.iter().map(|l| scene.lights[*l].name.clone())).collect::<Vec<_>>(),
+                "reference": v.reference.as_ref().map(|r| rel(&scene, r)),
+            })
+        })
+        .collect();
+    let motions: Vec<_> = scene
+        .motions
+        .iter()
+        .map(|m| {
+            json!({ "name": m.name, "object": scene.objects[m.object].name, "poses": m.translations.len(), "references": m.references.len() })
+        })
+        .collect();
+    let c = &scene.camera;
+    let report = json!({
+        "name": scene.name, "file": scene.file.display().to_string(),
+        "camera": { "width": c.width, "height": c.height, "position": c.position.to_array(), "fx": c.fx, "fy": c.fy, "cx": c.cx, "cy": c.cy },
+        "photo": photo, "surfaces": surfaces, "triangles": scene.triangle_count(), "lights": lights,
+        "virtual_objects": objects, "variants": variants, "motions": motions, "warnings": scene.warnings,
+        "all_surface_names": names,
+    });
+    let mut out = std::io::stdout().lock();
+    if as_json {
+        writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?;
+        return Ok(());
+    }
+    writeln!(out, "scene '{}' ({})", scene.name, scene.file.display())?;
+    writeln!(out, "camera: {}x{} px, fx {:.2} fy {:.2}, principal point ({:.1}, {:.1})", c.width, c.height, c.fx, c.fy, c.cx, c.cy)?;
+    match &report["photo"]["range"] {
+        serde_json::Value::Null => writeln!(out, "photo: {}", report["photo"])?,
+        r => writeln!(
+            out,
+            "photo: {} {}x{}, min {} max {} mean {:.5}, dynamic range {}:1",
+            report["photo"]["image"].as_str().unwrap_or(""),
+            r["width"],
+            r["height"],
+            r["min"],
+            r["max"],
+            r["mean"].as_f64().unwrap_or(0.0),
+            r["dynamic_range"].as_f64().map_or("n/a".into(), |d| format!("{d:.0}")),
+        )?,
+    }
+    writeln!(out, "real surfaces: {} ({} triangles)", scene.surfaces.len(), scene.triangle_count())?;
+    for s in &surfaces {
+        let known = s["known_reflectance"].as_array().map(|k| format!("  known reflectance {k:?}")).unwrap_or_default();
+        writeln!(out, "  {:>3} {:<16} {:>6} triangles  {}{}", s["id"], s["name"].as_str().unwrap_or(""), s["triangles"], s["mesh"].as_str().unwrap_or(""), known)?;
+    }
+    writeln!(out, "lights: {}", lights.len())?;
+    for l in &lights {
+        writeln!(
+            out,
+            "  {:<12} {:<7} scale {:<4} at {}  {}  {}",
+            l["name"].as_str().unwrap_or(""),
+            if l["real"].as_bool().unwrap_or(true) { "real" } else { "virtual" },
+            l["scale"],
+            l["position"].as_str().unwrap_or(""),
+            l["shape"].as_str().unwrap_or(""),
+            l["intensity"].as_str().unwrap_or("")
+        )?;
+    }
+    writeln!(out, "virtual objects: {}", objects.len())?;
+    for o in &objects {
+        writeln!(
+            out,
+            "  {:<12} {} triangles, {}, at {} rotated {}°",
+            o["name"].as_str().unwrap_or(""),
+            o["triangles"],
+            if o["enabled"].as_bool().unwrap_or(false) { "enabled" } else { "disabled" },
+            o["translate"],
+            o["rotate_y_deg"]
+        )?;
+    }
+    writeln!(out, "variants: {}", variants.len())?;
+    for v in &variants {
+        writeln!(out, "  {:<20} reference {}", v["name"].as_str().unwrap_or(""), v["reference"].as_str().unwrap_or("none"))?;
+    }
+    writeln!(out, "motions: {}", motions.len())?;
+    for m in &motions {
+        writeln!(out, "  {:<20} moves {} through {} poses ({} references)", m["name"].as_str().unwrap_or(""), m["object"].as_str().unwrap_or(""), m["poses"], m["references"])?;
+    }
+    Ok(())
+}
+
+/// The photo to draw outlines on: the HDR photo, or for brackets the
+/// exposure nearest EV 0 (decoded from sRGB; only for looking at).
+fn display_photo(scene: &Scene) -> Result<Image> {
+    match &scene.photo {
+        Photo::Image(_) => Ok(scene.load_photo()?),
+        Photo::Brackets(bs) => {
+            let b = bs.iter().min_by(|a, b| a.ev.abs().total_cmp(&b.ev.abs())).context("no brackets")?;
+            let img = image_io::read_image(&b.image)?;
+            scene.check_size(&img, "photo.brackets")?;
+            Ok(img)
+        }
+    }
+}
+
+fn ids(path: &Path, output: &Path, exr: Option<&Path>, with_virtual: bool, variant: Option<&str>) -> Result<()> {
+    let scene = load(path, variant)?;
+    let photo = display_photo(&scene)?;
+    let tracer = scene.build_tracer()?;
+    let layer = if with_virtual { Layer::All } else { Layer::Real };
+    let ids = SurfaceIds::at_pixel_centres(&scene.camera, &tracer, layer);
+    if ids.covered() == 0 {
+        bail!(arlux::Error::key(&scene.file, "camera", "the camera sees no surface: check position, look_at and the field of view"));
+    }
+    let picture = ids.registration_picture(&photo);
+    image_io::write_png_rgb8(output, 2 * scene.camera.width, scene.camera.height, picture)?;
+    if let Some(exr) = exr {
+        let values: Vec<f32> = ids.ids.iter().map(|&i| i as f32).collect();
+        image_io::write_exr(exr, scene.camera.width, scene.camera.height, &[image_io::ExrLayer::Channel("Y", &values)])?;
+    }
+    let names = scene.surface_names();
+    let total = ids.ids.len() as f64;
+    println!("{} of {} pixels see a surface; wrote {}", ids.covered(), ids.ids.len(), output.display());
+    for (i, name) in names.iter().enumerate() {
+        let n = ids.ids.iter().filter(|&&s| s == i as i32).count();
+        if n > 0 {
+            let [r, g, b] = id_colour(i as i32);
+            println!("  {i:>3} {name:<20} #{r:02x}{g:02x}{b:02x}  {:5.1}% of the image", 100.0 * n as f64 / total);
+        }
+    }
+    Ok(())
+}
+
+fn compare_cmd(image: &Path, reference: &Path, mask: Option<&Path>, as_json: bool) -> Result<()> {
+    let a = image_io::read_image(image)?;
+    let b = image_io::read_image(reference)?;
+    if (a.width, a.height) != (b.width, b.height) {
+        bail!(arlux::Error::file(
+            image,
+            format!("is {}x{} but {} is {}x{}", a.width, a.height, reference.display(), b.width, b.height)
+        ));
+    }
+    let mask = mask.map(|m| read_mask(m, a.width, a.height)).transpose()?;
+    let c: Comparison = compare(&a, &b, mask.as_deref());
+    if as_json {
+        println!("{}", serde_json::to_string_pretty(&c)?);
+    } else {
+        println!("pixels         {}", c.pixels);
+        println!("rmse           {:.6}", c.rmse);
+        println!("relative rmse  {}", c.relative_rmse.map_or("n/a (black reference)".into(), |r| format!("{:.4}", r)));
+        println!("psnr (sRGB)    {}", c.psnr_srgb_db.map_or("inf (identical)".into(), |p| format!("{p:.2} dB")));
+        println!("mean           {:.6}", c.mean);
+        println!("mean reference {:.6}", c.mean_reference);
+    }
+    Ok(())
+}

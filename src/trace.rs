@@ -1,0 +1,675 @@
+//! Ray tracing by Intel Embree 3 (Debian's `libembree-dev`), bound here by
+//! hand: Debian ships Embree 3.13, so `embree4-rs` cannot link. This is the
+//! only module of arlux with `unsafe`; moving to Embree 4 changes only it.
+//!
+//! [`Geometry`] is one committed Embree scene of triangle surfaces, each
+//! surface carrying arlux's surface id. [`Tracer`] keeps the real geometry
+//! and the virtual objects in two separate scenes, so that "blocked by a
+//! virtual object" can be asked alone ([`Layer::Virtual`]) and moving an
+//! object rebuilds only the small virtual scene. Queries take `&self` and are
+//! safe from any number of rayon threads (Embree's committed scenes are
+//! thread-safe for queries).
+
+use std::cell::Cell;
+use std::ffi::{CStr, c_char, c_void};
+use std::ptr::{NonNull, null, null_mut};
+use std::sync::{Mutex, OnceLock};
+
+use glam::Vec3;
+
+use crate::geometry::Triangle;
+
+#[allow(non_camel_case_types)]
+mod ffi {
+    use super::*;
+
+    pub type RTCDevice = *mut c_void;
+    pub type RTCScene = *mut c_void;
+    pub type RTCGeometry = *mut c_void;
+    pub type RTCErrorFunction = Option<unsafe extern "C" fn(*mut c_void, u32, *const c_char)>;
+
+    pub const RTC_GEOMETRY_TYPE_TRIANGLE: u32 = 0;
+    pub const RTC_BUFFER_TYPE_INDEX: u32 = 0;
+    pub const RTC_BUFFER_TYPE_VERTEX: u32 = 1;
+    pub const RTC_FORMAT_UINT3: u32 = 0x5003;
+    pub const RTC_FORMAT_FLOAT3: u32 = 0x9003;
+    pub const RTC_BUILD_QUALITY_MEDIUM: u32 = 1;
+    pub const RTC_SCENE_FLAG_ROBUST: u32 = 1 << 2;
+    pub const RTC_INVALID_GEOMETRY_ID: u32 = u32::MAX;
+
+    #[repr(C, align(16))]
+    #[derive(Clone, Copy, Default)]
+    pub struct RTCRay {
+        pub org: [f32; 3],
+        pub tnear: f32,
+        pub dir: [f32; 3],
+        pub time: f32,
+        pub tfar: f32,
+        pub mask: u32,
+        pub id: u32,
+        pub flags: u32,
+    }
+
+    #[repr(C, align(16))]
+    #[derive(Clone, Copy, Default)]
+    pub struct RTCHit {
+        pub ng: [f32; 3],
+        pub u: f32,
+        pub v: f32,
+        pub prim_id: u32,
+        pub geom_id: u32,
+        pub inst_id: [u32; 1],
+    }
+
+    #[repr(C)]
+    #[derive(Clone, Copy, Default)]
+    pub struct RTCRayHit {
+        pub ray: RTCRay,
+        pub hit: RTCHit,
+    }
+
+    #[repr(C, align(64))]
+    #[derive(Clone, Copy)]
+    pub struct RTCRay16 {
+        pub org_x: [f32; 16],
+        pub org_y: [f32; 16],
+        pub org_z: [f32; 16],
+        pub tnear: [f32; 16],
+        pub dir_x: [f32; 16],
+        pub dir_y: [f32; 16],
+        pub dir_z: [f32; 16],
+        pub time: [f32; 16],
+        pub tfar: [f32; 16],
+        pub mask: [u32; 16],
+        pub id: [u32; 16],
+        pub flags: [u32; 16],
+    }
+
+    #[repr(C, align(64))]
+    #[derive(Clone, Copy)]
+    pub struct RTCHit16 {
+        pub ng_x: [f32; 16],
+        pub ng_y: [f32; 16],
+        pub ng_z: [f32; 16],
+        pub u: [f32; 16],
+        pub v: [f32; 16],
+        pub prim_id: [u32; 16],
+        pub geom_id: [u32; 16],
+        pub inst_id: [[u32; 16]; 1],
+    }
+
+    #[repr(C)]
+    #[derive(Clone, Copy)]
+    pub struct RTCRayHit16 {
+        pub ray: RTCRay16,
+        pub hit: RTCHit16,
+    }
+
+    /// `rtcInitIntersectContext` is an inline function in the header; this is it.
+    #[repr(C)]
+    pub struct RTCIntersectContext {
+        pub flags: u32,
+        pub filter: *const c_void,
+        pub inst_id: [u32; 1],
+    }
+
+    impl RTCIntersectContext {
+        pub fn new() -> Self {
+            RTCIntersectContext { flags: 0, filter: null(), inst_id: [RTC_INVALID_GEOMETRY_ID] }
+        }
+    }
+
+    // Layouts as the C headers define them (checked with offsetof, see
+    // docs in the engineering notes).
+    const _: () = assert!(std::mem::size_of::<RTCRay>() == 48);
+    const _: () = assert!(std::mem::size_of::<RTCHit>() == 32);
+    const _: () = assert!(std::mem::size_of::<RTCRayHit>() == 80);
+    const _: () = assert!(std::mem::offset_of!(RTCRayHit, hit) == 48);
+    const _: () = assert!(std::mem::size_of::<RTCIntersectContext>() == 24);
+    const _: () = assert!(std::mem::offset_of!(RTCIntersectContext, inst_id) == 16);
+    const _: () = assert!(std::mem::size_of::<RTCRay16>() == 768);
+    const _: () = assert!(std::mem::size_of::<RTCHit16>() == 512);
+
+    #[link(name = "embree3")]
+    unsafe extern "C" {
+        pub fn rtcNewDevice(config: *const c_char) -> RTCDevice;
+        pub fn rtcGetDeviceError(device: RTCDevice) -> u32;
+        pub fn rtcSetDeviceErrorFunction(device: RTCDevice, f: RTCErrorFunction, user: *mut c_void);
+        pub fn rtcNewScene(device: RTCDevice) -> RTCScene;
+        pub fn rtcReleaseScene(scene: RTCScene);
+        pub fn rtcSetSceneBuildQuality(scene: RTCScene, quality: u32);
+        pub fn rtcSetSceneFlags(scene: RTCScene, flags: u32);
+        pub fn rtcCommitScene(scene: RTCScene);
+        pub fn rtcNewGeometry(device: RTCDevice, kind: u32) -> RTCGeometry;
+        pub fn rtcSetNewGeometryBuffer(
+            geometry: RTCGeometry,
+            kind: u32,
+            slot: u32,
+            format: u32,
+            byte_stride: usize,
+            count: usize,
+        ) -> *mut c_void;
+        pub fn rtcCommitGeometry(geometry: RTCGeometry);
+        pub fn rtcAttachGeometry(scene: RTCScene, geometry: RTCGeometry) -> u32;
+        pub fn rtcReleaseGeometry(geometry: RTCGeometry);
+        pub fn rtcIntersect1(scene: RTCScene, ctx: *mut RTCIntersectContext, rayhit: *mut RTCRayHit);
+        pub fn rtcOccluded1(scene: RTCScene, ctx: *mut RTCIntersectContext, ray: *mut RTCRay);
+        pub fn rtcIntersect16(valid: *const i32, scene: RTCScene, ctx: *mut RTCIntersectContext, rayhit: *mut RTCRayHit16);
+        pub fn rtcOccluded16(valid: *const i32, scene: RTCScene, ctx: *mut RTCIntersectContext, ray: *mut RTCRay16);
+    }
+}
+
+/// A failure inside Embree (out of memory, unsupported CPU, bad geometry).
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("Embree: {0}")]
+pub struct TraceError(pub String);
+
+/// The process-wide Embree device. Embree devices are thread-safe; one is
+/// enough, and creating it spawns Embree's build threads once.
+struct Device(ffi::RTCDevice);
+// SAFETY: Embree devices may be used from any thread.
+unsafe impl Send for Device {}
+unsafe impl Sync for Device {}
+
+static DEVICE: OnceLock<Result<Device, TraceError>> = OnceLock::new();
+static LAST_ERROR: Mutex<String> = Mutex::new(String::new());
+
+unsafe extern "C" fn record_error(_user: *mut c_void, code: u32, message: *const c_char) {
+    let text = if message.is_null() {
+        String::new()
+    } else {
+        // SAFETY: Embree passes a NUL-terminated string valid for this call.
+        unsafe { CStr::from_ptr(message) }.to_string_lossy().into_owned()
+    };
+    if let Ok(mut last) = LAST_ERROR.lock() {
+        *last = format!("error {code}: {text}");
+    }
+}
+
+fn device() -> Result<ffi::RTCDevice, TraceError> {
+    let d = DEVICE.get_or_init(|| {
+        // SAFETY: a null config asks for defaults; the result is checked.
+        let d = unsafe { ffi::rtcNewDevice(null()) };
+        if d.is_null() {
+            return Err(TraceError("could not create a device (is this CPU supported?)".into()));
+        }
+        // SAFETY: `record_error` matches RTCErrorFunction and needs no user data.
+        unsafe { ffi::rtcSetDeviceErrorFunction(d, Some(record_error), null_mut()) };
+        Ok(Device(d))
+    });
+    d.as_ref().map(|d| d.0).map_err(Clone::clone)
+}
+
+fn check_device(what: &str) -> Result<(), TraceError> {
+    let d = device()?;
+    // SAFETY: the device is valid for the whole process.
+    let code = unsafe { ffi::rtcGetDeviceError(d) };
+    if code == 0 {
+        return Ok(());
+    }
+    let detail = LAST_ERROR.lock().map(|s| s.clone()).unwrap_or_default();
+    Err(TraceError(format!("{what} failed ({detail})")))
+}
+
+thread_local! {
+    static FLUSH_DENORMALS_SET: Cell<bool> = const { Cell::new(false) };
+}
+
+/// Sets flush-to-zero and denormals-are-zero on the calling thread once:
+/// Embree asks for it, and denormals make its traversal slow.
+fn ensure_flush_denormals() {
+    FLUSH_DENORMALS_SET.with(|set| {
+        if !set.get() {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: only the FTZ and DAZ bits of MXCSR are changed.
+            #[allow(deprecated)]
+            unsafe {
+                use std::arch::x86_64::{_mm_getcsr, _mm_setcsr};
+                _mm_setcsr(_mm_getcsr() | 0x8040);
+            }
+            set.set(true);
+        }
+    });
+}
+
+/// A ray segment for the tracer: points `origin + t·direction` for t in
+/// (tnear, tfar). `direction` need not be unit; `t` is in its units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TraceRay {
+    pub origin: Vec3,
+    pub direction: Vec3,
+    pub tnear: f32,
+    pub tfar: f32,
+}
+
+impl TraceRay {
+    /// A ray from `origin` along `direction`, unbounded.
+    pub fn new(origin: Vec3, direction: Vec3) -> Self {
+        TraceRay { origin, direction, tnear: 0.0, tfar: f32::INFINITY }
+    }
+
+    /// The open segment from `a` to `b`, shortened by `eps` (a fraction of
+    /// its length) at both ends so that the surfaces at the ends do not count.
+    pub fn segment(a: Vec3, b: Vec3, eps: f32) -> Self {
+        TraceRay { origin: a, direction: b - a, tnear: eps, tfar: 1.0 - eps }
+    }
+}
+
+/// The closest surface a ray hits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    /// arlux's surface id (as given when the geometry was built).
+    pub surface: u32,
+    /// Index of the triangle within its surface.
+    pub triangle: u32,
+    /// Barycentric coordinates: point = (1-u-v)·p0 + u·p1 + v·p2.
+    pub u: f32,
+    pub v: f32,
+    /// Ray parameter of the hit.
+    pub t: f32,
+    /// Unit geometric normal, turned to face the ray's origin (surfaces are two-sided).
+    pub normal: Vec3,
+    /// Whether the surface belongs to the virtual layer.
+    pub is_virtual: bool,
+}
+
+/// Triangles of one surface, with the id the tracer reports for it.
+pub struct SurfaceTriangles<'a> {
+    pub surface: u32,
+    pub triangles: &'a [Triangle],
+}
+
+/// One committed Embree scene.
+pub struct Geometry {
+    scene: NonNull<c_void>,
+    /// arlux surface id of each Embree geometry id.
+    surface_of_geometry: Vec<u32>,
+    triangles: usize,
+    is_virtual: bool,
+}
+
+// SAFETY: a committed Embree scene is immutable and safe to query from any
+// thread; arlux never modifies it after commit.
+unsafe impl Send for Geometry {}
+unsafe impl Sync for Geometry {}
+
+impl Drop for Geometry {
+    fn drop(&mut self) {
+        // SAFETY: the scene was created by rtcNewScene and is released once.
+        unsafe { ffi::rtcReleaseScene(self.scene.as_ptr()) };
+    }
+}
+
+impl Geometry {
+    /// Builds and commits a scene from surfaces' triangles.
+    pub fn build(surfaces: &[SurfaceTriangles], is_virtual: bool) -> Result<Geometry, TraceError> {
+        let device = device()?;
+        // SAFETY: the device is valid; the result is checked.
+        let scene = NonNull::new(unsafe { ffi::rtcNewScene(device) })
+            .ok_or_else(|| TraceError("could not create a scene".into()))?;
+        let mut g = Geometry { scene, surface_of_geometry: Vec::new(), triangles: 0, is_virtual };
+        // SAFETY: the scene is valid and not yet committed.
+        unsafe {
+            ffi::rtcSetSceneBuildQuality(scene.as_ptr(), ffi::RTC_BUILD_QUALITY_MEDIUM);
+            ffi::rtcSetSceneFlags(scene.as_ptr(), ffi::RTC_SCENE_FLAG_ROBUST);
+        }
+        for s in surfaces.iter().filter(|s| !s.triangles.is_empty()) {
+            let n = s.triangles.len();
+            // SAFETY: buffers are allocated by Embree with the sizes given and
+            // filled within those sizes before the geometry is committed.
+            let geom_id = unsafe {
+                let geom = ffi::rtcNewGeometry(device, ffi::RTC_GEOMETRY_TYPE_TRIANGLE);
+                if geom.is_null() {
+                    check_device("creating a triangle mesh")?;
+                    return Err(TraceError("could not create a triangle mesh".into()));
+                }
+                let vb = ffi::rtcSetNewGeometryBuffer(geom, ffi::RTC_BUFFER_TYPE_VERTEX, 0, ffi::RTC_FORMAT_FLOAT3, 12, 3 * n)
+                    as *mut [f32; 3];
+                let ib = ffi::rtcSetNewGeometryBuffer(geom, ffi::RTC_BUFFER_TYPE_INDEX, 0, ffi::RTC_FORMAT_UINT3, 12, n)
+                    as *mut [u32; 3];
+                if vb.is_null() || ib.is_null() {
+                    ffi::rtcReleaseGeometry(geom);
+                    check_device("allocating mesh buffers")?;
+                    return Err(TraceError("could not allocate mesh buffers".into()));
+                }
+                let verts = std::slice::from_raw_parts_mut(vb, 3 * n);
+                let idx = std::slice::from_raw_parts_mut(ib, n);
+                for (i, t) in s.triangles.iter().enumerate() {
+                    for k in 0..3 {
+                        verts[3 * i + k] = t[k].to_array();
+                    }
+                    let base = 3 * i as u32;
+                    idx[i] = [base, base + 1, base + 2];
+                }
+                ffi::rtcCommitGeometry(geom);
+                let id = ffi::rtcAttachGeometry(scene.as_ptr(), geom);
+                ffi::rtcReleaseGeometry(geom);
+                id
+            };
+            let slot = geom_id as usize;
+            if g.surface_of_geometry.len() <= slot {
+                g.surface_of_geometry.resize(slot + 1, u32::MAX);
+            }
+            g.surface_of_geometry[slot] = s.surface;
+            g.triangles += n;
+        }
+        // SAFETY: all geometries are attached and committed.
+        unsafe { ffi::rtcCommitScene(scene.as_ptr()) };
+        check_device("building the acceleration structure")?;
+        Ok(g)
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.triangles
+    }
+
+    fn hit_from(&self, geom_id: u32, prim_id: u32, u: f32, v: f32, t: f32, ng: Vec3, dir: Vec3) -> Option<Hit> {
+        if geom_id == ffi::RTC_INVALID_GEOMETRY_ID {
+            return None;
+        }
+        let n = ng.normalize_or_zero();
+        let normal = if n.dot(dir) > 0.0 { -n } else { n };
+        Some(Hit {
+            surface: self.surface_of_geometry[geom_id as usize],
+            triangle: prim_id,
+            u,
+            v,
+            t,
+            normal,
+            is_virtual: self.is_virtual,
+        })
+    }
+
+    /// The closest hit along the ray, if any.
+    pub fn intersect(&self, ray: &TraceRay) -> Option<Hit> {
+        ensure_flush_denormals();
+        let mut rh = ffi::RTCRayHit {
+            ray: ffi::RTCRay {
+                org: ray.origin.to_array(),
+                tnear: ray.tnear,
+                dir: ray.direction.to_array(),
+                tfar: ray.tfar,
+                mask: u32::MAX,
+                ..Default::default()
+            },
+            hit: ffi::RTCHit {
+                geom_id: ffi::RTC_INVALID_GEOMETRY_ID,
+                inst_id: [ffi::RTC_INVALID_GEOMETRY_ID],
+                ..Default::default()
+            },
+        };
+        let mut ctx = ffi::RTCIntersectContext::new();
+        // SAFETY: the scene is committed; ray and context are valid for the call.
+        unsafe { ffi::rtcIntersect1(self.scene.as_ptr(), &mut ctx, &mut rh) };
+        let h = rh.hit;
+        self.hit_from(h.geom_id, h.prim_id, h.u, h.v, rh.ray.tfar, Vec3::from_array(h.ng), ray.direction)
+    }
+
+    /// Whether anything lies on the ray between tnear and tfar.
+    pub fn occluded(&self, ray: &TraceRay) -> bool {
+        ensure_flush_denormals();
+        let mut r = ffi::RTCRay {
+            org: ray.origin.to_array(),
+            tnear: ray.tnear,
+            dir: ray.direction.to_array(),
+            tfar: ray.tfar,
+            mask: u32::MAX,
+            ..Default::default()
+        };
+        let mut ctx = ffi::RTCIntersectContext::new();
+        // SAFETY: the scene is committed; ray and context are valid for the call.
+        unsafe { ffi::rtcOccluded1(self.scene.as_ptr(), &mut ctx, &mut r) };
+        r.tfar == f32::NEG_INFINITY
+    }
+
+    /// Fills a 16-wide packet from up to 16 rays; returns the valid mask.
+    fn packet(rays: &[TraceRay]) -> (ffi::RTCRay16, [i32; 16]) {
+        debug_assert!(rays.len() <= 16);
+        let mut p = ffi::RTCRay16 {
+            org_x: [0.0; 16],
+            org_y: [0.0; 16],
+            org_z: [0.0; 16],
+            tnear: [0.0; 16],
+            dir_x: [0.0; 16],
+            dir_y: [0.0; 16],
+            dir_z: [1.0; 16],
+            time: [0.0; 16],
+            tfar: [0.0; 16],
+            mask: [u32::MAX; 16],
+            id: [0; 16],
+            flags: [0; 16],
+        };
+        let mut valid = [0i32; 16];
+        for (i, r) in rays.iter().enumerate() {
+            p.org_x[i] = r.origin.x;
+            p.org_y[i] = r.origin.y;
+            p.org_z[i] = r.origin.z;
+            p.tnear[i] = r.tnear;
+            p.dir_x[i] = r.direction.x;
+            p.dir_y[i] = r.direction.y;
+            p.dir_z[i] = r.direction.z;
+            p.tfar[i] = r.tfar;
+            valid[i] = -1;
+        }
+        (p, valid)
+    }
+
+    /// Closest hits of many rays, traced in packets of 16 (write one result per ray).
+    pub fn intersect_batch(&self, rays: &[TraceRay], out: &mut [Option<Hit>]) {
+        assert_eq!(rays.len(), out.len());
+        ensure_flush_denormals();
+        let mut ctx = ffi::RTCIntersectContext::new();
+        for (chunk, res) in rays.chunks(16).zip(out.chunks_mut(16)) {
+            let (ray, valid) = Self::packet(chunk);
+            let mut rh = ffi::RTCRayHit16 {
+                ray,
+                hit: ffi::RTCHit16 {
+                    ng_x: [0.0; 16],
+                    ng_y: [0.0; 16],
+                    ng_z: [0.0; 16],
+                    u: [0.0; 16],
+                    v: [0.0; 16],
+                    prim_id: [0; 16],
+                    geom_id: [ffi::RTC_INVALID_GEOMETRY_ID; 16],
+                    inst_id: [[ffi::RTC_INVALID_GEOMETRY_ID; 16]],
+                },
+            };
+            // SAFETY: the packet is 64-byte aligned as Embree requires; the
+            // scene is committed; inactive lanes are masked off.
+            unsafe { ffi::rtcIntersect16(valid.as_ptr(), self.scene.as_ptr(), &mut ctx, &mut rh) };
+            let h = &rh.hit;
+            for (i, o) in res.iter_mut().enumerate() {
+                let ng = Vec3::new(h.ng_x[i], h.ng_y[i], h.ng_z[i]);
+                *o = self.hit_from(h.geom_id[i], h.prim_id[i], h.u[i], h.v[i], rh.ray.tfar[i], ng, chunk[i].direction);
+            }
+        }
+    }
+
+    /// Occlusion of many rays, traced in packets of 16.
+    pub fn occluded_batch(&self, rays: &[TraceRay], out: &mut [bool]) {
+        assert_eq!(rays.len(), out.len());
+        ensure_flush_denormals();
+        let mut ctx = ffi::RTCIntersectContext::new();
+        for (chunk, res) in rays.chunks(16).zip(out.chunks_mut(16)) {
+            let (mut packet, valid) = Self::packet(chunk);
+            // SAFETY: as in `intersect_batch`.
+            unsafe { ffi::rtcOccluded16(valid.as_ptr(), self.scene.as_ptr(), &mut ctx, &mut packet) };
+            for (i, o) in res.iter_mut().enumerate() {
+                *o = packet.tfar[i] == f32::NEG_INFINITY;
+            }
+        }
+    }
+}
+
+/// Which geometry a query sees.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Layer {
+    Real,
+    Virtual,
+    All,
+}
+
+/// The real scene and, when there are virtual objects, the virtual one.
+pub struct Tracer {
+    pub real: Geometry,
+    pub virtual_objects: Option<Geometry>,
+}
+
+impl Tracer {
+    /// Builds the real scene, and the virtual one only if it has triangles
+    /// (a scene without virtual objects builds no virtual geometry).
+    pub fn build(real: &[SurfaceTriangles], virtual_objects: &[SurfaceTriangles]) -> Result<Tracer, TraceError> {
+        let real = Geometry::build(real, false)?;
+        let has_virtual = virtual_objects.iter().any(|s| !s.triangles.is_empty());
+        let virtual_objects = if has_virtual { Some(Geometry::build(virtual_objects, true)?) } else { None };
+        Ok(Tracer { real, virtual_objects })
+    }
+
+    /// Replaces the virtual scene (after a move); the real scene is kept.
+    pub fn rebuild_virtual(&mut self, virtual_objects: &[SurfaceTriangles]) -> Result<(), TraceError> {
+        let has_virtual = virtual_objects.iter().any(|s| !s.triangles.is_empty());
+        self.virtual_objects = if has_virtual { Some(Geometry::build(virtual_objects, true)?) } else { None };
+        Ok(())
+    }
+
+    /// The closest hit in the given layer.
+    pub fn intersect(&self, ray: &TraceRay, layer: Layer) -> Option<Hit> {
+        let real = if layer != Layer::Virtual { self.real.intersect(ray) } else { None };
+        if layer == Layer::Real {
+            return real;
+        }
+        let Some(v) = &self.virtual_objects else { return real };
+        let mut shortened = *ray;
+        if let Some(h) = &real {
+            shortened.tfar = h.t;
+        }
+        v.intersect(&shortened).or(real)
+    }
+
+    /// Whether anything in the given layer blocks the ray segment.
+    pub fn occluded(&self, ray: &TraceRay, layer: Layer) -> bool {
+        let virt = || self.virtual_objects.as_ref().is_some_and(|v| v.occluded(ray));
+        match layer {
+            Layer::Real => self.real.occluded(ray),
+            Layer::Virtual => virt(),
+            Layer::All => virt() || self.real.occluded(ray),
+        }
+    }
+
+    /// Closest hits of many rays in the given layer, in packets of 16.
+    pub fn intersect_batch(&self, rays: &[TraceRay], layer: Layer, out: &mut [Option<Hit>]) {
+        let virt = self.virtual_objects.as_ref().filter(|_| layer != Layer::Real);
+        match (layer, virt) {
+            (Layer::Virtual, None) => out.iter_mut().for_each(|o| *o = None),
+            (Layer::Virtual, Some(v)) => v.intersect_batch(rays, out),
+            (_, None) => self.real.intersect_batch(rays, out),
+            (_, Some(v)) => {
+                self.real.intersect_batch(rays, out);
+                let shortened: Vec<TraceRay> = rays
+                    .iter()
+                    .zip(out.iter())
+                    .map(|(r, h)| TraceRay { tfar: h.map_or(r.tfar, |h| h.t), ..*r })
+                    .collect();
+                let mut near = vec![None; rays.len()];
+                v.intersect_batch(&shortened, &mut near);
+                for (o, n) in out.iter_mut().zip(near) {
+                    if n.is_some() {
+                        *o = n;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Occlusion of many rays in the given layer, in packets of 16.
+    pub fn occluded_batch(&self, rays: &[TraceRay], layer: Layer, out: &mut [bool]) {
+        let virt = self.virtual_objects.as_ref();
+        match layer {
+            Layer::Real => self.real.occluded_batch(rays, out),
+            Layer::Virtual => match virt {
+                Some(v) => v.occluded_batch(rays, out),
+                None => out.iter_mut().for_each(|o| *o = false),
+            },
+            Layer::All => {
+                self.real.occluded_batch(rays, out);
+                if let Some(v) = virt {
+                    let mut blocked = vec![false; rays.len()];
+                    v.occluded_batch(rays, &mut blocked);
+                    out.iter_mut().zip(blocked).for_each(|(o, b)| *o |= b);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quad(z: f32, half: f32) -> Vec<Triangle> {
+        let (a, b, c, d) =
+            (Vec3::new(-half, -half, z), Vec3::new(half, -half, z), Vec3::new(half, half, z), Vec3::new(-half, half, z));
+        vec![[a, b, c], [a, c, d]]
+    }
+
+    #[test]
+    fn closest_hit_reports_surface_triangle_barycentrics_and_facing_normal() {
+        let (near, far) = (quad(1.0, 1.0), quad(2.0, 1.0));
+        let g = Geometry::build(
+            &[SurfaceTriangles { surface: 7, triangles: &far }, SurfaceTriangles { surface: 3, triangles: &near }],
+            false,
+        )
+        .unwrap();
+        let ray = TraceRay::new(Vec3::new(0.5, -0.25, 0.0), Vec3::Z);
+        let h = g.intersect(&ray).unwrap();
+        assert_eq!((h.surface, h.triangle), (3, 0));
+        assert!((h.t - 1.0).abs() < 1e-6);
+        assert!((h.normal - Vec3::NEG_Z).length() < 1e-6, "faces the origin: {}", h.normal);
+        let t = &near[0];
+        let p = t[0] * (1.0 - h.u - h.v) + t[1] * h.u + t[2] * h.v;
+        assert!((p - Vec3::new(0.5, -0.25, 1.0)).length() < 1e-5);
+        assert!(g.intersect(&TraceRay::new(Vec3::new(3.0, 0.0, 0.0), Vec3::Z)).is_none());
+    }
+
+    #[test]
+    fn batches_agree_with_single_rays_and_layers_stay_apart() {
+        let (wall, blocker) = (quad(2.0, 10.0), quad(1.0, 0.5));
+        let tracer = Tracer::build(
+            &[SurfaceTriangles { surface: 0, triangles: &wall }],
+            &[SurfaceTriangles { surface: 1, triangles: &blocker }],
+        )
+        .unwrap();
+        let rays: Vec<TraceRay> =
+            (0..37).map(|i| TraceRay::new(Vec3::new(-1.0 + i as f32 * 0.055, 0.1, 0.0), Vec3::Z)).collect();
+        for layer in [Layer::Real, Layer::Virtual, Layer::All] {
+            let mut hits = vec![None; rays.len()];
+            tracer.intersect_batch(&rays, layer, &mut hits);
+            let mut occ = vec![false; rays.len()];
+            tracer.occluded_batch(&rays, layer, &mut occ);
+            for (i, r) in rays.iter().enumerate() {
+                assert_eq!(hits[i], tracer.intersect(r, layer), "ray {i} {layer:?}");
+                assert_eq!(occ[i], tracer.occluded(r, layer), "ray {i} {layer:?}");
+                let inside = r.origin.x.abs() < 0.5;
+                let expect = match layer {
+                    Layer::Real => Some(0),
+                    Layer::Virtual => inside.then_some(1),
+                    Layer::All => Some(if inside { 1 } else { 0 }),
+                };
+                assert_eq!(hits[i].map(|h| h.surface), expect, "ray {i} {layer:?}");
+            }
+        }
+        // A segment that stops before the wall is not blocked by it.
+        let short = TraceRay::segment(Vec3::new(3.0, 0.0, 0.0), Vec3::new(3.0, 0.0, 1.9), 1e-4);
+        assert!(!tracer.occluded(&short, Layer::All));
+    }
+
+    #[test]
+    fn queries_from_rayon_threads_agree() {
+        use rayon::prelude::*;
+        let wall = quad(2.0, 1.0);
+        let g = Geometry::build(&[SurfaceTriangles { surface: 0, triangles: &wall }], false).unwrap();
+        let hits: Vec<bool> =
+            (0..10_000).into_par_iter().map(|i| g.occluded(&TraceRay::new(Vec3::new(i as f32 * 2e-4 + 1e-5, 0.0, 0.0), Vec3::Z))).collect();
+        assert_eq!(hits.iter().filter(|&&h| h).count(), 5000);
+    }
+}
