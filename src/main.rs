@@ -242,7 +242,10 @@ fn info(path: &Path, variant: Option<&str>, as_json: bool) -> Result<()> {
     }
     writeln!(out, "real surfaces: {} ({} triangles)", scene.surfaces.len(), scene.triangle_count())?;
     for s in &surfaces {
-        let known = s["known_reflectance"].as_array().map(|k| format!("  known reflectance {k:?}")).unwrap_or_default();
+        let known = s["known_reflectance"]
+            .as_array()
+            .map(|k| format!("  known reflectance {}", serde_json::Value::Array(k.clone())))
+            .unwrap_or_default();
         writeln!(out, "  {:>3} {:<16} {:>6} triangles  {}{}", s["id"], s["name"].as_str().unwrap_or(""), s["triangles"], s["mesh"].as_str().unwrap_or(""), known)?;
     }
     writeln!(out, "lights: {}", lights.len())?;
