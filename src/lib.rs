@@ -10,6 +10,7 @@ pub mod camera;
 pub mod compare;
 pub mod error;
 pub mod geometry;
+pub mod ies;
 pub mod image_io;
 pub mod scene;
 pub mod surface_ids;

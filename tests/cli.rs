@@ -187,3 +187,19 @@ fn a_light_inside_a_wall_is_refused() {
     desk.edit("scene.toml", "position = [1.5, 2.3, 1.0]", "position = [1.5, 2.3, -2.0]");
     ids_fails(&desk, &["scene.toml: light[1].position: light 'spot' lies on surface 'back_wall'"]);
 }
+
+#[test]
+fn malformed_ies_is_refused_with_its_line() {
+    let desk = Desk::new();
+    std::fs::write(
+        desk.path("lamp.ies"),
+        "IESNA:LM-63-2002\n[TEST]1\nTILT=NONE\n1 -1 1 3 1 1 2 0 0 0\n1 1 0\n0 45 90\n0\n10 20 3O\n",
+    )
+    .unwrap();
+    desk.edit(
+        "scene.toml",
+        "intensity = { uniform = [6.0, 5.5, 5.0] }",
+        "intensity = { ies = \"lamp.ies\", rgb = [1.0, 1.0, 1.0], direction = [0.0, -1.0, 0.0], reference = [1.0, 0.0, 0.0] }",
+    );
+    ids_fails(&desk, &["scene.toml: light[2].intensity.ies:", "lamp.ies: line 8: candela value 3 of 3: '3O' is not a number"]);
+}

@@ -15,6 +15,7 @@ use glam::{DMat3, DVec3, Vec3};
 use crate::camera::{Camera, Projection};
 use crate::error::{Error, Result};
 use crate::geometry::{self, Triangle};
+use crate::ies::IesProfile;
 use crate::image_io::{self, Image};
 use crate::trace::{SurfaceTriangles, Tracer};
 use fields::Fields;
@@ -142,7 +143,7 @@ pub enum Intensity {
     Spot { direction: DVec3, rgb: DVec3, beam_deg: f64, cutoff_deg: f64 },
     /// An IES LM-63 candela table times `rgb`; vertical 0 along `direction`,
     /// horizontal 0 towards `reference` (both unit, orthogonalised).
-    Ies { file: PathBuf, rgb: DVec3, direction: DVec3, reference: DVec3 },
+    Ies { file: PathBuf, profile: IesProfile, rgb: DVec3, direction: DVec3, reference: DVec3 },
     /// To be recovered from the photo.
     Reconstruct,
 }
@@ -759,6 +760,7 @@ impl Loader<'_> {
                     _ => {
                         let rel = i.req_str("ies")?;
                         let file = self.existing_path(&i, "ies", rel)?;
+                        let profile = IesProfile::load(&file).map_err(|e| e.within(self.file, i.key_path("ies")))?;
                         let rgb = i.req_rgb("rgb")?;
                         let direction = unit(&i, "direction")?;
                         let reference = unit(&i, "reference")?;
@@ -766,7 +768,7 @@ impl Loader<'_> {
                         if reference.length() < 1e-6 {
                             return Err(i.error("reference", "must not be parallel to direction"));
                         }
-                        Intensity::Ies { file, rgb, direction, reference: reference.normalize() }
+                        Intensity::Ies { file, profile, rgb, direction, reference: reference.normalize() }
                     }
                 };
                 i.finish()?;
