@@ -11,6 +11,7 @@ pub mod compare;
 pub mod error;
 pub mod geometry;
 pub mod ies;
+pub mod light;
 pub mod image_io;
 pub mod scene;
 pub mod surface_ids;
