@@ -12,6 +12,7 @@ pub mod error;
 pub mod geometry;
 pub mod ies;
 pub mod light;
+pub mod patches;
 pub mod image_io;
 pub mod scene;
 pub mod surface_ids;

@@ -1,0 +1,419 @@
+//! [`Patches`]: surfaces meshed for radiosity. Each surface's triangles
+//! become root elements (pairs of triangles forming a parallelogram become
+//! one quad; other triangles stay triangles), subdivided in two across the
+//! longest side until no edge exceeds the target size. The leaves are the
+//! patches; the tree above them is the hierarchy hierarchical radiosity
+//! links at. Leaf corners are shared vertices (welded per surface) so that
+//! radiosity can be interpolated across patches.
+
+use std::collections::HashMap;
+
+use glam::{DVec2, DVec3};
+
+use crate::geometry::Triangle;
+
+/// A planar element's shape in world space.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Shape {
+    Tri([DVec3; 3]),
+    /// The parallelogram origin, origin+u, origin+u+v, origin+v.
+    Quad { origin: DVec3, u: DVec3, v: DVec3 },
+}
+
+impl Shape {
+    pub fn corners(&self) -> Vec<DVec3> {
+        match *self {
+            Shape::Tri(c) => c.to_vec(),
+            Shape::Quad { origin, u, v } => vec![origin, origin + u, origin + u + v, origin + v],
+        }
+    }
+
+    pub fn area(&self) -> f64 {
+        match *self {
+            Shape::Tri([a, b, c]) => 0.5 * (b - a).cross(c - a).length(),
+            Shape::Quad { u, v, .. } => u.cross(v).length(),
+        }
+    }
+
+    pub fn centre(&self) -> DVec3 {
+        match *self {
+            Shape::Tri([a, b, c]) => (a + b + c) / 3.0,
+            Shape::Quad { origin, u, v } => origin + 0.5 * (u + v),
+        }
+    }
+
+    pub fn normal(&self) -> DVec3 {
+        match *self {
+            Shape::Tri([a, b, c]) => (b - a).cross(c - a).normalize(),
+            Shape::Quad { u, v, .. } => u.cross(v).normalize(),
+        }
+    }
+
+    /// The longest edge (for quads, the longer side).
+    pub fn size(&self) -> f64 {
+        match *self {
+            Shape::Tri([a, b, c]) => (b - a).length().max((c - b).length()).max((a - c).length()),
+            Shape::Quad { u, v, .. } => u.length().max(v.length()),
+        }
+    }
+
+    /// Quadrature of order `n`: points with weights summing to 1. Quads:
+    /// n×n Gauss-Legendre; triangles: centroids of an n×n regular split.
+    pub fn quadrature(&self, n: usize) -> Vec<(DVec3, f64)> {
+        let n = n.max(1);
+        match *self {
+            Shape::Quad { origin, u, v } => {
+                let (x, w) = gauss_legendre(n);
+                let mut out = Vec::with_capacity(n * n);
+                for i in 0..n {
+                    for j in 0..n {
+                        out.push((origin + u * x[i] + v * x[j], w[i] * w[j]));
+                    }
+                }
+                out
+            }
+            Shape::Tri([a, b, c]) => {
+                let (e1, e2) = (b - a, c - a);
+                let w = 1.0 / (n * n) as f64;
+                let k = n as f64;
+                let mut out = Vec::with_capacity(n * n);
+                for i in 0..n {
+                    for j in 0..n - i {
+                        let (fi, fj) = (i as f64, j as f64);
+                        out.push((a + e1 * ((fi + 1.0 / 3.0) / k) + e2 * ((fj + 1.0 / 3.0) / k), w));
+                        if i + j + 1 < n {
+                            out.push((a + e1 * ((fi + 2.0 / 3.0) / k) + e2 * ((fj + 2.0 / 3.0) / k), w));
+                        }
+                    }
+                }
+                out
+            }
+        }
+    }
+}
+
+/// Gauss-Legendre nodes on [0, 1] and weights summing to 1.
+pub fn gauss_legendre(n: usize) -> (Vec<f64>, Vec<f64>) {
+    let mut x = vec![0.0; n];
+    let mut w = vec![0.0; n];
+    for i in 0..n {
+        // Newton on P_n from the Chebyshev guess.
+        let mut z = (std::f64::consts::PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
+        let mut dp = 1.0;
+        for _ in 0..100 {
+            let (mut p0, mut p1) = (1.0, z);
+            for k in 2..=n {
+                let p2 = ((2 * k - 1) as f64 * z * p1 - (k - 1) as f64 * p0) / k as f64;
+                p0 = p1;
+                p1 = p2;
+            }
+            dp = n as f64 * (z * p1 - p0) / (z * z - 1.0);
+            let dz = p1 / dp;
+            z -= dz;
+            if dz.abs() < 1e-15 {
+                break;
+            }
+        }
+        x[i] = 0.5 * (1.0 - z);
+        w[i] = 1.0 / ((1.0 - z * z) * dp * dp);
+    }
+    (x, w)
+}
+
+/// Where an element lies inside its root, in the root's parameters:
+/// quads (s, t) ∈ [0,1]², triangles barycentric-style (s, t) with s+t ≤ 1.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Region {
+    Quad { s0: f64, s1: f64, t0: f64, t1: f64 },
+    Tri([DVec2; 3]),
+}
+
+/// One node of the element hierarchy.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Element {
+    pub shape: Shape,
+    pub area: f64,
+    pub centre: DVec3,
+    pub normal: DVec3,
+    pub surface: u32,
+    pub root: u32,
+    pub parent: Option<u32>,
+    pub children: Option<[u32; 2]>,
+    /// Patch index when this element is a leaf.
+    pub patch: Option<u32>,
+    pub region: Region,
+}
+
+/// Input: one surface's triangles, with the id the tracer knows it by.
+pub struct SurfaceInput<'a> {
+    pub surface: u32,
+    pub triangles: &'a [Triangle],
+    pub is_virtual: bool,
+}
+
+/// A point located on a patch, with interpolation weights on its vertices.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Location {
+    pub patch: u32,
+    /// (vertex, weight) pairs; weights sum to 1. Triangles use three.
+    pub weights: [(u32, f64); 4],
+}
+
+/// The meshed scene.
+#[derive(Debug, Clone)]
+pub struct Patches {
+    pub elements: Vec<Element>,
+    pub roots: Vec<u32>,
+    /// Element index of each patch (leaf).
+    pub patches: Vec<u32>,
+    /// Shared vertex positions.
+    pub vertices: Vec<DVec3>,
+    /// Vertices of each patch in corner order (triangles repeat none: 3 used).
+    pub patch_vertices: Vec<[u32; 4]>,
+    /// Per surface id: whether it is virtual, and its triangles' roots.
+    pub surface_is_virtual: HashMap<u32, bool>,
+    root_of_triangle: HashMap<(u32, u32), u32>,
+    /// Target patch size the mesh was built for, in metres.
+    pub target_size: f64,
+}
+
+impl Patches {
+    /// Meshes the surfaces with leaves no larger than `target_size` metres.
+    pub fn build(inputs: &[SurfaceInput], target_size: f64) -> Patches {
+        let mut p = Patches {
+            elements: Vec::new(),
+            roots: Vec::new(),
+            patches: Vec::new(),
+            vertices: Vec::new(),
+            patch_vertices: Vec::new(),
+            surface_is_virtual: HashMap::new(),
+            root_of_triangle: HashMap::new(),
+            target_size,
+        };
+        let mut weld: HashMap<(u32, [i64; 3]), u32> = HashMap::new();
+        for input in inputs {
+            p.surface_is_virtual.insert(input.surface, input.is_virtual);
+            for (shape, tris) in primitives(input.triangles) {
+                let root = p.elements.len() as u32;
+                let region = match shape {
+                    Shape::Quad { .. } => Region::Quad { s0: 0.0, s1: 1.0, t0: 0.0, t1: 1.0 },
+                    Shape::Tri(_) => Region::Tri([DVec2::ZERO, DVec2::X, DVec2::Y]),
+                };
+                p.push_element(shape, input.surface, root, None, region);
+                p.roots.push(root);
+                for t in tris {
+                    p.root_of_triangle.insert((input.surface, t), root);
+                }
+                p.subdivide(root, target_size, 0, &mut weld);
+            }
+        }
+        p
+    }
+
+    fn push_element(&mut self, shape: Shape, surface: u32, root: u32, parent: Option<u32>, region: Region) -> u32 {
+        self.elements.push(Element {
+            area: shape.area(),
+            centre: shape.centre(),
+            normal: shape.normal(),
+            shape,
+            surface,
+            root,
+            parent,
+            children: None,
+            patch: None,
+            region,
+        });
+        (self.elements.len() - 1) as u32
+    }
+
+    fn subdivide(&mut self, e: u32, target: f64, depth: u32, weld: &mut HashMap<(u32, [i64; 3]), u32>) {
+        let el = self.elements[e as usize].clone();
+        if el.shape.size() <= target || depth >= 40 {
+            let patch = self.patches.len() as u32;
+            self.patches.push(e);
+            self.elements[e as usize].patch = Some(patch);
+            let mut ids = [u32::MAX; 4];
+            for (k, c) in el.shape.corners().iter().enumerate() {
+                let key = (el.surface, (*c * 1e6).round().as_i64vec3().to_array());
+                let next = self.vertices.len() as u32;
+                ids[k] = *weld.entry(key).or_insert(next);
+                if ids[k] == next {
+                    self.vertices.push(*c);
+                }
+            }
+            self.patch_vertices.push(ids);
+            return;
+        }
+        let halves: [(Shape, Region); 2] = match (el.shape, el.region) {
+            (Shape::Quad { origin, u, v }, Region::Quad { s0, s1, t0, t1 }) => {
+                if u.length() >= v.length() {
+                    let (h, sm) = (0.5 * u, 0.5 * (s0 + s1));
+                    [
+                        (Shape::Quad { origin, u: h, v }, Region::Quad { s0, s1: sm, t0, t1 }),
+                        (Shape::Quad { origin: origin + h, u: h, v }, Region::Quad { s0: sm, s1, t0, t1 }),
+                    ]
+                } else {
+                    let (h, tm) = (0.5 * v, 0.5 * (t0 + t1));
+                    [
+                        (Shape::Quad { origin, u, v: h }, Region::Quad { s0, s1, t0, t1: tm }),
+                        (Shape::Quad { origin: origin + h, u, v: h }, Region::Quad { s0, s1, t0: tm, t1 }),
+                    ]
+                }
+            }
+            (Shape::Tri(p), Region::Tri(q)) => {
+                // Bisect the longest edge (i, j); k is the opposite corner.
+                let lens = [(p[1] - p[0]).length(), (p[2] - p[1]).length(), (p[0] - p[2]).length()];
+                let i = (0..3).max_by(|&a, &b| lens[a].total_cmp(&lens[b])).unwrap();
+                let (j, k) = ((i + 1) % 3, (i + 2) % 3);
+                let (m, mq) = (0.5 * (p[i] + p[j]), 0.5 * (q[i] + q[j]));
+                [(Shape::Tri([p[i], m, p[k]]), Region::Tri([q[i], mq, q[k]])), (Shape::Tri([m, p[j], p[k]]), Region::Tri([mq, q[j], q[k]]))]
+            }
+            _ => unreachable!("an element's region matches its shape"),
+        };
+        let a = self.push_element(halves[0].0, el.surface, el.root, Some(e), halves[0].1);
+        let b = self.push_element(halves[1].0, el.surface, el.root, Some(e), halves[1].1);
+        self.elements[e as usize].children = Some([a, b]);
+        self.subdivide(a, target, depth + 1, weld);
+        self.subdivide(b, target, depth + 1, weld);
+    }
+
+    pub fn patch_count(&self) -> usize {
+        self.patches.len()
+    }
+
+    pub fn patch(&self, k: usize) -> &Element {
+        &self.elements[self.patches[k] as usize]
+    }
+
+    /// The patch under world point `x` of triangle `triangle` of `surface`
+    /// (as the tracer reports them), with interpolation weights.
+    pub fn locate(&self, surface: u32, triangle: u32, x: DVec3) -> Option<Location> {
+        let root = *self.root_of_triangle.get(&(surface, triangle))?;
+        let r = &self.elements[root as usize];
+        let st = match r.shape {
+            Shape::Quad { origin, u, v } => plane_params(x - origin, u, v),
+            Shape::Tri([a, b, c]) => plane_params(x - a, b - a, c - a),
+        };
+        let mut e = root;
+        while let Some([a, b]) = self.elements[e as usize].children {
+            e = if distance_outside(&self.elements[a as usize].region, st) <= distance_outside(&self.elements[b as usize].region, st) { a } else { b };
+        }
+        let el = &self.elements[e as usize];
+        let patch = el.patch.expect("leaves are patches");
+        let ids = self.patch_vertices[patch as usize];
+        let weights = match el.region {
+            Region::Quad { s0, s1, t0, t1 } => {
+                let a = ((st.x - s0) / (s1 - s0)).clamp(0.0, 1.0);
+                let b = ((st.y - t0) / (t1 - t0)).clamp(0.0, 1.0);
+                [(ids[0], (1.0 - a) * (1.0 - b)), (ids[1], a * (1.0 - b)), (ids[2], a * b), (ids[3], (1.0 - a) * b)]
+            }
+            Region::Tri(q) => {
+                let l = barycentric(st, q).map(|w| w.max(0.0));
+                let sum = (l[0] + l[1] + l[2]).max(1e-300);
+                [(ids[0], l[0] / sum), (ids[1], l[1] / sum), (ids[2], l[2] / sum), (ids[0], 0.0)]
+            }
+        };
+        Some(Location { patch, weights })
+    }
+
+    /// Per-vertex values: the area-weighted mean of the patches sharing the vertex.
+    pub fn vertex_values(&self, patch_values: &[DVec3]) -> Vec<DVec3> {
+        let mut sum = vec![DVec3::ZERO; self.vertices.len()];
+        let mut weight = vec![0.0; self.vertices.len()];
+        for (k, ids) in self.patch_vertices.iter().enumerate() {
+            let a = self.patch(k).area;
+            let n = if matches!(self.patch(k).shape, Shape::Tri(_)) { 3 } else { 4 };
+            for &v in &ids[..n] {
+                sum[v as usize] += patch_values[k] * a;
+                weight[v as usize] += a;
+            }
+        }
+        sum.iter().zip(&weight).map(|(s, w)| if *w > 0.0 { *s / *w } else { DVec3::ZERO }).collect()
+    }
+
+    /// Interpolates vertex values at a located point.
+    pub fn interpolate(&self, vertex_values: &[DVec3], at: &Location) -> DVec3 {
+        at.weights.iter().map(|&(v, w)| vertex_values[v as usize] * w).sum()
+    }
+}
+
+/// (s, t) with x ≈ s·u + t·v, by least squares in the plane of u and v.
+fn plane_params(x: DVec3, u: DVec3, v: DVec3) -> DVec2 {
+    let (uu, uv, vv) = (u.dot(u), u.dot(v), v.dot(v));
+    let (xu, xv) = (x.dot(u), x.dot(v));
+    let det = uu * vv - uv * uv;
+    DVec2::new((xu * vv - xv * uv) / det, (xv * uu - xu * uv) / det)
+}
+
+fn barycentric(p: DVec2, q: [DVec2; 3]) -> [f64; 3] {
+    let (v0, v1, v2) = (q[1] - q[0], q[2] - q[0], p - q[0]);
+    let d = v0.perp_dot(v1);
+    let b = v2.perp_dot(v1) / d;
+    let c = v0.perp_dot(v2) / d;
+    [1.0 - b - c, b, c]
+}
+
+/// How far `st` lies outside a region (0 inside): picks the child that
+/// holds a point, robustly at shared edges.
+fn distance_outside(region: &Region, st: DVec2) -> f64 {
+    match *region {
+        Region::Quad { s0, s1, t0, t1 } => (s0 - st.x).max(st.x - s1).max(0.0) + (t0 - st.y).max(st.y - t1).max(0.0),
+        Region::Tri(q) => barycentric(st, q).iter().map(|w| (-w).max(0.0)).sum(),
+    }
+}
+
+/// Root primitives of one surface: parallelograms made of two triangles
+/// sharing a diagonal, and the remaining triangles, each with the indices
+/// of the input triangles it covers.
+fn primitives(triangles: &[Triangle]) -> Vec<(Shape, Vec<u32>)> {
+    let key = |p: glam::Vec3| (p.as_dvec3() * 1e5).round().as_i64vec3().to_array();
+    let tris: Vec<[DVec3; 3]> = triangles.iter().map(|t| t.map(|p| p.as_dvec3())).collect();
+    let mut by_edge: HashMap<([i64; 3], [i64; 3]), Vec<u32>> = HashMap::new();
+    for (i, t) in triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (key(t[k]), key(t[(k + 1) % 3]));
+            by_edge.entry(if a < b { (a, b) } else { (b, a) }).or_default().push(i as u32);
+        }
+    }
+    let mut used = vec![false; triangles.len()];
+    let mut out = Vec::new();
+    for i in 0..triangles.len() {
+        if used[i] {
+            continue;
+        }
+        used[i] = true;
+        let t = tris[i];
+        let mut paired = None;
+        'edges: for k in 0..3 {
+            let (a, b) = (key(triangles[i][k]), key(triangles[i][(k + 1) % 3]));
+            let Some(others) = by_edge.get(&if a < b { (a, b) } else { (b, a) }) else { continue };
+            for &j in others {
+                let j = j as usize;
+                if used[j] {
+                    continue;
+                }
+                // Shared edge (p, q); opposite corners r (of i) and r2 (of j).
+                let (p, q, r) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                let Some(r2) = tris[j].iter().copied().find(|c| (*c - p).length() > 1e-9 && (*c - q).length() > 1e-9) else {
+                    continue;
+                };
+                let scale = (p - r).length().max((q - r).length());
+                if ((p + q) - (r + r2)).length() <= 1e-7 * scale.max(1e-9) {
+                    paired = Some((j, Shape::Quad { origin: r, u: p - r, v: q - r }));
+                    break 'edges;
+                }
+            }
+        }
+        match paired {
+            Some((j, quad)) => {
+                used[j] = true;
+                out.push((quad, vec![i as u32, j as u32]));
+            }
+            None => out.push((Shape::Tri(t), vec![i as u32])),
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,98 @@
+use super::*;
+use crate::scene::Scene;
+
+#[test]
+fn gauss_legendre_is_exact_to_degree_2n_minus_1() {
+    for n in 1..=8 {
+        let (x, w) = gauss_legendre(n);
+        for deg in 0..2 * n {
+            let q: f64 = x.iter().zip(&w).map(|(x, w)| w * x.powi(deg as i32)).sum();
+            assert!((q - 1.0 / (deg as f64 + 1.0)).abs() < 1e-13, "n {n} degree {deg}: {q}");
+        }
+    }
+}
+
+#[test]
+fn triangle_quadrature_integrates_linear_functions() {
+    let t = Shape::Tri([DVec3::ZERO, DVec3::new(2.0, 0.0, 0.0), DVec3::new(0.0, 1.0, 0.0)]);
+    for n in 1..6 {
+        let q = t.quadrature(n);
+        assert_eq!(q.len(), n * n);
+        let w: f64 = q.iter().map(|(_, w)| w).sum();
+        let mean_x: f64 = q.iter().map(|(p, w)| p.x * w).sum();
+        assert!((w - 1.0).abs() < 1e-12 && (mean_x - 2.0 / 3.0).abs() < 1e-12);
+    }
+}
+
+fn desk() -> Scene {
+    Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/desk/scene.toml")).unwrap()
+}
+
+fn desk_patches(scene: &Scene, size: f64) -> Patches {
+    let inputs: Vec<SurfaceInput> = scene
+        .surfaces
+        .iter()
+        .enumerate()
+        .map(|(i, s)| SurfaceInput { surface: i as u32, triangles: &s.triangles, is_virtual: false })
+        .collect();
+    Patches::build(&inputs, size)
+}
+
+#[test]
+fn the_desk_meshes_into_quads_of_the_target_size_conserving_area() {
+    let scene = desk();
+    let p = desk_patches(&scene, 0.25);
+    assert_eq!(p.roots.len(), 34, "every triangle pair of the desk is a parallelogram");
+    assert!(p.roots.iter().all(|&r| matches!(p.elements[r as usize].shape, Shape::Quad { .. })));
+    let area: f64 = (0..p.patch_count()).map(|k| p.patch(k).area).sum();
+    let input: f64 = scene.surfaces.iter().flat_map(|s| &s.triangles).map(|t| 0.5 * crate::geometry::double_area(t)).sum();
+    assert!((area - input).abs() < 1e-9 * input);
+    assert!((0..p.patch_count()).all(|k| p.patch(k).shape.size() <= 0.25 + 1e-12));
+    // The 4 m floor splits into 16 × 16 patches of 0.25 m, sharing 17 × 17 vertices.
+    let floor: Vec<usize> = (0..p.patch_count()).filter(|&k| p.patch(k).surface == 2).collect();
+    assert_eq!(floor.len(), 256);
+    let mut verts: Vec<u32> = floor.iter().flat_map(|&k| p.patch_vertices[k]).collect();
+    verts.sort_unstable();
+    verts.dedup();
+    assert_eq!(verts.len(), 17 * 17);
+}
+
+#[test]
+fn located_points_are_inside_their_patch_and_interpolate_back() {
+    let scene = desk();
+    let p = desk_patches(&scene, 0.3);
+    let positions: Vec<DVec3> = p.vertices.clone();
+    let mut state = 5u64;
+    for (si, s) in scene.surfaces.iter().enumerate() {
+        for (ti, t) in s.triangles.iter().enumerate() {
+            for _ in 0..20 {
+                let (mut a, mut b) = (crate::light::unit_random(&mut state), crate::light::unit_random(&mut state));
+                if a + b > 1.0 {
+                    (a, b) = (1.0 - a, 1.0 - b);
+                }
+                let [p0, p1, p2] = t.map(|v| v.as_dvec3());
+                let x = p0 + (p1 - p0) * a + (p2 - p0) * b;
+                let at = p.locate(si as u32, ti as u32, x).unwrap();
+                let back = p.interpolate(&positions, &at);
+                assert!((back - x).length() < 1e-6, "surface {si} tri {ti}: {x} -> {back}");
+                let el = p.patch(at.patch as usize);
+                assert_eq!(el.surface, si as u32);
+                assert!((x - el.centre).length() <= el.shape.size() * 0.75 + 1e-9);
+            }
+        }
+    }
+}
+
+#[test]
+fn lone_triangles_stay_triangles_and_bisect() {
+    let t = [[glam::Vec3::ZERO, glam::Vec3::new(1.0, 0.0, 0.0), glam::Vec3::new(0.0, 0.0, 1.0)]];
+    let p = Patches::build(&[SurfaceInput { surface: 0, triangles: &t, is_virtual: true }], 0.3);
+    assert!(matches!(p.elements[0].shape, Shape::Tri(_)));
+    let area: f64 = (0..p.patch_count()).map(|k| p.patch(k).area).sum();
+    assert!((area - 0.5).abs() < 1e-12);
+    let at = p.locate(0, 0, DVec3::new(0.2, 0.0, 0.3)).unwrap();
+    let back = p.interpolate(&p.vertices, &at);
+    assert!((back - DVec3::new(0.2, 0.0, 0.3)).length() < 1e-9);
+    let constant = p.vertex_values(&vec![DVec3::splat(2.5); p.patch_count()]);
+    assert!(constant.iter().all(|v| (*v - DVec3::splat(2.5)).length() < 1e-12));
+}
