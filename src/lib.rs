@@ -13,6 +13,7 @@ pub mod geometry;
 pub mod ies;
 pub mod light;
 pub mod patches;
+pub mod radiosity;
 pub mod image_io;
 pub mod scene;
 pub mod surface_ids;
