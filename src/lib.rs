@@ -9,6 +9,7 @@
 pub mod camera;
 pub mod compare;
 pub mod error;
+pub mod estimate;
 pub mod geometry;
 pub mod ies;
 pub mod light;
@@ -16,6 +17,7 @@ pub mod patches;
 pub mod radiosity;
 pub mod image_io;
 pub mod scene;
+pub mod shaft;
 pub mod surface_ids;
 pub mod trace;
 

@@ -178,6 +178,21 @@ pub struct Patches {
 }
 
 impl Patches {
+    /// Meshes a scene's real surfaces, and with `with_virtual` its enabled
+    /// virtual objects after them (real patches come first and are the same
+    /// either way).
+    pub fn of_scene(scene: &crate::scene::Scene, with_virtual: bool, target_size: f64) -> Patches {
+        let virt = if with_virtual { scene.virtual_world_surfaces() } else { Vec::new() };
+        let mut inputs: Vec<SurfaceInput> = scene
+            .surfaces
+            .iter()
+            .enumerate()
+            .map(|(i, s)| SurfaceInput { surface: i as u32, triangles: &s.triangles, is_virtual: false })
+            .collect();
+        inputs.extend(virt.iter().map(|(id, t)| SurfaceInput { surface: *id, triangles: t, is_virtual: true }));
+        Patches::build(&inputs, target_size)
+    }
+
     /// Meshes the surfaces with leaves no larger than `target_size` metres.
     pub fn build(inputs: &[SurfaceInput], target_size: f64) -> Patches {
         let mut p = Patches {

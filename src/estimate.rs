@@ -1,0 +1,220 @@
+//! Diffuse reflectances of the real surfaces estimated from the photograph
+//! ([`estimate_reflectances`]), given the lights and the geometry.
+//!
+//! Per patch, the photo's mean radiance over the pixels where the patch is
+//! seen gives its radiosity B̂ = π·L̂ ([`PhotoPatches`]). The first guess is
+//! Loscos Eq. 1, ρ = (B̂_i / B̂_A)·ρ̂; then Grosch EQ2, ρ = B̂ / (E + Σ F·B),
+//! is iterated with the radiosity solution to a fixed point: the indirect
+//! light is gathered from the photo's radiosity where a patch is seen and
+//! from the model where it is not. Known reflectances are kept; estimates
+//! are clamped to [0, 0.99]; patches the photo does not see take their
+//! surface's area-weighted mean.
+
+use std::collections::HashMap;
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::camera::Camera;
+use crate::image_io::Image;
+use crate::patches::Patches;
+use crate::radiosity::{Solution, Transport, solve};
+use crate::trace::{Layer, TraceRay, Tracer};
+
+/// The most a reflectance estimate may be: at 1 a surface would give back
+/// all light it receives, and the system would have no solution.
+pub const MAX_REFLECTANCE: f64 = 0.99;
+
+/// Photo radiance per patch.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PhotoPatches {
+    /// Mean photo radiance over the pixels whose centre sees the patch.
+    pub radiance: Vec<DVec3>,
+    /// Those pixels' count (0: the photo does not see the patch).
+    pub pixels: Vec<u32>,
+    /// Mean photo radiance over every pixel that sees a real surface.
+    pub image_mean: DVec3,
+}
+
+impl PhotoPatches {
+    /// Traces each pixel centre into the real geometry and averages the photo per patch.
+    pub fn measure(camera: &Camera, tracer: &Tracer, patches: &Patches, photo: &Image) -> PhotoPatches {
+        let n = patches.patch_count();
+        let w = camera.width as usize;
+        let rows: Vec<Vec<(u32, DVec3)>> = (0..camera.height as usize)
+            .into_par_iter()
+            .map(|row| {
+                let rays: Vec<TraceRay> = (0..w)
+                    .map(|col| {
+                        let r = camera.pixel_ray(col as u32, row as u32);
+                        TraceRay::new(r.origin.as_vec3(), r.direction.as_vec3())
+                    })
+                    .collect();
+                let mut hits = vec![None; w];
+                tracer.intersect_batch(&rays, Layer::Real, &mut hits);
+                hits.iter()
+                    .enumerate()
+                    .filter_map(|(col, h)| {
+                        let h = h.as_ref()?;
+                        let x = camera.position + camera.pixel_ray(col as u32, row as u32).direction * h.t as f64;
+                        let at = patches.locate(h.surface, h.triangle, x)?;
+                        Some((at.patch, photo.get(col as u32, row as u32).as_dvec3()))
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut sum = vec![DVec3::ZERO; n];
+        let mut pixels = vec![0u32; n];
+        let (mut total, mut count) = (DVec3::ZERO, 0usize);
+        for (patch, value) in rows.into_iter().flatten() {
+            sum[patch as usize] += value;
+            pixels[patch as usize] += 1;
+            total += value;
+            count += 1;
+        }
+        let radiance = sum.iter().zip(&pixels).map(|(s, &c)| if c > 0 { *s / c as f64 } else { DVec3::ZERO }).collect();
+        PhotoPatches { radiance, pixels, image_mean: total / count.max(1) as f64 }
+    }
+}
+
+/// The result of estimation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Estimate {
+    /// Reflectance per patch.
+    pub reflectance: Vec<DVec3>,
+    /// The forward radiosity solution with these reflectances.
+    pub solution: Solution,
+    /// Patches whose estimate was clamped to [0, MAX_REFLECTANCE] in some channel.
+    pub clamped: usize,
+    /// Patches the photo does not see (or that receive no light), filled by surface means.
+    pub unseen: usize,
+    /// Fixed-point iterations run, and the last largest change of a reflectance.
+    pub iterations: usize,
+    pub change: f64,
+}
+
+/// Settings of the estimation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EstimateSettings {
+    /// Stop when no reflectance changes by more than this.
+    pub tolerance: f64,
+    pub max_iterations: usize,
+    /// Relative residual of each radiosity solve.
+    pub solve_tolerance: f64,
+}
+
+impl Default for EstimateSettings {
+    fn default() -> Self {
+        EstimateSettings { tolerance: 1e-4, max_iterations: 30, solve_tolerance: 1e-7 }
+    }
+}
+
+/// Estimates a reflectance per patch. `direct` is the total direct
+/// irradiance per patch; `known` maps surface ids to known reflectances.
+pub fn estimate_reflectances(
+    patches: &Patches,
+    transport: &Transport,
+    direct: &[DVec3],
+    photo: &PhotoPatches,
+    known: &HashMap<u32, DVec3>,
+    settings: EstimateSettings,
+) -> Estimate {
+    let n = patches.patch_count();
+    let pi = std::f64::consts::PI;
+    let surface = |k: usize| patches.patch(k).surface;
+    let seen: Vec<bool> = (0..n).map(|k| photo.pixels[k] > 0 && !known.contains_key(&surface(k))).collect();
+
+    // Loscos Eq. 1 with ρ̂ the mean known reflectance (0.5 when none is known).
+    let rho_hat = if known.is_empty() { DVec3::splat(0.5) } else { known.values().copied().sum::<DVec3>() / known.len() as f64 };
+    let mean = photo.image_mean.max(DVec3::splat(1e-30));
+    let mut rho: Vec<DVec3> = (0..n)
+        .map(|k| match known.get(&surface(k)) {
+            Some(r) => *r,
+            None if seen[k] => (photo.radiance[k] / mean * rho_hat).clamp(DVec3::ZERO, DVec3::splat(MAX_REFLECTANCE)),
+            None => DVec3::ZERO,
+        })
+        .collect();
+    let mut estimated = seen.clone();
+    fill_unseen(patches, &mut rho, &estimated, known);
+
+    let (mut iterations, mut change, mut clamped) = (0, f64::INFINITY, 0);
+    while iterations < settings.max_iterations && change > settings.tolerance {
+        iterations += 1;
+        let emission: Vec<DVec3> = rho.iter().zip(direct).map(|(r, e)| *r * *e).collect();
+        let model = solve(patches, transport, &rho, &emission, settings.solve_tolerance, 500);
+        let mixed: Vec<DVec3> = (0..n).map(|k| if photo.pixels[k] > 0 { photo.radiance[k] * pi } else { model.radiosity[k] }).collect();
+        let gathered = transport.gather_rgb(patches, &mixed);
+        // A patch must receive light for EQ2 to say anything: a hundred-
+        // thousandth of the scene's mean irradiance, per channel.
+        let floor = direct.iter().copied().sum::<DVec3>() / n.max(1) as f64 * 1e-5;
+        let mut next = rho.clone();
+        clamped = 0;
+        for k in 0..n {
+            estimated[k] = false;
+            if !seen[k] {
+                continue;
+            }
+            let irradiance = direct[k] + gathered[k];
+            if irradiance.cmplt(floor.max(DVec3::splat(1e-300))).any() {
+                continue;
+            }
+            let raw = photo.radiance[k] * pi / irradiance;
+            let r = raw.clamp(DVec3::ZERO, DVec3::splat(MAX_REFLECTANCE));
+            if r != raw {
+                clamped += 1;
+            }
+            next[k] = r;
+            estimated[k] = true;
+        }
+        fill_unseen(patches, &mut next, &estimated, known);
+        change = next.iter().zip(&rho).map(|(a, b)| (*a - *b).abs().max_element()).fold(0.0, f64::max);
+        rho = next;
+    }
+    let emission: Vec<DVec3> = rho.iter().zip(direct).map(|(r, e)| *r * *e).collect();
+    let solution = solve(patches, transport, &rho, &emission, settings.solve_tolerance, 500);
+    let unseen = (0..n).filter(|&k| !estimated[k] && !known.contains_key(&surface(k))).count();
+    Estimate { reflectance: rho, solution, clamped, unseen, iterations, change }
+}
+
+/// Gives every patch that has no estimate (and no known value) the
+/// area-weighted mean of its surface's estimated patches, or of all
+/// estimated patches when its surface has none.
+fn fill_unseen(patches: &Patches, rho: &mut [DVec3], estimated: &[bool], known: &HashMap<u32, DVec3>) {
+    let mut by_surface: HashMap<u32, (DVec3, f64)> = HashMap::new();
+    let (mut all, mut all_area) = (DVec3::ZERO, 0.0);
+    for k in 0..rho.len() {
+        if estimated[k] {
+            let el = patches.patch(k);
+            let e = by_surface.entry(el.surface).or_insert((DVec3::ZERO, 0.0));
+            e.0 += rho[k] * el.area;
+            e.1 += el.area;
+            all += rho[k] * el.area;
+            all_area += el.area;
+        }
+    }
+    let global = if all_area > 0.0 { all / all_area } else { DVec3::splat(0.5) };
+    for k in 0..rho.len() {
+        let s = patches.patch(k).surface;
+        if let Some(r) = known.get(&s) {
+            rho[k] = *r;
+        } else if !estimated[k] {
+            rho[k] = match by_surface.get(&s) {
+                Some((sum, area)) if *area > 0.0 => *sum / *area,
+                _ => global,
+            };
+        }
+    }
+}
+
+/// Area-weighted mean reflectance of a surface's patches.
+pub fn surface_mean(patches: &Patches, reflectance: &[DVec3], surface: u32) -> Option<DVec3> {
+    let (mut sum, mut area) = (DVec3::ZERO, 0.0);
+    for k in 0..patches.patch_count() {
+        let el = patches.patch(k);
+        if el.surface == surface {
+            sum += reflectance[k] * el.area;
+            area += el.area;
+        }
+    }
+    (area > 0.0).then(|| sum / area)
+}
