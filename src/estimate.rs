@@ -18,7 +18,7 @@ use rayon::prelude::*;
 use crate::camera::Camera;
 use crate::image_io::Image;
 use crate::patches::Patches;
-use crate::radiosity::{Solution, Transport, solve};
+use crate::radiosity::{Solution, Transport, solve_from};
 use crate::trace::{Layer, TraceRay, Tracer};
 
 /// The most a reflectance estimate may be: at 1 a surface would give back
@@ -138,11 +138,13 @@ pub fn estimate_reflectances(
     fill_unseen(patches, &mut rho, &estimated, known);
 
     let (mut iterations, mut change, mut clamped) = (0, f64::INFINITY, 0);
+    let mut previous: Option<Vec<DVec3>> = None;
     while iterations < settings.max_iterations && change > settings.tolerance {
         iterations += 1;
         let emission: Vec<DVec3> = rho.iter().zip(direct).map(|(r, e)| *r * *e).collect();
-        let model = solve(patches, transport, &rho, &emission, settings.solve_tolerance, 500);
+        let model = solve_from(patches, transport, &rho, &emission, previous.as_deref(), settings.solve_tolerance, 500);
         let mixed: Vec<DVec3> = (0..n).map(|k| if photo.pixels[k] > 0 { photo.radiance[k] * pi } else { model.radiosity[k] }).collect();
+        previous = Some(model.radiosity);
         let gathered = transport.gather_rgb(patches, &mixed);
         // A patch must receive light for EQ2 to say anything: a hundred-
         // thousandth of the scene's mean irradiance, per channel.
@@ -171,7 +173,7 @@ pub fn estimate_reflectances(
         rho = next;
     }
     let emission: Vec<DVec3> = rho.iter().zip(direct).map(|(r, e)| *r * *e).collect();
-    let solution = solve(patches, transport, &rho, &emission, settings.solve_tolerance, 500);
+    let solution = solve_from(patches, transport, &rho, &emission, previous.as_deref(), settings.solve_tolerance, 500);
     let unseen = (0..n).filter(|&k| !estimated[k] && !known.contains_key(&surface(k))).count();
     Estimate { reflectance: rho, solution, clamped, unseen, iterations, change }
 }

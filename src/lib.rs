@@ -13,6 +13,7 @@ pub mod estimate;
 pub mod geometry;
 pub mod ies;
 pub mod light;
+pub mod model;
 pub mod patches;
 pub mod radiosity;
 pub mod image_io;

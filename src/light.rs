@@ -303,13 +303,30 @@ pub fn segment(a: DVec3, b: DVec3) -> TraceRay {
 }
 
 /// The unoccluded form factor from a differential area at `x` with unit
-/// normal `n` to a planar polygon (Lambert's formula), two-sided at `x`:
-/// the parts of the polygon on either side of the tangent plane both count.
-/// Finite for any x off the polygon; at most 1.
+/// normal `n` to a planar convex polygon (Lambert's formula), two-sided at
+/// `x`: the parts of the polygon on either side of the tangent plane both
+/// count. Finite for any x off the polygon; at most 1. Polygons have at most
+/// six corners.
 pub fn polygon_form_factor(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
+    debug_assert!(polygon.len() <= 6);
+    let (mut above, mut below) = (false, false);
+    for p in polygon {
+        let s = (*p - x).dot(n);
+        above |= s > 0.0;
+        below |= s < 0.0;
+    }
     let mut total = 0.0;
-    for side in [1.0, -1.0] {
-        let clipped = clip_to_halfspace(polygon, x, n * side);
+    let mut buf = [DVec3::ZERO; 8];
+    for (side, present) in [(1.0, above), (-1.0, below)] {
+        if !present {
+            continue;
+        }
+        let clipped: &[DVec3] = if above && below {
+            let k = clip_to_halfspace(polygon, x, n * side, &mut buf);
+            &buf[..k]
+        } else {
+            polygon
+        };
         if clipped.len() < 3 {
             continue;
         }
@@ -322,33 +339,30 @@ pub fn polygon_form_factor(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
             if cl < 1e-300 {
                 continue;
             }
-            let angle = cl.atan2(a.dot(b));
-            sum += angle * c.dot(n) / cl;
+            sum += cl.atan2(a.dot(b)) * c.dot(n) / cl;
         }
         total += (sum / (2.0 * std::f64::consts::PI)).abs();
     }
     total.min(1.0)
 }
 
-/// The part of a convex polygon where (p − x)·m ≥ 0 (Sutherland-Hodgman).
-fn clip_to_halfspace(polygon: &[DVec3], x: DVec3, m: DVec3) -> Vec<DVec3> {
-    let mut out = Vec::with_capacity(polygon.len() + 1);
+/// Writes into `out` the part of a convex polygon where (p − x)·m ≥ 0
+/// (Sutherland-Hodgman) and returns its corner count.
+fn clip_to_halfspace(polygon: &[DVec3], x: DVec3, m: DVec3, out: &mut [DVec3; 8]) -> usize {
+    let mut len = 0;
     for k in 0..polygon.len() {
         let (p, q) = (polygon[k], polygon[(k + 1) % polygon.len()]);
         let (dp, dq) = ((p - x).dot(m), (q - x).dot(m));
         if dp >= 0.0 {
-            out.push(p);
+            out[len] = p;
+            len += 1;
         }
         if (dp >= 0.0) != (dq >= 0.0) {
-            let t = dp / (dp - dq);
-            out.push(p + (q - p) * t);
+            out[len] = p + (q - p) * (dp / (dp - dq));
+            len += 1;
         }
     }
-    // Points on the plane itself add nothing: drop a polygon that lies in it.
-    if out.iter().all(|p| (*p - x).dot(m).abs() <= 1e-15) {
-        out.clear();
-    }
-    out
+    len
 }
 
 /// SplitMix64 of two words: a deterministic per-(pixel, sample) hash.

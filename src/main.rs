@@ -49,6 +49,33 @@ enum Command {
         #[arg(long)]
         variant: Option<String>,
     },
+    /// Re-render the photo from the model alone (reflectances estimated from
+    /// the photo × (direct + indirect light)), with a mesh view; reports
+    /// patches, links, iterations, residual and time per stage.
+    Radiosity {
+        scene: PathBuf,
+        /// Output EXR: the model's radiance, with layers direct, indirect
+        /// (irradiance) and reflectance.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Mesh view PNG (2·width × height: patch colours | render with patch outlines).
+        #[arg(long)]
+        mesh: Option<PathBuf>,
+        /// Largest patch edge in metres.
+        #[arg(long, default_value_t = 0.25)]
+        patch_size: f64,
+        /// Full patch-to-patch matrix instead of hierarchical radiosity.
+        #[arg(long)]
+        full: bool,
+        /// Refinement threshold of hierarchical radiosity.
+        #[arg(long, default_value_t = arlux::radiosity::DEFAULT_LINK_EPSILON)]
+        epsilon: f64,
+        /// 2^level shadow rays per point towards area lights.
+        #[arg(long, default_value_t = 4)]
+        light_level: usize,
+        #[arg(long)]
+        json: bool,
+    },
     /// Error of an image against a reference: RMSE and relative RMSE in
     /// linear radiance, PSNR of the sRGB-encoded images, and their means.
     Compare {
@@ -87,6 +114,9 @@ fn run(cli: Cli) -> Result<()> {
             ids(&scene, &output, exr.as_deref(), with_virtual, variant.as_deref())
         }
         Command::Compare { image, reference, mask, json } => compare_cmd(&image, &reference, mask.as_deref(), json),
+        Command::Radiosity { scene, output, mesh, patch_size, full, epsilon, light_level, json } => {
+            radiosity_cmd(&scene, &output, mesh.as_deref(), patch_size, full, epsilon, light_level, json)
+        }
     }
 }
 
@@ -347,5 +377,111 @@ fn compare_cmd(image: &Path, reference: &Path, mask: Option<&Path>, as_json: boo
         println!("mean           {:.6}", c.mean);
         println!("mean reference {:.6}", c.mean_reference);
     }
+    Ok(())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn radiosity_cmd(
+    path: &Path,
+    output: &Path,
+    mesh: Option<&Path>,
+    patch_size: f64,
+    full: bool,
+    epsilon: f64,
+    light_level: usize,
+    as_json: bool,
+) -> Result<()> {
+    use arlux::model::{Model, ModelSettings, ModelView, StageTimes, TransportMethod};
+    if !(patch_size > 0.0 && patch_size.is_finite()) {
+        bail!("--patch-size must be a positive number of metres, not {patch_size}");
+    }
+    if !(epsilon > 0.0 && epsilon.is_finite()) {
+        bail!("--epsilon must be positive, not {epsilon}");
+    }
+    if light_level > arlux::light::MAX_GRID_LEVEL {
+        bail!("--light-level must be at most {}", arlux::light::MAX_GRID_LEVEL);
+    }
+    let mut times = StageTimes::default();
+    let scene = times.time("load", || load(path, None))?;
+    let photo = times.time("read photo", || scene.load_photo())?;
+    let tracer = times.time("tracer", || scene.build_tracer())?;
+    let settings = ModelSettings {
+        patch_size,
+        transport: if full { TransportMethod::Full } else { TransportMethod::Hierarchical { epsilon } },
+        light_level,
+        ..ModelSettings::default()
+    };
+    let model = Model::build(&scene, &photo, &tracer, &settings, &mut times)?;
+    let view = times.time("render view", || ModelView::render(&scene, &tracer, &model, light_level));
+    let error = compare(&view.radiance, &photo, None);
+    times.time("write", || -> Result<()> {
+        let (w, h) = (scene.camera.width, scene.camera.height);
+        image_io::write_exr(
+            output,
+            w,
+            h,
+            &[
+                image_io::ExrLayer::Rgb("", &view.radiance),
+                image_io::ExrLayer::Rgb("direct", &view.direct),
+                image_io::ExrLayer::Rgb("indirect", &view.indirect),
+                image_io::ExrLayer::Rgb("reflectance", &view.reflectance),
+            ],
+        )?;
+        if let Some(mesh) = mesh {
+            let ids = SurfaceIds { width: w, height: h, ids: view.patch_ids.clone() };
+            image_io::write_png_rgb8(mesh, 2 * w, h, ids.registration_picture(&view.radiance))?;
+        }
+        Ok(())
+    })?;
+    let est = &model.estimate;
+    let report = json!({
+        "patches": model.patches.patch_count(),
+        "elements": model.patches.elements.len(),
+        "transport": if full { "full" } else { "hierarchical" },
+        "links": model.transport.link_count(),
+        "transport_bytes": model.transport.memory_bytes(),
+        "estimate_iterations": est.iterations,
+        "estimate_change": est.change,
+        "clamped_patches": est.clamped,
+        "unseen_patches": est.unseen,
+        "solver_iterations": est.solution.iterations,
+        "solver_residual": est.solution.residual,
+        "shadow_rays": view.rays,
+        "error_against_photo": error,
+        "stages": times.0.iter().map(|(n, d)| json!({ "stage": n, "seconds": d.as_secs_f64() })).collect::<Vec<_>>(),
+        "total_seconds": times.total().as_secs_f64(),
+    });
+    if as_json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!(
+        "{} patches ({} elements), {} transport with {} form factors ({:.1} MB)",
+        model.patches.patch_count(),
+        model.patches.elements.len(),
+        if full { "full" } else { "hierarchical" },
+        model.transport.link_count(),
+        model.transport.memory_bytes() as f64 / 1e6
+    );
+    println!(
+        "reflectances: {} fixed-point iterations (last change {:.1e}), {} patches clamped to [0, {}], {} unseen patches took their surface's mean",
+        est.iterations,
+        est.change,
+        est.clamped,
+        arlux::estimate::MAX_REFLECTANCE,
+        est.unseen
+    );
+    println!("radiosity: GMRES {} iterations, residual {:.1e}", est.solution.iterations, est.solution.residual);
+    println!(
+        "model against the photo: RMSE {:.5}, relative {:.3}, PSNR {}",
+        error.rmse,
+        error.relative_rmse.unwrap_or(f64::NAN),
+        error.psnr_srgb_db.map_or("inf".into(), |p| format!("{p:.2} dB"))
+    );
+    println!("time per stage:");
+    for (name, d) in &times.0 {
+        println!("  {name:<16} {:>9.1} ms", d.as_secs_f64() * 1e3);
+    }
+    println!("  {:<16} {:>9.1} ms", "total", times.total().as_secs_f64() * 1e3);
     Ok(())
 }

@@ -21,11 +21,18 @@ pub enum Shape {
 }
 
 impl Shape {
-    pub fn corners(&self) -> Vec<DVec3> {
+    /// The corners in order (3 or 4), without allocating.
+    pub fn corners(&self) -> Corners {
         match *self {
-            Shape::Tri(c) => c.to_vec(),
-            Shape::Quad { origin, u, v } => vec![origin, origin + u, origin + u + v, origin + v],
+            Shape::Tri([a, b, c]) => Corners { points: [a, b, c, c], len: 3 },
+            Shape::Quad { origin, u, v } => Corners { points: [origin, origin + u, origin + u + v, origin + v], len: 4 },
         }
+    }
+
+    /// Smallest and largest coordinates.
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        let c = self.corners();
+        c.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)))
     }
 
     pub fn area(&self) -> f64 {
@@ -92,8 +99,30 @@ impl Shape {
     }
 }
 
-/// Gauss-Legendre nodes on [0, 1] and weights summing to 1.
-pub fn gauss_legendre(n: usize) -> (Vec<f64>, Vec<f64>) {
+/// An element's 3 or 4 corners.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Corners {
+    points: [DVec3; 4],
+    len: usize,
+}
+
+impl std::ops::Deref for Corners {
+    type Target = [DVec3];
+    fn deref(&self) -> &[DVec3] {
+        &self.points[..self.len]
+    }
+}
+
+/// Gauss-Legendre nodes on [0, 1] and weights summing to 1, tabulated
+/// once for orders up to 16.
+pub fn gauss_legendre(n: usize) -> (&'static [f64], &'static [f64]) {
+    static TABLE: std::sync::OnceLock<Vec<(Vec<f64>, Vec<f64>)>> = std::sync::OnceLock::new();
+    let table = TABLE.get_or_init(|| (0..=16).map(compute_gauss_legendre).collect());
+    let (x, w) = &table[n.min(16)];
+    (x, w)
+}
+
+fn compute_gauss_legendre(n: usize) -> (Vec<f64>, Vec<f64>) {
     let mut x = vec![0.0; n];
     let mut w = vec![0.0; n];
     for i in 0..n {

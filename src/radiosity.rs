@@ -33,7 +33,7 @@ pub const DEFAULT_LINK_EPSILON: f64 = 0.003;
 /// fraction of its hemisphere the sources cover (one in a closed room):
 /// per-pair orders would each err a little and the errors add up, which a
 /// reflectance of 0.99 amplifies a hundredfold.
-const FF_ORDER: usize = 4;
+const FF_ORDER: usize = 3;
 
 /// Visibility sampling: rays from `r`×`r` receiver points to `m`×`m`
 /// source points. Elements above the leaves always get 2×2, so that a
@@ -61,23 +61,41 @@ pub fn unoccluded_form_factor(p: &Element, q: &Element) -> f64 {
     p.shape.quadrature(FF_ORDER).into_iter().map(|(x, w)| w * crate::light::polygon_form_factor(x, p.normal, &polygon)).sum()
 }
 
-/// Whether a root element of `patches` (in `layer`) may block light
-/// between `p` and `q`: one that is not coplanar with either and that the
-/// shaft between them does not exclude. `false` means certainly visible.
-pub fn may_be_occluded(patches: &Patches, layer: Layer, p: &Element, q: &Element) -> bool {
-    let mut ends = p.shape.corners();
-    ends.extend(q.shape.corners());
-    let shaft = Shaft::hull(&ends);
-    patches.roots.iter().any(|&r| {
-        let root = &patches.elements[r as usize];
-        let is_virtual = patches.surface_is_virtual.get(&root.surface).copied().unwrap_or(false);
-        let in_layer = match layer {
-            Layer::Real => !is_virtual,
-            Layer::Virtual => is_virtual,
-            Layer::All => true,
-        };
-        in_layer && !coplanar(root, p) && !coplanar(root, q) && !shaft.excludes(&root.shape.corners())
-    })
+/// The root elements among `candidates` that may block light between `p`
+/// and `q`: those in `layer`, coplanar with neither, that the shaft between
+/// p and q does not exclude. Empty means certainly visible. A child pair's
+/// shaft lies inside its parents', so their occluders are a subset.
+pub fn occluders_between(patches: &Patches, layer: Layer, p: &Element, q: &Element, candidates: &[u32]) -> Vec<u32> {
+    if candidates.is_empty() {
+        return Vec::new();
+    }
+    let mut ends: Vec<DVec3> = p.shape.corners().to_vec();
+    ends.extend_from_slice(&q.shape.corners());
+    let (lo, hi) = ends.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    let slack = 1e-9 * (hi - lo).max_element().max(1.0);
+    let mut shaft: Option<Shaft> = None;
+    candidates
+        .iter()
+        .copied()
+        .filter(|&r| {
+            let root = &patches.elements[r as usize];
+            let is_virtual = patches.surface_is_virtual.get(&root.surface).copied().unwrap_or(false);
+            let in_layer = match layer {
+                Layer::Real => !is_virtual,
+                Layer::Virtual => is_virtual,
+                Layer::All => true,
+            };
+            if !in_layer || coplanar(root, p) || coplanar(root, q) {
+                return false;
+            }
+            // Boxes that only touch cannot hold an occluder between p and q.
+            let (rlo, rhi) = root.shape.bounds();
+            if (rlo - slack).cmpge(hi).any() || (rhi + slack).cmple(lo).any() {
+                return false;
+            }
+            !shaft.get_or_insert_with(|| Shaft::hull(&ends)).excludes(&root.shape.corners())
+        })
+        .collect()
 }
 
 /// The fraction of rays between points of `p` and points of `q` that no
@@ -120,23 +138,37 @@ pub struct Link {
 pub enum Transport {
     /// Row-major patch × patch form factors.
     Full { n: usize, form_factors: Vec<f32> },
-    /// Links between elements of the hierarchy, sorted by receiver.
-    Hierarchical { links: Vec<Link> },
+    /// Links between elements of the hierarchy, sorted by receiver, and
+    /// each receiver's range of them.
+    Hierarchical { links: Vec<Link>, ranges: Vec<(u32, u32, u32)> },
 }
 
 impl Transport {
     /// Every patch against every other: N² form factors.
     pub fn full(patches: &Patches, tracer: &Tracer, layer: Layer) -> Transport {
         let n = patches.patch_count();
+        // Possible occluders between each pair of roots, narrowed per patch pair.
+        let roots = &patches.roots;
+        let root_index: std::collections::HashMap<u32, usize> = roots.iter().enumerate().map(|(i, r)| (*r, i)).collect();
+        let between: Vec<Vec<u32>> = (0..roots.len() * roots.len())
+            .into_par_iter()
+            .map(|k| {
+                let (a, b) = (&patches.elements[roots[k / roots.len()] as usize], &patches.elements[roots[k % roots.len()] as usize]);
+                occluders_between(patches, layer, a, b, roots)
+            })
+            .collect();
         let mut ff = vec![0f32; n * n];
         ff.par_chunks_mut(n.max(1)).enumerate().for_each(|(i, row)| {
             let p = patches.patch(i);
+            let ri = root_index[&p.root];
             for (j, f) in row.iter_mut().enumerate() {
                 if i != j {
                     let q = patches.patch(j);
                     let u = unoccluded_form_factor(p, q);
                     if u > 0.0 {
-                        let v = if may_be_occluded(patches, layer, p, q) { visibility(p, q, tracer, layer) } else { 1.0 };
+                        let candidates = &between[ri * roots.len() + root_index[&q.root]];
+                        let occluded = !occluders_between(patches, layer, p, q, candidates).is_empty();
+                        let v = if occluded { visibility(p, q, tracer, layer) } else { 1.0 };
                         *f = (u * v) as f32;
                     }
                 }
@@ -156,7 +188,7 @@ impl Transport {
                 let mut out = Vec::new();
                 for &q in &patches.roots {
                     if p != q {
-                        refine(patches, tracer, layer, epsilon, p, q, &mut out);
+                        refine(patches, tracer, layer, epsilon, p, q, &patches.roots, &mut out);
                     }
                 }
                 out
@@ -164,21 +196,30 @@ impl Transport {
             .collect();
         let mut links = links;
         links.sort_by_key(|l| l.receiver);
-        Transport::Hierarchical { links }
+        let mut ranges: Vec<(u32, u32, u32)> = Vec::new();
+        for (i, l) in links.iter().enumerate() {
+            match ranges.last_mut() {
+                Some(r) if r.0 == l.receiver => r.2 = i as u32 + 1,
+                _ => ranges.push((l.receiver, i as u32, i as u32 + 1)),
+            }
+        }
+        Transport::Hierarchical { links, ranges }
     }
 
     /// Number of form factors stored (links, or the matrix's non-zeros).
     pub fn link_count(&self) -> usize {
         match self {
             Transport::Full { form_factors, .. } => form_factors.iter().filter(|f| **f != 0.0).count(),
-            Transport::Hierarchical { links } => links.len(),
+            Transport::Hierarchical { links, .. } => links.len(),
         }
     }
 
     pub fn memory_bytes(&self) -> usize {
         match self {
             Transport::Full { form_factors, .. } => form_factors.len() * 4,
-            Transport::Hierarchical { links } => links.len() * std::mem::size_of::<Link>(),
+            Transport::Hierarchical { links, ranges } => {
+                links.len() * std::mem::size_of::<Link>() + ranges.len() * std::mem::size_of::<(u32, u32, u32)>()
+            }
         }
     }
 
@@ -191,7 +232,7 @@ impl Transport {
                     *o = row.iter().zip(b).map(|(f, b)| *f as f64 * b).sum();
                 });
             }
-            Transport::Hierarchical { links } => {
+            Transport::Hierarchical { links, ranges } => {
                 let elements = &patches.elements;
                 // Pull: an element's radiosity is the area-weighted mean of its
                 // children's (children follow their parent in the arena).
@@ -205,9 +246,13 @@ impl Transport {
                         node_b[e] = (node_b[c0 as usize] * a0 + node_b[c1 as usize] * a1) / (a0 + a1);
                     }
                 }
+                let gathered: Vec<f64> = ranges
+                    .par_iter()
+                    .map(|&(_, a, b)| links[a as usize..b as usize].iter().map(|l| l.form_factor as f64 * node_b[l.source as usize]).sum())
+                    .collect();
                 let mut node_h = vec![0.0; elements.len()];
-                for l in links {
-                    node_h[l.receiver as usize] += l.form_factor as f64 * node_b[l.source as usize];
+                for (&(receiver, _, _), h) in ranges.iter().zip(gathered) {
+                    node_h[receiver as usize] = h;
                 }
                 // Push: what an element gathers reaches every point of its children.
                 for e in 0..elements.len() {
@@ -284,11 +329,13 @@ fn source_spread(p: &Element, q: &Element) -> f64 {
 /// different amounts); the source while F × its [`source_spread`] exceeds
 /// epsilon (its radiosity would be averaged with the wrong weights); the
 /// larger of the two while they are partly hidden from each other.
-fn refine(patches: &Patches, tracer: &Tracer, layer: Layer, epsilon: f64, p: u32, q: u32, out: &mut Vec<Link>) {
+#[allow(clippy::too_many_arguments)]
+fn refine(patches: &Patches, tracer: &Tracer, layer: Layer, epsilon: f64, p: u32, q: u32, candidates: &[u32], out: &mut Vec<Link>) {
     let (ep, eq) = (&patches.elements[p as usize], &patches.elements[q as usize]);
     if coplanar(ep, eq) {
         return;
     }
+    let occluders = occluders_between(patches, layer, ep, eq, candidates);
     let (spread, mean) = factor_spread(ep, eq);
     let (p_leaf, q_leaf) = (ep.children.is_none(), eq.children.is_none());
     let split_receiver = if spread > epsilon && !p_leaf {
@@ -303,7 +350,7 @@ fn refine(patches: &Patches, tracer: &Tracer, layer: Layer, epsilon: f64, p: u32
         // Where the shaft between the two holds no possible occluder they
         // see each other whole; otherwise refine to the leaves and let rays
         // decide there (Hanrahan's BFV refinement, with exact shafts).
-        let occluded = may_be_occluded(patches, layer, ep, eq);
+        let occluded = !occluders.is_empty();
         if occluded && !(p_leaf && q_leaf) {
             Some(!p_leaf && (q_leaf || ep.area >= eq.area))
         } else {
@@ -315,8 +362,8 @@ fn refine(patches: &Patches, tracer: &Tracer, layer: Layer, epsilon: f64, p: u32
         }
     };
     match split_receiver {
-        Some(true) => ep.children.unwrap().iter().for_each(|&c| refine(patches, tracer, layer, epsilon, c, q, out)),
-        Some(false) => eq.children.unwrap().iter().for_each(|&c| refine(patches, tracer, layer, epsilon, p, c, out)),
+        Some(true) => ep.children.unwrap().iter().for_each(|&c| refine(patches, tracer, layer, epsilon, c, q, &occluders, out)),
+        Some(false) => eq.children.unwrap().iter().for_each(|&c| refine(patches, tracer, layer, epsilon, p, c, &occluders, out)),
         None => {}
     }
 }
@@ -378,6 +425,19 @@ pub struct Solution {
 /// Solves B = b + ρ ⊙ T(B) per channel by restarted GMRES, to relative
 /// residual `tolerance`. For lights, b = ρ ⊙ E_direct.
 pub fn solve(patches: &Patches, transport: &Transport, reflectance: &[DVec3], b: &[DVec3], tolerance: f64, max_iterations: usize) -> Solution {
+    solve_from(patches, transport, reflectance, b, None, tolerance, max_iterations)
+}
+
+/// [`solve`] starting from a guess (a previous solution of a nearby system).
+pub fn solve_from(
+    patches: &Patches,
+    transport: &Transport,
+    reflectance: &[DVec3],
+    b: &[DVec3],
+    guess: Option<&[DVec3]>,
+    tolerance: f64,
+    max_iterations: usize,
+) -> Solution {
     let n = b.len();
     let mut radiosity = vec![DVec3::ZERO; n];
     let (mut iterations, mut residual) = (0, 0.0f64);
@@ -390,7 +450,11 @@ pub fn solve(patches: &Patches, transport: &Transport, reflectance: &[DVec3], b:
                 *o = x - r * *o;
             }
         };
-        let (x, it, res) = gmres(apply, &rhs, tolerance, max_iterations, 40);
+        let x0: Vec<f64> = match guess {
+            Some(g) => g.iter().map(|v| v[c]).collect(),
+            None => vec![0.0; n],
+        };
+        let (x, it, res) = gmres(apply, &rhs, x0, tolerance, max_iterations, 40);
         iterations = iterations.max(it);
         residual = residual.max(res);
         for (r, v) in radiosity.iter_mut().zip(x) {
@@ -422,15 +486,15 @@ fn finish(patches: &Patches, transport: &Transport, radiosity: Vec<DVec3>, itera
     Solution { radiosity, indirect_irradiance, iterations, residual }
 }
 
-/// Restarted GMRES for A x = b with x0 = 0. Returns (x, operator
+/// Restarted GMRES for A x = b from the guess `x0`. Returns (x, operator
 /// applications, relative residual).
-fn gmres(apply: impl Fn(&[f64], &mut [f64]), b: &[f64], tolerance: f64, max_iterations: usize, restart: usize) -> (Vec<f64>, usize, f64) {
+fn gmres(apply: impl Fn(&[f64], &mut [f64]), b: &[f64], x0: Vec<f64>, tolerance: f64, max_iterations: usize, restart: usize) -> (Vec<f64>, usize, f64) {
     let n = b.len();
     let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
     let bnorm = dot(b, b).sqrt();
-    let mut x = vec![0.0; n];
+    let mut x = x0;
     if bnorm == 0.0 || n == 0 {
-        return (x, 0, 0.0);
+        return (vec![0.0; n], 0, 0.0);
     }
     let mut iterations = 0;
     let mut ax = vec![0.0; n];

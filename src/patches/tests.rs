@@ -6,7 +6,7 @@ fn gauss_legendre_is_exact_to_degree_2n_minus_1() {
     for n in 1..=8 {
         let (x, w) = gauss_legendre(n);
         for deg in 0..2 * n {
-            let q: f64 = x.iter().zip(&w).map(|(x, w)| w * x.powi(deg as i32)).sum();
+            let q: f64 = x.iter().zip(w).map(|(x, w)| w * x.powi(deg as i32)).sum();
             assert!((q - 1.0 / (deg as f64 + 1.0)).abs() < 1e-13, "n {n} degree {deg}: {q}");
         }
     }

@@ -1,0 +1,180 @@
+//! [`Model`]: the illumination model of a real scene, built in stages —
+//! patches, direct light per light, light transport, reflectances estimated
+//! from the photo and the radiosity solution — and [`ModelView`], the photo
+//! re-rendered from the model alone, per pixel: ρ × (direct + indirect) / π,
+//! with direct light traced per pixel and indirect light interpolated from
+//! the solution's vertex values.
+
+use std::collections::HashMap;
+use std::time::{Duration, Instant};
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::error::Result;
+use crate::estimate::{Estimate, EstimateSettings, PhotoPatches, estimate_reflectances};
+use crate::image_io::Image;
+use crate::light::{LightSource, hash2};
+use crate::patches::Patches;
+use crate::radiosity::{DEFAULT_LINK_EPSILON, Transport, direct_irradiance, total_direct};
+use crate::scene::Scene;
+use crate::trace::{Layer, TraceRay, Tracer};
+
+/// How light transport is computed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TransportMethod {
+    /// Every patch against every other (the oracle; small scenes).
+    Full,
+    /// Hierarchical radiosity with this refinement threshold.
+    Hierarchical { epsilon: f64 },
+}
+
+/// Settings of the model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModelSettings {
+    /// Largest patch edge, metres.
+    pub patch_size: f64,
+    pub transport: TransportMethod,
+    /// 2^level shadow rays per point towards rect lights.
+    pub light_level: usize,
+    pub estimate: EstimateSettings,
+}
+
+impl Default for ModelSettings {
+    fn default() -> Self {
+        ModelSettings {
+            patch_size: 0.25,
+            transport: TransportMethod::Hierarchical { epsilon: DEFAULT_LINK_EPSILON },
+            light_level: 4,
+            estimate: EstimateSettings::default(),
+        }
+    }
+}
+
+/// Wall time per named stage, in order.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct StageTimes(pub Vec<(&'static str, Duration)>);
+
+impl StageTimes {
+    /// Runs `f` and records its time under `name`.
+    pub fn time<T>(&mut self, name: &'static str, f: impl FnOnce() -> T) -> T {
+        let t0 = Instant::now();
+        let out = f();
+        self.0.push((name, t0.elapsed()));
+        out
+    }
+
+    pub fn total(&self) -> Duration {
+        self.0.iter().map(|(_, d)| *d).sum()
+    }
+}
+
+/// The illumination model of a scene's real part.
+pub struct Model {
+    pub patches: Patches,
+    pub lights: Vec<LightSource>,
+    /// Direct irradiance per light and patch, before each light's scale.
+    pub direct_per_light: Vec<Vec<DVec3>>,
+    pub transport: Transport,
+    pub photo: PhotoPatches,
+    pub estimate: Estimate,
+}
+
+impl Model {
+    /// Builds the model of `scene`'s real surfaces under its lights (as
+    /// the photo shows them: the scene as loaded, before any variant).
+    pub fn build(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &ModelSettings, times: &mut StageTimes) -> Result<Model> {
+        let lights = LightSource::all(scene)?;
+        let patches = times.time("mesh", || Patches::of_scene(scene, false, settings.patch_size));
+        let direct_per_light =
+            times.time("direct light", || direct_irradiance(&patches, &lights, tracer, Layer::Real, settings.light_level));
+        let transport = times.time("form factors", || match settings.transport {
+            TransportMethod::Full => Transport::full(&patches, tracer, Layer::Real),
+            TransportMethod::Hierarchical { epsilon } => Transport::hierarchical(&patches, tracer, Layer::Real, epsilon),
+        });
+        let photo = times.time("photo per patch", || PhotoPatches::measure(&scene.camera, tracer, &patches, photo));
+        let known: HashMap<u32, DVec3> = scene.reflectances.iter().map(|k| (k.surface as u32, k.rgb)).collect();
+        let direct = total_direct(&lights, &direct_per_light);
+        let estimate = times.time("estimate + solve", || {
+            estimate_reflectances(&patches, &transport, &direct, &photo, &known, settings.estimate)
+        });
+        Ok(Model { patches, lights, direct_per_light, transport, photo, estimate })
+    }
+}
+
+/// The model seen from the camera.
+pub struct ModelView {
+    /// Radiance ρ·(E + H)/π: the photo as the model explains it.
+    pub radiance: Image,
+    /// Direct irradiance E per pixel (all lights, with their scales).
+    pub direct: Image,
+    /// Indirect irradiance H per pixel, interpolated.
+    pub indirect: Image,
+    pub reflectance: Image,
+    /// Patch seen at each pixel (-1: none).
+    pub patch_ids: Vec<i32>,
+    /// Shadow rays traced.
+    pub rays: u64,
+}
+
+impl ModelView {
+    /// Renders the model per pixel centre with `2^level` shadow rays per rect light.
+    pub fn render(scene: &Scene, tracer: &Tracer, model: &Model, level: usize) -> ModelView {
+        let cam = &scene.camera;
+        let (w, h) = (cam.width as usize, cam.height as usize);
+        let vertex_indirect = model.patches.vertex_values(&model.estimate.solution.indirect_irradiance);
+        let pi = std::f64::consts::PI;
+        let rows: Vec<Vec<(DVec3, DVec3, DVec3, DVec3, i32, u64)>> = (0..h)
+            .into_par_iter()
+            .map(|row| {
+                let rays: Vec<TraceRay> = (0..w)
+                    .map(|col| {
+                        let r = cam.pixel_ray(col as u32, row as u32);
+                        TraceRay::new(r.origin.as_vec3(), r.direction.as_vec3())
+                    })
+                    .collect();
+                let mut hits = vec![None; w];
+                tracer.intersect_batch(&rays, Layer::Real, &mut hits);
+                hits.iter()
+                    .enumerate()
+                    .map(|(col, hit)| {
+                        let none = (DVec3::ZERO, DVec3::ZERO, DVec3::ZERO, DVec3::ZERO, -1, 0);
+                        let Some(hit) = hit else { return none };
+                        let ray = cam.pixel_ray(col as u32, row as u32);
+                        let x = ray.origin + ray.direction * hit.t as f64;
+                        let Some(at) = model.patches.locate(hit.surface, hit.triangle, x) else { return none };
+                        let n = hit.normal.as_dvec3();
+                        let seed = hash2((row * w + col) as u64, 0x0D1_EC7);
+                        let mut e = DVec3::ZERO;
+                        let mut count = 0u64;
+                        for (li, light) in model.lights.iter().enumerate().filter(|(_, l)| l.is_on()) {
+                            let d = light.direct(tracer, Layer::Real, x, n, level, hash2(seed, li as u64));
+                            e += d.unoccluded * d.visibility * light.scale;
+                            count += d.rays as u64;
+                        }
+                        let indirect = model.patches.interpolate(&vertex_indirect, &at);
+                        let rho = model.estimate.reflectance[at.patch as usize];
+                        (rho * (e + indirect) / pi, e, indirect, rho, at.patch as i32, count)
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut view = ModelView {
+            radiance: Image::new(cam.width, cam.height),
+            direct: Image::new(cam.width, cam.height),
+            indirect: Image::new(cam.width, cam.height),
+            reflectance: Image::new(cam.width, cam.height),
+            patch_ids: Vec::with_capacity(w * h),
+            rays: 0,
+        };
+        for (i, (l, e, ind, rho, id, rays)) in rows.into_iter().flatten().enumerate() {
+            view.radiance.pixels[i] = l.as_vec3();
+            view.direct.pixels[i] = e.as_vec3();
+            view.indirect.pixels[i] = ind.as_vec3();
+            view.reflectance.pixels[i] = rho.as_vec3();
+            view.patch_ids.push(id);
+            view.rays += rays;
+        }
+        view
+    }
+}
