@@ -96,3 +96,19 @@ fn lone_triangles_stay_triangles_and_bisect() {
     let constant = p.vertex_values(&vec![DVec3::splat(2.5); p.patch_count()]);
     assert!(constant.iter().all(|v| (*v - DVec3::splat(2.5)).length() < 1e-12));
 }
+
+#[test]
+fn virtual_objects_are_meshed_after_the_real_surfaces_the_same_way() {
+    let scene = desk();
+    let real = Patches::of_scene(&scene, false, 0.25);
+    let both = Patches::of_scene(&scene, true, 0.25);
+    let n = real.patch_count();
+    assert!(both.patch_count() > n);
+    for k in 0..n {
+        assert_eq!(both.patch(k).shape, real.patch(k).shape, "real patches keep their indices");
+    }
+    let box_id = scene.surfaces.len() as u32;
+    assert!((n..both.patch_count()).all(|k| both.patch(k).surface == box_id && both.surface_is_virtual[&box_id]));
+    let area: f64 = (n..both.patch_count()).map(|k| both.patch(k).area).sum();
+    assert!((area - 6.0 * 0.09).abs() < 1e-6, "the 0.3 m box has 0.54 m² of faces: {area}");
+}

@@ -1,0 +1,70 @@
+//! Stiff and extreme cases through the whole model (estimation, radiosity,
+//! per-pixel view): no NaN or Inf leaves any stage, nothing is negative.
+
+use glam::DVec3;
+
+use arlux::image_io::Image;
+use arlux::model::{Model, ModelSettings, ModelView, StageTimes};
+use arlux::scene::{KnownReflectance, LightPosition, Scene};
+
+fn desk() -> Scene {
+    Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/desk/scene.toml")).unwrap()
+}
+
+fn all_finite(img: &Image) -> bool {
+    img.pixels.iter().all(|p| p.is_finite() && p.min_element() >= 0.0)
+}
+
+fn run(scene: &Scene) -> (Model, ModelView) {
+    let photo = scene.load_photo().unwrap();
+    let tracer = scene.build_tracer().unwrap();
+    let settings = ModelSettings { patch_size: 0.5, ..ModelSettings::default() };
+    let model = Model::build(scene, &photo, &tracer, &settings, &mut StageTimes::default()).unwrap();
+    let view = ModelView::render(scene, &tracer, &model, 3);
+    let est = &model.estimate;
+    assert!(est.reflectance.iter().all(|r| r.is_finite() && r.min_element() >= 0.0 && r.max_element() <= 0.99));
+    assert!(est.solution.radiosity.iter().all(|b| b.is_finite() && b.min_element() >= 0.0));
+    assert!(est.solution.indirect_irradiance.iter().all(|h| h.is_finite() && h.min_element() >= 0.0));
+    for (name, img) in [("radiance", &view.radiance), ("direct", &view.direct), ("indirect", &view.indirect), ("reflectance", &view.reflectance)] {
+        assert!(all_finite(img), "{name} has a non-finite or negative pixel");
+    }
+    (model, view)
+}
+
+fn bulb_at(scene: &mut Scene, p: DVec3) {
+    let bulb = scene.light_index("bulb").unwrap();
+    scene.lights[bulb].position = LightPosition::Known(p);
+    scene.lights[bulb].scale = 1.0;
+    scene.check_light_clearance().unwrap();
+}
+
+#[test]
+fn a_light_one_millimetre_above_the_floor() {
+    let mut scene = desk();
+    bulb_at(&mut scene, DVec3::new(-0.5, 0.001, 0.5));
+    let (_, view) = run(&scene);
+    // The pixel under the bulb sees the singular-but-finite peak: E ≈ I/d² = 6e6.
+    let peak = view.direct.pixels.iter().map(|p| p.x).fold(0.0f32, f32::max);
+    assert!(peak.is_finite() && peak > 1e3, "peak direct irradiance {peak}");
+}
+
+#[test]
+fn a_light_grazing_a_wall() {
+    let mut scene = desk();
+    // 1 mm from the left wall: its light meets the wall at grazing angles.
+    bulb_at(&mut scene, DVec3::new(-1.999, 1.2, 0.0));
+    run(&scene);
+}
+
+#[test]
+fn zero_reflectance_of_a_known_surface() {
+    let mut scene = desk();
+    let floor = scene.surface_index("floor").unwrap();
+    scene.reflectances.push(KnownReflectance { surface: floor, rgb: DVec3::ZERO });
+    let (model, _) = run(&scene);
+    let floor_b: Vec<DVec3> = (0..model.patches.patch_count())
+        .filter(|&k| model.patches.patch(k).surface == floor as u32)
+        .map(|k| model.estimate.solution.radiosity[k])
+        .collect();
+    assert!(floor_b.iter().all(|b| *b == DVec3::ZERO), "a black floor reflects nothing");
+}
