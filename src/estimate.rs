@@ -19,7 +19,8 @@ use crate::camera::Camera;
 use crate::image_io::Image;
 use crate::patches::Patches;
 use crate::radiosity::{Solution, Transport, solve_from};
-use crate::trace::{Layer, TraceRay, Tracer};
+use crate::surface_ids::row_hits;
+use crate::trace::{Layer, Tracer};
 
 /// The most a reflectance estimate may be: at 1 a surface would give back
 /// all light it receives, and the system would have no solution.
@@ -40,19 +41,11 @@ impl PhotoPatches {
     /// Traces each pixel centre into the real geometry and averages the photo per patch.
     pub fn measure(camera: &Camera, tracer: &Tracer, patches: &Patches, photo: &Image) -> PhotoPatches {
         let n = patches.patch_count();
-        let w = camera.width as usize;
         let rows: Vec<Vec<(u32, DVec3)>> = (0..camera.height as usize)
             .into_par_iter()
             .map(|row| {
-                let rays: Vec<TraceRay> = (0..w)
-                    .map(|col| {
-                        let r = camera.pixel_ray(col as u32, row as u32);
-                        TraceRay::new(r.origin.as_vec3(), r.direction.as_vec3())
-                    })
-                    .collect();
-                let mut hits = vec![None; w];
-                tracer.intersect_batch(&rays, Layer::Real, &mut hits);
-                hits.iter()
+                row_hits(camera, tracer, Layer::Real, row as u32)
+                    .iter()
                     .enumerate()
                     .filter_map(|(col, h)| {
                         let h = h.as_ref()?;

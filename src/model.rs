@@ -18,7 +18,8 @@ use crate::light::{LightSource, hash2};
 use crate::patches::Patches;
 use crate::radiosity::{DEFAULT_LINK_EPSILON, Transport, direct_irradiance, total_direct};
 use crate::scene::Scene;
-use crate::trace::{Layer, TraceRay, Tracer};
+use crate::surface_ids::row_hits;
+use crate::trace::{Layer, Tracer};
 
 /// How light transport is computed.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -127,15 +128,8 @@ impl ModelView {
         let rows: Vec<Vec<(DVec3, DVec3, DVec3, DVec3, i32, u64)>> = (0..h)
             .into_par_iter()
             .map(|row| {
-                let rays: Vec<TraceRay> = (0..w)
-                    .map(|col| {
-                        let r = cam.pixel_ray(col as u32, row as u32);
-                        TraceRay::new(r.origin.as_vec3(), r.direction.as_vec3())
-                    })
-                    .collect();
-                let mut hits = vec![None; w];
-                tracer.intersect_batch(&rays, Layer::Real, &mut hits);
-                hits.iter()
+                row_hits(cam, tracer, Layer::Real, row as u32)
+                    .iter()
                     .enumerate()
                     .map(|(col, hit)| {
                         let none = (DVec3::ZERO, DVec3::ZERO, DVec3::ZERO, DVec3::ZERO, -1, 0);

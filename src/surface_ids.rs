@@ -8,7 +8,21 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::image_io::{Image, linear_to_srgb};
-use crate::trace::{Layer, TraceRay, Tracer};
+use crate::trace::{Hit, Layer, TraceRay, Tracer};
+
+/// The closest hits of the rays through the pixel centres of one image row,
+/// traced in packets, in the given layer.
+pub fn row_hits(camera: &Camera, tracer: &Tracer, layer: Layer, row: u32) -> Vec<Option<Hit>> {
+    let rays: Vec<TraceRay> = (0..camera.width)
+        .map(|col| {
+            let r = camera.pixel_ray(col, row);
+            TraceRay::new(r.origin.as_vec3(), r.direction.as_vec3())
+        })
+        .collect();
+    let mut hits = vec![None; rays.len()];
+    tracer.intersect_batch(&rays, layer, &mut hits);
+    hits
+}
 
 /// Surface id per pixel, row-major; -1 where the ray leaves the scene.
 #[derive(Debug, Clone, PartialEq)]
@@ -24,15 +38,7 @@ impl SurfaceIds {
         let w = camera.width as usize;
         let mut ids = vec![-1i32; camera.pixel_count()];
         ids.par_chunks_mut(w).enumerate().for_each(|(row, out)| {
-            let rays: Vec<TraceRay> = (0..w)
-                .map(|col| {
-                    let r = camera.pixel_ray(col as u32, row as u32);
-                    TraceRay::new(r.origin.as_vec3(), r.direction.as_vec3())
-                })
-                .collect();
-            let mut hits = vec![None; w];
-            tracer.intersect_batch(&rays, layer, &mut hits);
-            for (o, h) in out.iter_mut().zip(hits) {
+            for (o, h) in out.iter_mut().zip(row_hits(camera, tracer, layer, row as u32)) {
                 *o = h.map_or(-1, |h| h.surface as i32);
             }
         });
