@@ -8,6 +8,10 @@ use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use glam::DVec3;
 
 use arlux::light::LightSource;
+
+fn photo_scales(lights: &[LightSource]) -> Vec<f64> {
+    lights.iter().map(|l| l.photo_scale()).collect()
+}
 use arlux::patches::Patches;
 use arlux::radiosity::{DEFAULT_LINK_EPSILON, Transport, direct_irradiance, solve, total_direct};
 use arlux::scene::Scene;
@@ -30,7 +34,7 @@ fn bench(c: &mut Criterion) {
             g.bench_with_input(BenchmarkId::new("transport_full", &id), &patches, |b, p| b.iter(|| Transport::full(p, &tracer, Layer::Real)));
         }
         let transport = Transport::hierarchical(&patches, &tracer, Layer::Real, DEFAULT_LINK_EPSILON);
-        let e = total_direct(&lights, &direct_irradiance(&patches, &lights, &tracer, Layer::Real, 4));
+        let e = total_direct(&photo_scales(&lights), &direct_irradiance(&patches, &lights, &tracer, Layer::Real, 4));
         let rho = vec![DVec3::splat(0.6); n];
         let emission: Vec<DVec3> = rho.iter().zip(&e).map(|(r, e)| *r * *e).collect();
         g.bench_with_input(BenchmarkId::new("solve_hierarchical", &id), &patches, |b, p| {

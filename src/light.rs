@@ -191,6 +191,13 @@ impl LightSource {
         self.scale > 0.0
     }
 
+    /// The light's scale in the photograph: real lights as photographed
+    /// (1), virtual lights off (0). Estimation and the "without" render use
+    /// this, whatever scale the scene or a variant sets.
+    pub fn photo_scale(&self) -> f64 {
+        if self.real { 1.0 } else { 0.0 }
+    }
+
     /// The world point of grid sample (s, t); the centre for a point light.
     pub fn point_at(&self, st: DVec2) -> DVec3 {
         match self.emitter {

@@ -82,8 +82,8 @@ pub struct Model {
 }
 
 impl Model {
-    /// Builds the model of `scene`'s real surfaces under its lights (as
-    /// the photo shows them: the scene as loaded, before any variant).
+    /// Builds the model of `scene`'s real surfaces under its lights as the
+    /// photo shows them (real lights at scale 1, virtual lights off).
     pub fn build(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &ModelSettings, times: &mut StageTimes) -> Result<Model> {
         let lights = LightSource::all(scene)?;
         let patches = times.time("mesh", || Patches::of_scene(scene, false, settings.patch_size));
@@ -95,7 +95,9 @@ impl Model {
         });
         let photo = times.time("photo per patch", || PhotoPatches::measure(&scene.camera, tracer, &patches, photo));
         let known: HashMap<u32, DVec3> = scene.reflectances.iter().map(|k| (k.surface as u32, k.rgb)).collect();
-        let direct = total_direct(&lights, &direct_per_light);
+        // The photo shows the real lights as they are and no virtual light.
+        let scales: Vec<f64> = lights.iter().map(|l| l.photo_scale()).collect();
+        let direct = total_direct(&scales, &direct_per_light);
         let estimate = times.time("estimate + solve", || {
             estimate_reflectances(&patches, &transport, &direct, &photo, &known, settings.estimate)
         });
@@ -107,7 +109,7 @@ impl Model {
 pub struct ModelView {
     /// Radiance ρ·(E + H)/π: the photo as the model explains it.
     pub radiance: Image,
-    /// Direct irradiance E per pixel (all lights, with their scales).
+    /// Direct irradiance E per pixel (the lights as photographed).
     pub direct: Image,
     /// Indirect irradiance H per pixel, interpolated.
     pub indirect: Image,
@@ -141,9 +143,9 @@ impl ModelView {
                         let seed = hash2((row * w + col) as u64, 0x0D1_EC7);
                         let mut e = DVec3::ZERO;
                         let mut count = 0u64;
-                        for (li, light) in model.lights.iter().enumerate().filter(|(_, l)| l.is_on()) {
+                        for (li, light) in model.lights.iter().enumerate().filter(|(_, l)| l.photo_scale() > 0.0) {
                             let d = light.direct(tracer, Layer::Real, x, n, level, hash2(seed, li as u64));
-                            e += d.unoccluded * d.visibility * light.scale;
+                            e += d.unoccluded * d.visibility * light.photo_scale();
                             count += d.rays as u64;
                         }
                         let indirect = model.patches.interpolate(&vertex_indirect, &at);

@@ -422,13 +422,13 @@ pub fn direct_irradiance(patches: &Patches, lights: &[LightSource], tracer: &Tra
 }
 
 /// Total direct irradiance per patch: Σ scale × per-light irradiance.
-pub fn total_direct(lights: &[LightSource], per_light: &[Vec<DVec3>]) -> Vec<DVec3> {
+pub fn total_direct(scales: &[f64], per_light: &[Vec<DVec3>]) -> Vec<DVec3> {
     let n = per_light.first().map_or(0, |v| v.len());
     let mut e = vec![DVec3::ZERO; n];
-    for (light, values) in lights.iter().zip(per_light) {
-        if light.scale > 0.0 {
+    for (&scale, values) in scales.iter().zip(per_light) {
+        if scale > 0.0 {
             for (e, v) in e.iter_mut().zip(values) {
-                *e += *v * light.scale;
+                *e += *v * scale;
             }
         }
     }

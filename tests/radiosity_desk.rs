@@ -8,6 +8,10 @@ use glam::DVec3;
 
 use arlux::estimate::{EstimateSettings, PhotoPatches, estimate_reflectances, surface_mean};
 use arlux::light::LightSource;
+
+fn photo_scales(lights: &[LightSource]) -> Vec<f64> {
+    lights.iter().map(|l| l.photo_scale()).collect()
+}
 use arlux::patches::Patches;
 use arlux::radiosity::{DEFAULT_LINK_EPSILON, Transport, direct_irradiance, solve, total_direct};
 use arlux::scene::Scene;
@@ -23,7 +27,7 @@ fn hierarchical_agrees_with_the_full_matrix_within_one_percent_per_patch() {
     let tracer = scene.build_tracer().unwrap();
     let lights = LightSource::all(&scene).unwrap();
     let patches = Patches::of_scene(&scene, false, 0.5);
-    let e = total_direct(&lights, &direct_irradiance(&patches, &lights, &tracer, Layer::Real, 4));
+    let e = total_direct(&photo_scales(&lights), &direct_irradiance(&patches, &lights, &tracer, Layer::Real, 4));
     let photo = scene.load_photo().unwrap();
     let measured = PhotoPatches::measure(&scene.camera, &tracer, &patches, &photo);
     let t0 = Instant::now();
@@ -62,7 +66,7 @@ fn the_left_wall_reflectance_is_recovered_without_its_known_value() {
     let tracer = scene.build_tracer().unwrap();
     let lights = LightSource::all(&scene).unwrap();
     let patches = Patches::of_scene(&scene, false, 0.25);
-    let e = total_direct(&lights, &direct_irradiance(&patches, &lights, &tracer, Layer::Real, 6));
+    let e = total_direct(&photo_scales(&lights), &direct_irradiance(&patches, &lights, &tracer, Layer::Real, 6));
     let photo = scene.load_photo().unwrap();
     let measured = PhotoPatches::measure(&scene.camera, &tracer, &patches, &photo);
     let t0 = Instant::now();

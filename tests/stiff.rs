@@ -35,6 +35,8 @@ fn bulb_at(scene: &mut Scene, p: DVec3) {
     let bulb = scene.light_index("bulb").unwrap();
     scene.lights[bulb].position = LightPosition::Known(p);
     scene.lights[bulb].scale = 1.0;
+    // As a real lamp, the photographed state (and so the model) includes it.
+    scene.lights[bulb].real = true;
     scene.check_light_clearance().unwrap();
 }
 
