@@ -8,6 +8,7 @@
 
 pub mod camera;
 pub mod compare;
+pub mod composite;
 pub mod error;
 pub mod estimate;
 pub mod geometry;
@@ -15,7 +16,9 @@ pub mod ies;
 pub mod light;
 pub mod model;
 pub mod patches;
+pub mod pda;
 pub mod radiosity;
+pub mod render;
 pub mod image_io;
 pub mod scene;
 pub mod shaft;

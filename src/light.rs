@@ -198,6 +198,15 @@ impl LightSource {
         if self.real { 1.0 } else { 0.0 }
     }
 
+    /// The light's colour: every distribution is this RGB times a scalar
+    /// (so per-point terms can be kept as one number).
+    pub fn colour(&self) -> DVec3 {
+        match &self.distribution {
+            Distribution::Uniform(rgb) => *rgb,
+            Distribution::Lambertian { rgb, .. } | Distribution::Spot { rgb, .. } | Distribution::Ies { rgb, .. } => *rgb,
+        }
+    }
+
     /// The world point of grid sample (s, t); the centre for a point light.
     pub fn point_at(&self, st: DVec2) -> DVec3 {
         match self.emitter {
@@ -223,7 +232,7 @@ impl LightSource {
     /// mean of I/N·|cosθ|/d² over the 16 cell centres of grid level 4.
     pub fn unoccluded_irradiance(&self, x: DVec3, n: DVec3) -> DVec3 {
         match self.emitter {
-            Emitter::Point => point_irradiance(self.position, x, n, |d| self.distribution.intensity(d)),
+            Emitter::Point => point_contribution(self.position, x, n, |d| self.distribution.intensity(d)),
             Emitter::Rect { u, v, normal } => {
                 if (x - self.position).dot(normal) <= 0.0 {
                     return DVec3::ZERO;
@@ -239,7 +248,7 @@ impl LightSource {
                 for i in 0..k {
                     for j in 0..k {
                         let st = DVec2::new((i as f64 + 0.5) / k as f64, (j as f64 + 0.5) / k as f64);
-                        sum += point_irradiance(self.point_at(st), x, n, |d| self.intensity(d));
+                        sum += point_contribution(self.point_at(st), x, n, |d| self.intensity(d));
                     }
                 }
                 sum / (k * k) as f64
@@ -270,7 +279,7 @@ impl LightSource {
                 // point near the light is not dominated by far samples.
                 let (mut seen, mut total) = (0.0, 0.0);
                 for (t, b) in targets.iter().zip(&blocked) {
-                    let w = point_irradiance(*t, x, n, |d| self.intensity(d)).element_sum();
+                    let w = point_contribution(*t, x, n, |d| self.intensity(d)).element_sum();
                     total += w;
                     if !b {
                         seen += w;
@@ -284,8 +293,8 @@ impl LightSource {
 }
 
 /// Irradiance at `x` (normal `n`, two-sided) from a point emitter at `p`
-/// with intensity function `intensity(direction from p)`.
-fn point_irradiance(p: DVec3, x: DVec3, n: DVec3, intensity: impl Fn(DVec3) -> DVec3) -> DVec3 {
+/// with intensity function `intensity(direction from p)`: I·|cosθ|/d².
+pub fn point_contribution(p: DVec3, x: DVec3, n: DVec3, intensity: impl Fn(DVec3) -> DVec3) -> DVec3 {
     let d = x - p;
     let dist2 = d.length_squared();
     if dist2 <= 0.0 {
@@ -315,6 +324,12 @@ pub fn segment(a: DVec3, b: DVec3) -> TraceRay {
 /// count. Finite for any x off the polygon; at most 1. Polygons have at most
 /// six corners.
 pub fn polygon_form_factor(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
+    polygon_form_factor_sided(x, n, polygon, true)
+}
+
+/// [`polygon_form_factor`], with `two_sided` false counting only the part
+/// of the polygon on the side `n` points to.
+pub fn polygon_form_factor_sided(x: DVec3, n: DVec3, polygon: &[DVec3], two_sided: bool) -> f64 {
     debug_assert!(polygon.len() <= 6);
     let (mut above, mut below) = (false, false);
     for p in polygon {
@@ -324,7 +339,7 @@ pub fn polygon_form_factor(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
     }
     let mut total = 0.0;
     let mut buf = [DVec3::ZERO; 8];
-    for (side, present) in [(1.0, above), (-1.0, below)] {
+    for (side, present) in [(1.0, above), (-1.0, below && two_sided)] {
         if !present {
             continue;
         }

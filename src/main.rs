@@ -49,6 +49,44 @@ enum Command {
         #[arg(long)]
         variant: Option<String>,
     },
+    /// The augmented photo of a variant: virtual objects inserted, lights
+    /// changed or added, by per-pixel differential rendering.
+    Render {
+        scene: PathBuf,
+        #[arg(long)]
+        variant: Option<String>,
+        /// Output EXR, with layers direct, indirect (irradiance), change and A (virtual coverage).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Also an 8-bit sRGB PNG.
+        #[arg(long)]
+        png: Option<PathBuf>,
+        /// Also each layer as its own EXR in this folder.
+        #[arg(long)]
+        aov: Option<PathBuf>,
+        /// Rendering method.
+        #[arg(long, default_value = "pda", value_parser = ["pda"])]
+        method: String,
+        /// How real pixels take the change: ratio (photo × L_with/L_without) or additive.
+        #[arg(long, default_value = "ratio", value_parser = ["ratio", "additive"])]
+        composite: String,
+        #[arg(long, default_value_t = 0.25)]
+        patch_size: f64,
+        #[arg(long)]
+        full: bool,
+        #[arg(long, default_value_t = arlux::radiosity::DEFAULT_LINK_EPSILON)]
+        epsilon: f64,
+        /// 2^level shadow rays per rect light everywhere, 2^penumbra_level in penumbra.
+        #[arg(long, default_value_t = 2)]
+        min_level: usize,
+        #[arg(long, default_value_t = 4)]
+        penumbra_level: usize,
+        /// n×n sub-pixels where real and virtual surfaces meet.
+        #[arg(long, default_value_t = 3)]
+        supersample: u32,
+        #[arg(long)]
+        json: bool,
+    },
     /// Re-render the photo from the model alone (reflectances estimated from
     /// the photo × (direct + indirect light)), with a mesh view; reports
     /// patches, links, iterations, residual and time per stage.
@@ -114,6 +152,25 @@ fn run(cli: Cli) -> Result<()> {
             ids(&scene, &output, exr.as_deref(), with_virtual, variant.as_deref())
         }
         Command::Compare { image, reference, mask, json } => compare_cmd(&image, &reference, mask.as_deref(), json),
+        Command::Render {
+            scene,
+            variant,
+            output,
+            png,
+            aov,
+            method: _,
+            composite,
+            patch_size,
+            full,
+            epsilon,
+            min_level,
+            penumbra_level,
+            supersample,
+            json,
+        } => {
+            let settings = render_settings(patch_size, full, epsilon, min_level, penumbra_level, supersample, &composite)?;
+            render_cmd(&scene, variant.as_deref(), &output, png.as_deref(), aov.as_deref(), &settings, json)
+        }
         Command::Radiosity { scene, output, mesh, patch_size, full, epsilon, light_level, json } => {
             radiosity_cmd(&scene, &output, mesh.as_deref(), patch_size, full, epsilon, light_level, json)
         }
@@ -483,5 +540,147 @@ fn radiosity_cmd(
         println!("  {name:<16} {:>9.1} ms", d.as_secs_f64() * 1e3);
     }
     println!("  {:<16} {:>9.1} ms", "total", times.total().as_secs_f64() * 1e3);
+    Ok(())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn render_settings(
+    patch_size: f64,
+    full: bool,
+    epsilon: f64,
+    min_level: usize,
+    penumbra_level: usize,
+    supersample: u32,
+    composite: &str,
+) -> Result<arlux::render::RenderSettings> {
+    use arlux::model::{ModelSettings, TransportMethod};
+    use arlux::render::RenderSettings;
+    if !(patch_size > 0.0 && patch_size.is_finite()) {
+        bail!("--patch-size must be a positive number of metres, not {patch_size}");
+    }
+    if !(epsilon > 0.0 && epsilon.is_finite()) {
+        bail!("--epsilon must be positive, not {epsilon}");
+    }
+    let max = arlux::light::MAX_GRID_LEVEL;
+    if min_level > max || penumbra_level > max || penumbra_level < min_level {
+        bail!("--min-level and --penumbra-level must satisfy min-level <= penumbra-level <= {max}");
+    }
+    if !(1..=16).contains(&supersample) {
+        bail!("--supersample must lie in 1..=16, not {supersample}");
+    }
+    let defaults = RenderSettings::default();
+    Ok(RenderSettings {
+        model: ModelSettings {
+            patch_size,
+            transport: if full { TransportMethod::Full } else { TransportMethod::Hierarchical { epsilon } },
+            ..ModelSettings::default()
+        },
+        pda: arlux::pda::PdaSettings { min_level, penumbra_level, supersample },
+        mode: if composite == "additive" { arlux::composite::CompositeMode::Additive } else { arlux::composite::CompositeMode::Ratio },
+        ..defaults
+    })
+}
+
+fn render_cmd(
+    path: &Path,
+    variant: Option<&str>,
+    output: &Path,
+    png: Option<&Path>,
+    aov: Option<&Path>,
+    settings: &arlux::render::RenderSettings,
+    as_json: bool,
+) -> Result<()> {
+    use arlux::model::StageTimes;
+    let mut times = StageTimes::default();
+    let base = times.time("load", || load(path, None))?;
+    let scene = match variant {
+        Some(v) => base.with_variant(v)?,
+        None => base.clone(),
+    };
+    let reference = variant.and_then(|v| base.variant(v).ok()).and_then(|v| v.reference.clone());
+    let photo = times.time("read photo", || scene.load_photo())?;
+    let out = arlux::render::render(&scene, &photo, settings, &mut times)?;
+    let c = &out.composite;
+    times.time("write", || -> Result<()> {
+        let (w, h) = (photo.width, photo.height);
+        let layers = [
+            image_io::ExrLayer::Rgb("", &c.image),
+            image_io::ExrLayer::Rgb("direct", &c.direct),
+            image_io::ExrLayer::Rgb("indirect", &c.indirect),
+            image_io::ExrLayer::Rgb("change", &c.change),
+            image_io::ExrLayer::Channel("A", &c.alpha),
+        ];
+        image_io::write_exr(output, w, h, &layers)?;
+        if let Some(png) = png {
+            image_io::write_png(png, &c.image, 0.0)?;
+        }
+        if let Some(dir) = aov {
+            std::fs::create_dir_all(dir).with_context(|| format!("{}: could not create the folder", dir.display()))?;
+            for (name, img) in [("direct", &c.direct), ("indirect", &c.indirect), ("change", &c.change)] {
+                image_io::write_exr(&dir.join(format!("{name}.exr")), w, h, &[image_io::ExrLayer::Rgb("", img)])?;
+            }
+            image_io::write_exr(&dir.join("alpha.exr"), w, h, &[image_io::ExrLayer::Channel("Y", &c.alpha)])?;
+        }
+        Ok(())
+    })?;
+    let error = match &reference {
+        Some(r) => {
+            let truth = image_io::read_image(r)?;
+            scene.check_size(&truth, "variant.reference")?;
+            Some(compare(&c.image, &truth, None))
+        }
+        None => None,
+    };
+    let report = json!({
+        "variant": variant,
+        "pixels": out.pda_pixels,
+        "copied_from_photo": c.copied,
+        "ratio_fallbacks": c.ratio_fallbacks,
+        "clamped": c.clamped,
+        "patches": out.patches,
+        "links": out.links,
+        "rays": out.rays,
+        "pda_bytes": out.pda_bytes,
+        "pda_bytes_per_pixel": out.pda_bytes as f64 / out.pda_pixels.max(1) as f64,
+        "error_against_reference": error,
+        "left_out": out.left_out,
+        "stages": times.0.iter().map(|(n, d)| json!({ "stage": n, "seconds": d.as_secs_f64() })).collect::<Vec<_>>(),
+        "total_seconds": times.total().as_secs_f64(),
+    });
+    if as_json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!(
+        "{} pixels, {} copied from the photo unchanged; {} patches, {} form factors; {} rays; pixel data {:.1} MB ({:.0} bytes per pixel)",
+        out.pda_pixels,
+        c.copied,
+        out.patches,
+        out.links,
+        out.rays,
+        out.pda_bytes as f64 / 1e6,
+        out.pda_bytes as f64 / out.pda_pixels.max(1) as f64
+    );
+    if c.ratio_fallbacks > 0 || c.clamped > 0 {
+        println!("{} samples fell back from the ratio to the additive form (dark before), {} were clamped at zero", c.ratio_fallbacks, c.clamped);
+    }
+    if let Some(e) = error {
+        println!(
+            "against the reference: RMSE {:.5}, relative {:.4}, PSNR {}, mean {:.5} (reference {:.5})",
+            e.rmse,
+            e.relative_rmse.unwrap_or(f64::NAN),
+            e.psnr_srgb_db.map_or("inf".into(), |p| format!("{p:.2} dB")),
+            e.mean,
+            e.mean_reference
+        );
+    }
+    for l in &out.left_out {
+        println!("left out: {l}");
+    }
+    println!("time per stage:");
+    for (name, d) in &times.0 {
+        println!("  {name:<26} {:>9.1} ms", d.as_secs_f64() * 1e3);
+    }
+    println!("  {:<26} {:>9.1} ms", "total", times.total().as_secs_f64() * 1e3);
     Ok(())
 }

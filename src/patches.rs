@@ -99,6 +99,9 @@ impl Shape {
     }
 }
 
+/// Closed surfaces with more triangles than this are treated as two-sided.
+pub const MAX_SOLID_TRIANGLES: usize = 20_000;
+
 /// An element's 3 or 4 corners.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Corners {
@@ -165,6 +168,9 @@ pub struct Element {
     pub centre: DVec3,
     pub normal: DVec3,
     pub surface: u32,
+    /// On a closed surface (a solid): light leaves and arrives on the
+    /// outside only, and `normal` points out. Open surfaces are two-sided.
+    pub one_sided: bool,
     pub root: u32,
     pub parent: Option<u32>,
     pub children: Option<[u32; 2]>,
@@ -211,15 +217,24 @@ impl Patches {
     /// virtual objects after them (real patches come first and are the same
     /// either way).
     pub fn of_scene(scene: &crate::scene::Scene, with_virtual: bool, target_size: f64) -> Patches {
+        Self::of_scene_with(scene, with_virtual, target_size, target_size)
+    }
+
+    /// [`Patches::of_scene`] with its own patch size for the virtual objects.
+    pub fn of_scene_with(scene: &crate::scene::Scene, with_virtual: bool, target_size: f64, virtual_size: f64) -> Patches {
         let virt = if with_virtual { scene.virtual_world_surfaces() } else { Vec::new() };
-        let mut inputs: Vec<SurfaceInput> = scene
+        let inputs: Vec<SurfaceInput> = scene
             .surfaces
             .iter()
             .enumerate()
             .map(|(i, s)| SurfaceInput { surface: i as u32, triangles: &s.triangles, is_virtual: false })
             .collect();
-        inputs.extend(virt.iter().map(|(id, t)| SurfaceInput { surface: *id, triangles: t, is_virtual: true }));
-        Patches::build(&inputs, target_size)
+        let mut p = Patches::build(&inputs, target_size);
+        if !virt.is_empty() {
+            let virt_inputs: Vec<SurfaceInput> = virt.iter().map(|(id, t)| SurfaceInput { surface: *id, triangles: t, is_virtual: true }).collect();
+            p.append(&virt_inputs, virtual_size);
+        }
+        p
     }
 
     /// Meshes the surfaces with leaves no larger than `target_size` metres.
@@ -234,31 +249,54 @@ impl Patches {
             root_of_triangle: HashMap::new(),
             target_size,
         };
+        p.append(inputs, target_size);
+        p
+    }
+
+    /// Meshes more surfaces into this mesh, after what it holds.
+    pub fn append(&mut self, inputs: &[SurfaceInput], target_size: f64) {
         let mut weld: HashMap<(u32, [i64; 3]), u32> = HashMap::new();
         for input in inputs {
-            p.surface_is_virtual.insert(input.surface, input.is_virtual);
+            self.surface_is_virtual.insert(input.surface, input.is_virtual);
+            // A closed surface is a solid: its faces are one-sided, facing
+            // out, or light would bounce around inside it. (The parity test
+            // is linear in the surface's triangles: large solids stay two-sided.)
+            let closed = input.triangles.len() <= MAX_SOLID_TRIANGLES && crate::geometry::is_closed(input.triangles);
             for (shape, tris) in primitives(input.triangles) {
-                let root = p.elements.len() as u32;
+                let root = self.elements.len() as u32;
                 let region = match shape {
                     Shape::Quad { .. } => Region::Quad { s0: 0.0, s1: 1.0, t0: 0.0, t1: 1.0 },
                     Shape::Tri(_) => Region::Tri([DVec2::ZERO, DVec2::X, DVec2::Y]),
                 };
-                p.push_element(shape, input.surface, root, None, region);
-                p.roots.push(root);
-                for t in tris {
-                    p.root_of_triangle.insert((input.surface, t), root);
+                self.push_element(shape, input.surface, root, None, region);
+                if closed {
+                    let el = &mut self.elements[root as usize];
+                    let step = 1e-4 * el.shape.size().max(1e-3);
+                    if crate::geometry::encloses(input.triangles, el.centre + el.normal * step) {
+                        el.normal = -el.normal;
+                    }
+                    el.one_sided = true;
                 }
-                p.subdivide(root, target_size, 0, &mut weld);
+                self.roots.push(root);
+                for t in tris {
+                    self.root_of_triangle.insert((input.surface, t), root);
+                }
+                self.subdivide(root, target_size, 0, &mut weld);
             }
         }
-        p
     }
 
     fn push_element(&mut self, shape: Shape, surface: u32, root: u32, parent: Option<u32>, region: Region) -> u32 {
+        // Children face the way their parent faces.
+        let (normal, one_sided) = match parent {
+            Some(p) => (self.elements[p as usize].normal, self.elements[p as usize].one_sided),
+            None => (shape.normal(), false),
+        };
         self.elements.push(Element {
             area: shape.area(),
             centre: shape.centre(),
-            normal: shape.normal(),
+            normal,
+            one_sided,
             shape,
             surface,
             root,

@@ -52,6 +52,16 @@ fn coplanar(p: &Element, q: &Element) -> bool {
     p.normal.dot(q.normal).abs() > 1.0 - 1e-9 && (q.centre - p.centre).dot(p.normal).abs() < 1e-9 * scale.max(1e-9)
 }
 
+/// The exact unoccluded form factor from point `x` of receiver `p` to the
+/// polygon of source `q`, minding one-sided elements: a solid's face
+/// receives only from outside and sends only outwards.
+fn point_factor(x: DVec3, p: &Element, q: &Element, polygon: &[DVec3]) -> f64 {
+    if q.one_sided && (x - q.centre).dot(q.normal) <= 0.0 {
+        return 0.0;
+    }
+    crate::light::polygon_form_factor_sided(x, p.normal, polygon, !p.one_sided)
+}
+
 /// The unoccluded form factor from receiver `p` to source `q`: the exact
 /// point-to-polygon factor integrated over p by Gauss quadrature.
 pub fn unoccluded_form_factor(p: &Element, q: &Element) -> f64 {
@@ -59,7 +69,7 @@ pub fn unoccluded_form_factor(p: &Element, q: &Element) -> f64 {
         return 0.0;
     }
     let polygon = q.shape.corners();
-    p.shape.quadrature(FF_ORDER).into_iter().map(|(x, w)| w * crate::light::polygon_form_factor(x, p.normal, &polygon)).sum()
+    p.shape.quadrature(FF_ORDER).into_iter().map(|(x, w)| w * point_factor(x, p, q, &polygon)).sum()
 }
 
 /// Tests root elements against the shaft between two elements.
@@ -322,7 +332,7 @@ fn factor_spread(p: &Element, q: &Element) -> (f64, f64) {
     let mut mean = 0.0;
     let corners = p.shape.corners();
     for x in corners.iter().map(|c| p.centre + (*c - p.centre) * 0.9).chain(std::iter::once(p.centre)) {
-        let f = crate::light::polygon_form_factor(x, p.normal, &polygon);
+        let f = point_factor(x, p, q, &polygon);
         lo = lo.min(f);
         hi = hi.max(f);
         mean += f;

@@ -83,9 +83,9 @@ fn lights_millimetres_away_and_at_grazing_angles_stay_finite() {
     let grazing = p.unoccluded_irradiance(DVec3::new(5.0, 1.999, 0.0), DVec3::Y);
     assert!(grazing.is_finite() && grazing.x >= 0.0);
     let bulb = Distribution::Uniform(DVec3::splat(6.0));
-    let e = point_irradiance(DVec3::new(0.0, 1e-3, 0.0), DVec3::ZERO, DVec3::Y, |d| bulb.intensity(d));
+    let e = point_contribution(DVec3::new(0.0, 1e-3, 0.0), DVec3::ZERO, DVec3::Y, |d| bulb.intensity(d));
     assert!(e.is_finite() && (e.x - 6.0e6).abs() < 1.0, "{e}");
-    let e = point_irradiance(DVec3::ZERO, DVec3::new(1.0, 0.0, 0.0), DVec3::Y, |d| bulb.intensity(d));
+    let e = point_contribution(DVec3::ZERO, DVec3::new(1.0, 0.0, 0.0), DVec3::Y, |d| bulb.intensity(d));
     assert_eq!(e, DVec3::ZERO, "grazing incidence");
 }
 

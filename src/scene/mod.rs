@@ -8,6 +8,7 @@
 
 mod fields;
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use glam::{DMat3, DVec3, Vec3};
@@ -378,6 +379,25 @@ impl Scene {
             }
         }
         out
+    }
+
+    /// Diffuse reflectance of every virtual surface id (enabled or not).
+    pub fn virtual_surface_rgb(&self) -> HashMap<u32, DVec3> {
+        let mut id = self.surfaces.len() as u32;
+        let mut out = HashMap::new();
+        for o in &self.objects {
+            for s in &o.surfaces {
+                out.insert(id, s.rgb);
+                id += 1;
+            }
+        }
+        out
+    }
+
+    /// Whether this scene differs from what the photo shows: an enabled
+    /// virtual object, a real light not at scale 1, or a virtual light on.
+    pub fn changes_the_photo(&self) -> bool {
+        self.objects.iter().any(|o| o.enabled) || self.lights.iter().any(|l| l.scale != if l.real { 1.0 } else { 0.0 })
     }
 
     /// Builds the tracer: the real surfaces, and the enabled virtual objects

@@ -1,0 +1,222 @@
+//! Differential rendering: the photo changed by what the model says the
+//! change does ([`composite`]). Real pixels: `Additive`, photo + ρ·(L_with −
+//! L_without) in irradiance terms (Debevec, Grosch §4), or `Ratio`, photo ×
+//! L_with / L_without (the shadow catcher's form: a shadow darkens light and
+//! dark texture by the same factor, not the same amount). Virtual pixels:
+//! the virtual surface's radiance ρ·(E + H)/π. Pixels whose sub-pixels mix
+//! real and virtual surfaces average their sub-pixels.
+//!
+//! A pixel whose direct light is unchanged and whose indirect light moved by
+//! less than [`UNCHANGED_INDIRECT`] of its irradiance is the photo's pixel,
+//! bit for bit. No negative or non-finite value leaves: a ratio whose
+//! "without" irradiance is nearly zero (D ≈ 0) falls back to the additive
+//! form, and additive results are clamped at zero (both counted).
+
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+
+use crate::image_io::Image;
+use crate::light::LightSource;
+use crate::patches::Location;
+use crate::pda::{LightTerm, PixelDataArray, SurfacePoint};
+
+/// Relative change of a pixel's irradiance below which only indirect
+/// light moved and the photo's pixel is kept: 1e-4, a hundredth of the
+/// ~1% noise of a photograph.
+pub const UNCHANGED_INDIRECT: f64 = 1e-4;
+
+/// How real pixels take the change.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CompositeMode {
+    Additive,
+    Ratio,
+}
+
+/// What the compositor needs besides the PDA.
+pub struct CompositeInput<'a> {
+    pub pda: &'a PixelDataArray,
+    pub photo: &'a Image,
+    pub lights: &'a [LightSource],
+    /// Each light's scale in the photo, and in the augmented scene.
+    pub scales_without: &'a [f64],
+    pub scales_with: &'a [f64],
+    /// Indirect irradiance at the vertices of the photo's model, and of the
+    /// augmented model (real vertices are numbered alike in both).
+    pub indirect_without: &'a [DVec3],
+    pub indirect_with: &'a [DVec3],
+    /// Reflectance per patch of the augmented model.
+    pub reflectance: &'a [DVec3],
+    pub mode: CompositeMode,
+}
+
+/// The augmented photo and its layers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Composite {
+    pub image: Image,
+    /// Direct and indirect irradiance of the surface seen, in the augmented scene.
+    pub direct: Image,
+    pub indirect: Image,
+    /// image − photo (may be negative: a shadow).
+    pub change: Image,
+    /// Coverage of virtual surfaces per pixel, in [0, 1].
+    pub alpha: Vec<f32>,
+    /// Pixels copied from the photo unchanged.
+    pub copied: usize,
+    /// Real samples where the ratio fell back to the additive form (D ≈ 0).
+    pub ratio_fallbacks: usize,
+    /// Samples clamped at zero.
+    pub clamped: usize,
+}
+
+/// One sample's shading.
+struct Shade {
+    value: DVec3,
+    direct: DVec3,
+    indirect: DVec3,
+    copied: bool,
+    fallback: bool,
+    clamped: bool,
+}
+
+impl CompositeInput<'_> {
+    fn irradiance(&self, terms: &[LightTerm], scales: &[f64], all: bool) -> DVec3 {
+        let mut e = DVec3::ZERO;
+        for ((t, light), &s) in terms.iter().zip(self.lights).zip(scales) {
+            if s > 0.0 && t.unoccluded > 0.0 {
+                let v = if all { t.visible_all } else { t.visible_real };
+                e += light.colour() * (s * t.unoccluded as f64 * v as f64);
+            }
+        }
+        e
+    }
+
+    fn interpolate(values: &[DVec3], at: &Location) -> DVec3 {
+        at.weights.iter().map(|&(v, w)| values[v as usize] * w).sum()
+    }
+
+    /// A real surface point under the photo pixel `photo`; `floor` is the
+    /// irradiance below which a ratio is not trusted.
+    fn shade_real(&self, p: &SurfacePoint, terms: &[LightTerm], photo: DVec3, floor: DVec3) -> Shade {
+        let e_wo = self.irradiance(terms, self.scales_without, false);
+        let e_w = self.irradiance(terms, self.scales_with, true);
+        let h_wo = Self::interpolate(self.indirect_without, &p.location);
+        let h_w = Self::interpolate(self.indirect_with, &p.location);
+        let (without, with) = (e_wo + h_wo, e_w + h_w);
+        if e_w == e_wo && (h_w - h_wo).abs().cmple(without * UNCHANGED_INDIRECT).all() {
+            return Shade { value: photo, direct: e_w, indirect: h_w, copied: true, fallback: false, clamped: false };
+        }
+        let rho = self.reflectance[p.location.patch as usize];
+        let additive = photo + rho * (with - without) / std::f64::consts::PI;
+        let (mut value, mut fallback) = (DVec3::ZERO, false);
+        for c in 0..3 {
+            value[c] = match self.mode {
+                CompositeMode::Ratio if without[c] > floor[c] => photo[c] * with[c] / without[c],
+                CompositeMode::Ratio => {
+                    fallback = true;
+                    additive[c]
+                }
+                CompositeMode::Additive => additive[c],
+            };
+        }
+        let clamped = value.min_element() < 0.0 || !value.is_finite();
+        let value = if value.is_finite() { value.max(DVec3::ZERO) } else { DVec3::ZERO };
+        Shade { value, direct: e_w, indirect: h_w, copied: false, fallback, clamped }
+    }
+
+    fn shade_virtual(&self, p: &SurfacePoint, terms: &[LightTerm]) -> Shade {
+        let e_w = self.irradiance(terms, self.scales_with, true);
+        let h_w = Self::interpolate(self.indirect_with, &p.location);
+        let rho = self.reflectance[p.location.patch as usize];
+        let value = rho * (e_w + h_w) / std::f64::consts::PI;
+        Shade { value, direct: e_w, indirect: h_w, copied: false, fallback: false, clamped: false }
+    }
+}
+
+/// Composites every pixel.
+pub fn composite(input: &CompositeInput) -> Composite {
+    let pda = input.pda;
+    let lights = pda.light_count;
+    let n = (pda.width * pda.height) as usize;
+    // D ≈ 0: a thousandth of the mean "without" irradiance of the real points.
+    let mean = pda
+        .real
+        .points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| input.irradiance(&pda.real.terms[i * lights..(i + 1) * lights], input.scales_without, false) + CompositeInput::interpolate(input.indirect_without, &p.location))
+        .sum::<DVec3>()
+        / pda.real.points.len().max(1) as f64;
+    let floor = mean * 1e-3;
+    let mut edge_of = vec![u32::MAX; n];
+    for (k, e) in pda.edges.iter().enumerate() {
+        edge_of[e.pixel as usize] = k as u32;
+    }
+
+    let shaded: Vec<(Shade, f32)> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let photo = input.photo.pixels[i].as_dvec3();
+            if edge_of[i] != u32::MAX {
+                let e = pda.edges[edge_of[i] as usize];
+                let mut sum = Shade { value: DVec3::ZERO, direct: DVec3::ZERO, indirect: DVec3::ZERO, copied: false, fallback: false, clamped: false };
+                let mut virtual_count = 0;
+                for k in e.start..e.start + e.count {
+                    let p = &pda.edge_samples.points[k as usize];
+                    let terms = &pda.edge_samples.terms[k as usize * lights..(k as usize + 1) * lights];
+                    let s = if p.is_virtual {
+                        virtual_count += 1;
+                        input.shade_virtual(p, terms)
+                    } else {
+                        input.shade_real(p, terms, photo, floor)
+                    };
+                    sum.value += s.value;
+                    sum.direct += s.direct;
+                    sum.indirect += s.indirect;
+                    sum.fallback |= s.fallback;
+                    sum.clamped |= s.clamped;
+                }
+                // Sub-pixels that see no surface keep the photo's background.
+                let total = (pda.supersample * pda.supersample) as f64;
+                sum.value += photo * (total - e.count as f64);
+                return (
+                    Shade { value: sum.value / total, direct: sum.direct / total, indirect: sum.indirect / total, ..sum },
+                    virtual_count as f32 / total as f32,
+                );
+            }
+            if pda.virtual_index[i] != u32::MAX {
+                let k = pda.virtual_index[i] as usize;
+                return (input.shade_virtual(&pda.virtual_samples.points[k], &pda.virtual_samples.terms[k * lights..(k + 1) * lights]), 1.0);
+            }
+            if pda.real_index[i] != u32::MAX {
+                let k = pda.real_index[i] as usize;
+                return (input.shade_real(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], photo, floor), 0.0);
+            }
+            (Shade { value: photo, direct: DVec3::ZERO, indirect: DVec3::ZERO, copied: true, fallback: false, clamped: false }, 0.0)
+        })
+        .collect();
+
+    let (w, h) = (pda.width, pda.height);
+    let mut out = Composite {
+        image: Image::new(w, h),
+        direct: Image::new(w, h),
+        indirect: Image::new(w, h),
+        change: Image::new(w, h),
+        alpha: Vec::with_capacity(n),
+        copied: 0,
+        ratio_fallbacks: 0,
+        clamped: 0,
+    };
+    for (i, (s, a)) in shaded.into_iter().enumerate() {
+        // Copied pixels keep the photo's exact bits.
+        let value: Vec3 = if s.copied { input.photo.pixels[i] } else { s.value.as_vec3() };
+        out.image.pixels[i] = value;
+        out.direct.pixels[i] = s.direct.as_vec3();
+        out.indirect.pixels[i] = s.indirect.as_vec3();
+        out.change.pixels[i] = value - input.photo.pixels[i];
+        out.alpha.push(a);
+        out.copied += s.copied as usize;
+        out.ratio_fallbacks += s.fallback as usize;
+        out.clamped += s.clamped as usize;
+    }
+    out
+}

@@ -1,0 +1,433 @@
+//! [`PixelDataArray`] (Grosch §3.1, after Loscos et al.): per pixel the
+//! real surface point the camera sees, with its patch and interpolation
+//! weights, and per light the unoccluded irradiance (the geometry term) and
+//! two visibilities — through real geometry only (the photo's world) and
+//! through real and virtual geometry (the augmented one). Where a virtual
+//! object is in front, the virtual point is kept too; where a pixel's
+//! sub-pixels mix real and virtual surfaces, each sub-pixel is kept.
+//!
+//! Shadow rays go to the light's jittered grid, chosen by an oracle: 2^min
+//! rays first, 2^penumbra only where they disagree (penumbra). Rays against
+//! virtual geometry are cast only where the shaft from the point to the
+//! light can meet a virtual object's bounds; elsewhere both visibilities are
+//! the same numbers, so untouched pixels cost nothing more than the photo's.
+
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+
+use crate::camera::Camera;
+use crate::light::{Emitter, LightSource, hash2, offset_origin, segment};
+use crate::patches::{Location, Patches};
+use crate::shaft::Shaft;
+use crate::trace::{Hit, Layer, TraceRay, Tracer};
+
+/// Ray budget of the visibility oracle and the edge supersampling.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PdaSettings {
+    /// 2^min_level shadow rays per rect light everywhere.
+    pub min_level: usize,
+    /// 2^penumbra_level where the first rays disagree.
+    pub penumbra_level: usize,
+    /// n×n sub-pixels tested (and shaded where they mix real and virtual).
+    pub supersample: u32,
+}
+
+impl Default for PdaSettings {
+    fn default() -> Self {
+        PdaSettings { min_level: 2, penumbra_level: 4, supersample: 3 }
+    }
+}
+
+/// One light at one surface point.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LightTerm {
+    /// Unoccluded irradiance before the light's scale, as a multiple of the light's colour.
+    pub unoccluded: f32,
+    /// Visible fraction through real geometry only.
+    pub visible_real: f32,
+    /// Visible fraction through real and virtual geometry.
+    pub visible_all: f32,
+}
+
+/// A surface point seen through a pixel or sub-pixel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfacePoint {
+    pub position: Vec3,
+    pub normal: Vec3,
+    pub surface: u32,
+    pub is_virtual: bool,
+    /// Patch and interpolation weights on its vertices.
+    pub location: Location,
+}
+
+/// Points with their light terms (`terms[i * lights + l]`).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Samples {
+    pub points: Vec<SurfacePoint>,
+    pub terms: Vec<LightTerm>,
+}
+
+/// An edge pixel: its sub-pixel samples are `edge_samples[start..start+count]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EdgePixel {
+    pub pixel: u32,
+    pub start: u32,
+    pub count: u32,
+}
+
+/// The Pixel Data Array.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PixelDataArray {
+    pub width: u32,
+    pub height: u32,
+    pub light_count: usize,
+    /// Sub-pixels per side of an edge pixel.
+    pub supersample: u32,
+    /// Per pixel, index into `real` (u32::MAX: no real surface).
+    pub real_index: Vec<u32>,
+    pub real: Samples,
+    /// Per pixel, index into `virtual_samples` (u32::MAX: no virtual surface in front).
+    pub virtual_index: Vec<u32>,
+    pub virtual_samples: Samples,
+    /// Pixels whose sub-pixels mix real and virtual surfaces, in pixel order.
+    pub edges: Vec<EdgePixel>,
+    pub edge_samples: Samples,
+    /// Shadow and sub-pixel rays traced.
+    pub rays: u64,
+}
+
+const NONE: u32 = u32::MAX;
+
+/// What the oracle needs about the virtual objects: their world boxes.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct VirtualBounds {
+    pub boxes: Vec<(DVec3, DVec3)>,
+}
+
+impl VirtualBounds {
+    pub fn of(triangles: &[(u32, Vec<crate::geometry::Triangle>)]) -> VirtualBounds {
+        let boxes = triangles
+            .iter()
+            .filter(|(_, t)| !t.is_empty())
+            .map(|(_, t)| {
+                t.iter().flatten().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p.as_dvec3()), hi.max(p.as_dvec3())))
+            })
+            .collect();
+        VirtualBounds { boxes }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.boxes.is_empty()
+    }
+
+    /// Whether light travelling from `x` to the light's emitter may pass a virtual object.
+    fn may_shadow(&self, x: DVec3, light: &LightSource) -> bool {
+        if self.boxes.is_empty() {
+            return false;
+        }
+        match light.emitter {
+            Emitter::Point => self.boxes.iter().any(|(lo, hi)| segment_meets_box(x, light.position, *lo, *hi)),
+            Emitter::Rect { u, v, .. } => {
+                let c = light.position;
+                let shaft = Shaft::hull(&[x, c - 0.5 * u - 0.5 * v, c + 0.5 * u - 0.5 * v, c + 0.5 * u + 0.5 * v, c - 0.5 * u + 0.5 * v]);
+                self.boxes.iter().any(|(lo, hi)| !shaft.excludes(&box_corners(*lo, *hi)))
+            }
+        }
+    }
+}
+
+fn box_corners(lo: DVec3, hi: DVec3) -> [DVec3; 8] {
+    std::array::from_fn(|i| DVec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z }))
+}
+
+/// Slab test of the segment a→b against a box (grown a little).
+fn segment_meets_box(a: DVec3, b: DVec3, lo: DVec3, hi: DVec3) -> bool {
+    let pad = 1e-6 * (hi - lo).max_element().max(1.0);
+    let (lo, hi) = (lo - pad, hi + pad);
+    let d = b - a;
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for k in 0..3 {
+        if d[k].abs() < 1e-300 {
+            if a[k] < lo[k] || a[k] > hi[k] {
+                return false;
+            }
+        } else {
+            let (mut ta, mut tb) = ((lo[k] - a[k]) / d[k], (hi[k] - a[k]) / d[k]);
+            if ta > tb {
+                std::mem::swap(&mut ta, &mut tb);
+            }
+            t0 = t0.max(ta);
+            t1 = t1.min(tb);
+            if t0 > t1 {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// Everything the PDA is built from.
+pub struct PdaInput<'a> {
+    pub camera: &'a Camera,
+    /// Real geometry and the virtual objects of the augmented scene.
+    pub tracer: &'a Tracer,
+    /// Real patches, then the virtual objects' patches (as the tracer numbers surfaces).
+    pub patches: &'a Patches,
+    pub lights: &'a [LightSource],
+    /// Which lights matter (on in the photo or in the augmented scene).
+    pub active: &'a [bool],
+    pub bounds: &'a VirtualBounds,
+    pub settings: PdaSettings,
+}
+
+impl PdaInput<'_> {
+    /// The light terms of a surface point; returns rays cast.
+    fn terms(&self, x: DVec3, n: DVec3, seed: u64, out: &mut Vec<LightTerm>) -> u64 {
+        let mut rays = 0;
+        for (l, light) in self.lights.iter().enumerate() {
+            if !self.active[l] {
+                out.push(LightTerm::default());
+                continue;
+            }
+            let (term, r) = light_term(self.tracer, light, self.bounds, x, n, hash2(seed, l as u64), self.settings);
+            out.push(term);
+            rays += r;
+        }
+        rays
+    }
+
+    fn point(&self, hit: &Hit, origin: DVec3, direction: DVec3) -> Option<SurfacePoint> {
+        let x = origin + direction * hit.t as f64;
+        let location = self.patches.locate(hit.surface, hit.triangle, x)?;
+        Some(SurfacePoint { position: x.as_vec3(), normal: hit.normal, surface: hit.surface, is_virtual: hit.is_virtual, location })
+    }
+}
+
+/// Visibility of one light from x through the two worlds, by the oracle.
+fn light_term(tracer: &Tracer, light: &LightSource, bounds: &VirtualBounds, x: DVec3, n: DVec3, seed: u64, settings: PdaSettings) -> (LightTerm, u64) {
+    let g = light.unoccluded_irradiance(x, n);
+    let colour = light.colour().max_element();
+    if g == DVec3::ZERO || colour <= 0.0 {
+        return (LightTerm::default(), 0);
+    }
+    let unoccluded = (g.max_element() / colour) as f32;
+    let check_virtual = bounds.may_shadow(x, light);
+    let origin = offset_origin(x, n, light.position);
+    let Some(grid) = &light.grid else {
+        let ray = segment(origin, light.position);
+        let real = !tracer.occluded(&ray, Layer::Real);
+        let all = real && !(check_virtual && tracer.occluded(&ray, Layer::Virtual));
+        let f = |b: bool| if b { 1.0 } else { 0.0 };
+        return (LightTerm { unoccluded, visible_real: f(real), visible_all: f(all) }, 1 + check_virtual as u64);
+    };
+    let mut level = settings.min_level;
+    let mut rays_cast = 0u64;
+    loop {
+        let targets: Vec<DVec3> = grid.samples(level, seed).map(|st| light.point_at(st)).collect();
+        let rays: Vec<TraceRay> = targets.iter().map(|&t| segment(origin, t)).collect();
+        let mut real_blocked = vec![false; rays.len()];
+        tracer.occluded_batch(&rays, Layer::Real, &mut real_blocked);
+        let mut virt_blocked = vec![false; rays.len()];
+        if check_virtual {
+            tracer.occluded_batch(&rays, Layer::Virtual, &mut virt_blocked);
+        }
+        rays_cast += rays.len() as u64 * (1 + check_virtual as u64);
+        let mixed = |b: &[bool]| b.iter().any(|x| *x) && b.iter().any(|x| !*x);
+        let all_blocked: Vec<bool> = real_blocked.iter().zip(&virt_blocked).map(|(a, b)| *a || *b).collect();
+        if level < settings.penumbra_level && (mixed(&real_blocked) || mixed(&all_blocked)) {
+            level = settings.penumbra_level;
+            continue;
+        }
+        // Each ray weighs what its sample contributes at x.
+        let (mut total, mut real, mut all) = (0.0, 0.0, 0.0);
+        for (k, t) in targets.iter().enumerate() {
+            let w = crate::light::point_contribution(*t, x, n, |d| light.intensity(d)).max_element();
+            total += w;
+            if !real_blocked[k] {
+                real += w;
+            }
+            if !all_blocked[k] {
+                all += w;
+            }
+        }
+        let frac = |v: f64| if total > 0.0 { (v / total) as f32 } else { 0.0 };
+        return (LightTerm { unoccluded, visible_real: frac(real), visible_all: frac(all) }, rays_cast);
+    }
+}
+
+impl PixelDataArray {
+    /// Builds the array for every pixel of the camera.
+    pub fn build(input: &PdaInput) -> PixelDataArray {
+        let cam = input.camera;
+        let (w, h) = (cam.width, cam.height);
+        let lights = input.lights.len();
+        let has_virtual = input.tracer.virtual_objects.is_some();
+        // Pixels near a virtual object's image are tested for mixed sub-pixels.
+        let near_virtual = screen_boxes(cam, input.bounds);
+
+        struct Row {
+            real: Vec<(u32, SurfacePoint)>,
+            real_terms: Vec<LightTerm>,
+            virt: Vec<(u32, SurfacePoint)>,
+            virt_terms: Vec<LightTerm>,
+            edges: Vec<(u32, Vec<SurfacePoint>)>,
+            edge_terms: Vec<LightTerm>,
+            rays: u64,
+        }
+        let rows: Vec<Row> = (0..h)
+            .into_par_iter()
+            .map(|row| {
+                let mut r = Row { real: vec![], real_terms: vec![], virt: vec![], virt_terms: vec![], edges: vec![], edge_terms: vec![], rays: 0 };
+                let rays: Vec<TraceRay> = (0..w)
+                    .map(|col| {
+                        let ray = cam.pixel_ray(col, row);
+                        TraceRay::new(ray.origin.as_vec3(), ray.direction.as_vec3())
+                    })
+                    .collect();
+                let mut real_hits = vec![None; w as usize];
+                input.tracer.intersect_batch(&rays, Layer::Real, &mut real_hits);
+                let mut all_hits = real_hits.clone();
+                if has_virtual {
+                    input.tracer.intersect_batch(&rays, Layer::All, &mut all_hits);
+                }
+                for col in 0..w {
+                    let pixel = row * w + col;
+                    let seed = hash2(pixel as u64, 0x5A17);
+                    let ray = cam.pixel_ray(col, row);
+                    if let Some(p) = real_hits[col as usize].as_ref().and_then(|hit| input.point(hit, ray.origin, ray.direction)) {
+                        r.rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), seed, &mut r.real_terms);
+                        r.real.push((pixel, p));
+                    }
+                    if let Some(hit) = all_hits[col as usize].as_ref().filter(|h| h.is_virtual) {
+                        if let Some(p) = input.point(hit, ray.origin, ray.direction) {
+                            r.rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 1), &mut r.virt_terms);
+                            r.virt.push((pixel, p));
+                        }
+                    }
+                    let n = input.settings.supersample;
+                    if n > 1 && near_virtual.iter().any(|b| b.contains(col, row)) {
+                        let subs = sub_points(input, col, row, n);
+                        r.rays += (n * n) as u64;
+                        let virtual_count = subs.iter().filter(|s| s.as_ref().is_some_and(|p| p.is_virtual)).count();
+                        if virtual_count > 0 && virtual_count < subs.len() {
+                            let mut kept = Vec::new();
+                            for (k, s) in subs.into_iter().enumerate() {
+                                // A sub-pixel that sees nothing counts as black background.
+                                if let Some(p) = s {
+                                    r.rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 100 + k as u64), &mut r.edge_terms);
+                                    kept.push(p);
+                                }
+                            }
+                            r.edges.push((pixel, kept));
+                        }
+                    }
+                }
+                r
+            })
+            .collect();
+
+        let n = (w * h) as usize;
+        let mut pda = PixelDataArray {
+            width: w,
+            height: h,
+            light_count: lights,
+            supersample: input.settings.supersample.max(1),
+            real_index: vec![NONE; n],
+            real: Samples::default(),
+            virtual_index: vec![NONE; n],
+            virtual_samples: Samples::default(),
+            edges: Vec::new(),
+            edge_samples: Samples::default(),
+            rays: 0,
+        };
+        for r in rows {
+            for (pixel, p) in r.real {
+                pda.real_index[pixel as usize] = pda.real.points.len() as u32;
+                pda.real.points.push(p);
+            }
+            pda.real.terms.extend(r.real_terms);
+            for (pixel, p) in r.virt {
+                pda.virtual_index[pixel as usize] = pda.virtual_samples.points.len() as u32;
+                pda.virtual_samples.points.push(p);
+            }
+            pda.virtual_samples.terms.extend(r.virt_terms);
+            for (pixel, subs) in r.edges {
+                let start = pda.edge_samples.points.len() as u32;
+                pda.edges.push(EdgePixel { pixel, start, count: subs.len() as u32 });
+                pda.edge_samples.points.extend(subs);
+            }
+            pda.edge_samples.terms.extend(r.edge_terms);
+            pda.rays += r.rays;
+        }
+        pda
+    }
+
+    /// Bytes held, and per pixel.
+    pub fn memory_bytes(&self) -> usize {
+        let samples = |s: &Samples| s.points.len() * std::mem::size_of::<SurfacePoint>() + s.terms.len() * std::mem::size_of::<LightTerm>();
+        (self.real_index.len() + self.virtual_index.len()) * 4
+            + samples(&self.real)
+            + samples(&self.virtual_samples)
+            + samples(&self.edge_samples)
+            + self.edges.len() * std::mem::size_of::<EdgePixel>()
+    }
+}
+
+/// The n×n sub-pixel surface points of a pixel (None where a ray leaves the scene).
+fn sub_points(input: &PdaInput, col: u32, row: u32, n: u32) -> Vec<Option<SurfacePoint>> {
+    let cam = input.camera;
+    let rays: Vec<(TraceRay, DVec3, DVec3)> = (0..n * n)
+        .map(|k| {
+            let (i, j) = (k % n, k / n);
+            let ray = cam.ray(col as f64 + (i as f64 + 0.5) / n as f64, row as f64 + (j as f64 + 0.5) / n as f64);
+            (TraceRay::new(ray.origin.as_vec3(), ray.direction.as_vec3()), ray.origin, ray.direction)
+        })
+        .collect();
+    let traced: Vec<TraceRay> = rays.iter().map(|r| r.0).collect();
+    let mut hits = vec![None; traced.len()];
+    input.tracer.intersect_batch(&traced, Layer::All, &mut hits);
+    hits.iter().zip(&rays).map(|(h, r)| h.as_ref().and_then(|h| input.point(h, r.1, r.2))).collect()
+}
+
+/// A pixel rectangle, inclusive.
+#[derive(Debug, Clone, Copy)]
+struct PixelBox {
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+}
+
+impl PixelBox {
+    fn contains(&self, x: u32, y: u32) -> bool {
+        x >= self.x0 && x <= self.x1 && y >= self.y0 && y <= self.y1
+    }
+}
+
+/// The image boxes of the virtual objects' bounds, one pixel wider; a box
+/// reaching behind the camera covers the whole image.
+fn screen_boxes(cam: &Camera, bounds: &VirtualBounds) -> Vec<PixelBox> {
+    bounds
+        .boxes
+        .iter()
+        .map(|(lo, hi)| {
+            let projected: Option<Vec<(f64, f64)>> = box_corners(*lo, *hi).iter().map(|c| cam.project(*c).map(|(x, y, _)| (x, y))).collect();
+            let full = PixelBox { x0: 0, y0: 0, x1: cam.width - 1, y1: cam.height - 1 };
+            let Some(pts) = projected else { return full };
+            let (mut x0, mut y0, mut x1, mut y1) = (f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
+            for (x, y) in pts {
+                x0 = x0.min(x);
+                y0 = y0.min(y);
+                x1 = x1.max(x);
+                y1 = y1.max(y);
+            }
+            let clamp = |v: f64, max: u32| (v.floor().max(0.0) as u32).min(max);
+            PixelBox {
+                x0: clamp(x0 - 1.0, cam.width - 1),
+                y0: clamp(y0 - 1.0, cam.height - 1),
+                x1: clamp(x1 + 1.0, cam.width - 1),
+                y1: clamp(y1 + 1.0, cam.height - 1),
+            }
+        })
+        .collect()
+}
