@@ -21,9 +21,9 @@ use crate::patches::Location;
 use crate::pda::{LightTerm, PixelDataArray, SurfacePoint};
 
 /// Relative change of a pixel's irradiance below which only indirect
-/// light moved and the photo's pixel is kept: 1e-4, a hundredth of the
-/// ~1% noise of a photograph.
-pub const UNCHANGED_INDIRECT: f64 = 1e-4;
+/// light moved and the photo's pixel is kept: 1e-3, a tenth of the ~1%
+/// noise of a photograph.
+pub const UNCHANGED_INDIRECT: f64 = 1e-3;
 
 /// How real pixels take the change.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -221,7 +221,15 @@ impl Patches {
     }
 
     /// [`Patches::of_scene`] with its own patch size for the virtual objects.
+    /// Open surfaces face the camera: the photo shows that side, and a
+    /// single radiosity for both sides would pass light through walls.
     pub fn of_scene_with(scene: &crate::scene::Scene, with_virtual: bool, target_size: f64, virtual_size: f64) -> Patches {
+        let mut p = Self::of_scene_two_sided(scene, with_virtual, target_size, virtual_size);
+        p.face_open_surfaces_towards(scene.camera.position);
+        p
+    }
+
+    fn of_scene_two_sided(scene: &crate::scene::Scene, with_virtual: bool, target_size: f64, virtual_size: f64) -> Patches {
         let virt = if with_virtual { scene.virtual_world_surfaces() } else { Vec::new() };
         let inputs: Vec<SurfaceInput> = scene
             .surfaces
@@ -251,6 +259,31 @@ impl Patches {
         };
         p.append(inputs, target_size);
         p
+    }
+
+    /// Makes every element of an open (two-sided) surface one-sided, facing
+    /// the half-space that holds `eye`; elements seen edge-on stay two-sided.
+    pub fn face_open_surfaces_towards(&mut self, eye: DVec3) {
+        for root in self.roots.clone() {
+            let el = &self.elements[root as usize];
+            if el.one_sided {
+                continue;
+            }
+            let side = (eye - el.centre).dot(el.normal);
+            if side.abs() <= 1e-9 * (eye - el.centre).length() {
+                continue;
+            }
+            let normal = if side > 0.0 { el.normal } else { -el.normal };
+            let mut stack = vec![root];
+            while let Some(e) = stack.pop() {
+                let el = &mut self.elements[e as usize];
+                el.normal = normal;
+                el.one_sided = true;
+                if let Some(children) = el.children {
+                    stack.extend(children);
+                }
+            }
+        }
     }
 
     /// Meshes more surfaces into this mesh, after what it holds.

@@ -29,6 +29,14 @@ use crate::trace::{Layer, TraceRay, Tracer};
 /// tests/radiosity_desk.rs).
 pub const DEFAULT_LINK_EPSILON: f64 = 0.002;
 
+/// A partly hidden pair is refined while its unoccluded form factor exceeds
+/// this fraction of ε; below it, rays at that level estimate visibility.
+/// Measured on the desk (0.25 m): 1 (refine only above ε) keeps 287k links
+/// but the hierarchical solution drifts 5% from the full matrix; 0.1 stays
+/// within 1% with 359k links; refining every hidden pair to the leaves
+/// needs 387k links and twice the time.
+pub const VISIBILITY_REFINE_FRACTION: f64 = 0.1;
+
 /// Receiver quadrature order of the unoccluded form factor. It is the same
 /// for every pair, so that the factors out of one receiver sum to the exact
 /// fraction of its hemisphere the sources cover (one in a closed room):
@@ -230,8 +238,59 @@ impl Transport {
                 out
             })
             .collect();
-        let mut links = links;
-        links.sort_by_key(|l| l.receiver);
+        Transport::hierarchical_from_links(links)
+    }
+
+    /// This transport (of a room's patches) with virtual objects added:
+    /// `patches` holds the room's elements first, unchanged, then the
+    /// objects'. Hierarchical links whose shaft cannot meet an object are
+    /// kept; the others are refined again with the objects as occluders;
+    /// the objects' elements are linked with everything. A full matrix is
+    /// rebuilt.
+    pub fn with_objects(&self, patches: &Patches, tracer: &Tracer, epsilon: f64) -> Transport {
+        let Transport::Hierarchical { links: room_links, .. } = self else {
+            return Transport::full(patches, tracer, Layer::All);
+        };
+        let is_virtual = |r: &u32| patches.surface_is_virtual.get(&patches.elements[*r as usize].surface).copied().unwrap_or(false);
+        let object_roots: Vec<u32> = patches.roots.iter().copied().filter(is_virtual).collect();
+        let all_roots = &patches.roots;
+        let mut links: Vec<Link> = room_links
+            .par_chunks(1024)
+            .flat_map_iter(|chunk| {
+                let mut out = Vec::with_capacity(chunk.len());
+                for l in chunk {
+                    let (ep, eq) = (&patches.elements[l.receiver as usize], &patches.elements[l.source as usize]);
+                    if may_be_occluded(patches, Layer::Virtual, ep, eq, &object_roots) {
+                        refine(patches, tracer, Layer::All, epsilon, l.receiver, l.source, all_roots, &mut out);
+                    } else {
+                        out.push(*l);
+                    }
+                }
+                out
+            })
+            .collect();
+        let new: Vec<Link> = object_roots
+            .par_iter()
+            .flat_map_iter(|&v| {
+                let mut out = Vec::new();
+                for &r in all_roots {
+                    if r == v {
+                        continue;
+                    }
+                    refine(patches, tracer, Layer::All, epsilon, v, r, all_roots, &mut out);
+                    if !is_virtual(&r) {
+                        refine(patches, tracer, Layer::All, epsilon, r, v, all_roots, &mut out);
+                    }
+                }
+                out
+            })
+            .collect();
+        links.extend(new);
+        Transport::hierarchical_from_links(links)
+    }
+
+    fn hierarchical_from_links(mut links: Vec<Link>) -> Transport {
+        links.sort_by_key(|l| (l.receiver, l.source));
         let mut ranges: Vec<(u32, u32, u32)> = Vec::new();
         for (i, l) in links.iter().enumerate() {
             match ranges.last_mut() {
@@ -384,10 +443,11 @@ fn refine(patches: &Patches, tracer: &Tracer, layer: Layer, epsilon: f64, p: u32
             return;
         }
         // Where the shaft between the two holds no possible occluder they
-        // see each other whole; otherwise refine to the leaves and let rays
-        // decide there (Hanrahan's BFV refinement, with exact shafts).
+        // see each other whole. Otherwise rays estimate the visible part:
+        // trusted where the exchange is small (its error is at most F), and
+        // refined where it is not (Hanrahan's BFV refinement, exact shafts).
         let occluded = !occluders.is_empty();
-        if occluded && !(p_leaf && q_leaf) {
+        if occluded && f > epsilon * VISIBILITY_REFINE_FRACTION && !(p_leaf && q_leaf) {
             Some(!p_leaf && (q_leaf || ep.area >= eq.area))
         } else {
             let v = if occluded { visibility(ep, eq, tracer, layer) } else { 1.0 };

@@ -13,6 +13,7 @@ use crate::composite::{Composite, CompositeInput, CompositeMode, composite};
 use crate::error::Result;
 use crate::image_io::Image;
 use crate::model::{Model, ModelSettings, StageTimes, TransportMethod};
+
 use crate::patches::Patches;
 use crate::pda::{PdaInput, PdaSettings, PixelDataArray, VirtualBounds};
 use crate::radiosity::{Transport, direct_irradiance, solve_from, total_direct};
@@ -83,10 +84,11 @@ pub fn render(scene: &Scene, photo: &Image, settings: &RenderSettings, times: &m
     let own: Option<(Patches, Vec<Vec<DVec3>>, Transport)> = if has_virtual {
         let patches = times.time("virtual mesh", || Patches::of_scene_with(scene, true, settings.model.patch_size, settings.virtual_patch_size));
         let direct = times.time("direct light with objects", || direct_irradiance(&patches, lights, &tracer, Layer::All, settings.model.light_level));
-        let transport = times.time("form factors with objects", || match settings.model.transport {
-            TransportMethod::Full => Transport::full(&patches, &tracer, Layer::All),
-            TransportMethod::Hierarchical { epsilon } => Transport::hierarchical(&patches, &tracer, Layer::All, epsilon),
-        });
+        let epsilon = match settings.model.transport {
+            TransportMethod::Full => crate::radiosity::DEFAULT_LINK_EPSILON,
+            TransportMethod::Hierarchical { epsilon } => epsilon,
+        };
+        let transport = times.time("form factors with objects", || model.transport.with_objects(&patches, &tracer, epsilon));
         Some((patches, direct, transport))
     } else {
         left_out.push("virtual geometry and new form factors: no virtual object (the room's transport is reused)".to_string());
