@@ -182,7 +182,7 @@ pub fn write_exr(path: &Path, width: u32, height: u32, layers: &[ExrLayer]) -> R
             }
         }
     }
-    let layer = x::Layer::new((w, h), x::LayerAttributes::default(), x::Encoding::SMALL_LOSSLESS, x::AnyChannels::sort(list));
+    let layer = x::Layer::new((w, h), x::LayerAttributes::default(), x::Encoding::FAST_LOSSLESS, x::AnyChannels::sort(list));
     let image = x::Image::from_layer(layer);
     let mut bytes = std::io::Cursor::new(Vec::new());
     image.write().to_buffered(&mut bytes).map_err(|e| Error::file(path, format!("could not encode EXR: {e}")))?;
