@@ -17,8 +17,7 @@ use rayon::prelude::*;
 
 use crate::image_io::Image;
 use crate::light::LightSource;
-use crate::patches::Location;
-use crate::pda::{LightTerm, PixelDataArray, SurfacePoint};
+use crate::pda::{LightTerm, PatchPoint, PixelDataArray, SurfacePoint};
 
 /// Relative change of a pixel's irradiance below which only indirect
 /// light moved and the photo's pixel is kept: 1e-3, a tenth of the ~1%
@@ -44,8 +43,9 @@ pub struct CompositeInput<'a> {
     /// augmented model (real vertices are numbered alike in both).
     pub indirect_without: &'a [DVec3],
     pub indirect_with: &'a [DVec3],
-    /// Reflectance per patch of the augmented model.
+    /// Reflectance per patch of the augmented model, and each patch's vertices.
     pub reflectance: &'a [DVec3],
+    pub patch_vertices: &'a [[u32; 4]],
     pub mode: CompositeMode,
 }
 
@@ -83,15 +83,15 @@ impl CompositeInput<'_> {
         let mut e = DVec3::ZERO;
         for ((t, light), &s) in terms.iter().zip(self.lights).zip(scales) {
             if s > 0.0 && t.unoccluded > 0.0 {
-                let v = if all { t.visible_all } else { t.visible_real };
-                e += light.colour() * (s * t.unoccluded as f64 * v as f64);
+                e += light.colour() * (s * t.unoccluded as f64 * t.visible(all));
             }
         }
         e
     }
 
-    fn interpolate(values: &[DVec3], at: &Location) -> DVec3 {
-        at.weights.iter().map(|&(v, w)| values[v as usize] * w).sum()
+    fn interpolate(&self, values: &[DVec3], at: &PatchPoint) -> DVec3 {
+        let vertices = &self.patch_vertices[at.patch as usize];
+        vertices.iter().zip(at.weights).filter(|(_, w)| *w != 0.0).map(|(&v, w)| values[v as usize] * w as f64).sum()
     }
 
     /// A real surface point under the photo pixel `photo`; `floor` is the
@@ -99,8 +99,8 @@ impl CompositeInput<'_> {
     fn shade_real(&self, p: &SurfacePoint, terms: &[LightTerm], photo: DVec3, floor: DVec3) -> Shade {
         let e_wo = self.irradiance(terms, self.scales_without, false);
         let e_w = self.irradiance(terms, self.scales_with, true);
-        let h_wo = Self::interpolate(self.indirect_without, &p.location);
-        let h_w = Self::interpolate(self.indirect_with, &p.location);
+        let h_wo = self.interpolate(self.indirect_without, &p.location);
+        let h_w = self.interpolate(self.indirect_with, &p.location);
         let (without, with) = (e_wo + h_wo, e_w + h_w);
         if e_w == e_wo && (h_w - h_wo).abs().cmple(without * UNCHANGED_INDIRECT).all() {
             return Shade { value: photo, direct: e_w, indirect: h_w, copied: true, fallback: false, clamped: false };
@@ -125,7 +125,7 @@ impl CompositeInput<'_> {
 
     fn shade_virtual(&self, p: &SurfacePoint, terms: &[LightTerm]) -> Shade {
         let e_w = self.irradiance(terms, self.scales_with, true);
-        let h_w = Self::interpolate(self.indirect_with, &p.location);
+        let h_w = self.interpolate(self.indirect_with, &p.location);
         let rho = self.reflectance[p.location.patch as usize];
         let value = rho * (e_w + h_w) / std::f64::consts::PI;
         Shade { value, direct: e_w, indirect: h_w, copied: false, fallback: false, clamped: false }
@@ -143,7 +143,7 @@ pub fn composite(input: &CompositeInput) -> Composite {
         .points
         .iter()
         .enumerate()
-        .map(|(i, p)| input.irradiance(&pda.real.terms[i * lights..(i + 1) * lights], input.scales_without, false) + CompositeInput::interpolate(input.indirect_without, &p.location))
+        .map(|(i, p)| input.irradiance(&pda.real.terms[i * lights..(i + 1) * lights], input.scales_without, false) + input.interpolate(input.indirect_without, &p.location))
         .sum::<DVec3>()
         / pda.real.points.len().max(1) as f64;
     let floor = mean * 1e-3;

@@ -17,7 +17,7 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::light::{Emitter, LightSource, hash2, offset_origin, segment};
-use crate::patches::{Location, Patches};
+use crate::patches::Patches;
 use crate::shaft::Shaft;
 use crate::trace::{Hit, Layer, TraceRay, Tracer};
 
@@ -38,15 +38,35 @@ impl Default for PdaSettings {
     }
 }
 
-/// One light at one surface point.
+/// One light at one surface point (8 bytes).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct LightTerm {
     /// Unoccluded irradiance before the light's scale, as a multiple of the light's colour.
     pub unoccluded: f32,
-    /// Visible fraction through real geometry only.
-    pub visible_real: f32,
-    /// Visible fraction through real and virtual geometry.
-    pub visible_all: f32,
+    /// Visible fraction through real geometry only, in 1/65535.
+    visible_real: u16,
+    /// Visible fraction through real and virtual geometry, in 1/65535.
+    visible_all: u16,
+}
+
+impl LightTerm {
+    pub fn new(unoccluded: f32, visible_real: f64, visible_all: f64) -> LightTerm {
+        let q = |v: f64| (v.clamp(0.0, 1.0) * 65535.0).round() as u16;
+        LightTerm { unoccluded, visible_real: q(visible_real), visible_all: q(visible_all) }
+    }
+
+    /// The visible fraction through real geometry only, or through all.
+    pub fn visible(&self, all: bool) -> f64 {
+        (if all { self.visible_all } else { self.visible_real }) as f64 / 65535.0
+    }
+}
+
+/// Where a point lies on its patch: the weights of the patch's corner
+/// vertices (in `Patches::patch_vertices` order; triangles use three).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PatchPoint {
+    pub patch: u32,
+    pub weights: [f32; 4],
 }
 
 /// A surface point seen through a pixel or sub-pixel.
@@ -57,7 +77,7 @@ pub struct SurfacePoint {
     pub surface: u32,
     pub is_virtual: bool,
     /// Patch and interpolation weights on its vertices.
-    pub location: Location,
+    pub location: PatchPoint,
 }
 
 /// Points with their light terms (`terms[i * lights + l]`).
@@ -198,7 +218,8 @@ impl PdaInput<'_> {
 
     fn point(&self, hit: &Hit, origin: DVec3, direction: DVec3) -> Option<SurfacePoint> {
         let x = origin + direction * hit.t as f64;
-        let location = self.patches.locate(hit.surface, hit.triangle, x)?;
+        let at = self.patches.locate(hit.surface, hit.triangle, x)?;
+        let location = PatchPoint { patch: at.patch, weights: at.weights.map(|(_, w)| w as f32) };
         Some(SurfacePoint { position: x.as_vec3(), normal: hit.normal, surface: hit.surface, is_virtual: hit.is_virtual, location })
     }
 }
@@ -218,7 +239,7 @@ fn light_term(tracer: &Tracer, light: &LightSource, bounds: &VirtualBounds, x: D
         let real = !tracer.occluded(&ray, Layer::Real);
         let all = real && !(check_virtual && tracer.occluded(&ray, Layer::Virtual));
         let f = |b: bool| if b { 1.0 } else { 0.0 };
-        return (LightTerm { unoccluded, visible_real: f(real), visible_all: f(all) }, 1 + check_virtual as u64);
+        return (LightTerm::new(unoccluded, f(real), f(all)), 1 + check_virtual as u64);
     };
     let mut level = settings.min_level;
     let mut rays_cast = 0u64;
@@ -250,8 +271,8 @@ fn light_term(tracer: &Tracer, light: &LightSource, bounds: &VirtualBounds, x: D
                 all += w;
             }
         }
-        let frac = |v: f64| if total > 0.0 { (v / total) as f32 } else { 0.0 };
-        return (LightTerm { unoccluded, visible_real: frac(real), visible_all: frac(all) }, rays_cast);
+        let frac = |v: f64| if total > 0.0 { v / total } else { 0.0 };
+        return (LightTerm::new(unoccluded, frac(real), frac(all)), rays_cast);
     }
 }
 

@@ -139,6 +139,7 @@ pub fn render(scene: &Scene, photo: &Image, settings: &RenderSettings, times: &m
             indirect_without: &indirect_without,
             indirect_with: &indirect_with,
             reflectance: &reflectance,
+            patch_vertices: &patches.patch_vertices,
             mode: settings.mode,
         })
     });

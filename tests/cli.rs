@@ -223,3 +223,50 @@ fn radiosity_re_renders_the_photo_from_the_model() {
     }
     assert!(mesh.exists());
 }
+
+#[test]
+fn render_writes_layers_and_aovs_and_reports_the_error() {
+    let desk = Desk::new();
+    let out = desk.path("box.exr");
+    let aov = desk.path("aov");
+    let png = desk.path("box.png");
+    let run = arlux(&[
+        "render", &desk.scene(), "--variant", "box_table", "-o", out.to_str().unwrap(), "--png", png.to_str().unwrap(),
+        "--aov", aov.to_str().unwrap(), "--patch-size", "0.5", "--json",
+    ]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    // Measured 0.00244 at 0.5 m patches.
+    let rmse = report["error_against_reference"]["rmse"].as_f64().unwrap();
+    assert!(rmse < 0.003, "{rmse}");
+    let stages: Vec<&str> = report["stages"].as_array().unwrap().iter().map(|s| s["stage"].as_str().unwrap()).collect();
+    assert!(stages.contains(&"pixel data array") && stages.contains(&"form factors with objects"), "{stages:?}");
+    for layer in ["R", "direct.G", "indirect.B", "change.R", "A"] {
+        let (_, _, v) = arlux::image_io::read_exr_channel(&out, layer).unwrap();
+        assert!(v.iter().all(|x| x.is_finite()), "{layer}");
+    }
+    let (_, _, alpha) = arlux::image_io::read_exr_channel(&out, "A").unwrap();
+    assert!(alpha.iter().any(|a| *a == 1.0) && alpha.iter().any(|a| *a > 0.0 && *a < 1.0), "covered and edge pixels");
+    for f in ["direct.exr", "indirect.exr", "change.exr", "alpha.exr"] {
+        assert!(aov.join(f).exists(), "{f}");
+    }
+    assert!(png.exists());
+
+    let bad = arlux(&["render", &desk.scene(), "--variant", "nope", "-o", desk.path("nope.exr").to_str().unwrap()]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("no variant named 'nope'"));
+    assert!(!desk.path("nope.exr").exists());
+}
+
+#[test]
+fn rendering_a_light_change_leaves_out_the_virtual_stages() {
+    let desk = Desk::new();
+    let out = desk.path("off.exr");
+    let run = arlux(&["render", &desk.scene(), "--variant", "panel_off", "-o", out.to_str().unwrap(), "--patch-size", "0.5", "--json"]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let stages: Vec<&str> = report["stages"].as_array().unwrap().iter().map(|s| s["stage"].as_str().unwrap()).collect();
+    assert!(!stages.contains(&"form factors with objects") && !stages.contains(&"virtual mesh"), "{stages:?}");
+    assert!(report["left_out"].as_array().unwrap().iter().any(|l| l.as_str().unwrap().contains("no virtual object")));
+    assert!(report["error_against_reference"]["rmse"].as_f64().unwrap() < 0.0025);
+}
