@@ -70,8 +70,14 @@ enum Command {
         /// How real pixels take the change: ratio (photo × L_with/L_without) or additive.
         #[arg(long, default_value = "ratio", value_parser = ["ratio", "additive"])]
         composite: String,
-        #[arg(long, default_value_t = 0.25)]
-        patch_size: f64,
+        /// The room's largest patch edge, metres (default: from what the
+        /// scene changes: the room's diagonal / 24 for light changes, / 6 for
+        /// added objects only).
+        #[arg(long)]
+        patch_size: Option<f64>,
+        /// Largest patch edge on virtual objects, metres.
+        #[arg(long, default_value_t = 0.1)]
+        virtual_patch_size: f64,
         #[arg(long)]
         full: bool,
         #[arg(long, default_value_t = arlux::radiosity::DEFAULT_LINK_EPSILON)]
@@ -161,6 +167,7 @@ fn run(cli: Cli) -> Result<()> {
             method: _,
             composite,
             patch_size,
+            virtual_patch_size,
             full,
             epsilon,
             min_level,
@@ -168,7 +175,14 @@ fn run(cli: Cli) -> Result<()> {
             supersample,
             json,
         } => {
-            let settings = render_settings(patch_size, full, epsilon, min_level, penumbra_level, supersample, &composite)?;
+            let mut settings = render_settings(patch_size.unwrap_or(0.25), full, epsilon, min_level, penumbra_level, supersample, &composite)?;
+            if let Some(m) = patch_size {
+                settings.patch_size = arlux::render::PatchSize::Metres(m);
+            }
+            if !(virtual_patch_size > 0.0 && virtual_patch_size.is_finite()) {
+                bail!("--virtual-patch-size must be a positive number of metres, not {virtual_patch_size}");
+            }
+            settings.virtual_patch_size = virtual_patch_size;
             render_cmd(&scene, variant.as_deref(), &output, png.as_deref(), aov.as_deref(), &settings, json)
         }
         Command::Radiosity { scene, output, mesh, patch_size, full, epsilon, light_level, json } => {
@@ -638,6 +652,7 @@ fn render_cmd(
         "ratio_fallbacks": c.ratio_fallbacks,
         "clamped": c.clamped,
         "patches": out.patches,
+        "patch_size_m": out.patch_size,
         "links": out.links,
         "rays": out.rays,
         "pda_bytes": out.pda_bytes,
@@ -652,10 +667,11 @@ fn render_cmd(
         return Ok(());
     }
     println!(
-        "{} pixels, {} copied from the photo unchanged; {} patches, {} form factors; {} rays; pixel data {:.1} MB ({:.0} bytes per pixel)",
+        "{} pixels, {} copied from the photo unchanged; {} patches ({:.2} m), {} form factors; {} rays; pixel data {:.1} MB ({:.0} bytes per pixel)",
         out.pda_pixels,
         c.copied,
         out.patches,
+        out.patch_size,
         out.links,
         out.rays,
         out.pda_bytes as f64 / 1e6,

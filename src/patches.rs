@@ -288,7 +288,7 @@ impl Patches {
 
     /// Meshes more surfaces into this mesh, after what it holds.
     pub fn append(&mut self, inputs: &[SurfaceInput], target_size: f64) {
-        let mut weld: HashMap<(u32, [i64; 3]), u32> = HashMap::new();
+        let mut weld: HashMap<(u32, [i64; 4], [i64; 3]), u32> = HashMap::new();
         for input in inputs {
             self.surface_is_virtual.insert(input.surface, input.is_virtual);
             // A closed surface is a solid: its faces are one-sided, facing
@@ -341,15 +341,20 @@ impl Patches {
         (self.elements.len() - 1) as u32
     }
 
-    fn subdivide(&mut self, e: u32, target: f64, depth: u32, weld: &mut HashMap<(u32, [i64; 3]), u32>) {
+    fn subdivide(&mut self, e: u32, target: f64, depth: u32, weld: &mut HashMap<(u32, [i64; 4], [i64; 3]), u32>) {
         let el = self.elements[e as usize].clone();
         if el.shape.size() <= target || depth >= 40 {
             let patch = self.patches.len() as u32;
             self.patches.push(e);
             self.elements[e as usize].patch = Some(patch);
             let mut ids = [u32::MAX; 4];
+            // Vertices are shared within a plane only: a solid's edge joins
+            // faces that face different ways and see different light.
+            let n = el.shape.normal();
+            let n = if n.x.abs() > 1e-9 { n * n.x.signum() } else if n.y.abs() > 1e-9 { n * n.y.signum() } else { n * n.z.signum() };
+            let plane = [n.x, n.y, n.z, n.dot(el.centre)].map(|v| (v * 1e4).round() as i64);
             for (k, c) in el.shape.corners().iter().enumerate() {
-                let key = (el.surface, (*c * 1e6).round().as_i64vec3().to_array());
+                let key = (el.surface, plane, (*c * 1e6).round().as_i64vec3().to_array());
                 let next = self.vertices.len() as u32;
                 ids[k] = *weld.entry(key).or_insert(next);
                 if ids[k] == next {

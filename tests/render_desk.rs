@@ -86,6 +86,7 @@ fn every_variant_against_its_truth() {
         if variant.starts_with("box") {
             assert!(b.shadow_pixels > 100, "{variant}: the box casts a shadow in the truth");
             assert!((b.ratio_ours / b.ratio_truth - 1.0).abs() < 0.15, "{variant}: shadow ratio {} vs truth {}", b.ratio_ours, b.ratio_truth);
+            assert!(b.shadow < 0.015, "{variant}: RMSE in the shadow {}", b.shadow);
         }
     }
 }
