@@ -12,6 +12,7 @@ pub mod composite;
 pub mod error;
 pub mod estimate;
 pub mod geometry;
+pub mod hdr;
 pub mod ies;
 pub mod light;
 pub mod model;

@@ -93,6 +93,19 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Merge 8-bit exposure brackets into an HDR radiance map (Debevec &
+    /// Malik): the camera response per channel, then a weighted merge.
+    /// Radiance is relative (the base exposure time is unknown).
+    Hdr {
+        /// An exposure as IMAGE:EV, e.g. brackets/ev-2.png:-2 (at least two).
+        #[arg(long = "bracket", required = true)]
+        brackets: Vec<String>,
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Also write the recovered response as CSV (code, then ln exposure per channel).
+        #[arg(long)]
+        response: Option<PathBuf>,
+    },
     /// Re-render the photo from the model alone (reflectances estimated from
     /// the photo × (direct + indirect light)), with a mesh view; reports
     /// patches, links, iterations, residual and time per stage.
@@ -185,6 +198,7 @@ fn run(cli: Cli) -> Result<()> {
             settings.virtual_patch_size = virtual_patch_size;
             render_cmd(&scene, variant.as_deref(), &output, png.as_deref(), aov.as_deref(), &settings, json)
         }
+        Command::Hdr { brackets, output, response } => hdr_cmd(&brackets, &output, response.as_deref()),
         Command::Radiosity { scene, output, mesh, patch_size, full, epsilon, light_level, json } => {
             radiosity_cmd(&scene, &output, mesh.as_deref(), patch_size, full, epsilon, light_level, json)
         }
@@ -474,8 +488,15 @@ fn radiosity_cmd(
     }
     let mut times = StageTimes::default();
     let scene = times.time("load", || load(path, None))?;
-    let photo = times.time("read photo", || scene.load_photo())?;
+    let mut photo = times.time("read photo", || scene.load_photo())?;
     let tracer = times.time("tracer", || scene.build_tracer())?;
+    if scene.photo_is_relative() {
+        let base = ModelSettings::default();
+        match times.time("bracket scale", || arlux::render::bracket_scale_cached(&scene, &photo, &tracer, &base, arlux::render::fine_patch_size(&scene))) {
+            Some(s) => photo.pixels.iter_mut().for_each(|p| *p *= s as f32),
+            None => eprintln!("warning: the photo comes from brackets and no reflectance is known: radiance is relative"),
+        }
+    }
     let settings = ModelSettings {
         patch_size,
         transport: if full { TransportMethod::Full } else { TransportMethod::Hierarchical { epsilon } },
@@ -698,5 +719,40 @@ fn render_cmd(
         println!("  {name:<26} {:>9.1} ms", d.as_secs_f64() * 1e3);
     }
     println!("  {:<26} {:>9.1} ms", "total", times.total().as_secs_f64() * 1e3);
+    Ok(())
+}
+
+fn hdr_cmd(brackets: &[String], output: &Path, response_csv: Option<&Path>) -> Result<()> {
+    use arlux::hdr::{Exposure, merge, recover_response};
+    let mut exposures = Vec::new();
+    for b in brackets {
+        let Some((path, ev)) = b.rsplit_once(':') else {
+            bail!("--bracket {b}: give IMAGE:EV, e.g. ev-2.png:-2");
+        };
+        let ev: f64 = ev.trim().parse().map_err(|_| anyhow::anyhow!("--bracket {b}: '{ev}' is not an EV number"))?;
+        if !ev.is_finite() {
+            bail!("--bracket {b}: the EV must be finite");
+        }
+        exposures.push(Exposure::read(Path::new(path), ev)?);
+    }
+    let response = recover_response(&exposures, 64, 20.0)?;
+    let merged = merge(&exposures, &response)?;
+    image_io::write_exr(output, merged.image.width, merged.image.height, &[image_io::ExrLayer::Rgb("", &merged.image)])?;
+    if let Some(csv) = response_csv {
+        let mut text = String::from("code,ln_exposure_r,ln_exposure_g,ln_exposure_b\n");
+        for z in 0..256 {
+            text.push_str(&format!("{z},{},{},{}\n", response[0][z], response[1][z], response[2][z]));
+        }
+        image_io::write_atomic(csv, text.as_bytes())?;
+    }
+    println!(
+        "merged {} exposures into {} ({}x{}); {} pixels saturated in every exposure, {} black in every exposure; radiance is relative (g(128) = 0, t0 = 1)",
+        exposures.len(),
+        output.display(),
+        merged.image.width,
+        merged.image.height,
+        merged.saturated.iter().filter(|s| **s).count(),
+        merged.black.iter().filter(|s| **s).count()
+    );
     Ok(())
 }

@@ -174,3 +174,70 @@ impl ModelView {
         view
     }
 }
+
+/// The factor that puts a photo merged from brackets into the scene's
+/// radiometric units: reflectances are estimated with the known ones
+/// treated as unknown, and the photo is scaled until their estimates match
+/// the known values (a few rounds: the indirect term makes it not quite
+/// linear). `None` when no reflectance is known (radiance stays relative).
+pub fn bracket_scale(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &ModelSettings) -> Option<f64> {
+    if scene.reflectances.is_empty() {
+        return None;
+    }
+    let lights = LightSource::all(scene).ok()?;
+    let patches = Patches::of_scene(scene, false, settings.patch_size);
+    let per_light = direct_irradiance(&patches, &lights, tracer, Layer::Real, settings.light_level);
+    let scales: Vec<f64> = lights.iter().map(|l| l.photo_scale()).collect();
+    let direct = total_direct(&scales, &per_light);
+    let transport = match settings.transport {
+        TransportMethod::Full => Transport::full(&patches, tracer, Layer::Real),
+        TransportMethod::Hierarchical { epsilon } => Transport::hierarchical(&patches, tracer, Layer::Real, epsilon),
+    };
+    let measured = PhotoPatches::measure(&scene.camera, tracer, &patches, photo);
+    let known: HashMap<u32, DVec3> = scene.reflectances.iter().map(|k| (k.surface as u32, k.rgb)).collect();
+    // ln(known / estimated) at a given scale, averaged over known surfaces.
+    let mismatch = |scale: f64| -> Option<f64> {
+        let scaled = PhotoPatches {
+            radiance: measured.radiance.iter().map(|r| *r * scale).collect(),
+            pixels: measured.pixels.clone(),
+            image_mean: measured.image_mean * scale,
+        };
+        let est = estimate_reflectances(&patches, &transport, &direct, &scaled, &HashMap::new(), settings.estimate);
+        let logs: Vec<f64> = known
+            .iter()
+            .filter_map(|(s, rgb)| {
+                let got = crate::estimate::surface_mean(&patches, &est.reflectance, *s)?;
+                (got.element_sum() > 0.0).then(|| (rgb.element_sum() / got.element_sum()).ln())
+            })
+            .collect();
+        (!logs.is_empty()).then(|| logs.iter().sum::<f64>() / logs.len() as f64)
+    };
+    // Start from direct light alone: it overestimates reflectance, so the
+    // first guess cannot push estimates into the clamp.
+    let (mut lit, mut shown) = (0.0, 0.0);
+    for k in 0..patches.patch_count() {
+        if measured.pixels[k] > 0 && known.contains_key(&patches.patch(k).surface) {
+            let a = patches.patch(k).area;
+            lit += direct[k].element_sum() * a;
+            shown += measured.radiance[k].element_sum() * std::f64::consts::PI * a;
+        }
+    }
+    let rho_known = known.values().map(|r| r.element_sum() / 3.0).sum::<f64>() / known.len() as f64;
+    if shown <= 0.0 || lit <= 0.0 {
+        return None;
+    }
+    // Secant steps on ln(scale) until the known reflectances are met.
+    let mut x0 = (rho_known * lit / shown).ln();
+    let mut y0 = mismatch(x0.exp())?;
+    let mut x1 = x0 + y0;
+    for _ in 0..20 {
+        let y1 = mismatch(x1.exp())?;
+        if y1.abs() < 1e-5 || (y1 - y0).abs() < 1e-12 {
+            break;
+        }
+        let x2 = x1 - y1 * (x1 - x0) / (y1 - y0);
+        (x0, y0, x1) = (x1, y1, x2);
+    }
+    let scale = x1.exp();
+    scale.is_finite().then_some(scale)
+}

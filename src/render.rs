@@ -99,16 +99,28 @@ pub fn render(scene: &Scene, photo: &Image, settings: &RenderSettings, times: &m
     let patch_size = match settings.patch_size {
         PatchSize::Metres(m) => m,
         PatchSize::Auto => {
-            let (lo, hi) = scene.surfaces.iter().flat_map(|s| s.triangles.iter().flatten()).fold(
-                (DVec3::INFINITY, DVec3::NEG_INFINITY),
-                |(lo, hi), p| (lo.min(p.as_dvec3()), hi.max(p.as_dvec3())),
-            );
             let lights_change = scene.lights.iter().any(|l| l.scale != if l.real { 1.0 } else { 0.0 });
-            (hi - lo).length() / if lights_change { 24.0 } else { 6.0 }
+            if lights_change { fine_patch_size(scene) } else { room_diagonal(scene) / 6.0 }
         }
     };
     let settings = &RenderSettings { model: ModelSettings { patch_size, ..settings.model }, ..*settings };
     let tracer = times.time("tracer", || scene.build_tracer())?;
+    // Merged brackets are radiance up to a factor: fix it from the known reflectances.
+    let calibrated;
+    let photo = if scene.photo_is_relative() {
+        match times.time("bracket scale", || bracket_scale_cached(scene, photo, &tracer, &settings.model, fine_patch_size(scene))) {
+            Some(s) => {
+                calibrated = Image { pixels: photo.pixels.iter().map(|p| *p * s as f32).collect(), ..photo.clone() };
+                &calibrated
+            }
+            None => {
+                left_out.push("absolute scale: the photo comes from brackets and no reflectance is known, so radiance is relative".to_string());
+                photo
+            }
+        }
+    } else {
+        photo
+    };
     let model = Model::build(scene, photo, &tracer, &settings.model, times)?;
     let lights = &model.lights;
     let scales_without: Vec<f64> = lights.iter().map(|l| l.photo_scale()).collect();
@@ -285,4 +297,51 @@ fn final_gather(
             (v as usize, sum * (pi / dirs.len() as f64))
         })
         .collect()
+}
+
+/// The diagonal of the real geometry's bounding box.
+fn room_diagonal(scene: &Scene) -> f64 {
+    let (lo, hi) = scene
+        .surfaces
+        .iter()
+        .flat_map(|s| s.triangles.iter().flatten())
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p.as_dvec3()), hi.max(p.as_dvec3())));
+    (hi - lo).length()
+}
+
+/// The patch size at which the room's radiosity is accurate per patch.
+pub fn fine_patch_size(scene: &Scene) -> f64 {
+    room_diagonal(scene) / 24.0
+}
+
+/// [`crate::model::bracket_scale`] on a fine mesh (the factor rests on a
+/// few surfaces' estimates, which coarse patches bias), cached next to the
+/// scene under a hash of the scene file, its meshes and the brackets.
+pub fn bracket_scale_cached(scene: &Scene, photo: &Image, tracer: &crate::trace::Tracer, settings: &ModelSettings, patch_size: f64) -> Option<f64> {
+    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut feed = |bytes: &[u8]| {
+        for b in bytes {
+            hash = (hash ^ *b as u64).wrapping_mul(0x0100_0000_01b3);
+        }
+    };
+    let mut files: Vec<std::path::PathBuf> = vec![scene.file.clone()];
+    files.extend(scene.surfaces.iter().map(|s| s.mesh.clone()));
+    if let crate::scene::Photo::Brackets(b) = &scene.photo {
+        files.extend(b.iter().map(|b| b.image.clone()));
+    }
+    files.dedup();
+    for f in &files {
+        feed(&std::fs::read(f).ok()?);
+    }
+    feed(&patch_size.to_le_bytes());
+    let cache = scene.dir().join(".arlux-cache").join(format!("scale-{hash:016x}.txt"));
+    if let Some(s) = std::fs::read_to_string(&cache).ok().and_then(|t| t.trim().parse::<f64>().ok()).filter(|s| s.is_finite() && *s > 0.0) {
+        return Some(s);
+    }
+    let fine = ModelSettings { patch_size, ..*settings };
+    let scale = crate::model::bracket_scale(scene, photo, tracer, &fine)?;
+    if std::fs::create_dir_all(cache.parent()?).is_ok() {
+        let _ = crate::image_io::write_atomic(&cache, format!("{scale}\n").as_bytes());
+    }
+    Some(scale)
 }

@@ -270,3 +270,25 @@ fn rendering_a_light_change_leaves_out_the_virtual_stages() {
     assert!(report["left_out"].as_array().unwrap().iter().any(|l| l.as_str().unwrap().contains("no virtual object")));
     assert!(report["error_against_reference"]["rmse"].as_f64().unwrap() < 0.0025);
 }
+
+#[test]
+fn hdr_merges_brackets_and_refuses_bad_ones() {
+    let desk = Desk::new();
+    let out = desk.path("merged.exr");
+    let csv = desk.path("response.csv");
+    let b = |name: &str, ev: &str| format!("{DESK}/brackets/{name}.png:{ev}");
+    let run = arlux(&["hdr", "--bracket", &b("ev-2", "-2"), "--bracket", &b("ev+0", "0"), "--bracket", &b("ev+2", "2"), "-o", out.to_str().unwrap(), "--response", csv.to_str().unwrap()]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert_eq!(arlux::image_io::read_image(&out).unwrap().width, 512);
+    assert_eq!(std::fs::read_to_string(&csv).unwrap().lines().count(), 257);
+    let single = arlux(&["hdr", "--bracket", &b("ev+0", "0"), "-o", desk.path("one.exr").to_str().unwrap()]);
+    assert_eq!(single.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&single.stderr).contains("a single exposure"));
+    let same = arlux(&["hdr", "--bracket", &b("ev+0", "0"), "--bracket", &b("ev+1", "0"), "-o", desk.path("same.exr").to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&same.stderr).contains("same EV"));
+    let small = desk.path("small.png");
+    image::RgbImage::new(8, 8).save(&small).unwrap();
+    let misaligned = arlux(&["hdr", "--bracket", &b("ev+0", "0"), "--bracket", &format!("{}:1", small.display()), "-o", desk.path("mis.exr").to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&misaligned.stderr).contains("must be aligned"));
+    assert!(!desk.path("one.exr").exists() && !desk.path("same.exr").exists() && !desk.path("mis.exr").exists());
+}

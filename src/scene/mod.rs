@@ -331,16 +331,19 @@ impl Scene {
     pub fn load_photo(&self) -> Result<Image> {
         let (img, key) = match &self.photo {
             Photo::Image(path) => (image_io::read_image(path).map_err(|e| e.within(&self.file, "photo.image"))?, "photo.image"),
-            Photo::Brackets(_) => {
-                return Err(Error::key(
-                    &self.file,
-                    "photo.brackets",
-                    "merging exposure brackets into an HDR photo is not available in this version; give photo.image",
-                ));
+            Photo::Brackets(brackets) => {
+                let list: Vec<(PathBuf, f64)> = brackets.iter().map(|b| (b.image.clone(), b.ev)).collect();
+                (crate::hdr::merge_cached(self.dir(), &list).map_err(|e| e.within(&self.file, "photo.brackets"))?, "photo.brackets")
             }
         };
         self.check_size(&img, key)?;
         Ok(img)
+    }
+
+    /// Whether the photo's radiance is known only up to a global factor
+    /// (merged brackets: the base exposure time is unknown).
+    pub fn photo_is_relative(&self) -> bool {
+        matches!(self.photo, Photo::Brackets(_))
     }
 
     /// Errors unless `img` has the camera's size; `key` names where it came from.
