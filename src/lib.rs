@@ -6,6 +6,7 @@
 //! composite. Each stage is a module taking plain data and returning plain data.
 //! Ray tracing is Embree's, bound in [`trace`] (the crate's only `unsafe`).
 
+pub mod blocks;
 pub mod camera;
 pub mod compare;
 pub mod composite;

@@ -325,21 +325,12 @@ impl PixelDataArray {
                             r.virt.push((pixel, p));
                         }
                     }
-                    let n = input.settings.supersample;
-                    if n > 1 && near_virtual.iter().any(|b| b.contains(col, row)) {
-                        let subs = sub_points(input, col, row, n);
-                        r.rays += (n * n) as u64;
-                        let virtual_count = subs.iter().filter(|s| s.as_ref().is_some_and(|p| p.is_virtual)).count();
-                        if virtual_count > 0 && virtual_count < subs.len() {
-                            let mut kept = Vec::new();
-                            for (k, s) in subs.into_iter().enumerate() {
-                                // A sub-pixel that sees nothing counts as black background.
-                                if let Some(p) = s {
-                                    r.rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 100 + k as u64), &mut r.edge_terms);
-                                    kept.push(p);
-                                }
-                            }
+                    if near_virtual.iter().any(|b| b.contains(col, row)) {
+                        if let Some((kept, rays)) = edge_samples(input, col, row, seed, &mut r.edge_terms) {
                             r.edges.push((pixel, kept));
+                            r.rays += rays;
+                        } else {
+                            r.rays += (input.settings.supersample as u64).pow(2) * (input.settings.supersample > 1) as u64;
                         }
                     }
                 }
@@ -383,6 +374,103 @@ impl PixelDataArray {
         pda
     }
 
+    /// Recomputes the light terms of the real point at `pixel` for `light`
+    /// (after the virtual objects moved), exactly as [`build`] computes
+    /// them; returns rays cast.
+    ///
+    /// [`build`]: PixelDataArray::build
+    pub fn recompute_real_term(&mut self, input: &PdaInput, pixel: u32, light: usize) -> u64 {
+        let k = self.real_index[pixel as usize];
+        if k == NONE || !input.active[light] {
+            return 0;
+        }
+        let p = self.real.points[k as usize];
+        let seed = hash2(pixel as u64, 0x5A17);
+        let (term, rays) = light_term(
+            input.tracer,
+            &input.lights[light],
+            input.bounds,
+            p.position.as_dvec3(),
+            p.normal.as_dvec3(),
+            hash2(seed, light as u64),
+            input.settings,
+        );
+        self.real.terms[k as usize * self.light_count + light] = term;
+        rays
+    }
+
+    /// Rebuilds the virtual points and edge pixels for the objects' current
+    /// placement (`input.bounds`), as [`build`] would; returns rays cast and
+    /// the pixels examined.
+    ///
+    /// [`build`]: PixelDataArray::build
+    pub fn rebuild_virtual(&mut self, input: &PdaInput) -> (u64, u64) {
+        let cam = input.camera;
+        let n = (self.width * self.height) as usize;
+        self.virtual_index = vec![NONE; n];
+        self.virtual_samples = Samples::default();
+        self.edges.clear();
+        self.edge_samples = Samples::default();
+        let boxes = screen_boxes(cam, input.bounds);
+        let mut pixels: Vec<u32> = Vec::new();
+        for b in &boxes {
+            for y in b.y0..=b.y1 {
+                for x in b.x0..=b.x1 {
+                    pixels.push(y * self.width + x);
+                }
+            }
+        }
+        pixels.sort_unstable();
+        pixels.dedup();
+        type Found = (u32, Option<(SurfacePoint, Vec<LightTerm>)>, Option<(Vec<SurfacePoint>, Vec<LightTerm>)>, u64);
+        let found: Vec<Found> = pixels
+            .par_iter()
+            .map(|&pixel| {
+                let (col, row) = (pixel % self.width, pixel / self.width);
+                let seed = hash2(pixel as u64, 0x5A17);
+                let ray = cam.pixel_ray(col, row);
+                let mut rays = 0;
+                // The packet kernel, as `build` traces: the same bits.
+                let mut hits = [None];
+                input.tracer.intersect_batch(&[TraceRay::new(ray.origin.as_vec3(), ray.direction.as_vec3())], Layer::All, &mut hits);
+                let hit = hits[0];
+                let virt = hit.filter(|h| h.is_virtual).and_then(|h| input.point(&h, ray.origin, ray.direction)).map(|p| {
+                    let mut terms = Vec::new();
+                    rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 1), &mut terms);
+                    (p, terms)
+                });
+                let mut edge_terms = Vec::new();
+                let edge = match edge_samples(input, col, row, seed, &mut edge_terms) {
+                    Some((kept, r)) => {
+                        rays += r;
+                        Some((kept, edge_terms))
+                    }
+                    None => {
+                        rays += (input.settings.supersample as u64).pow(2) * (input.settings.supersample > 1) as u64;
+                        None
+                    }
+                };
+                (pixel, virt, edge, rays)
+            })
+            .collect();
+        let mut rays = 0;
+        for (pixel, virt, edge, r) in found {
+            rays += r;
+            if let Some((p, terms)) = virt {
+                self.virtual_index[pixel as usize] = self.virtual_samples.points.len() as u32;
+                self.virtual_samples.points.push(p);
+                self.virtual_samples.terms.extend(terms);
+            }
+            if let Some((kept, terms)) = edge {
+                let start = self.edge_samples.points.len() as u32;
+                self.edges.push(EdgePixel { pixel, start, count: kept.len() as u32 });
+                self.edge_samples.points.extend(kept);
+                self.edge_samples.terms.extend(terms);
+            }
+        }
+        (rays, pixels.len() as u64)
+    }
+
     /// Bytes held, and per pixel.
     pub fn memory_bytes(&self) -> usize {
         let samples = |s: &Samples| s.points.len() * std::mem::size_of::<SurfacePoint>() + s.terms.len() * std::mem::size_of::<LightTerm>();
@@ -392,6 +480,31 @@ impl PixelDataArray {
             + samples(&self.edge_samples)
             + self.edges.len() * std::mem::size_of::<EdgePixel>()
     }
+}
+
+/// The sub-pixel samples of a pixel whose n×n sub-pixels mix real and
+/// virtual surfaces, with their light terms appended to `terms`; `None`
+/// (after n² sub-pixel rays) where they do not mix. Returns rays cast.
+fn edge_samples(input: &PdaInput, col: u32, row: u32, seed: u64, terms: &mut Vec<LightTerm>) -> Option<(Vec<SurfacePoint>, u64)> {
+    let n = input.settings.supersample;
+    if n <= 1 {
+        return None;
+    }
+    let subs = sub_points(input, col, row, n);
+    let virtual_count = subs.iter().filter(|s| s.as_ref().is_some_and(|p| p.is_virtual)).count();
+    if virtual_count == 0 || virtual_count == subs.len() {
+        return None;
+    }
+    let mut rays = (n * n) as u64;
+    let mut kept = Vec::new();
+    for (k, s) in subs.into_iter().enumerate() {
+        // A sub-pixel that sees nothing counts as the photo's background.
+        if let Some(p) = s {
+            rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 100 + k as u64), terms);
+            kept.push(p);
+        }
+    }
+    Some((kept, rays))
 }
 
 /// The n×n sub-pixel surface points of a pixel (None where a ray leaves the scene).

@@ -95,53 +95,258 @@ pub fn render(scene: &Scene, photo: &Image, settings: &RenderSettings, times: &m
         let left_out = vec!["everything: the scene shows the photo's state (no virtual object, lights as photographed)".to_string()];
         return Ok(RenderOutput { composite, left_out, pda_bytes: 0, pda_pixels: n, rays: 0, patches: 0, links: 0, patch_size: 0.0 });
     }
-    let mut left_out = Vec::new();
-    let patch_size = match settings.patch_size {
-        PatchSize::Metres(m) => m,
-        PatchSize::Auto => {
-            let lights_change = scene.lights.iter().any(|l| l.scale != if l.real { 1.0 } else { 0.0 });
-            if lights_change { fine_patch_size(scene) } else { room_diagonal(scene) / 6.0 }
-        }
-    };
-    let settings = &RenderSettings { model: ModelSettings { patch_size, ..settings.model }, ..*settings };
-    let tracer = times.time("tracer", || scene.build_tracer())?;
-    // Merged brackets are radiance up to a factor: fix it from the known reflectances.
-    let calibrated;
-    let photo = if scene.photo_is_relative() {
-        match times.time("bracket scale", || bracket_scale_cached(scene, photo, &tracer, &settings.model, fine_patch_size(scene))) {
-            Some(s) => {
-                calibrated = Image { pixels: photo.pixels.iter().map(|p| *p * s as f32).collect(), ..photo.clone() };
-                &calibrated
-            }
-            None => {
-                left_out.push("absolute scale: the photo comes from brackets and no reflectance is known, so radiance is relative".to_string());
-                photo
-            }
-        }
-    } else {
-        photo
-    };
-    let model = Model::build(scene, photo, &tracer, &settings.model, times)?;
-    let lights = &model.lights;
-    let scales_without: Vec<f64> = lights.iter().map(|l| l.photo_scale()).collect();
-    let scales_with: Vec<f64> = lights.iter().map(|l| l.scale).collect();
-    let has_virtual = tracer.virtual_objects.is_some();
+    Ok(Session::start(scene, photo, settings, times)?.into_output())
+}
 
-    // Radiosity with the changes: the virtual objects' patches join the
-    // room's, with their own reflectance, and shadow the exchanges.
-    let own: Option<(Patches, Vec<Vec<DVec3>>, Transport)> = if has_virtual {
+/// The radiosity of the augmented scene.
+struct Changes {
+    /// The room's patches and then the objects' (None: no object, the room's are used).
+    own: Option<(Patches, Vec<Vec<DVec3>>, Transport)>,
+    reflectance: Vec<DVec3>,
+    indirect_with: Vec<DVec3>,
+}
+
+/// A render kept alive for updates: after virtual objects move,
+/// [`Session::update`] recomputes only what their old and new places can change.
+pub struct Session {
+    scene: Scene,
+    photo: Image,
+    settings: RenderSettings,
+    tracer: crate::trace::Tracer,
+    model: Model,
+    scales_without: Vec<f64>,
+    scales_with: Vec<f64>,
+    active: Vec<bool>,
+    indirect_without: Vec<DVec3>,
+    changes: Changes,
+    bounds: VirtualBounds,
+    pda: PixelDataArray,
+    blocks: crate::blocks::BlockHierarchy,
+    pub composite: Composite,
+    left_out: Vec<String>,
+    rays: u64,
+}
+
+/// What an update did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct UpdateStats {
+    /// Real pixels whose light terms were recomputed (for some light).
+    pub pixels_recomputed: usize,
+    /// Pixels re-traced for the objects' own image and edges.
+    pub pixels_retraced: u64,
+    pub shaft_tests: u64,
+    pub rays: u64,
+    /// Blocks skipped by one shaft test, per light: (level, x, y).
+    pub skipped_blocks: Vec<Vec<(u8, u32, u32)>>,
+}
+
+impl Session {
+    /// A full render of `scene` over `photo`.
+    pub fn start(scene: &Scene, photo: &Image, settings: &RenderSettings, times: &mut StageTimes) -> Result<Session> {
+        let mut left_out = Vec::new();
+        let patch_size = match settings.patch_size {
+            PatchSize::Metres(m) => m,
+            PatchSize::Auto => {
+                let lights_change = scene.lights.iter().any(|l| l.scale != if l.real { 1.0 } else { 0.0 });
+                if lights_change { fine_patch_size(scene) } else { room_diagonal(scene) / 6.0 }
+            }
+        };
+        let settings = RenderSettings { model: ModelSettings { patch_size, ..settings.model }, ..*settings };
+        let tracer = times.time("tracer", || scene.build_tracer())?;
+        // Merged brackets are radiance up to a factor: fix it from the known reflectances.
+        let photo = if scene.photo_is_relative() {
+            match times.time("bracket scale", || bracket_scale_cached(scene, photo, &tracer, &settings.model, fine_patch_size(scene))) {
+                Some(s) => Image { pixels: photo.pixels.iter().map(|p| *p * s as f32).collect(), ..photo.clone() },
+                None => {
+                    left_out.push("absolute scale: the photo comes from brackets and no reflectance is known, so radiance is relative".to_string());
+                    photo.clone()
+                }
+            }
+        } else {
+            photo.clone()
+        };
+        let model = Model::build(scene, &photo, &tracer, &settings.model, times)?;
+        let scales_without: Vec<f64> = model.lights.iter().map(|l| l.photo_scale()).collect();
+        let scales_with: Vec<f64> = model.lights.iter().map(|l| l.scale).collect();
+        let active: Vec<bool> = scales_with.iter().zip(&scales_without).map(|(a, b)| *a > 0.0 || *b > 0.0).collect();
+        let indirect_without = model.patches.vertex_values(&model.estimate.solution.indirect_irradiance);
+        if tracer.virtual_objects.is_none() {
+            left_out.push("virtual geometry and new form factors: no virtual object (the room's transport is reused)".to_string());
+            left_out.push("rays against virtual geometry and edge supersampling: no virtual object".to_string());
+        }
+        let changes = solve_changes(scene, &photo, &tracer, &model, &scales_with, &settings, times);
+        let bounds = VirtualBounds::of(&scene.virtual_world_surfaces());
+        let patches = changes.own.as_ref().map_or(&model.patches, |o| &o.0);
+        let pda = times.time("pixel data array", || {
+            PixelDataArray::build(&PdaInput {
+                camera: &scene.camera,
+                tracer: &tracer,
+                patches,
+                lights: &model.lights,
+                active: &active,
+                bounds: &bounds,
+                settings: settings.pda,
+            })
+        });
+        let blocks = times.time("pixel blocks", || crate::blocks::BlockHierarchy::build(&pda));
+        let rays = pda.rays;
+        let mut session = Session {
+            scene: scene.clone(),
+            photo,
+            settings,
+            tracer,
+            model,
+            scales_without,
+            scales_with,
+            active,
+            indirect_without,
+            changes,
+            bounds,
+            pda,
+            blocks,
+            composite: Composite {
+                image: Image::new(0, 0),
+                direct: Image::new(0, 0),
+                indirect: Image::new(0, 0),
+                change: Image::new(0, 0),
+                alpha: Vec::new(),
+                copied: 0,
+                ratio_fallbacks: 0,
+                clamped: 0,
+            },
+            left_out,
+            rays,
+        };
+        session.recomposite(times);
+        Ok(session)
+    }
+
+    fn recomposite(&mut self, times: &mut StageTimes) {
+        let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| &o.0);
+        self.composite = times.time("composite", || {
+            composite(&CompositeInput {
+                pda: &self.pda,
+                photo: &self.photo,
+                lights: &self.model.lights,
+                scales_without: &self.scales_without,
+                scales_with: &self.scales_with,
+                indirect_without: &self.indirect_without,
+                indirect_with: &self.changes.indirect_with,
+                reflectance: &self.changes.reflectance,
+                patch_vertices: &patches.patch_vertices,
+                mode: self.settings.mode,
+            })
+        });
+    }
+
+    /// Bytes held by the Pixel Data Array and the pixel-block hierarchy.
+    pub fn memory_bytes(&self) -> (usize, usize) {
+        (self.pda.memory_bytes(), self.blocks.memory_bytes())
+    }
+
+    pub fn blocks(&self) -> &crate::blocks::BlockHierarchy {
+        &self.blocks
+    }
+
+    /// Moves to `scene`, which must differ from the current one only in
+    /// where virtual objects are (a motion's next pose): the objects' old and
+    /// new bounds are traced through the pixel-block hierarchy and only the
+    /// pixels whose shaft to a light may meet them are recomputed; the
+    /// objects' image and edges are re-traced; the indirect light is solved
+    /// again on the room's links with the objects re-linked.
+    pub fn update(&mut self, scene: &Scene, times: &mut StageTimes) -> Result<UpdateStats> {
+        let same_lights = scene.lights == self.scene.lights;
+        if !same_lights || scene.camera != self.scene.camera || scene.surfaces.len() != self.scene.surfaces.len() {
+            return Err(crate::error::Error::file(&scene.file, "an update moves virtual objects only; lights, camera and real geometry must stay"));
+        }
+        let mut stats = UpdateStats::default();
+        let old = self.bounds.clone();
+        let virt = scene.virtual_world_surfaces();
+        let sets: Vec<crate::trace::SurfaceTriangles> =
+            virt.iter().map(|(id, t)| crate::trace::SurfaceTriangles { surface: *id, triangles: t }).collect();
+        times.time("move objects", || self.tracer.rebuild_virtual(&sets)).map_err(|e| crate::error::Error::file(&scene.file, e.to_string()))?;
+        self.scene = scene.clone();
+        self.bounds = VirtualBounds::of(&virt);
+        self.changes = solve_changes(&self.scene, &self.photo, &self.tracer, &self.model, &self.scales_with, &self.settings, times);
+        let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| &o.0);
+        let input = PdaInput {
+            camera: &self.scene.camera,
+            tracer: &self.tracer,
+            patches,
+            lights: &self.model.lights,
+            active: &self.active,
+            bounds: &self.bounds,
+            settings: self.settings.pda,
+        };
+        let pda = &mut self.pda;
+        let blocks = &self.blocks;
+        times.time("update pixel data", || {
+            let (rays, retraced) = pda.rebuild_virtual(&input);
+            stats.rays += rays;
+            stats.pixels_retraced = retraced;
+            let mut boxes = old.boxes.clone();
+            boxes.extend(input.bounds.boxes.iter().copied());
+            let mut touched = vec![false; (pda.width * pda.height) as usize];
+            for (l, light) in input.lights.iter().enumerate() {
+                if !input.active[l] {
+                    stats.skipped_blocks.push(Vec::new());
+                    continue;
+                }
+                let t = blocks.traverse(light, &boxes);
+                stats.shaft_tests += t.shaft_tests;
+                for &pixel in &t.pixels {
+                    stats.rays += pda.recompute_real_term(&input, pixel, l);
+                    touched[pixel as usize] = true;
+                }
+                stats.skipped_blocks.push(t.skipped);
+            }
+            stats.pixels_recomputed = touched.iter().filter(|t| **t).count();
+        });
+        self.rays = stats.rays;
+        self.recomposite(times);
+        Ok(stats)
+    }
+
+    pub fn into_output(self) -> RenderOutput {
+        let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| &o.0);
+        let transport = self.changes.own.as_ref().map_or(&self.model.transport, |o| &o.2);
+        RenderOutput {
+            pda_bytes: self.pda.memory_bytes(),
+            pda_pixels: (self.pda.width * self.pda.height) as usize,
+            rays: self.rays,
+            patches: patches.patch_count(),
+            links: transport.link_count(),
+            patch_size: self.settings.model.patch_size,
+            composite: self.composite,
+            left_out: self.left_out,
+        }
+    }
+}
+
+/// Radiosity with the changes: the virtual objects' patches join the room's
+/// with their own reflectance and shadow its exchanges; lights at their new
+/// scales; the objects' own indirect light gathered from the photo.
+fn solve_changes(
+    scene: &Scene,
+    photo: &Image,
+    tracer: &crate::trace::Tracer,
+    model: &Model,
+    scales_with: &[f64],
+    settings: &RenderSettings,
+    times: &mut StageTimes,
+) -> Changes {
+    let lights = &model.lights;
+    let has_virtual = tracer.virtual_objects.is_some();
+    let own: Option<(Patches, Vec<Vec<DVec3>>, Transport)> = has_virtual.then(|| {
         let patches = times.time("virtual mesh", || Patches::of_scene_with(scene, true, settings.model.patch_size, settings.virtual_patch_size));
-        let direct = times.time("direct light with objects", || direct_irradiance(&patches, lights, &tracer, Layer::All, settings.model.light_level));
+        let direct = times.time("direct light with objects", || direct_irradiance(&patches, lights, tracer, Layer::All, settings.model.light_level));
         let epsilon = match settings.model.transport {
             TransportMethod::Full => crate::radiosity::DEFAULT_LINK_EPSILON,
             TransportMethod::Hierarchical { epsilon } => epsilon,
         };
-        let transport = times.time("form factors with objects", || model.transport.with_objects(&patches, &tracer, epsilon));
-        Some((patches, direct, transport))
-    } else {
-        left_out.push("virtual geometry and new form factors: no virtual object (the room's transport is reused)".to_string());
-        None
-    };
+        let transport = times.time("form factors with objects", || model.transport.with_objects(&patches, tracer, epsilon));
+        (patches, direct, transport)
+    });
     let (patches, direct_per_light, transport) = match &own {
         Some((p, d, t)) => (p, d, t),
         None => (&model.patches, &model.direct_per_light, &model.transport),
@@ -152,66 +357,24 @@ pub fn render(scene: &Scene, photo: &Image, settings: &RenderSettings, times: &m
         .map(|k| if k < real_count { model.estimate.reflectance[k] } else { virtual_rgb[&patches.patch(k).surface] })
         .collect();
     let with = times.time("solve with changes", || {
-        let e = total_direct(&scales_with, direct_per_light);
+        let e = total_direct(scales_with, direct_per_light);
         let b: Vec<DVec3> = reflectance.iter().zip(&e).map(|(r, e)| *r * *e).collect();
         let mut guess = model.estimate.solution.radiosity.clone();
         guess.resize(patches.patch_count(), DVec3::ZERO);
         solve_from(patches, transport, &reflectance, &b, Some(&guess), settings.model.estimate.solve_tolerance, 500)
     });
-    let indirect_without = model.patches.vertex_values(&model.estimate.solution.indirect_irradiance);
     let mut indirect_with = patches.vertex_values(&with.indirect_irradiance);
     if has_virtual && settings.gather_rays > 0 {
         let real_vertices = model.patches.vertices.len();
         let gathered = times.time("final gather on objects", || {
-            final_gather(scene, &tracer, patches, real_vertices, photo, &with.radiosity, &model.estimate.solution.radiosity, settings.gather_rays)
+            final_gather(scene, tracer, patches, real_vertices, photo, &with.radiosity, &model.estimate.solution.radiosity, settings.gather_rays)
         });
         for (v, h) in gathered {
             indirect_with[v] = h;
         }
     }
-
-    let bounds = VirtualBounds::of(&scene.virtual_world_surfaces());
-    let active: Vec<bool> = scales_with.iter().zip(&scales_without).map(|(a, b)| *a > 0.0 || *b > 0.0).collect();
-    if !has_virtual {
-        left_out.push("rays against virtual geometry and edge supersampling: no virtual object".to_string());
-    }
-    let pda = times.time("pixel data array", || {
-        PixelDataArray::build(&PdaInput {
-            camera: &scene.camera,
-            tracer: &tracer,
-            patches,
-            lights,
-            active: &active,
-            bounds: &bounds,
-            settings: settings.pda,
-        })
-    });
-    let result = times.time("composite", || {
-        composite(&CompositeInput {
-            pda: &pda,
-            photo,
-            lights,
-            scales_without: &scales_without,
-            scales_with: &scales_with,
-            indirect_without: &indirect_without,
-            indirect_with: &indirect_with,
-            reflectance: &reflectance,
-            patch_vertices: &patches.patch_vertices,
-            mode: settings.mode,
-        })
-    });
-    Ok(RenderOutput {
-        composite: result,
-        left_out,
-        pda_bytes: pda.memory_bytes(),
-        pda_pixels: n,
-        rays: pda.rays,
-        patches: patches.patch_count(),
-        links: transport.link_count(),
-        patch_size,
-    })
+    Changes { own, reflectance, indirect_with }
 }
-
 
 /// Indirect irradiance at the virtual objects' vertices gathered from the
 /// photograph (final gathering, Grosch §4 after Loscos): `rays` cosine-

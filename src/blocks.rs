@@ -1,0 +1,154 @@
+//! [`BlockHierarchy`] (Grosch §3.2): pixel blocks over the image — single
+//! pixels, then 2×2 blocks of them, and so on up to the whole picture — each
+//! with the bounding box of its pixels' surface points. A block's shaft to a
+//! light (the convex hull of its box and the light's shape) holds every
+//! pixel shaft below it, so one shaft test that excludes a moved object's
+//! old and new bounds skips the whole block.
+
+use glam::{DVec3, Vec3};
+
+use crate::light::{Emitter, LightSource};
+use crate::pda::PixelDataArray;
+use crate::shaft::Shaft;
+
+/// Boxes per level, level 0 = pixels; an empty block has lo > hi.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BlockHierarchy {
+    pub width: u32,
+    pub height: u32,
+    /// (width, height, boxes) per level.
+    levels: Vec<(u32, u32, Vec<(Vec3, Vec3)>)>,
+}
+
+/// What a traversal did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Traversal {
+    /// Pixels whose shaft to the light may meet the bounds.
+    pub pixels: Vec<u32>,
+    pub shaft_tests: u64,
+    /// Blocks skipped by one test: (level, x, y).
+    pub skipped: Vec<(u8, u32, u32)>,
+}
+
+const EMPTY: (Vec3, Vec3) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+
+impl BlockHierarchy {
+    /// Built over the real surface points of the Pixel Data Array.
+    pub fn build(pda: &PixelDataArray) -> BlockHierarchy {
+        let (w, h) = (pda.width, pda.height);
+        let base: Vec<(Vec3, Vec3)> = pda
+            .real_index
+            .iter()
+            .map(|&k| if k == u32::MAX { EMPTY } else { (pda.real.points[k as usize].position, pda.real.points[k as usize].position) })
+            .collect();
+        let mut levels = vec![(w, h, base)];
+        while {
+            let (lw, lh, _) = levels.last().unwrap();
+            *lw > 1 || *lh > 1
+        } {
+            let (lw, lh, boxes) = levels.last().unwrap();
+            let (nw, nh) = (lw.div_ceil(2), lh.div_ceil(2));
+            let mut next = vec![EMPTY; (nw * nh) as usize];
+            for y in 0..*lh {
+                for x in 0..*lw {
+                    let (lo, hi) = boxes[(y * lw + x) as usize];
+                    let n = &mut next[((y / 2) * nw + x / 2) as usize];
+                    *n = (n.0.min(lo), n.1.max(hi));
+                }
+            }
+            levels.push((nw, nh, next));
+        }
+        BlockHierarchy { width: w, height: h, levels }
+    }
+
+    pub fn memory_bytes(&self) -> usize {
+        self.levels.iter().map(|(_, _, b)| b.len() * std::mem::size_of::<(Vec3, Vec3)>()).sum()
+    }
+
+    /// The pixels whose shaft to `light` may meet any of the `boxes`
+    /// (a moved object's old and new bounds), found top-down.
+    pub fn traverse(&self, light: &LightSource, boxes: &[(DVec3, DVec3)]) -> Traversal {
+        let mut out = Traversal::default();
+        if boxes.is_empty() {
+            return out;
+        }
+        let light_points: Vec<DVec3> = match light.emitter {
+            Emitter::Point => vec![light.position],
+            Emitter::Rect { u, v, .. } => {
+                let c = light.position;
+                vec![c - 0.5 * u - 0.5 * v, c + 0.5 * u - 0.5 * v, c + 0.5 * u + 0.5 * v, c - 0.5 * u + 0.5 * v]
+            }
+        };
+        let corners: Vec<[DVec3; 8]> = boxes.iter().map(|(lo, hi)| box_corners(*lo, *hi)).collect();
+        let top = self.levels.len() - 1;
+        self.visit(top, 0, 0, &light_points, &corners, &mut out);
+        out
+    }
+
+    fn visit(&self, level: usize, x: u32, y: u32, light: &[DVec3], objects: &[[DVec3; 8]], out: &mut Traversal) {
+        let (lw, lh, boxes) = &self.levels[level];
+        if x >= *lw || y >= *lh {
+            return;
+        }
+        let (lo, hi) = boxes[(y * lw + x) as usize];
+        if lo.x > hi.x {
+            return;
+        }
+        let mut points: Vec<DVec3> = box_corners(lo.as_dvec3(), hi.as_dvec3()).to_vec();
+        points.extend_from_slice(light);
+        // A single point and a point light span no volume: the shaft is a segment.
+        let shaft = Shaft::hull(&points);
+        out.shaft_tests += 1;
+        let may_meet = if shaft.plane_count() == 0 {
+            objects.iter().any(|c| segment_meets(points[0], light[0], c))
+        } else {
+            objects.iter().any(|c| !shaft.excludes(c))
+        };
+        if !may_meet {
+            out.skipped.push((level as u8, x, y));
+            return;
+        }
+        if level == 0 {
+            out.pixels.push(y * self.width + x);
+            return;
+        }
+        for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            self.visit(level - 1, 2 * x + dx, 2 * y + dy, light, objects, out);
+        }
+    }
+
+    /// The image rectangle a block of `level` at (x, y) covers.
+    pub fn block_pixels(&self, level: u8, x: u32, y: u32) -> (u32, u32, u32, u32) {
+        let s = 1u32 << level;
+        (x * s, y * s, ((x + 1) * s).min(self.width), ((y + 1) * s).min(self.height))
+    }
+}
+
+fn box_corners(lo: DVec3, hi: DVec3) -> [DVec3; 8] {
+    std::array::from_fn(|i| DVec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z }))
+}
+
+/// Whether segment a→b meets the box spanned by `corners` (slab test).
+fn segment_meets(a: DVec3, b: DVec3, corners: &[DVec3; 8]) -> bool {
+    let (lo, hi) = corners.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    let d = b - a;
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for k in 0..3 {
+        if d[k].abs() < 1e-300 {
+            if a[k] < lo[k] || a[k] > hi[k] {
+                return false;
+            }
+        } else {
+            let (mut ta, mut tb) = ((lo[k] - a[k]) / d[k], (hi[k] - a[k]) / d[k]);
+            if ta > tb {
+                std::mem::swap(&mut ta, &mut tb);
+            }
+            t0 = t0.max(ta);
+            t1 = t1.min(tb);
+            if t0 > t1 {
+                return false;
+            }
+        }
+    }
+    true
+}

@@ -1,0 +1,43 @@
+//! Incremental updates along the desk's `box_slide` motion: each update
+//! gives the image a full render of that pose gives.
+
+use arlux::image_io::Image;
+use arlux::model::StageTimes;
+use arlux::render::{RenderSettings, Session, render};
+use arlux::scene::Scene;
+
+fn desk() -> Scene {
+    Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/desk/scene.toml")).unwrap()
+}
+
+fn differing(a: &Image, b: &Image) -> usize {
+    a.pixels.iter().zip(&b.pixels).filter(|(x, y)| x.to_array().map(f32::to_bits) != y.to_array().map(f32::to_bits)).count()
+}
+
+#[test]
+fn every_update_equals_a_full_render_of_its_pose() {
+    let base = desk();
+    let motion = base.motion("box_slide").unwrap().clone();
+    let settings = RenderSettings::default();
+    let first = base.with_motion_pose("box_slide", 0).unwrap();
+    let photo = first.load_photo().unwrap();
+    let mut session = Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+    for pose in 1..motion.translations.len() {
+        let scene = base.with_motion_pose("box_slide", pose).unwrap();
+        let mut times = StageTimes::default();
+        let stats = session.update(&scene, &mut times).unwrap();
+        let full = render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap();
+        let d = differing(&session.composite.image, &full.composite.image);
+        let direct = differing(&session.composite.direct, &full.composite.direct);
+        println!(
+            "pose {pose}: {} pixels recomputed, {} re-traced, {} shaft tests, {} rays, {:.1} ms; {d} pixels differ from a full render ({direct} in direct light)",
+            stats.pixels_recomputed,
+            stats.pixels_retraced,
+            stats.shaft_tests,
+            stats.rays,
+            times.total().as_secs_f64() * 1e3
+        );
+        assert_eq!(direct, 0, "pose {pose}: direct light must match bit for bit");
+        assert_eq!(d, 0, "pose {pose}: the image must match");
+    }
+}
