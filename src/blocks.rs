@@ -7,6 +7,7 @@
 
 use glam::{DVec3, Vec3};
 
+use crate::geometry::{box_corners, segment_meets_box};
 use crate::light::{Emitter, LightSource};
 use crate::pda::PixelDataArray;
 use crate::shaft::Shaft;
@@ -100,7 +101,7 @@ impl BlockHierarchy {
         let shaft = Shaft::hull(&points);
         out.shaft_tests += 1;
         let may_meet = if shaft.plane_count() == 0 {
-            objects.iter().any(|c| segment_meets(points[0], light[0], c))
+            objects.iter().any(|c| segment_meets_box(points[0], light[0], c[0], c[7]))
         } else {
             objects.iter().any(|c| !shaft.excludes(c))
         };
@@ -122,33 +123,4 @@ impl BlockHierarchy {
         let s = 1u32 << level;
         (x * s, y * s, ((x + 1) * s).min(self.width), ((y + 1) * s).min(self.height))
     }
-}
-
-fn box_corners(lo: DVec3, hi: DVec3) -> [DVec3; 8] {
-    std::array::from_fn(|i| DVec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z }))
-}
-
-/// Whether segment a→b meets the box spanned by `corners` (slab test).
-fn segment_meets(a: DVec3, b: DVec3, corners: &[DVec3; 8]) -> bool {
-    let (lo, hi) = corners.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
-    let d = b - a;
-    let (mut t0, mut t1) = (0.0f64, 1.0f64);
-    for k in 0..3 {
-        if d[k].abs() < 1e-300 {
-            if a[k] < lo[k] || a[k] > hi[k] {
-                return false;
-            }
-        } else {
-            let (mut ta, mut tb) = ((lo[k] - a[k]) / d[k], (hi[k] - a[k]) / d[k]);
-            if ta > tb {
-                std::mem::swap(&mut ta, &mut tb);
-            }
-            t0 = t0.max(ta);
-            t1 = t1.min(tb);
-            if t0 > t1 {
-                return false;
-            }
-        }
-    }
-    true
 }

@@ -156,6 +156,38 @@ fn ray_hits_triangle(o: DVec3, d: DVec3, t: &Triangle) -> bool {
     e2.dot(q) * inv > 0.0
 }
 
+/// The eight corners of the box spanned by `lo` and `hi`.
+pub fn box_corners(lo: DVec3, hi: DVec3) -> [DVec3; 8] {
+    std::array::from_fn(|i| DVec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z }))
+}
+
+/// Whether the segment a→b meets the box [lo, hi] (slab test; the box is
+/// grown by a millionth of its size, so that touching counts).
+pub fn segment_meets_box(a: DVec3, b: DVec3, lo: DVec3, hi: DVec3) -> bool {
+    let pad = 1e-6 * (hi - lo).max_element().max(1.0);
+    let (lo, hi) = (lo - pad, hi + pad);
+    let d = b - a;
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for k in 0..3 {
+        if d[k].abs() < 1e-300 {
+            if a[k] < lo[k] || a[k] > hi[k] {
+                return false;
+            }
+        } else {
+            let (mut ta, mut tb) = ((lo[k] - a[k]) / d[k], (hi[k] - a[k]) / d[k]);
+            if ta > tb {
+                std::mem::swap(&mut ta, &mut tb);
+            }
+            t0 = t0.max(ta);
+            t1 = t1.min(tb);
+            if t0 > t1 {
+                return false;
+            }
+        }
+    }
+    true
+}
+
 /// Loads an OBJ file. Every `o`/`g` name is one surface; repeated names
 /// (a group split by `usemtl`, or reopened later) are merged.
 pub fn load_obj(path: &Path) -> Result<Mesh> {

@@ -227,15 +227,33 @@ pub fn merge(exposures: &[Exposure], response: &Response) -> Result<Merged> {
     Ok(Merged { image, saturated, black })
 }
 
+/// FNV-1a over bytes: names cache files after what they were made from.
+#[derive(Debug, Clone, Copy)]
+pub struct ContentHash(u64);
+
+impl Default for ContentHash {
+    fn default() -> Self {
+        ContentHash(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl ContentHash {
+    pub fn feed(&mut self, bytes: &[u8]) {
+        for b in bytes {
+            self.0 = (self.0 ^ *b as u64).wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+
+    pub fn value(&self) -> u64 {
+        self.0
+    }
+}
+
 /// Merges a scene's brackets, through a cache next to the scene: the merge
 /// is redone only when a bracket's bytes or EV change.
 pub fn merge_cached(scene_dir: &Path, brackets: &[(PathBuf, f64)]) -> Result<Image> {
-    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
-    let mut feed = |bytes: &[u8]| {
-        for b in bytes {
-            hash = (hash ^ *b as u64).wrapping_mul(0x0100_0000_01b3);
-        }
-    };
+    let mut hash = ContentHash::default();
+    let mut feed = |bytes: &[u8]| hash.feed(bytes);
     let mut exposures = Vec::with_capacity(brackets.len());
     for (path, ev) in brackets {
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
@@ -243,7 +261,7 @@ pub fn merge_cached(scene_dir: &Path, brackets: &[(PathBuf, f64)]) -> Result<Ima
         feed(&ev.to_le_bytes());
         exposures.push((path, *ev));
     }
-    let cache = scene_dir.join(".arlux-cache").join(format!("merged-{hash:016x}.exr"));
+    let cache = scene_dir.join(".arlux-cache").join(format!("merged-{:016x}.exr", hash.value()));
     if cache.is_file() {
         if let Ok(img) = crate::image_io::read_image(&cache) {
             return Ok(img);

@@ -556,7 +556,7 @@ fn radiosity_cmd(
         "solver_residual": est.solution.residual,
         "shadow_rays": view.rays,
         "error_against_photo": error,
-        "stages": times.0.iter().map(|(n, d)| json!({ "stage": n, "seconds": d.as_secs_f64() })).collect::<Vec<_>>(),
+        "stages": stages_json(&times),
         "total_seconds": times.total().as_secs_f64(),
     });
     if as_json {
@@ -586,11 +586,7 @@ fn radiosity_cmd(
         error.relative_rmse.unwrap_or(f64::NAN),
         error.psnr_srgb_db.map_or("inf".into(), |p| format!("{p:.2} dB"))
     );
-    println!("time per stage:");
-    for (name, d) in &times.0 {
-        println!("  {name:<16} {:>9.1} ms", d.as_secs_f64() * 1e3);
-    }
-    println!("  {:<16} {:>9.1} ms", "total", times.total().as_secs_f64() * 1e3);
+    print_stages(&times);
     Ok(())
 }
 
@@ -696,7 +692,7 @@ fn render_cmd(
         "pda_bytes_per_pixel": out.pda_bytes as f64 / out.pda_pixels.max(1) as f64,
         "error_against_reference": error,
         "left_out": out.left_out,
-        "stages": times.0.iter().map(|(n, d)| json!({ "stage": n, "seconds": d.as_secs_f64() })).collect::<Vec<_>>(),
+        "stages": stages_json(&times),
         "total_seconds": times.total().as_secs_f64(),
     });
     if as_json {
@@ -730,11 +726,7 @@ fn render_cmd(
     for l in &out.left_out {
         println!("left out: {l}");
     }
-    println!("time per stage:");
-    for (name, d) in &times.0 {
-        println!("  {name:<26} {:>9.1} ms", d.as_secs_f64() * 1e3);
-    }
-    println!("  {:<26} {:>9.1} ms", "total", times.total().as_secs_f64() * 1e3);
+    print_stages(&times);
     Ok(())
 }
 
@@ -839,7 +831,7 @@ fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, 
             "pose": pose, "seconds": seconds, "full_render": false, "speedup": full_seconds / seconds,
             "pixels_recomputed": stats.pixels_recomputed, "pixels_retraced": stats.pixels_retraced,
             "shaft_tests": stats.shaft_tests, "rays": stats.rays, "error_against_reference": error,
-            "stages": times.0.iter().map(|(n, d)| json!({ "stage": n, "seconds": d.as_secs_f64() })).collect::<Vec<_>>(),
+            "stages": stages_json(&times),
         }));
         last_skipped = stats.skipped_blocks;
     }
@@ -873,4 +865,16 @@ fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, 
         println!("{}", serde_json::to_string_pretty(&json!({ "motion": name, "poses": rows, "pda_bytes": pda_bytes, "block_bytes": block_bytes }))?);
     }
     Ok(())
+}
+
+fn stages_json(times: &arlux::model::StageTimes) -> serde_json::Value {
+    times.0.iter().map(|(n, d)| json!({ "stage": n, "seconds": d.as_secs_f64() })).collect()
+}
+
+fn print_stages(times: &arlux::model::StageTimes) {
+    println!("time per stage:");
+    for (name, d) in &times.0 {
+        println!("  {name:<26} {:>9.1} ms", d.as_secs_f64() * 1e3);
+    }
+    println!("  {:<26} {:>9.1} ms", "total", times.total().as_secs_f64() * 1e3);
 }

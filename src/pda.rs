@@ -16,6 +16,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::camera::Camera;
+use crate::geometry::{box_corners, segment_meets_box};
 use crate::light::{Emitter, LightSource, hash2, offset_origin, segment};
 use crate::patches::Patches;
 use crate::shaft::Shaft;
@@ -154,36 +155,6 @@ impl VirtualBounds {
             }
         }
     }
-}
-
-fn box_corners(lo: DVec3, hi: DVec3) -> [DVec3; 8] {
-    std::array::from_fn(|i| DVec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z }))
-}
-
-/// Slab test of the segment a→b against a box (grown a little).
-fn segment_meets_box(a: DVec3, b: DVec3, lo: DVec3, hi: DVec3) -> bool {
-    let pad = 1e-6 * (hi - lo).max_element().max(1.0);
-    let (lo, hi) = (lo - pad, hi + pad);
-    let d = b - a;
-    let (mut t0, mut t1) = (0.0f64, 1.0f64);
-    for k in 0..3 {
-        if d[k].abs() < 1e-300 {
-            if a[k] < lo[k] || a[k] > hi[k] {
-                return false;
-            }
-        } else {
-            let (mut ta, mut tb) = ((lo[k] - a[k]) / d[k], (hi[k] - a[k]) / d[k]);
-            if ta > tb {
-                std::mem::swap(&mut ta, &mut tb);
-            }
-            t0 = t0.max(ta);
-            t1 = t1.min(tb);
-            if t0 > t1 {
-                return false;
-            }
-        }
-    }
-    true
 }
 
 /// Everything the PDA is built from.

@@ -481,12 +481,8 @@ pub fn fine_patch_size(scene: &Scene) -> f64 {
 /// few surfaces' estimates, which coarse patches bias), cached next to the
 /// scene under a hash of the scene file, its meshes and the brackets.
 pub fn bracket_scale_cached(scene: &Scene, photo: &Image, tracer: &crate::trace::Tracer, settings: &ModelSettings, patch_size: f64) -> Option<f64> {
-    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
-    let mut feed = |bytes: &[u8]| {
-        for b in bytes {
-            hash = (hash ^ *b as u64).wrapping_mul(0x0100_0000_01b3);
-        }
-    };
+    let mut hash = crate::hdr::ContentHash::default();
+    let mut feed = |bytes: &[u8]| hash.feed(bytes);
     let mut files: Vec<std::path::PathBuf> = vec![scene.file.clone()];
     files.extend(scene.surfaces.iter().map(|s| s.mesh.clone()));
     if let crate::scene::Photo::Brackets(b) = &scene.photo {
@@ -497,7 +493,7 @@ pub fn bracket_scale_cached(scene: &Scene, photo: &Image, tracer: &crate::trace:
         feed(&std::fs::read(f).ok()?);
     }
     feed(&patch_size.to_le_bytes());
-    let cache = scene.dir().join(".arlux-cache").join(format!("scale-{hash:016x}.txt"));
+    let cache = scene.dir().join(".arlux-cache").join(format!("scale-{:016x}.txt", hash.value()));
     if let Some(s) = std::fs::read_to_string(&cache).ok().and_then(|t| t.trim().parse::<f64>().ok()).filter(|s| s.is_finite() && *s > 0.0) {
         return Some(s);
     }
