@@ -383,11 +383,31 @@ impl PixelDataArray {
         self.edges.clear();
         self.edge_samples = Samples::default();
         let boxes = screen_boxes(cam, input.bounds);
+        // The nearest any object can be to the camera: a pixel whose real
+        // surface (and its neighbours', which its sub-pixels may reach) is
+        // nearer hides every object, and needs no ray.
+        let nearest = input
+            .bounds
+            .boxes
+            .iter()
+            .map(|(lo, hi)| (cam.position.clamp(*lo, *hi) - cam.position).length())
+            .fold(f64::INFINITY, f64::min);
+        let hidden = |x: u32, y: u32| {
+            let (x0, x1, y0, y1) = (x.saturating_sub(1), (x + 1).min(self.width - 1), y.saturating_sub(1), (y + 1).min(self.height - 1));
+            (y0..=y1).all(|yy| {
+                (x0..=x1).all(|xx| {
+                    let k = self.real_index[(yy * self.width + xx) as usize];
+                    k != NONE && (self.real.points[k as usize].position.as_dvec3() - cam.position).length() < nearest
+                })
+            })
+        };
         let mut pixels: Vec<u32> = Vec::new();
         for b in &boxes {
             for y in b.y0..=b.y1 {
                 for x in b.x0..=b.x1 {
-                    pixels.push(y * self.width + x);
+                    if !hidden(x, y) {
+                        pixels.push(y * self.width + x);
+                    }
                 }
             }
         }

@@ -44,3 +44,18 @@ fn every_update_equals_a_full_render_of_its_pose() {
         assert_eq!(d, 0, "pose {pose}: the image must match");
     }
 }
+
+#[test]
+fn moving_an_object_far_from_everything_recomputes_no_pixel_and_casts_no_ray() {
+    let base = desk();
+    let mut here = base.with_variant("box_floor_a").unwrap();
+    // Behind the back wall, then further behind it.
+    here.objects[0].pose.translate = glam::DVec3::new(0.0, 0.0, -3.0);
+    let mut there = here.clone();
+    there.objects[0].pose.translate = glam::DVec3::new(0.5, 0.0, -4.0);
+    let photo = here.load_photo().unwrap();
+    let mut session = Session::start(&here, &photo, &RenderSettings::default(), &mut StageTimes::default()).unwrap();
+    let stats = session.update(&there, &mut StageTimes::default()).unwrap();
+    assert_eq!((stats.pixels_recomputed, stats.pixels_retraced, stats.rays), (0, 0, 0), "{stats:?}");
+    assert!(session.composite.image == photo, "the photo, untouched");
+}
