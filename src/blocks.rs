@@ -8,6 +8,7 @@
 use glam::{DVec3, Vec3};
 
 use crate::geometry::{box_corners, segment_meets_box};
+
 use crate::light::{Emitter, LightSource};
 use crate::pda::PixelDataArray;
 use crate::shaft::Shaft;
@@ -95,14 +96,21 @@ impl BlockHierarchy {
         if lo.x > hi.x {
             return;
         }
-        let mut points: Vec<DVec3> = box_corners(lo.as_dvec3(), hi.as_dvec3()).to_vec();
-        points.extend_from_slice(light);
-        // A single point and a point light span no volume: the shaft is a segment.
-        let shaft = Shaft::hull(&points);
         out.shaft_tests += 1;
-        let may_meet = if shaft.plane_count() == 0 {
-            objects.iter().any(|c| segment_meets_box(points[0], light[0], c[0], c[7]))
+        let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
+        let may_meet = if level == 0 {
+            // A pixel: exactly the test the Pixel Data Array makes.
+            if light.len() == 1 {
+                objects.iter().any(|c| segment_meets_box(lo, light[0], c[0], c[7]))
+            } else {
+                let shaft = Shaft::pyramid(lo, light);
+                objects.iter().any(|c| !shaft.excludes(c))
+            }
         } else {
+            // A block: Haines & Wallace's shaft from its box to the light's,
+            // which holds every pixel shaft below it.
+            let light_box = light.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+            let shaft = Shaft::between_boxes((lo, hi), light_box);
             objects.iter().any(|c| !shaft.excludes(c))
         };
         if !may_meet {

@@ -150,7 +150,7 @@ impl VirtualBounds {
             Emitter::Point => self.boxes.iter().any(|(lo, hi)| segment_meets_box(x, light.position, *lo, *hi)),
             Emitter::Rect { u, v, .. } => {
                 let c = light.position;
-                let shaft = Shaft::hull(&[x, c - 0.5 * u - 0.5 * v, c + 0.5 * u - 0.5 * v, c + 0.5 * u + 0.5 * v, c - 0.5 * u + 0.5 * v]);
+                let shaft = Shaft::pyramid(x, &[c - 0.5 * u - 0.5 * v, c + 0.5 * u - 0.5 * v, c + 0.5 * u + 0.5 * v, c - 0.5 * u + 0.5 * v]);
                 self.boxes.iter().any(|(lo, hi)| !shaft.excludes(&box_corners(*lo, *hi)))
             }
         }

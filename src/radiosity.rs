@@ -90,6 +90,9 @@ struct ShaftTest<'a> {
     lo: DVec3,
     hi: DVec3,
     slack: f64,
+    /// Haines & Wallace's shaft between the two elements' boxes: cheap, and
+    /// holding the exact hull, so what it excludes the hull excludes too.
+    coarse: Shaft,
     shaft: Option<Shaft>,
 }
 
@@ -99,7 +102,8 @@ impl<'a> ShaftTest<'a> {
         ends.extend_from_slice(&q.shape.corners());
         let (lo, hi) = ends.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
         let slack = 1e-9 * (hi - lo).max_element().max(1.0);
-        ShaftTest { patches, layer, p, q, ends, lo, hi, slack, shaft: None }
+        let coarse = Shaft::between_boxes(p.shape.bounds(), q.shape.bounds());
+        ShaftTest { patches, layer, p, q, ends, lo, hi, slack, coarse, shaft: None }
     }
 
     /// Whether root `r` may block light between p and q: it is in the
@@ -120,8 +124,12 @@ impl<'a> ShaftTest<'a> {
         if (rlo - self.slack).cmpge(self.hi).any() || (rhi + self.slack).cmple(self.lo).any() {
             return false;
         }
+        let corners = root.shape.corners();
+        if self.coarse.excludes(&corners) {
+            return false;
+        }
         let ends = &self.ends;
-        !self.shaft.get_or_insert_with(|| Shaft::hull(ends)).excludes(&root.shape.corners())
+        !self.shaft.get_or_insert_with(|| Shaft::hull(ends)).excludes(&corners)
     }
 }
 

@@ -280,19 +280,22 @@ impl Session {
         };
         let pda = &mut self.pda;
         let blocks = &self.blocks;
-        times.time("update pixel data", || {
-            let (rays, retraced) = pda.rebuild_virtual(&input);
-            stats.rays += rays;
-            stats.pixels_retraced = retraced;
-            let mut boxes = old.boxes.clone();
-            boxes.extend(input.bounds.boxes.iter().copied());
+        let (rays, retraced) = times.time("re-trace objects and edges", || pda.rebuild_virtual(&input));
+        stats.rays += rays;
+        stats.pixels_retraced = retraced;
+        let mut boxes = old.boxes.clone();
+        boxes.extend(input.bounds.boxes.iter().copied());
+        let traversals: Vec<Option<crate::blocks::Traversal>> = times.time("pixel-block traversal", || {
+            use rayon::prelude::*;
+            input.lights.par_iter().enumerate().map(|(l, light)| input.active[l].then(|| blocks.traverse(light, &boxes))).collect()
+        });
+        times.time("recompute pixels", || {
             let mut touched = vec![false; (pda.width * pda.height) as usize];
-            for (l, light) in input.lights.iter().enumerate() {
-                if !input.active[l] {
+            for (l, t) in traversals.into_iter().enumerate() {
+                let Some(t) = t else {
                     stats.skipped_blocks.push(Vec::new());
                     continue;
-                }
-                let t = blocks.traverse(light, &boxes);
+                };
                 stats.shaft_tests += t.shaft_tests;
                 for &pixel in &t.pixels {
                     stats.rays += pda.recompute_real_term(&input, pixel, l);

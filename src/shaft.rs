@@ -16,6 +16,14 @@ impl Shaft {
     /// The convex hull of the given points (at most a few dozen: every
     /// plane through three of them that has all on one side is a face).
     pub fn hull(points: &[DVec3]) -> Shaft {
+        // Repeated points add no face (a pixel's box is one point eight times).
+        let mut unique: Vec<DVec3> = Vec::with_capacity(points.len());
+        for p in points {
+            if !unique.iter().any(|q| q == p) {
+                unique.push(*p);
+            }
+        }
+        let points = &unique[..];
         let scale = points.iter().map(|p| p.abs().max_element()).fold(1.0, f64::max);
         let extent = points.iter().map(|p| (*p - points[0]).length()).fold(0.0, f64::max).max(1e-12);
         let tolerance = 1e-9 * scale.max(extent);
@@ -44,6 +52,92 @@ impl Shaft {
                     };
                     if !planes.iter().any(|(m, e)| (*m - plane.0).length() < 1e-9 && (e - plane.1).abs() <= tolerance) {
                         planes.push(plane);
+                    }
+                }
+            }
+        }
+        Shaft { planes, tolerance }
+    }
+
+    /// The pyramid from `apex` to a planar convex polygon `base` (a pixel's
+    /// shaft to a rect light): its faces written down instead of searched
+    /// for. Falls back to [`Shaft::hull`] when the apex lies in the base's plane.
+    pub fn pyramid(apex: DVec3, base: &[DVec3]) -> Shaft {
+        let n = base.len();
+        let normal = (base[1] - base[0]).cross(base[2] - base[0]);
+        let extent = base.iter().map(|p| (*p - apex).length()).fold(0.0, f64::max).max(1e-12);
+        let height = (apex - base[0]).dot(normal) / normal.length().max(1e-300);
+        if normal.length() < 1e-12 * extent * extent || height.abs() < 1e-9 * extent {
+            let mut all = base.to_vec();
+            all.push(apex);
+            return Shaft::hull(&all);
+        }
+        let scale = base.iter().chain(std::iter::once(&apex)).map(|p| p.abs().max_element()).fold(1.0, f64::max);
+        let tolerance = 1e-9 * scale.max(extent);
+        let centre = (base.iter().copied().sum::<DVec3>() + apex) / (n + 1) as f64;
+        let outward = |m: DVec3, on: DVec3| -> (DVec3, f64) {
+            let m = m.normalize();
+            let m = if m.dot(centre - on) > 0.0 { -m } else { m };
+            (m, m.dot(on))
+        };
+        let mut planes = Vec::with_capacity(n + 1);
+        planes.push(outward(normal, base[0]));
+        for i in 0..n {
+            let (a, b) = (base[i], base[(i + 1) % n]);
+            planes.push(outward((a - apex).cross(b - apex), apex));
+        }
+        Shaft { planes, tolerance }
+    }
+
+    /// Haines & Wallace's shaft between two boxes: the box around both,
+    /// cut by a plane through each pair of parallel edges where one box
+    /// bounds the union on one face and the other box on an adjacent face.
+    /// It holds the convex hull of the two boxes; built in constant time.
+    pub fn between_boxes(a: (DVec3, DVec3), b: (DVec3, DVec3)) -> Shaft {
+        let (lo, hi) = (a.0.min(b.0), a.1.max(b.1));
+        let scale = lo.abs().max(hi.abs()).max_element().max(1.0);
+        let tolerance = 1e-9 * scale;
+        let mut planes: Vec<(DVec3, f64)> = Vec::with_capacity(14);
+        for k in 0..3 {
+            let mut n = DVec3::ZERO;
+            n[k] = 1.0;
+            planes.push((n, hi[k]));
+            planes.push((-n, -lo[k]));
+        }
+        // side 0: the min face, side 1: the max face of an axis.
+        let extent = |bx: (DVec3, DVec3), axis: usize, side: usize| if side == 0 { bx.0[axis] } else { bx.1[axis] };
+        let owner = |axis: usize, side: usize| -> bool {
+            // true: box a reaches that face of the union (ties go to a).
+            if side == 0 { a.0[axis] <= b.0[axis] } else { a.1[axis] >= b.1[axis] }
+        };
+        for i in 0..3 {
+            for j in i + 1..3 {
+                for si in 0..2 {
+                    for sj in 0..2 {
+                        if owner(i, si) == owner(j, sj) {
+                            continue;
+                        }
+                        // The edge of each box at (face i side si, face j side sj), as a
+                        // point in the (i, j) plane; the plane holds both edges.
+                        let (pa, pb) = ((extent(a, i, si), extent(a, j, sj)), (extent(b, i, si), extent(b, j, sj)));
+                        let (di, dj) = (pb.0 - pa.0, pb.1 - pa.1);
+                        let mut n = DVec3::ZERO;
+                        n[i] = dj;
+                        n[j] = -di;
+                        let len = n.length();
+                        if len < 1e-300 {
+                            continue;
+                        }
+                        let n = n / len;
+                        // Outward: away from the union's centre on this corner.
+                        let mut out = DVec3::ZERO;
+                        out[i] = if si == 0 { -1.0 } else { 1.0 };
+                        out[j] = if sj == 0 { -1.0 } else { 1.0 };
+                        let n = if n.dot(out) < 0.0 { -n } else { n };
+                        let mut on = DVec3::ZERO;
+                        on[i] = pa.0;
+                        on[j] = pa.1;
+                        planes.push((n, n.dot(on)));
                     }
                 }
             }
@@ -84,6 +178,54 @@ mod tests {
         // A wall in the plane x = 1 only touches the shaft: it cannot block.
         let wall = vec![DVec3::new(1.0, -1.0, -1.0), DVec3::new(1.0, 3.0, -1.0), DVec3::new(1.0, 3.0, 3.0)];
         assert!(s.excludes(&wall));
+    }
+
+    #[test]
+    fn a_box_shaft_holds_the_hull_and_cuts_away_what_lies_beside_it() {
+        let a = (DVec3::new(0.0, 0.0, 0.0), DVec3::new(1.0, 0.1, 1.0));
+        let b = (DVec3::new(2.0, 3.0, 0.2), DVec3::new(2.5, 3.05, 0.7));
+        let shaft = Shaft::between_boxes(a, b);
+        let mut corners: Vec<DVec3> = (0..8).map(|i| DVec3::new(if i & 1 == 0 { a.0.x } else { a.1.x }, if i & 2 == 0 { a.0.y } else { a.1.y }, if i & 4 == 0 { a.0.z } else { a.1.z })).collect();
+        corners.extend((0..8).map(|i| DVec3::new(if i & 1 == 0 { b.0.x } else { b.1.x }, if i & 2 == 0 { b.0.y } else { b.1.y }, if i & 4 == 0 { b.0.z } else { b.1.z })));
+        let hull = Shaft::hull(&corners);
+        let mut state = 11u64;
+        let mut cut = 0;
+        for _ in 0..4000 {
+            let c = DVec3::new(
+                crate::light::unit_random(&mut state) * 3.0 - 0.2,
+                crate::light::unit_random(&mut state) * 3.4 - 0.2,
+                crate::light::unit_random(&mut state) * 1.4 - 0.2,
+            );
+            let tri = [c, c + DVec3::new(0.05, 0.0, 0.0), c + DVec3::new(0.0, 0.05, 0.02)];
+            // Conservative: whatever the shaft excludes, the hull excludes too.
+            if shaft.excludes(&tri) {
+                assert!(hull.excludes(&tri), "{c}");
+            }
+            // And tighter than the box around both: it cuts away the corners.
+            let in_box = tri.iter().all(|p| p.cmpge(a.0.min(b.0)).all() && p.cmple(a.1.max(b.1)).all());
+            cut += (in_box && shaft.excludes(&tri)) as u32;
+        }
+        assert!(cut > 100, "the connecting planes cut {cut}");
+    }
+
+    #[test]
+    fn a_pyramid_agrees_with_the_general_hull() {
+        let base = square(2.0);
+        let apex = DVec3::new(0.3, 0.0, 0.6);
+        let (p, mut all) = (Shaft::pyramid(apex, &base), base.clone());
+        all.push(apex);
+        let h = Shaft::hull(&all);
+        assert_eq!(p.plane_count(), 5);
+        let mut state = 3u64;
+        for _ in 0..2000 {
+            let c = DVec3::new(
+                crate::light::unit_random(&mut state) * 3.0 - 1.0,
+                crate::light::unit_random(&mut state) * 3.0 - 0.5,
+                crate::light::unit_random(&mut state) * 3.0 - 1.0,
+            );
+            let tri = [c, c + DVec3::new(0.1, 0.0, 0.0), c + DVec3::new(0.0, 0.1, 0.05)];
+            assert_eq!(p.excludes(&tri), h.excludes(&tri), "{c}");
+        }
     }
 
     #[test]
