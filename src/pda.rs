@@ -214,32 +214,51 @@ fn light_term(tracer: &Tracer, light: &LightSource, bounds: &VirtualBounds, x: D
     };
     let mut level = settings.min_level;
     let mut rays_cast = 0u64;
+    // Stack buffers: no allocation per pixel and light (it measured neutral
+    // on the desk; the cost is in shading, not here).
+    const MAX: usize = 1 << crate::light::MAX_GRID_LEVEL;
+    let mut targets = [DVec3::ZERO; MAX];
+    let mut rays = [TraceRay::new(glam::Vec3::ZERO, glam::Vec3::Z); MAX];
+    let mut real_blocked = [false; MAX];
+    let mut virt_blocked = [false; MAX];
     loop {
-        let targets: Vec<DVec3> = grid.samples(level, seed).map(|st| light.point_at(st)).collect();
-        let rays: Vec<TraceRay> = targets.iter().map(|&t| segment(origin, t)).collect();
-        let mut real_blocked = vec![false; rays.len()];
-        tracer.occluded_batch(&rays, Layer::Real, &mut real_blocked);
-        let mut virt_blocked = vec![false; rays.len()];
-        if check_virtual {
-            tracer.occluded_batch(&rays, Layer::Virtual, &mut virt_blocked);
+        let mut count = 0;
+        for st in grid.samples(level, seed) {
+            targets[count] = light.point_at(st);
+            rays[count] = segment(origin, targets[count]);
+            count += 1;
         }
-        rays_cast += rays.len() as u64 * (1 + check_virtual as u64);
+        tracer.occluded_batch(&rays[..count], Layer::Real, &mut real_blocked[..count]);
+        if check_virtual {
+            tracer.occluded_batch(&rays[..count], Layer::Virtual, &mut virt_blocked[..count]);
+        } else {
+            virt_blocked[..count].fill(false);
+        }
+        rays_cast += count as u64 * (1 + check_virtual as u64);
         let mixed = |b: &[bool]| b.iter().any(|x| *x) && b.iter().any(|x| !*x);
-        let all_blocked: Vec<bool> = real_blocked.iter().zip(&virt_blocked).map(|(a, b)| *a || *b).collect();
-        if level < settings.penumbra_level && (mixed(&real_blocked) || mixed(&all_blocked)) {
+        let any_all_mixed = {
+            let (mut some, mut none) = (false, false);
+            for k in 0..count {
+                let b = real_blocked[k] || virt_blocked[k];
+                some |= b;
+                none |= !b;
+            }
+            some && none
+        };
+        if level < settings.penumbra_level && (mixed(&real_blocked[..count]) || any_all_mixed) {
             level = settings.penumbra_level;
             continue;
         }
         // Each ray weighs what its sample contributes at x.
         let (mut total, mut real, mut all) = (0.0, 0.0, 0.0);
-        for (k, t) in targets.iter().enumerate() {
-            let w = crate::light::point_contribution(*t, x, n, |d| light.intensity(d)).max_element();
+        for k in 0..count {
+            let w = crate::light::point_contribution(targets[k], x, n, |d| light.intensity(d)).max_element();
             total += w;
             if !real_blocked[k] {
                 real += w;
-            }
-            if !all_blocked[k] {
-                all += w;
+                if !virt_blocked[k] {
+                    all += w;
+                }
             }
         }
         let frac = |v: f64| if total > 0.0 { v / total } else { 0.0 };
