@@ -23,6 +23,7 @@ pub mod radiosity;
 pub mod render;
 pub mod image_io;
 pub mod scene;
+pub mod shadows;
 pub mod shaft;
 pub mod surface_ids;
 pub mod trace;

@@ -148,8 +148,8 @@ impl LightSource {
         let key = |k: &str| format!("light[{index}].{k}");
         let position = match &l.position {
             LightPosition::Known(p) => *p,
-            LightPosition::FromShadows(_) => {
-                return Err(Error::key(&scene.file, key("position"), "estimating a position from shadows is not available in this version"));
+            LightPosition::FromShadows(c) => {
+                crate::shadows::position_from_shadows(c).map_err(|m| Error::key(&scene.file, key("position"), m))?.position
             }
         };
         let emitter = match l.shape {

@@ -292,3 +292,37 @@ fn hdr_merges_brackets_and_refuses_bad_ones() {
     assert!(String::from_utf8_lossy(&misaligned.stderr).contains("must be aligned"));
     assert!(!desk.path("one.exr").exists() && !desk.path("same.exr").exists() && !desk.path("mis.exr").exists());
 }
+
+#[test]
+fn a_light_placed_by_its_shadows_renders_like_the_given_one() {
+    // The spot's shadow lines through the table top's corners onto the floor.
+    let light = [1.5f64, 2.3, 1.0];
+    let corners: [[f64; 3]; 4] = [[-1.0, 0.75, -1.05], [0.2, 0.75, -1.05], [-1.0, 0.75, -1.75], [0.2, 0.75, -1.75]];
+    let lines: Vec<String> = corners
+        .iter()
+        .map(|v| {
+            let t = -light[1] / (v[1] - light[1]);
+            let s: Vec<f64> = (0..3).map(|k| light[k] + (v[k] - light[k]) * t).collect();
+            format!("{{ shadow = [{}, {}, {}], vertex = [{}, {}, {}] }}", s[0], s[1], s[2], v[0], v[1], v[2])
+        })
+        .collect();
+    let desk = Desk::new();
+    desk.edit("scene.toml", "position = [1.5, 2.3, 1.0]", &format!("position = {{ shadow_lines = [{}] }}", lines.join(", ")));
+    let run = arlux(&["render", &desk.scene(), "--variant", "box_table", "-o", desk.path("s.exr").to_str().unwrap(), "--json"]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert!(report["error_against_reference"]["rmse"].as_f64().unwrap() < 0.003);
+
+    // Two parallel lines only: an error saying what is missing, naming the key.
+    let desk = Desk::new();
+    desk.edit(
+        "scene.toml",
+        "position = [1.5, 2.3, 1.0]",
+        "position = { shadow_lines = [{ shadow = [0, 0, 0], vertex = [0, 1, 0] }, { shadow = [1, 0, 0], vertex = [1, 1, 0] }] }",
+    );
+    let run = arlux(&["render", &desk.scene(), "--variant", "box_table", "-o", desk.path("p.exr").to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2));
+    assert!(stderr.contains("light[1].position") && stderr.contains("parallel"), "{stderr}");
+    assert!(!desk.path("p.exr").exists());
+}
