@@ -14,6 +14,15 @@ use arlux::scene::{Intensity, LightPosition, LightShape, Photo, Scene};
 use arlux::surface_ids::{SurfaceIds, id_colour};
 use arlux::trace::Layer;
 
+/// Prints a line to stdout, failing (not panicking) when the reader has
+/// gone: `main` turns a broken pipe into a quiet exit.
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        writeln!(std::io::stdout().lock(), $($arg)*)?;
+    }};
+}
+
 #[derive(Parser)]
 #[command(name = "arlux", version, about = "Per-pixel differential rendering of virtual objects and lights into photographs")]
 struct Cli {
@@ -446,12 +455,12 @@ fn ids(path: &Path, output: &Path, exr: Option<&Path>, with_virtual: bool, varia
     }
     let names = scene.surface_names();
     let total = ids.ids.len() as f64;
-    println!("{} of {} pixels see a surface; wrote {}", ids.covered(), ids.ids.len(), output.display());
+    say!("{} of {} pixels see a surface; wrote {}", ids.covered(), ids.ids.len(), output.display());
     for (i, name) in names.iter().enumerate() {
         let n = ids.ids.iter().filter(|&&s| s == i as i32).count();
         if n > 0 {
             let [r, g, b] = id_colour(i as i32);
-            println!("  {i:>3} {name:<20} #{r:02x}{g:02x}{b:02x}  {:5.1}% of the image", 100.0 * n as f64 / total);
+            say!("  {i:>3} {name:<20} #{r:02x}{g:02x}{b:02x}  {:5.1}% of the image", 100.0 * n as f64 / total);
         }
     }
     Ok(())
@@ -469,14 +478,14 @@ fn compare_cmd(image: &Path, reference: &Path, mask: Option<&Path>, as_json: boo
     let mask = mask.map(|m| read_mask(m, a.width, a.height)).transpose()?;
     let c: Comparison = compare(&a, &b, mask.as_deref());
     if as_json {
-        println!("{}", serde_json::to_string_pretty(&c)?);
+        say!("{}", serde_json::to_string_pretty(&c)?);
     } else {
-        println!("pixels         {}", c.pixels);
-        println!("rmse           {:.6}", c.rmse);
-        println!("relative rmse  {}", c.relative_rmse.map_or("n/a (black reference)".into(), |r| format!("{:.4}", r)));
-        println!("psnr (sRGB)    {}", c.psnr_srgb_db.map_or("inf (identical)".into(), |p| format!("{p:.2} dB")));
-        println!("mean           {:.6}", c.mean);
-        println!("mean reference {:.6}", c.mean_reference);
+        say!("pixels         {}", c.pixels);
+        say!("rmse           {:.6}", c.rmse);
+        say!("relative rmse  {}", c.relative_rmse.map_or("n/a (black reference)".into(), |r| format!("{:.4}", r)));
+        say!("psnr (sRGB)    {}", c.psnr_srgb_db.map_or("inf (identical)".into(), |p| format!("{p:.2} dB")));
+        say!("mean           {:.6}", c.mean);
+        say!("mean reference {:.6}", c.mean_reference);
     }
     Ok(())
 }
@@ -560,10 +569,10 @@ fn radiosity_cmd(
         "total_seconds": times.total().as_secs_f64(),
     });
     if as_json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        say!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
-    println!(
+    say!(
         "{} patches ({} elements), {} transport with {} form factors ({:.1} MB)",
         model.patches.patch_count(),
         model.patches.elements.len(),
@@ -571,7 +580,7 @@ fn radiosity_cmd(
         model.transport.link_count(),
         model.transport.memory_bytes() as f64 / 1e6
     );
-    println!(
+    say!(
         "reflectances: {} fixed-point iterations (last change {:.1e}), {} patches clamped to [0, {}], {} unseen patches took their surface's mean",
         est.iterations,
         est.change,
@@ -579,14 +588,14 @@ fn radiosity_cmd(
         arlux::estimate::MAX_REFLECTANCE,
         est.unseen
     );
-    println!("radiosity: GMRES {} iterations, residual {:.1e}", est.solution.iterations, est.solution.residual);
-    println!(
+    say!("radiosity: GMRES {} iterations, residual {:.1e}", est.solution.iterations, est.solution.residual);
+    say!(
         "model against the photo: RMSE {:.5}, relative {:.3}, PSNR {}",
         error.rmse,
         error.relative_rmse.unwrap_or(f64::NAN),
         error.psnr_srgb_db.map_or("inf".into(), |p| format!("{p:.2} dB"))
     );
-    print_stages(&times);
+    print_stages(&times)?;
     Ok(())
 }
 
@@ -696,10 +705,10 @@ fn render_cmd(
         "total_seconds": times.total().as_secs_f64(),
     });
     if as_json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        say!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
-    println!(
+    say!(
         "{} pixels, {} copied from the photo unchanged; {} patches ({:.2} m), {} form factors; {} rays; pixel data {:.1} MB ({:.0} bytes per pixel)",
         out.pda_pixels,
         c.copied,
@@ -711,10 +720,10 @@ fn render_cmd(
         out.pda_bytes as f64 / out.pda_pixels.max(1) as f64
     );
     if c.ratio_fallbacks > 0 || c.clamped > 0 {
-        println!("{} samples fell back from the ratio to the additive form (dark before), {} were clamped at zero", c.ratio_fallbacks, c.clamped);
+        say!("{} samples fell back from the ratio to the additive form (dark before), {} were clamped at zero", c.ratio_fallbacks, c.clamped);
     }
     if let Some(e) = error {
-        println!(
+        say!(
             "against the reference: RMSE {:.5}, relative {:.4}, PSNR {}, mean {:.5} (reference {:.5})",
             e.rmse,
             e.relative_rmse.unwrap_or(f64::NAN),
@@ -724,9 +733,9 @@ fn render_cmd(
         );
     }
     for l in &out.left_out {
-        println!("left out: {l}");
+        say!("left out: {l}");
     }
-    print_stages(&times);
+    print_stages(&times)?;
     Ok(())
 }
 
@@ -753,7 +762,7 @@ fn hdr_cmd(brackets: &[String], output: &Path, response_csv: Option<&Path>) -> R
         }
         image_io::write_atomic(csv, text.as_bytes())?;
     }
-    println!(
+    say!(
         "merged {} exposures into {} ({}x{}); {} pixels saturated in every exposure, {} black in every exposure; radiance is relative (g(128) = 0, t0 = 1)",
         exposures.len(),
         output.display(),
@@ -791,6 +800,7 @@ fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, 
     let photo = first.load_photo()?;
     let mut times = StageTimes::default();
     let mut session = Session::start(&first, &photo, &settings, &mut times)?;
+    session.prepare_updates(&mut times);
     let full_seconds = times.total().as_secs_f64();
     write(0, &session.composite.image)?;
     let (pda_bytes, block_bytes) = session.memory_bytes();
@@ -799,7 +809,7 @@ fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, 
         "error_against_reference": error_at(0, &session.composite.image)?,
     })];
     if !as_json {
-        println!(
+        say!(
             "pose 0: full render {:.1} ms; pixel data {:.1} MB, pixel blocks {:.1} MB{}",
             full_seconds * 1e3,
             pda_bytes as f64 / 1e6,
@@ -816,7 +826,7 @@ fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, 
         write(pose, &session.composite.image)?;
         let error = error_at(pose, &session.composite.image)?;
         if !as_json {
-            println!(
+            say!(
                 "pose {pose}: update {:.1} ms ({:.1}x faster than the full render); {} pixels recomputed, {} re-traced, {} shaft tests, {} rays{}",
                 seconds * 1e3,
                 full_seconds / seconds,
@@ -835,8 +845,7 @@ fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, 
         }));
         last_skipped = stats.skipped_blocks;
     }
-    if let Some(png) = debug_blocks {
-        let blocks = session.blocks();
+    if let (Some(png), Some(blocks)) = (debug_blocks, session.blocks()) {
         let (w, h) = (blocks.width, blocks.height);
         // The photo, dimmed, under the skipped blocks coloured by level (Grosch Fig. 6).
         let mut bytes: Vec<u8> = photo
@@ -862,7 +871,7 @@ fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, 
         image_io::write_png_rgb8(png, w, h, bytes)?;
     }
     if as_json {
-        println!("{}", serde_json::to_string_pretty(&json!({ "motion": name, "poses": rows, "pda_bytes": pda_bytes, "block_bytes": block_bytes }))?);
+        say!("{}", serde_json::to_string_pretty(&json!({ "motion": name, "poses": rows, "pda_bytes": pda_bytes, "block_bytes": block_bytes }))?);
     }
     Ok(())
 }
@@ -871,10 +880,11 @@ fn stages_json(times: &arlux::model::StageTimes) -> serde_json::Value {
     times.0.iter().map(|(n, d)| json!({ "stage": n, "seconds": d.as_secs_f64() })).collect()
 }
 
-fn print_stages(times: &arlux::model::StageTimes) {
-    println!("time per stage:");
+fn print_stages(times: &arlux::model::StageTimes) -> Result<()> {
+    say!("time per stage:");
     for (name, d) in &times.0 {
-        println!("  {name:<26} {:>9.1} ms", d.as_secs_f64() * 1e3);
+        say!("  {name:<26} {:>9.1} ms", d.as_secs_f64() * 1e3);
     }
-    println!("  {:<26} {:>9.1} ms", "total", times.total().as_secs_f64() * 1e3);
+    say!("  {:<26} {:>9.1} ms", "total", times.total().as_secs_f64() * 1e3);
+    Ok(())
 }

@@ -121,7 +121,8 @@ pub struct Session {
     changes: Changes,
     bounds: VirtualBounds,
     pda: PixelDataArray,
-    blocks: crate::blocks::BlockHierarchy,
+    /// Built for the first update only: a still render does not need it.
+    blocks: Option<crate::blocks::BlockHierarchy>,
     pub composite: Composite,
     left_out: Vec<String>,
     rays: u64,
@@ -188,7 +189,6 @@ impl Session {
                 settings: settings.pda,
             })
         });
-        let blocks = times.time("pixel blocks", || crate::blocks::BlockHierarchy::build(&pda));
         let rays = pda.rays;
         let mut session = Session {
             scene: scene.clone(),
@@ -203,7 +203,7 @@ impl Session {
             changes,
             bounds,
             pda,
-            blocks,
+            blocks: None,
             composite: Composite {
                 image: Image::new(0, 0),
                 direct: Image::new(0, 0),
@@ -239,13 +239,22 @@ impl Session {
         });
     }
 
-    /// Bytes held by the Pixel Data Array and the pixel-block hierarchy.
-    pub fn memory_bytes(&self) -> (usize, usize) {
-        (self.pda.memory_bytes(), self.blocks.memory_bytes())
+    /// Builds the pixel-block hierarchy updates traverse (done by the first
+    /// update when not asked for before).
+    pub fn prepare_updates(&mut self, times: &mut StageTimes) {
+        if self.blocks.is_none() {
+            let pda = &self.pda;
+            self.blocks = Some(times.time("pixel blocks", || crate::blocks::BlockHierarchy::build(pda)));
+        }
     }
 
-    pub fn blocks(&self) -> &crate::blocks::BlockHierarchy {
-        &self.blocks
+    /// Bytes held by the Pixel Data Array and the pixel-block hierarchy (0 until built).
+    pub fn memory_bytes(&self) -> (usize, usize) {
+        (self.pda.memory_bytes(), self.blocks.as_ref().map_or(0, |b| b.memory_bytes()))
+    }
+
+    pub fn blocks(&self) -> Option<&crate::blocks::BlockHierarchy> {
+        self.blocks.as_ref()
     }
 
     /// Moves to `scene`, which must differ from the current one only in
@@ -259,6 +268,7 @@ impl Session {
         if !same_lights || scene.camera != self.scene.camera || scene.surfaces.len() != self.scene.surfaces.len() {
             return Err(crate::error::Error::file(&scene.file, "an update moves virtual objects only; lights, camera and real geometry must stay"));
         }
+        self.prepare_updates(times);
         let mut stats = UpdateStats::default();
         let old = self.bounds.clone();
         let virt = scene.virtual_world_surfaces();
@@ -279,7 +289,7 @@ impl Session {
             settings: self.settings.pda,
         };
         let pda = &mut self.pda;
-        let blocks = &self.blocks;
+        let blocks = self.blocks.as_ref().expect("prepared above");
         let (rays, retraced) = times.time("re-trace objects and edges", || pda.rebuild_virtual(&input));
         stats.rays += rays;
         stats.pixels_retraced = retraced;

@@ -326,3 +326,19 @@ fn a_light_placed_by_its_shadows_renders_like_the_given_one() {
     assert!(stderr.contains("light[1].position") && stderr.contains("parallel"), "{stderr}");
     assert!(!desk.path("p.exr").exists());
 }
+
+#[test]
+fn a_closed_pipe_is_not_a_failure() {
+    let desk = Desk::new();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_arlux"))
+        .args(["motion", &desk.scene(), "--motion", "box_slide", "-o", desk.path("m").to_str().unwrap()])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The reader goes away before the first line is written.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && !stderr.contains("panicked"), "{:?} {stderr}", out.status);
+}
