@@ -109,7 +109,7 @@ impl BlockHierarchy {
         } else {
             // A block: Haines & Wallace's shaft from its box to the light's,
             // which holds every pixel shaft below it.
-            let light_box = light.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+            let light_box = crate::geometry::bounds(light.iter().copied());
             let shaft = Shaft::between_boxes((lo, hi), light_box);
             objects.iter().any(|c| !shaft.excludes(c))
         };

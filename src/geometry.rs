@@ -156,6 +156,12 @@ fn ray_hits_triangle(o: DVec3, d: DVec3, t: &Triangle) -> bool {
     e2.dot(q) * inv > 0.0
 }
 
+/// The smallest box holding the points: (min corner, max corner); an empty
+/// set gives lo > hi.
+pub fn bounds(points: impl IntoIterator<Item = DVec3>) -> (DVec3, DVec3) {
+    points.into_iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)))
+}
+
 /// The eight corners of the box spanned by `lo` and `hi`.
 pub fn box_corners(lo: DVec3, hi: DVec3) -> [DVec3; 8] {
     std::array::from_fn(|i| DVec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z }))

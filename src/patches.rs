@@ -32,7 +32,7 @@ impl Shape {
     /// Smallest and largest coordinates.
     pub fn bounds(&self) -> (DVec3, DVec3) {
         let c = self.corners();
-        c.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)))
+        crate::geometry::bounds(c.iter().copied())
     }
 
     pub fn area(&self) -> f64 {
@@ -208,8 +208,6 @@ pub struct Patches {
     /// Per surface id: whether it is virtual, and its triangles' roots.
     pub surface_is_virtual: HashMap<u32, bool>,
     root_of_triangle: HashMap<(u32, u32), u32>,
-    /// Target patch size the mesh was built for, in metres.
-    pub target_size: f64,
 }
 
 impl Patches {
@@ -255,7 +253,6 @@ impl Patches {
             patch_vertices: Vec::new(),
             surface_is_virtual: HashMap::new(),
             root_of_triangle: HashMap::new(),
-            target_size,
         };
         p.append(inputs, target_size);
         p

@@ -130,9 +130,7 @@ impl VirtualBounds {
         let boxes = triangles
             .iter()
             .filter(|(_, t)| !t.is_empty())
-            .map(|(_, t)| {
-                t.iter().flatten().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p.as_dvec3()), hi.max(p.as_dvec3())))
-            })
+            .map(|(_, t)| crate::geometry::bounds(t.iter().flatten().map(|p| p.as_dvec3())))
             .collect();
         VirtualBounds { boxes }
     }

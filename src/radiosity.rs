@@ -100,7 +100,7 @@ impl<'a> ShaftTest<'a> {
     fn new(patches: &'a Patches, layer: Layer, p: &'a Element, q: &'a Element) -> Self {
         let mut ends: Vec<DVec3> = p.shape.corners().to_vec();
         ends.extend_from_slice(&q.shape.corners());
-        let (lo, hi) = ends.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        let (lo, hi) = crate::geometry::bounds(ends.iter().copied());
         let slack = 1e-9 * (hi - lo).max_element().max(1.0);
         let coarse = Shaft::between_boxes(p.shape.bounds(), q.shape.bounds());
         ShaftTest { patches, layer, p, q, ends, lo, hi, slack, coarse, shaft: None }

@@ -477,11 +477,7 @@ fn final_gather(
 
 /// The diagonal of the real geometry's bounding box.
 fn room_diagonal(scene: &Scene) -> f64 {
-    let (lo, hi) = scene
-        .surfaces
-        .iter()
-        .flat_map(|s| s.triangles.iter().flatten())
-        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p.as_dvec3()), hi.max(p.as_dvec3())));
+    let (lo, hi) = crate::geometry::bounds(scene.surfaces.iter().flat_map(|s| s.triangles.iter().flatten()).map(|p| p.as_dvec3()));
     (hi - lo).length()
 }
 

@@ -259,10 +259,6 @@ impl Scene {
         self.lights.iter().position(|l| l.name == name)
     }
 
-    pub fn object_index(&self, name: &str) -> Option<usize> {
-        self.objects.iter().position(|o| o.name == name)
-    }
-
     pub fn triangle_count(&self) -> usize {
         self.surfaces.iter().map(|s| s.triangles.len()).sum()
     }
