@@ -13,6 +13,7 @@ pub mod composite;
 pub mod error;
 pub mod estimate;
 pub mod geometry;
+pub mod gonio;
 pub mod hdr;
 pub mod ies;
 pub mod light;

@@ -172,7 +172,7 @@ impl LightSource {
                 Distribution::Ies { profile: Box::new(profile.clone()), axis: *direction, reference: *reference, rgb: *rgb * tilt }
             }
             Intensity::Reconstruct => {
-                return Err(Error::key(&scene.file, key("intensity"), "reconstructing a goniometric from the photo is not available in this version"));
+                return Err(Error::key(&scene.file, key("intensity"), "this light's goniometric must be reconstructed from the photo first (gonio::reconstruct)"));
             }
         };
         let grid = match emitter {

@@ -166,6 +166,16 @@ impl Session {
         } else {
             photo.clone()
         };
+        // A light to reconstruct is recovered from the photo first (Grosch §2.3).
+        let resolved;
+        let scene = match crate::gonio::light_to_reconstruct(scene)? {
+            Some(_) => {
+                let rec = times.time("goniometric", || crate::gonio::reconstruct(scene, &photo, &tracer, &crate::gonio::GonioSettings::default()))?;
+                resolved = rec.apply(scene);
+                &resolved
+            }
+            None => scene,
+        };
         let model = Model::build(scene, &photo, &tracer, &settings.model, times)?;
         let scales_without: Vec<f64> = model.lights.iter().map(|l| l.photo_scale()).collect();
         let scales_with: Vec<f64> = model.lights.iter().map(|l| l.scale).collect();

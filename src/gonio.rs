@@ -1,0 +1,1039 @@
+//! Goniometric reconstruction (Grosch §2.3): a real light whose intensity
+//! is `"reconstruct"` gets its distribution I(θ,φ) back from the photo,
+//! with one known reflectance fixing the scale of light against reflectance.
+//!
+//! EQ1 turns what a surface of known reflectance shows into the intensity
+//! towards it: I = (π·L/ρ − E_other − H)·d²/cosθ, where E_other is the
+//! direct light of the other (known) lights and H the indirect light of the
+//! current radiosity solution. Grosch averages each patch's pixels; arlux
+//! keeps each pixel as a sample of its direction and fits the table by
+//! least squares per direction node, which averages a texture the same way
+//! while resolving the distribution as finely as the photo does.
+//!
+//! Surfaces of unknown reflectance are taken in order of the smallest
+//! angle to a known direction (EQ2 with the nearby intensity assumed; its
+//! samples ranked by that angle times the share of their light the
+//! unknown light gives, so a sample lit mostly by known lights is trusted
+//! whatever the angle); each surface's reflectance is the median of its
+//! best samples, after which its samples add their directions by EQ1.
+//! The whole is iterated with the radiosity solution until table and
+//! reflectances stop changing. Directions no sample reaches stay unknown
+//! (zero in the table, marked in [`Reconstruction::known`]).
+
+use std::collections::HashMap;
+use std::time::Instant;
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::estimate::{EstimateSettings, PhotoPatches, estimate_reflectances};
+use crate::ies::{IesProfile, PhotometricType};
+use crate::image_io::Image;
+use crate::light::{Distribution, LightSource, hash2};
+use crate::patches::Patches;
+use crate::radiosity::{DEFAULT_LINK_EPSILON, Transport, direct_irradiance};
+use crate::scene::{Intensity, Scene};
+use crate::surface_ids::row_hits;
+use crate::trace::{Layer, Tracer};
+
+/// Photometric zero of the reconstructed table (type C nadir) and the
+/// direction of horizontal angle 0: world down and world +x.
+pub const AXIS: DVec3 = DVec3::NEG_Y;
+pub const REFERENCE: DVec3 = DVec3::X;
+
+/// Settings of the reconstruction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GonioSettings {
+    /// Spacing of the table's vertical angles, degrees.
+    pub vertical_step_deg: f64,
+    /// Spacing of its horizontal angles, degrees.
+    pub horizontal_step_deg: f64,
+    /// Patch size of the radiosity solution that gives the indirect light.
+    pub patch_size: f64,
+    /// 2^level shadow rays per point towards rect lights.
+    pub light_level: usize,
+    /// Rounds of (reconstruct, re-solve radiosity) at most.
+    pub max_rounds: usize,
+    /// Stop when no table value changes by more than this fraction of the peak.
+    pub tolerance: f64,
+    /// Rays per pixel gathering its indirect light.
+    pub gather_rays: u32,
+    /// A jump of ln radiance between neighbouring pixels of one surface
+    /// larger than this, where no light's visibility changes, is an edge
+    /// of the surface's texture.
+    pub texture_edge: f64,
+}
+
+impl Default for GonioSettings {
+    fn default() -> Self {
+        // 1° × 2.5° resolves a spot's beam edge (a few degrees wide) while
+        // each node still averages many pixels on the desk's surfaces.
+        GonioSettings { vertical_step_deg: 1.0, horizontal_step_deg: 2.5, patch_size: 0.25, light_level: 4, max_rounds: 8, tolerance: 2e-3, gather_rays: 64, texture_edge: 0.1 }
+    }
+}
+
+/// How a surface's reflectance was found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ReflectanceSource {
+    /// Given in the scene.
+    Known,
+    /// EQ2 with the intensity of directions at most `angle_deg` away.
+    Propagated { step: usize, angle_deg: f64, samples: usize },
+    /// No sample: the photo shows no lit pixel of it.
+    Unreached,
+}
+
+/// A surface's reflectance as the reconstruction found it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SurfaceReflectance {
+    pub surface: u32,
+    pub name: String,
+    pub rgb: Option<DVec3>,
+    pub source: ReflectanceSource,
+}
+
+/// The recovered light.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reconstruction {
+    /// Index of the light in the scene.
+    pub light: usize,
+    pub position: DVec3,
+    /// Colour: the table holds I(d) / colour (a lamp's spectrum does not
+    /// change with direction; arlux's renderer keeps one colour per light).
+    pub colour: DVec3,
+    /// Relative candela table, type C, vertical 0 along [`AXIS`].
+    pub profile: IesProfile,
+    /// Per table node (horizontal-major like `profile.candela`): whether any
+    /// sample constrains it.
+    pub known: Vec<bool>,
+    /// Fraction of the sphere's solid angle the known nodes cover.
+    pub coverage: f64,
+    /// Largest relative difference between the full RGB fit and colour × table.
+    pub colour_residual: f64,
+    pub reflectances: Vec<SurfaceReflectance>,
+    pub rounds: usize,
+    /// Last round's largest table change, relative to the peak.
+    pub change: f64,
+    pub samples: usize,
+    /// Pixel pairs taken as texture edges.
+    pub texture_edges: usize,
+    pub patches: usize,
+    pub seconds: f64,
+}
+
+impl Reconstruction {
+    /// The recovered intensity towards unit `d` (W/sr per channel).
+    pub fn intensity(&self, d: DVec3) -> DVec3 {
+        self.colour * self.profile.candela_towards(d, AXIS, REFERENCE)
+    }
+
+    /// The light as a distribution the renderer uses.
+    pub fn distribution(&self) -> Distribution {
+        Distribution::Ies { profile: Box::new(self.profile.clone()), axis: AXIS, reference: REFERENCE, rgb: self.colour }
+    }
+
+    /// Whether direction `d` was constrained by the photo (its nearest node is known).
+    pub fn is_known(&self, d: DVec3) -> bool {
+        let (v, h) = angles(d);
+        let nv = self.profile.vertical.len();
+        let vi = ((v / self.profile.vertical[1]).round() as usize).min(nv - 1);
+        let hi = ((h / self.profile.horizontal[1]).round() as usize) % self.profile.horizontal.len();
+        self.known[hi * nv + vi]
+    }
+
+    /// `scene` with the light's intensity replaced by the recovered table.
+    pub fn apply(&self, scene: &Scene) -> Scene {
+        let mut out = scene.clone();
+        out.lights[self.light].intensity = Intensity::Ies {
+            file: scene.dir().join("reconstructed.ies"),
+            profile: self.profile.clone(),
+            rgb: self.colour,
+            direction: AXIS,
+            reference: REFERENCE,
+        };
+        out
+    }
+}
+
+/// Type C angles (degrees) of unit direction `d` in the reconstruction frame.
+fn angles(d: DVec3) -> (f64, f64) {
+    let side = AXIS.cross(REFERENCE);
+    let v = d.dot(AXIS).clamp(-1.0, 1.0).acos().to_degrees();
+    let h = d.dot(side).atan2(d.dot(REFERENCE)).to_degrees().rem_euclid(360.0);
+    (v, h)
+}
+
+/// The index of the one light to reconstruct, `None` when there is none.
+/// Two unknown goniometrics cannot be told apart from one photo (Grosch §5:
+/// a surface lit by both is explained by infinitely many pairs).
+pub fn light_to_reconstruct(scene: &Scene) -> Result<Option<usize>> {
+    let marked: Vec<usize> = (0..scene.lights.len()).filter(|&i| scene.lights[i].intensity == Intensity::Reconstruct).collect();
+    match marked.as_slice() {
+        [] => Ok(None),
+        [i] => {
+            if !scene.lights[*i].real {
+                return Err(Error::key(&scene.file, format!("light[{i}].intensity"), "only a real light can be reconstructed: a virtual light is not in the photo"));
+            }
+            Ok(Some(*i))
+        }
+        [a, b, ..] => Err(Error::key(
+            &scene.file,
+            format!("light[{b}].intensity"),
+            format!(
+                "light[{a}] and light[{b}] are both \"reconstruct\": one photo cannot tell two unknown goniometrics apart; give all lights but one an intensity (an IES file, a spot, ...)"
+            ),
+        )),
+    }
+}
+
+/// One pixel's evidence.
+struct Sample {
+    surface: u32,
+    /// Vertical and horizontal angle of the direction from the light, degrees.
+    v: f64,
+    h: f64,
+    /// Irradiance the unknown light would give at unit intensity, with visibility.
+    g: f64,
+    /// Direct irradiance of the other lights as photographed.
+    e_known: DVec3,
+    /// π × photo radiance (the radiosity the pixel shows).
+    b: DVec3,
+    /// Indirect irradiance from the current solution.
+    h_ind: DVec3,
+    /// Pixel index, surface point and normal (facing the camera).
+    pixel: u32,
+    x: DVec3,
+    n: DVec3,
+    /// Surface area the pixel covers, up to a constant: depth² / |cos|.
+    area: f64,
+    /// Indirect irradiance gathered from what the photo shows.
+    gathered_photo: DVec3,
+    /// Range in [`Gather::unseen`] of the patches its rays met that the photo does not show.
+    unseen: (u32, u32),
+}
+
+/// The table's node grid.
+#[derive(Debug, Clone, Copy)]
+struct Grid {
+    nv: usize,
+    nh: usize,
+    dv: f64,
+    dh: f64,
+}
+
+impl Grid {
+    fn new(settings: &GonioSettings) -> Grid {
+        let nv = (180.0 / settings.vertical_step_deg).round().max(2.0) as usize + 1;
+        let nh = (360.0 / settings.horizontal_step_deg).round().max(4.0) as usize;
+        Grid { nv, nh, dv: 180.0 / (nv - 1) as f64, dh: 360.0 / nh as f64 }
+    }
+
+    fn len(&self) -> usize {
+        self.nv * self.nh
+    }
+
+    fn index(&self, hi: usize, vi: usize) -> usize {
+        hi * self.nv + vi
+    }
+
+    /// The four nodes around (v, h) with bilinear weights.
+    fn corners(&self, v: f64, h: f64) -> [(usize, f64); 4] {
+        let fv = (v / self.dv).clamp(0.0, (self.nv - 1) as f64);
+        let vi = (fv.floor() as usize).min(self.nv - 2);
+        let tv = fv - vi as f64;
+        let fh = h.rem_euclid(360.0) / self.dh;
+        let hi = (fh.floor() as usize) % self.nh;
+        let th = fh - fh.floor();
+        let hj = (hi + 1) % self.nh;
+        [
+            (self.index(hi, vi), (1.0 - th) * (1.0 - tv)),
+            (self.index(hi, vi + 1), (1.0 - th) * tv),
+            (self.index(hj, vi), th * (1.0 - tv)),
+            (self.index(hj, vi + 1), th * tv),
+        ]
+    }
+
+    fn nearest(&self, v: f64, h: f64) -> usize {
+        let vi = ((v / self.dv).round() as usize).min(self.nv - 1);
+        let hi = ((h.rem_euclid(360.0) / self.dh).round() as usize) % self.nh;
+        self.index(hi, vi)
+    }
+
+    /// Solid angle a node stands for.
+    fn solid_angle(&self, vi: usize) -> f64 {
+        let rad = std::f64::consts::PI / 180.0;
+        let lo = ((vi as f64 - 0.5) * self.dv).max(0.0) * rad;
+        let hi = ((vi as f64 + 0.5) * self.dv).min(180.0) * rad;
+        (lo.cos() - hi.cos()) * self.dh * rad
+    }
+
+    /// |∇I| per radian at each known node (mean channel), from differences
+    /// with its known neighbours; 0 elsewhere.
+    fn slopes(&self, values: &[DVec3], known: &[bool]) -> Vec<f64> {
+        let rad = std::f64::consts::PI / 180.0;
+        let value = |k: usize| values[k].element_sum() / 3.0;
+        (0..self.len())
+            .map(|k| {
+                if !known[k] {
+                    return 0.0;
+                }
+                let (hi, vi) = (k / self.nv, k % self.nv);
+                let mut slope: f64 = 0.0;
+                let mut along = |j: usize, step: f64| {
+                    if known[j] && step > 1e-9 {
+                        slope = slope.max((value(j) - value(k)).abs() / step);
+                    }
+                };
+                if vi > 0 {
+                    along(self.index(hi, vi - 1), self.dv * rad);
+                }
+                if vi + 1 < self.nv {
+                    along(self.index(hi, vi + 1), self.dv * rad);
+                }
+                let across = self.dh * rad * (vi as f64 * self.dv * rad).sin();
+                along(self.index((hi + 1) % self.nh, vi), across);
+                along(self.index((hi + self.nh - 1) % self.nh, vi), across);
+                slope
+            })
+            .collect()
+    }
+
+    /// Angular distance (radians) from every node to the nearest node in
+    /// `sources`, along the grid (Dijkstra with 8 neighbours), and which
+    /// source that is.
+    fn distance_field(&self, sources: &[bool]) -> (Vec<f64>, Vec<usize>) {
+        use std::cmp::Reverse;
+        use std::collections::BinaryHeap;
+        let rad = std::f64::consts::PI / 180.0;
+        let n = self.len();
+        let mut dist = vec![f64::INFINITY; n];
+        let mut from = vec![usize::MAX; n];
+        let mut heap = BinaryHeap::new();
+        for k in 0..n {
+            if sources[k] {
+                dist[k] = 0.0;
+                from[k] = k;
+                heap.push(Reverse((0u64, k)));
+            }
+        }
+        // Distances as integer nanoradians keep the heap's ordering total.
+        let key = |d: f64| (d * 1e9) as u64;
+        while let Some(Reverse((dk, k))) = heap.pop() {
+            if dk > key(dist[k]) {
+                continue;
+            }
+            let (hi, vi) = (k / self.nv, k % self.nv);
+            for (dh, dv) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1)] {
+                let vj = vi as i64 + dv;
+                if vj < 0 || vj >= self.nv as i64 {
+                    continue;
+                }
+                let hj = (hi as i64 + dh).rem_euclid(self.nh as i64) as usize;
+                let j = self.index(hj, vj as usize);
+                let mid = (vi as f64 + 0.5 * dv as f64) * self.dv * rad;
+                let a = dv as f64 * self.dv * rad;
+                let b = dh as f64 * self.dh * rad * mid.sin();
+                let step = (a * a + b * b).sqrt();
+                let d = dist[k] + step;
+                if d < dist[j] {
+                    dist[j] = d;
+                    from[j] = from[k];
+                    heap.push(Reverse((key(d), j)));
+                }
+            }
+        }
+        (dist, from)
+    }
+}
+
+/// Least-squares accumulators per node: I = Σ w·g·y / Σ w·g².
+#[derive(Clone)]
+struct Fit {
+    num: Vec<DVec3>,
+    den: Vec<f64>,
+    /// Σ bilinear weight: how many samples' worth constrain the node.
+    weight: Vec<f64>,
+}
+
+impl Fit {
+    fn new(n: usize) -> Fit {
+        Fit { num: vec![DVec3::ZERO; n], den: vec![0.0; n], weight: vec![0.0; n] }
+    }
+
+    fn add(&mut self, grid: &Grid, s: &Sample, y: DVec3) {
+        for (k, w) in grid.corners(s.v, s.h) {
+            if w > 0.0 {
+                self.num[k] += y * (w * s.g);
+                self.den[k] += w * s.g * s.g;
+                self.weight[k] += w;
+            }
+        }
+    }
+
+    fn known(&self) -> Vec<bool> {
+        self.den.iter().map(|&d| d > 0.0).collect()
+    }
+
+    /// Nodes constrained by at least `samples` samples' worth of weight.
+    fn well_known(&self, samples: f64) -> Vec<bool> {
+        self.weight.iter().map(|&w| w >= samples).collect()
+    }
+
+    fn values(&self) -> Vec<DVec3> {
+        self.num.iter().zip(&self.den).map(|(n, &d)| if d > 0.0 { (*n / d).max(DVec3::ZERO) } else { DVec3::ZERO }).collect()
+    }
+}
+
+/// The intensity a sample sees from the table: bilinear where its four
+/// nodes are known (angle 0), else the nearest known node's, with the
+/// angle to it.
+fn nearby_intensity(grid: &Grid, s: &Sample, values: &[DVec3], known: &[bool], dist: &[f64], from: &[usize]) -> Option<(DVec3, f64)> {
+    let corners = grid.corners(s.v, s.h);
+    if corners.iter().all(|&(k, w)| w == 0.0 || known[k]) {
+        return Some((corners.iter().map(|&(k, w)| values[k] * w).sum(), 0.0));
+    }
+    let k = grid.nearest(s.v, s.h);
+    let src = from[k];
+    (src != usize::MAX).then(|| (values[src], dist[k]))
+}
+
+/// Samples whose median gives a surface's reflectance by EQ2: the same
+/// number for every surface, so that surfaces compete on equal terms.
+const EQ2_SAMPLES: usize = 64;
+
+/// Relative doubt in a sample's EQ2 below which it always takes part.
+const SAFE_RISK: f64 = 0.03;
+
+/// How much a sample's share of indirect light (gathered per pixel with
+/// noise) counts against it, next to the relative doubt in its direct light.
+const INDIRECT_DOUBT: f64 = 0.1;
+
+/// Samples' worth of weight a node needs before EQ2 may lean on it.
+const WELL_KNOWN_SAMPLES: f64 = 4.0;
+
+/// One pass of Grosch's propagation over the samples, given their
+/// indirect light. Returns the fitted RGB table and each surface's reflectance.
+fn propagate(grid: &Grid, samples: &[Sample], known_rho: &HashMap<u32, DVec3>, surfaces: &[u32]) -> (Fit, HashMap<u32, (DVec3, ReflectanceSource)>) {
+    let mut fit = Fit::new(grid.len());
+    let mut rho: HashMap<u32, (DVec3, ReflectanceSource)> = HashMap::new();
+    let mut by_surface: HashMap<u32, Vec<usize>> = HashMap::new();
+    for (i, s) in samples.iter().enumerate() {
+        by_surface.entry(s.surface).or_default().push(i);
+    }
+    let eq1 = |s: &Sample, r: DVec3| -> DVec3 {
+        let safe = r.max(DVec3::splat(1e-6));
+        s.b / safe - s.e_known - s.h_ind
+    };
+    for (&surface, &r) in known_rho {
+        rho.insert(surface, (r, ReflectanceSource::Known));
+        for &i in by_surface.get(&surface).into_iter().flatten() {
+            if samples[i].g > 0.0 {
+                fit.add(grid, &samples[i], eq1(&samples[i], r));
+            }
+        }
+    }
+    let mut step = 0;
+    loop {
+        // Propagate only from nodes many pixels agree on: a node touched by
+        // a few samples at a surface's rim is where EQ1 is least reliable.
+        let known = fit.well_known(WELL_KNOWN_SAMPLES);
+        if !known.iter().any(|&k| k) {
+            break;
+        }
+        let values = fit.values();
+        let (dist, from) = grid.distance_field(&known);
+        let slopes = grid.slopes(&values, &known);
+        let peak = (0..grid.len()).filter(|&k| known[k]).map(|k| values[k].element_sum() / 3.0).fold(0.0, f64::max);
+        let half_node = 0.5 * (grid.dv.powi(2) + grid.dh.powi(2)).sqrt().to_radians();
+        // For each surface still unknown: its samples' (risk, ρ estimate).
+        let mut best: Option<(f64, u32, DVec3, usize, f64)> = None;
+        for &surface in surfaces {
+            if rho.contains_key(&surface) {
+                continue;
+            }
+            let Some(ids) = by_surface.get(&surface) else { continue };
+            let mut ranked: Vec<(f64, f64, DVec3)> = ids
+                .iter()
+                .filter_map(|&i| {
+                    let s = &samples[i];
+                    let (intensity, angle) = if s.g > 0.0 { nearby_intensity(grid, s, &values, &known, &dist, &from)? } else { (DVec3::ZERO, 0.0) };
+                    let irradiance = intensity * s.g + s.e_known + s.h_ind;
+                    if irradiance.min_element() <= 0.0 {
+                        return None;
+                    }
+                    // The error EQ2 inherits from the assumed intensity: how
+                    // fast the table changes where it is taken from, over the
+                    // angle to it (plus half a node: the table is bilinear),
+                    // as a share of the sample's light. A sample the light
+                    // does not reach carries none.
+                    let risk = if s.g > 0.0 {
+                        let src = from[grid.nearest(s.v, s.h)];
+                        let reach = angle + half_node;
+                        let slope = if src == usize::MAX { 0.0 } else { slopes[src] };
+                        // Beyond the known directions the light may be anything
+                        // up to the brightest seen: as much doubt per radian.
+                        let doubt = slope * reach + peak * angle;
+                        s.g * doubt / (irradiance.element_sum() / 3.0)
+                    } else {
+                        0.0
+                    };
+                    // Gathered indirect light is noisy per pixel: prefer direct.
+                    let indirect_share = s.h_ind.element_sum() / irradiance.element_sum();
+                    Some((risk + INDIRECT_DOUBT * indirect_share, angle, s.b / irradiance))
+                })
+                .collect();
+            if ranked.is_empty() {
+                continue;
+            }
+            ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
+            // Every sample at most twice as doubtful as the EQ2_SAMPLES-th
+            // (or as SAFE_RISK): many average out what is left of the texture.
+            let risk = ranked[EQ2_SAMPLES.min(ranked.len()) - 1].0;
+            let take = ranked.iter().take_while(|x| x.0 <= SAFE_RISK.max(2.0 * risk)).count();
+            if best.as_ref().is_none_or(|b| risk < b.0) {
+                let r = median_rgb(&ranked[..take].iter().map(|x| x.2).collect::<Vec<_>>());
+                let angle = ranked[..take].iter().map(|x| x.1).fold(0.0, f64::max);
+                best = Some((risk, surface, r, take, angle));
+            }
+        }
+        let Some((_, surface, r, take, angle)) = best else { break };
+        let r = r.clamp(DVec3::ZERO, DVec3::splat(crate::estimate::MAX_REFLECTANCE));
+        step += 1;
+        rho.insert(surface, (r, ReflectanceSource::Propagated { step, angle_deg: angle.to_degrees(), samples: take }));
+        for &i in &by_surface[&surface] {
+            if samples[i].g > 0.0 {
+                fit.add(grid, &samples[i], eq1(&samples[i], r));
+            }
+        }
+    }
+    (fit, rho)
+}
+
+/// Gathers each sample's indirect light per pixel (interpolating it from
+/// patches fails exactly where propagation happens: at corners and
+/// occlusion edges): cosine-distributed rays; where one meets a surface the
+/// camera sees, the light leaving it is the photo's pixel there (texture
+/// and all); elsewhere it is left to the radiosity solution, by patch.
+/// Returns the flat list of those patches ([`Sample::unseen`] ranges).
+fn gather_from_photo(scene: &Scene, tracer: &Tracer, patches: &Patches, photo: &Image, samples: &mut [Sample], rays: u32) -> Vec<u32> {
+    use crate::light::{offset_origin, unit_random};
+    use crate::trace::TraceRay;
+    let cam = &scene.camera;
+    let side = (rays as f64).sqrt().ceil().max(1.0) as u32;
+    let count = side * side;
+    let pi = std::f64::consts::PI;
+    let per: Vec<(DVec3, Vec<u32>)> = samples
+        .par_iter()
+        .map(|s| {
+            let n = s.n;
+            let t = if n.x.abs() < 0.9 { DVec3::X.cross(n).normalize() } else { DVec3::Y.cross(n).normalize() };
+            let b = n.cross(t);
+            let origin = offset_origin(s.x, n, s.x + n);
+            let mut state = hash2(s.pixel as u64, 0x6A7E_6011);
+            let dirs: Vec<DVec3> = (0..count)
+                .map(|k| {
+                    let (i, j) = (k % side, k / side);
+                    let u1 = (i as f64 + unit_random(&mut state)) / side as f64;
+                    let u2 = (j as f64 + unit_random(&mut state)) / side as f64;
+                    let (r, phi) = (u1.sqrt(), 2.0 * pi * u2);
+                    t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt()
+                })
+                .collect();
+            let traced: Vec<TraceRay> = dirs.iter().map(|d| TraceRay::new(origin.as_vec3(), d.as_vec3())).collect();
+            let mut hits = vec![None; traced.len()];
+            tracer.intersect_batch(&traced, Layer::Real, &mut hits);
+            let (mut sum, mut unseen) = (DVec3::ZERO, Vec::new());
+            for (d, hit) in dirs.iter().zip(&hits) {
+                let Some(hit) = hit else { continue };
+                let y = origin + *d * hit.t as f64;
+                let seen = cam.project(y).and_then(|(px, py, _)| {
+                    if px < 0.0 || py < 0.0 || px >= cam.width as f64 || py >= cam.height as f64 {
+                        return None;
+                    }
+                    let back = TraceRay::segment(cam.position.as_vec3(), y.as_vec3(), 1e-4);
+                    (!tracer.occluded(&back, Layer::Real)).then(|| photo.get(px as u32, py as u32).as_dvec3())
+                });
+                match seen {
+                    Some(radiance) if radiance.is_finite() => sum += radiance,
+                    _ => {
+                        if let Some(at) = patches.locate(hit.surface, hit.triangle, y) {
+                            unseen.push(at.patch);
+                        }
+                    }
+                }
+            }
+            (sum * (pi / count as f64), unseen)
+        })
+        .collect();
+    let mut flat = Vec::new();
+    for (s, (sum, unseen)) in samples.iter_mut().zip(per) {
+        s.gathered_photo = sum;
+        let start = flat.len() as u32;
+        flat.extend(unseen);
+        s.unseen = (start, flat.len() as u32);
+    }
+    flat
+}
+
+/// Takes each surface's texture out of the samples' radiosity (Grosch
+/// assumes one reflectance per polygon, which a textured floor breaks at
+/// every pixel): ln ρ(x) = ln ρ̄ + u(x), where u changes only across
+/// texture edges (a jump of ln radiance above `edge` between neighbouring
+/// pixels of one surface and plane, where no light's visibility changes:
+/// illumination varies smoothly there, a texture steps), found by a
+/// least-squares integration of those jumps (Retinex). Each surface's
+/// texture exp(u) is scaled to area mean 1, so that ρ̄ keeps the meaning of
+/// a [[reflectance]]: the surface's area-weighted mean. Returns the number
+/// of texture edges.
+fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) -> usize {
+    let mut at = vec![u32::MAX; (width * height) as usize];
+    for (i, s) in samples.iter().enumerate() {
+        at[s.pixel as usize] = i as u32;
+    }
+    let log_b = |s: &Sample| (s.b.element_sum() / 3.0).max(1e-30).ln();
+    let changes = |a: f64, b: f64| (a - b).abs() > 0.1 * a.max(b);
+    // Pixel pairs (i, j, target u_j − u_i).
+    let mut pairs: Vec<(u32, u32, f64)> = Vec::new();
+    let mut edges = 0;
+    for i in 0..samples.len() {
+        let p = &samples[i];
+        let (col, row) = (p.pixel % width, p.pixel / width);
+        for (dc, dr) in [(1u32, 0u32), (0, 1)] {
+            if col + dc >= width || row + dr >= height {
+                continue;
+            }
+            let j = at[((row + dr) * width + col + dc) as usize];
+            if j == u32::MAX {
+                continue;
+            }
+            let q = &samples[j as usize];
+            let depth = (p.x - q.x).length().max(1e-12);
+            let same_plane = q.surface == p.surface && p.n.dot(q.n) > 0.9 && (q.x - p.x).dot(p.n).abs() < 0.05 * depth;
+            let lit_alike = !changes(p.g, q.g) && !changes(p.e_known.element_sum(), q.e_known.element_sum());
+            if !same_plane || !lit_alike {
+                continue;
+            }
+            let jump = log_b(q) - log_b(p);
+            let target = if jump.abs() > edge {
+                edges += 1;
+                jump
+            } else {
+                0.0
+            };
+            pairs.push((i as u32, j, target));
+        }
+    }
+    let u = integrate_jumps(samples.len(), &pairs);
+    let mut mean: HashMap<u32, (f64, f64)> = HashMap::new();
+    for (s, ui) in samples.iter().zip(&u) {
+        let m = mean.entry(s.surface).or_insert((0.0, 0.0));
+        m.0 += s.area * ui.exp();
+        m.1 += s.area;
+    }
+    for (s, ui) in samples.iter_mut().zip(&u) {
+        let (sum, area) = mean[&s.surface];
+        let texture = ui.exp() * area / sum.max(1e-300);
+        s.b /= texture;
+    }
+    edges
+}
+
+/// Least-squares u with u_j − u_i ≈ target over `pairs` (a graph
+/// Laplacian system, solved by conjugate gradients; each connected piece
+/// keeps mean 0, so the singular system stays consistent).
+fn integrate_jumps(n: usize, pairs: &[(u32, u32, f64)]) -> Vec<f64> {
+    let mut degree = vec![0.0f64; n];
+    let mut rhs = vec![0.0f64; n];
+    for &(i, j, t) in pairs {
+        degree[i as usize] += 1.0;
+        degree[j as usize] += 1.0;
+        rhs[j as usize] += t;
+        rhs[i as usize] -= t;
+    }
+    if rhs.iter().all(|&r| r == 0.0) {
+        return vec![0.0; n];
+    }
+    let apply = |x: &[f64], out: &mut [f64]| {
+        for (o, (d, xi)) in out.iter_mut().zip(degree.iter().zip(x)) {
+            *o = d * xi;
+        }
+        for &(i, j, _) in pairs {
+            let (i, j) = (i as usize, j as usize);
+            out[i] -= x[j];
+            out[j] -= x[i];
+        }
+    };
+    let precondition = |r: &[f64], z: &mut [f64]| {
+        for ((zi, ri), d) in z.iter_mut().zip(r).zip(&degree) {
+            *zi = if *d > 0.0 { ri / d } else { 0.0 };
+        }
+    };
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let mut x = vec![0.0; n];
+    let mut r = rhs.clone();
+    let mut z = vec![0.0; n];
+    precondition(&r, &mut z);
+    let mut p = z.clone();
+    let mut rz = dot(&r, &z);
+    let norm = dot(&rhs, &rhs).sqrt();
+    let mut ap = vec![0.0; n];
+    for _ in 0..2000 {
+        apply(&p, &mut ap);
+        let pap = dot(&p, &ap);
+        if pap <= 0.0 {
+            break;
+        }
+        let alpha = rz / pap;
+        for k in 0..n {
+            x[k] += alpha * p[k];
+            r[k] -= alpha * ap[k];
+        }
+        if dot(&r, &r).sqrt() <= 1e-6 * norm {
+            break;
+        }
+        precondition(&r, &mut z);
+        let rz_next = dot(&r, &z);
+        let beta = rz_next / rz;
+        rz = rz_next;
+        for k in 0..n {
+            p[k] = z[k] + beta * p[k];
+        }
+    }
+    x
+}
+
+fn median_rgb(values: &[DVec3]) -> DVec3 {
+    let median = |mut c: Vec<f64>| {
+        c.sort_by(f64::total_cmp);
+        let n = c.len();
+        if n % 2 == 1 { c[n / 2] } else { 0.5 * (c[n / 2 - 1] + c[n / 2]) }
+    };
+    DVec3::new(
+        median(values.iter().map(|v| v.x).collect()),
+        median(values.iter().map(|v| v.y).collect()),
+        median(values.iter().map(|v| v.z).collect()),
+    )
+}
+
+/// Reconstructs the goniometric of the scene's `"reconstruct"` light from
+/// `photo` (radiance in the scene's units).
+pub fn reconstruct(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &GonioSettings) -> Result<Reconstruction> {
+    let t0 = Instant::now();
+    let Some(index) = light_to_reconstruct(scene)? else {
+        return Err(Error::key(&scene.file, "light", "no light has intensity = \"reconstruct\""));
+    };
+    if scene.reflectances.is_empty() {
+        return Err(Error::key(&scene.file, format!("light[{index}].intensity"), "\"reconstruct\" needs at least one [[reflectance]]"));
+    }
+    // The unknown light at unit intensity gives each sample's geometry term.
+    let mut unit_scene = scene.clone();
+    unit_scene.lights[index].intensity = Intensity::Uniform(DVec3::ONE);
+    let unit = LightSource::from_scene(&unit_scene, index)?;
+    let position = unit.position;
+    let others: Vec<LightSource> =
+        (0..scene.lights.len()).filter(|&j| j != index && scene.lights[j].real).map(|j| LightSource::from_scene(scene, j)).collect::<Result<_>>()?;
+
+    let patches = Patches::of_scene(scene, false, settings.patch_size);
+    let grid = Grid::new(settings);
+    let cam = &scene.camera;
+    let level = settings.light_level;
+    let pi = std::f64::consts::PI;
+    let mut samples: Vec<Sample> = (0..cam.height)
+        .into_par_iter()
+        .flat_map_iter(|row| {
+            let hits = row_hits(cam, tracer, Layer::Real, row);
+            let mut out = Vec::new();
+            for (col, hit) in hits.iter().enumerate() {
+                let Some(hit) = hit else { continue };
+                let ray = cam.pixel_ray(col as u32, row);
+                let x = ray.origin + ray.direction * hit.t as f64;
+                // The hit normal faces the camera: a light behind the surface does not light what the photo shows.
+                let n = hit.normal.as_dvec3();
+                let seed = hash2((row as usize * cam.width as usize + col) as u64, 0x6011_10);
+                let g = if (position - x).dot(n) > 0.0 {
+                    let d = unit.direct(tracer, Layer::Real, x, n, level, seed);
+                    (d.unoccluded * d.visibility).x
+                } else {
+                    0.0
+                };
+                let mut e_known = DVec3::ZERO;
+                for (j, l) in others.iter().enumerate() {
+                    if (l.position - x).dot(n) > 0.0 {
+                        let d = l.direct(tracer, Layer::Real, x, n, level, hash2(seed, j as u64 + 1));
+                        e_known += d.unoccluded * d.visibility;
+                    }
+                }
+                let b = photo.get(col as u32, row).as_dvec3() * pi;
+                if !b.is_finite() || (g <= 0.0 && e_known == DVec3::ZERO) {
+                    continue;
+                }
+                let (v, h) = angles((x - position).normalize_or_zero());
+                let area = (hit.t as f64).powi(2) / n.dot(ray.direction).abs().max(0.05);
+                let pixel = row * cam.width + col as u32;
+                out.push(Sample {
+                    surface: hit.surface,
+                    v,
+                    h,
+                    g,
+                    e_known,
+                    b,
+                    h_ind: DVec3::ZERO,
+                    pixel,
+                    x,
+                    n,
+                    area,
+                    gathered_photo: DVec3::ZERO,
+                    unseen: (0, 0),
+                });
+            }
+            out
+        })
+        .collect();
+    let texture_edges = remove_texture(&mut samples, cam.width, cam.height, settings.texture_edge);
+    let unseen_hits = gather_from_photo(scene, tracer, &patches, photo, &mut samples, settings.gather_rays);
+    if !samples.iter().any(|s| s.g > 0.0) {
+        return Err(Error::key(&scene.file, format!("light[{index}].position"), "the photo shows no surface this light can reach: nothing to reconstruct from"));
+    }
+
+    let transport = Transport::hierarchical(&patches, tracer, Layer::Real, DEFAULT_LINK_EPSILON);
+    let photo_patches = PhotoPatches::measure(cam, tracer, &patches, photo);
+    let known_rho: HashMap<u32, DVec3> = scene.reflectances.iter().map(|k| (k.surface as u32, k.rgb)).collect();
+    let mut surfaces: Vec<u32> = samples.iter().map(|s| s.surface).collect();
+    surfaces.sort_unstable();
+    surfaces.dedup();
+    let direct_known: Vec<DVec3> = {
+        let per = direct_irradiance(&patches, &others, tracer, Layer::Real, settings.light_level);
+        (0..patches.patch_count()).map(|k| per.iter().map(|p| p[k]).sum()).collect()
+    };
+
+    let mut light = unit.clone();
+    let mut table: Option<Vec<DVec3>> = None;
+    let (mut rounds, mut change) = (0, f64::INFINITY);
+    let mut result = None;
+    while rounds < settings.max_rounds && change > settings.tolerance {
+        rounds += 1;
+        // The indirect light: the photo's radiosity where it sees a patch,
+        // the model's (with the current reconstruction) where it does not.
+        let direct: Vec<DVec3> = match &table {
+            None => direct_known.clone(),
+            Some(_) => {
+                let per = direct_irradiance(&patches, std::slice::from_ref(&light), tracer, Layer::Real, settings.light_level);
+                direct_known.iter().zip(&per[0]).map(|(a, b)| *a + *b).collect()
+            }
+        };
+        let est = estimate_reflectances(&patches, &transport, &direct, &photo_patches, &known_rho, EstimateSettings::default());
+        let mixed: Vec<DVec3> = (0..patches.patch_count())
+            .map(|k| if photo_patches.pixels[k] > 0 { photo_patches.radiance[k] * pi } else { est.solution.radiosity[k] })
+            .collect();
+        let scale = pi / settings.gather_rays as f64;
+        samples.par_iter_mut().for_each(|s| {
+            let unseen: DVec3 = unseen_hits[s.unseen.0 as usize..s.unseen.1 as usize].iter().map(|&k| mixed[k as usize]).sum();
+            s.h_ind = s.gathered_photo + unseen * (scale / pi);
+        });
+
+        let (fit, rho) = propagate(&grid, &samples, &known_rho, &surfaces);
+        let values = fit.values();
+        let peak = values.iter().map(|v| v.max_element()).fold(0.0, f64::max).max(1e-300);
+        change = match &table {
+            None => f64::INFINITY,
+            Some(old) => old.iter().zip(&values).map(|(a, b)| (*a - *b).abs().max_element()).fold(0.0, f64::max) / peak,
+        };
+        let known = fit.known();
+        let (colour, scalar, residual) = factor_colour(&values, &known);
+        let profile = table_profile(&grid, &scalar);
+        light.distribution = Distribution::Ies { profile: Box::new(profile.clone()), axis: AXIS, reference: REFERENCE, rgb: colour };
+        table = Some(values);
+        result = Some((profile, colour, known, residual, rho));
+    }
+    let (profile, colour, known, colour_residual, rho) = result.expect("at least one round runs");
+    let names = scene.surface_names();
+    let reflectances = surfaces_in_order(scene)
+        .into_iter()
+        .map(|surface| {
+            let (rgb, source) = match rho.get(&surface) {
+                Some((r, s)) => (Some(*r), *s),
+                None => (None, ReflectanceSource::Unreached),
+            };
+            SurfaceReflectance { surface, name: names.get(surface as usize).cloned().unwrap_or_default(), rgb, source }
+        })
+        .collect();
+    let total: f64 = (0..grid.nv).map(|vi| grid.solid_angle(vi)).sum::<f64>() * grid.nh as f64;
+    let covered: f64 = (0..grid.len()).filter(|&k| known[k]).map(|k| grid.solid_angle(k % grid.nv)).sum();
+    Ok(Reconstruction {
+        light: index,
+        position,
+        colour,
+        profile,
+        known,
+        coverage: covered / total,
+        colour_residual,
+        reflectances,
+        rounds,
+        change,
+        samples: samples.len(),
+        texture_edges,
+        patches: patches.patch_count(),
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}
+
+fn surfaces_in_order(scene: &Scene) -> Vec<u32> {
+    (0..scene.surfaces.len() as u32).collect()
+}
+
+/// Splits an RGB table into one colour (mean channel 1) times a scalar
+/// table, by least squares per node; returns the largest relative
+/// residual among nodes above a tenth of the peak.
+fn factor_colour(values: &[DVec3], known: &[bool]) -> (DVec3, Vec<f64>, f64) {
+    let sum: DVec3 = values.iter().zip(known).filter(|(_, k)| **k).map(|(v, _)| *v).sum();
+    let colour = if sum.element_sum() > 0.0 { sum / (sum.element_sum() / 3.0) } else { DVec3::ONE };
+    let scalar: Vec<f64> = values.iter().map(|v| (v.dot(colour) / colour.length_squared()).max(0.0)).collect();
+    let peak = values.iter().map(|v| v.max_element()).fold(0.0, f64::max);
+    let residual = values
+        .iter()
+        .zip(&scalar)
+        .filter(|(v, _)| v.max_element() > 0.1 * peak)
+        .map(|(v, s)| (*v - colour * *s).abs().max_element() / v.max_element())
+        .fold(0.0, f64::max);
+    (colour, scalar, residual)
+}
+
+/// The scalar table as a type C LM-63 profile over the full sphere.
+fn table_profile(grid: &Grid, scalar: &[f64]) -> IesProfile {
+    IesProfile {
+        version: "IESNA:LM-63-2002".to_string(),
+        keywords: vec![
+            ("TEST".to_string(), "reconstructed by arlux from a photograph (Grosch et al. 2003, EQ1/EQ2)".to_string()),
+            ("MANUFAC".to_string(), "arlux".to_string()),
+            ("OTHER".to_string(), "candela relative to the light's rgb; directions the photo does not show are 0".to_string()),
+        ],
+        tilt: None,
+        lamps: 1,
+        lumens_per_lamp: -1.0,
+        multiplier: 1.0,
+        photometric_type: PhotometricType::C,
+        units: 2,
+        width: 0.0,
+        length: 0.0,
+        height: 0.0,
+        ballast_factor: 1.0,
+        ballast_lamp_factor: 1.0,
+        input_watts: 0.0,
+        vertical: (0..grid.nv).map(|i| i as f64 * grid.dv).collect(),
+        horizontal: (0..grid.nh).map(|i| i as f64 * grid.dh).collect(),
+        candela: scalar.to_vec(),
+    }
+}
+
+/// The brightest table value and its direction.
+pub fn peak(rec: &Reconstruction) -> (f64, DVec3) {
+    let p = &rec.profile;
+    let nv = p.vertical.len();
+    let (k, value) = p.candela.iter().enumerate().fold((0, f64::MIN), |best, (k, &c)| if c > best.1 { (k, c) } else { best });
+    (value, direction_at(p.vertical[k % nv], p.horizontal[k / nv]))
+}
+
+/// Unit direction of type C angles (degrees) in the reconstruction frame.
+pub fn direction_at(v_deg: f64, h_deg: f64) -> DVec3 {
+    let side = AXIS.cross(REFERENCE);
+    let (v, h) = (v_deg.to_radians(), h_deg.to_radians());
+    AXIS * v.cos() + (REFERENCE * h.cos() + side * h.sin()) * v.sin()
+}
+
+/// A picture of the recovered distribution (cf. Grosch Fig. 7), as RGB8:
+/// left, the polar candela diagram in the vertical plane through the peak
+/// (orange) and the plane at right angles to it (blue), nadir down, grey
+/// where unknown; right, the whole table as a map (horizontal angle across,
+/// vertical angle down from nadir), unknown directions hatched.
+pub fn polar_plot(rec: &Reconstruction) -> (u32, u32, Vec<u8>) {
+    const S: i64 = 480;
+    let (w, h) = (2 * S as u32, S as u32);
+    let mut px = vec![255u8; (w * h * 3) as usize];
+    let mut put = |px: &mut Vec<u8>, x: i64, y: i64, c: [u8; 3]| {
+        if x >= 0 && y >= 0 && x < w as i64 && y < h as i64 {
+            let i = ((y as u32 * w + x as u32) * 3) as usize;
+            px[i..i + 3].copy_from_slice(&c);
+        }
+    };
+    let line = |px: &mut Vec<u8>, put: &mut dyn FnMut(&mut Vec<u8>, i64, i64, [u8; 3]), a: (f64, f64), b: (f64, f64), c: [u8; 3]| {
+        let n = ((b.0 - a.0).abs().max((b.1 - a.1).abs()).ceil() as i64).max(1);
+        for i in 0..=n {
+            let t = i as f64 / n as f64;
+            put(px, (a.0 + (b.0 - a.0) * t).round() as i64, (a.1 + (b.1 - a.1) * t).round() as i64, c);
+        }
+    };
+    let p = &rec.profile;
+    let (peak_value, peak_dir) = peak(rec);
+    let peak_value = peak_value.max(1e-300);
+    let (_, peak_h) = angles(peak_dir);
+    // Polar diagram: centre, radius for the peak.
+    let (cx, cy, r) = (S as f64 / 2.0, S as f64 / 2.0, S as f64 * 0.45);
+    let grid_c = [220, 220, 220];
+    for ring in 1..=4 {
+        let rr = r * ring as f64 / 4.0;
+        let steps = 360;
+        for i in 0..steps {
+            let (a0, a1) = (i as f64 / steps as f64 * std::f64::consts::TAU, (i + 1) as f64 / steps as f64 * std::f64::consts::TAU);
+            line(&mut px, &mut put, (cx + rr * a0.cos(), cy + rr * a0.sin()), (cx + rr * a1.cos(), cy + rr * a1.sin()), grid_c);
+        }
+    }
+    for spoke in 0..12 {
+        let a = spoke as f64 * 30f64.to_radians();
+        line(&mut px, &mut put, (cx, cy), (cx + r * a.cos(), cy + r * a.sin()), grid_c);
+    }
+    // A plane through the axis: angle γ ∈ [0, 360) from nadir, the second
+    // half being the opposite horizontal angle.
+    for (h0, colour) in [(peak_h, [230u8, 120u8, 20u8]), (peak_h + 90.0, [40u8, 90u8, 200u8])] {
+        let point = |gamma: f64| -> ((f64, f64), bool) {
+            let (v, hh) = if gamma <= 180.0 { (gamma, h0) } else { (360.0 - gamma, h0 + 180.0) };
+            let d = direction_at(v, hh);
+            let value = p.candela_towards(d, AXIS, REFERENCE) / peak_value;
+            let known = rec.is_known(d);
+            // Nadir down on the picture; the plane's h0 side to the right.
+            let a = gamma.to_radians();
+            ((cx + r * value * a.sin(), cy + r * value * a.cos()), known)
+        };
+        let mut prev = point(0.0);
+        for i in 1..=720 {
+            let next = point(i as f64 * 0.5);
+            let c = if prev.1 && next.1 { colour } else { [170, 170, 170] };
+            line(&mut px, &mut put, prev.0, next.0, c);
+            line(&mut px, &mut put, (prev.0.0 + 1.0, prev.0.1), (next.0.0 + 1.0, next.0.1), c);
+            prev = next;
+        }
+    }
+    // The map: x = horizontal angle, y = vertical angle.
+    let (x0, y0, mw, mh) = (S as f64 + 20.0, 60.0, S as f64 - 40.0, S as f64 - 120.0);
+    for yy in 0..mh as i64 {
+        for xx in 0..mw as i64 {
+            let v = (yy as f64 + 0.5) / mh * 180.0;
+            let hh = (xx as f64 + 0.5) / mw * 360.0;
+            let d = direction_at(v, hh);
+            let c = if rec.is_known(d) {
+                heat((p.candela_towards(d, AXIS, REFERENCE) / peak_value).clamp(0.0, 1.0))
+            } else if (xx + yy) % 8 < 2 {
+                [150, 150, 150]
+            } else {
+                [235, 235, 235]
+            };
+            put(&mut px, x0 as i64 + xx, y0 as i64 + yy, c);
+        }
+    }
+    let nv_lines = [0.0, 45.0, 90.0, 135.0, 180.0];
+    for v in nv_lines {
+        let y = y0 + v / 180.0 * mh;
+        line(&mut px, &mut put, (x0, y), (x0 + mw, y), [255, 255, 255]);
+    }
+    for hh in [90.0, 180.0, 270.0] {
+        let x = x0 + hh / 360.0 * mw;
+        line(&mut px, &mut put, (x, y0), (x, y0 + mh), [255, 255, 255]);
+    }
+    (w, h, px)
+}
+
+/// Black → red → yellow → white.
+fn heat(t: f64) -> [u8; 3] {
+    let c = |x: f64| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
+    [c(3.0 * t), c(3.0 * t - 1.0), c(3.0 * t - 2.0)]
+}
