@@ -750,7 +750,7 @@ pub fn reconstruct(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &Gon
                 let x = ray.origin + ray.direction * hit.t as f64;
                 // The hit normal faces the camera: a light behind the surface does not light what the photo shows.
                 let n = hit.normal.as_dvec3();
-                let seed = hash2((row as usize * cam.width as usize + col) as u64, 0x6011_10);
+                let seed = hash2((row as usize * cam.width as usize + col) as u64, 0x0060_1110);
                 let g = if (position - x).dot(n) > 0.0 {
                     let d = unit.direct(tracer, Layer::Real, x, n, level, seed);
                     (d.unoccluded * d.visibility).x

@@ -28,6 +28,58 @@ macro_rules! say {
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Report wall time per stage (load, tracer, estimation, radiosity,
+    /// pixel data array, composite, write, ...) and peak memory, on stderr.
+    #[arg(long, global = true)]
+    timings: bool,
+}
+
+/// Stages timed anywhere in this run, in order, for `--timings`.
+static STAGES: std::sync::Mutex<Vec<(String, std::time::Duration)>> = std::sync::Mutex::new(Vec::new());
+
+/// Runs `f` as the stage `name` of this run.
+fn stage<T>(name: &str, f: impl FnOnce() -> T) -> T {
+    let t0 = std::time::Instant::now();
+    let out = f();
+    STAGES.lock().unwrap_or_else(|e| e.into_inner()).push((name.to_string(), t0.elapsed()));
+    out
+}
+
+/// Adds a library call's stage times to this run's.
+fn keep(times: &arlux::model::StageTimes) {
+    STAGES.lock().unwrap_or_else(|e| e.into_inner()).extend(times.0.iter().map(|(n, d)| (n.to_string(), *d)));
+}
+
+/// Peak resident memory of this process (Linux: VmHWM), bytes.
+fn peak_memory() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// The `--timings` report: every stage, what no stage covers, and peak memory.
+fn report_timings(wall: std::time::Duration) {
+    let stages = STAGES.lock().unwrap_or_else(|e| e.into_inner()).clone();
+    let mut merged: Vec<(String, f64)> = Vec::new();
+    for (name, d) in stages {
+        match merged.iter_mut().find(|(n, _)| *n == name) {
+            Some(m) => m.1 += d.as_secs_f64(),
+            None => merged.push((name, d.as_secs_f64())),
+        }
+    }
+    let sum: f64 = merged.iter().map(|m| m.1).sum();
+    let wall = wall.as_secs_f64();
+    eprintln!("timings:");
+    for (name, secs) in &merged {
+        eprintln!("  {name:<26} {:>10.1} ms", secs * 1e3);
+    }
+    eprintln!("  {:<26} {:>10.1} ms", "(outside stages)", (wall - sum).max(0.0) * 1e3);
+    eprintln!("  {:<26} {:>10.1} ms  (stages: {:.1}% of it)", "wall", wall * 1e3, 100.0 * sum / wall.max(1e-12));
+    match peak_memory() {
+        Some(b) => eprintln!("  peak memory {:.1} MB", b as f64 / 1e6),
+        None => eprintln!("  peak memory: not known on this system"),
+    }
 }
 
 #[derive(Subcommand)]
@@ -191,8 +243,14 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
-    match run(cli) {
+    let start = std::time::Instant::now();
+    let cli = stage("arguments", Cli::parse);
+    let timings = cli.timings;
+    let result = run(cli);
+    if timings {
+        report_timings(start.elapsed());
+    }
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             // A closed pipe (`arlux info | head`) is not a failure.
@@ -295,17 +353,21 @@ fn photo_range(img: &Image) -> serde_json::Value {
 }
 
 fn info(path: &Path, variant: Option<&str>, as_json: bool) -> Result<()> {
-    let scene = load(path, variant)?;
+    let scene = stage("load", || load(path, variant))?;
     let names = scene.surface_names();
     let photo = match &scene.photo {
         Photo::Image(p) => {
-            let img = scene.load_photo()?;
-            json!({ "image": rel(&scene, p), "range": photo_range(&img) })
+            let img = stage("read photo", || scene.load_photo())?;
+            json!({ "image": rel(&scene, p), "range": stage("photo range", || photo_range(&img)) })
         }
         Photo::Brackets(bs) => json!({
             "brackets": bs.iter().map(|b| json!({ "image": rel(&scene, &b.image), "ev": b.ev })).collect::<Vec<_>>(),
         }),
     };
+    stage("report", || info_report(&scene, &names, photo, as_json))
+}
+
+fn info_report(scene: &Scene, names: &[String], photo: serde_json::Value, as_json: bool) -> Result<()> {
     let surfaces: Vec<_> = scene
         .surfaces
         .iter()
@@ -462,20 +524,23 @@ fn display_photo(scene: &Scene) -> Result<Image> {
 }
 
 fn ids(path: &Path, output: &Path, exr: Option<&Path>, with_virtual: bool, variant: Option<&str>) -> Result<()> {
-    let scene = load(path, variant)?;
-    let photo = display_photo(&scene)?;
-    let tracer = scene.build_tracer()?;
+    let scene = stage("load", || load(path, variant))?;
+    let photo = stage("read photo", || display_photo(&scene))?;
+    let tracer = stage("tracer", || scene.build_tracer())?;
     let layer = if with_virtual { Layer::All } else { Layer::Real };
-    let ids = SurfaceIds::at_pixel_centres(&scene.camera, &tracer, layer);
+    let ids = stage("trace ids", || SurfaceIds::at_pixel_centres(&scene.camera, &tracer, layer));
     if ids.covered() == 0 {
         bail!(arlux::Error::key(&scene.file, "camera", "the camera sees no surface: check position, look_at and the field of view"));
     }
-    let picture = ids.registration_picture(&photo);
-    image_io::write_png_rgb8(output, 2 * scene.camera.width, scene.camera.height, picture)?;
-    if let Some(exr) = exr {
-        let values: Vec<f32> = ids.ids.iter().map(|&i| i as f32).collect();
-        image_io::write_exr(exr, scene.camera.width, scene.camera.height, &[image_io::ExrLayer::Channel("Y", &values)])?;
-    }
+    stage("write", || -> Result<()> {
+        let picture = ids.registration_picture(&photo);
+        image_io::write_png_rgb8(output, 2 * scene.camera.width, scene.camera.height, picture)?;
+        if let Some(exr) = exr {
+            let values: Vec<f32> = ids.ids.iter().map(|&i| i as f32).collect();
+            image_io::write_exr(exr, scene.camera.width, scene.camera.height, &[image_io::ExrLayer::Channel("Y", &values)])?;
+        }
+        Ok(())
+    })?;
     let names = scene.surface_names();
     let total = ids.ids.len() as f64;
     say!("{} of {} pixels see a surface; wrote {}", ids.covered(), ids.ids.len(), output.display());
@@ -490,8 +555,7 @@ fn ids(path: &Path, output: &Path, exr: Option<&Path>, with_virtual: bool, varia
 }
 
 fn compare_cmd(image: &Path, reference: &Path, mask: Option<&Path>, as_json: bool) -> Result<()> {
-    let a = image_io::read_image(image)?;
-    let b = image_io::read_image(reference)?;
+    let (a, b) = stage("load", || -> Result<(Image, Image)> { Ok((image_io::read_image(image)?, image_io::read_image(reference)?)) })?;
     if (a.width, a.height) != (b.width, b.height) {
         bail!(arlux::Error::file(
             image,
@@ -499,7 +563,7 @@ fn compare_cmd(image: &Path, reference: &Path, mask: Option<&Path>, as_json: boo
         ));
     }
     let mask = mask.map(|m| read_mask(m, a.width, a.height)).transpose()?;
-    let c: Comparison = compare(&a, &b, mask.as_deref());
+    let c: Comparison = stage("compare", || compare(&a, &b, mask.as_deref()));
     if as_json {
         say!("{}", serde_json::to_string_pretty(&c)?);
     } else {
@@ -565,6 +629,7 @@ fn gonio_cmd(path: &Path, output: &Path, plot: Option<&Path>, vertical_step: f64
             json!({ "surface": r.name, "rgb": r.rgb.map(|c| c.to_array()), "source": source, "step": step, "angle_deg": angle })
         })
         .collect();
+    keep(&times);
     let report = json!({
         "light": light.name,
         "position": rec.position.to_array(),
@@ -644,7 +709,7 @@ fn radiosity_cmd(
     };
     let model = Model::build(&scene, &photo, &tracer, &settings, &mut times)?;
     let view = times.time("render view", || ModelView::render(&scene, &tracer, &model, light_level));
-    let error = compare(&view.radiance, &photo, None);
+    let error = times.time("compare", || compare(&view.radiance, &photo, None));
     times.time("write", || -> Result<()> {
         let (w, h) = (scene.camera.width, scene.camera.height);
         image_io::write_exr(
@@ -665,6 +730,7 @@ fn radiosity_cmd(
         Ok(())
     })?;
     let est = &model.estimate;
+    keep(&times);
     let report = json!({
         "patches": model.patches.patch_count(),
         "elements": model.patches.elements.len(),
@@ -793,14 +859,17 @@ fn render_cmd(
         }
         Ok(())
     })?;
-    let error = match &reference {
-        Some(r) => {
-            let truth = image_io::read_image(r)?;
-            scene.check_size(&truth, "variant.reference")?;
-            Some(compare(&c.image, &truth, None))
+    let error = times.time("compare", || -> Result<Option<Comparison>> {
+        match &reference {
+            Some(r) => {
+                let truth = image_io::read_image(r)?;
+                scene.check_size(&truth, "variant.reference")?;
+                Ok(Some(compare(&c.image, &truth, None)))
+            }
+            None => Ok(None),
         }
-        None => None,
-    };
+    })?;
+    keep(&times);
     let report = json!({
         "variant": variant,
         "pixels": out.pda_pixels,
@@ -864,18 +933,21 @@ fn hdr_cmd(brackets: &[String], output: &Path, response_csv: Option<&Path>) -> R
         if !ev.is_finite() {
             bail!("--bracket {b}: the EV must be finite");
         }
-        exposures.push(Exposure::read(Path::new(path), ev)?);
+        exposures.push(stage("load", || Exposure::read(Path::new(path), ev))?);
     }
-    let response = recover_response(&exposures, 64, 20.0)?;
-    let merged = merge(&exposures, &response)?;
-    image_io::write_exr(output, merged.image.width, merged.image.height, &[image_io::ExrLayer::Rgb("", &merged.image)])?;
-    if let Some(csv) = response_csv {
-        let mut text = String::from("code,ln_exposure_r,ln_exposure_g,ln_exposure_b\n");
-        for z in 0..256 {
-            text.push_str(&format!("{z},{},{},{}\n", response[0][z], response[1][z], response[2][z]));
+    let response = stage("response", || recover_response(&exposures, 64, 20.0))?;
+    let merged = stage("merge", || merge(&exposures, &response))?;
+    stage("write", || -> Result<()> {
+        image_io::write_exr(output, merged.image.width, merged.image.height, &[image_io::ExrLayer::Rgb("", &merged.image)])?;
+        if let Some(csv) = response_csv {
+            let mut text = String::from("code,ln_exposure_r,ln_exposure_g,ln_exposure_b\n");
+            for z in 0..256 {
+                text.push_str(&format!("{z},{},{},{}\n", response[0][z], response[1][z], response[2][z]));
+            }
+            image_io::write_atomic(csv, text.as_bytes())?;
         }
-        image_io::write_atomic(csv, text.as_bytes())?;
-    }
+        Ok(())
+    })?;
     say!(
         "merged {} exposures into {} ({}x{}); {} pixels saturated in every exposure, {} black in every exposure; radiance is relative (g(128) = 0, t0 = 1)",
         exposures.len(),
@@ -891,7 +963,7 @@ fn hdr_cmd(brackets: &[String], output: &Path, response_csv: Option<&Path>) -> R
 fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, as_json: bool) -> Result<()> {
     use arlux::model::StageTimes;
     use arlux::render::{RenderSettings, Session};
-    let base = load(path, None)?;
+    let base = stage("load", || load(path, None))?;
     let motion = base.motion(name)?.clone();
     std::fs::create_dir_all(dir).with_context(|| format!("{}: could not create the folder", dir.display()))?;
     let settings = RenderSettings::default();
@@ -911,16 +983,17 @@ fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, 
         }
     };
     let first = base.with_motion_pose(name, 0)?;
-    let photo = first.load_photo()?;
+    let photo = stage("read photo", || first.load_photo())?;
     let mut times = StageTimes::default();
     let mut session = Session::start(&first, &photo, &settings, &mut times)?;
     session.prepare_updates(&mut times);
+    keep(&times);
     let full_seconds = times.total().as_secs_f64();
-    write(0, &session.composite.image)?;
+    stage("write", || write(0, &session.composite.image))?;
     let (pda_bytes, block_bytes) = session.memory_bytes();
     let mut rows = vec![json!({
         "pose": 0, "seconds": full_seconds, "full_render": true,
-        "error_against_reference": error_at(0, &session.composite.image)?,
+        "error_against_reference": stage("compare", || error_at(0, &session.composite.image))?,
     })];
     if !as_json {
         say!(
@@ -936,9 +1009,10 @@ fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, 
         let scene = base.with_motion_pose(name, pose)?;
         let mut times = StageTimes::default();
         let stats = session.update(&scene, &mut times)?;
+        keep(&times);
         let seconds = times.total().as_secs_f64();
-        write(pose, &session.composite.image)?;
-        let error = error_at(pose, &session.composite.image)?;
+        stage("write", || write(pose, &session.composite.image))?;
+        let error = stage("compare", || error_at(pose, &session.composite.image))?;
         if !as_json {
             say!(
                 "pose {pose}: update {:.1} ms ({:.1}x faster than the full render); {} pixels recomputed, {} re-traced, {} shaft tests, {} rays{}",

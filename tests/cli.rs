@@ -342,3 +342,47 @@ fn a_closed_pipe_is_not_a_failure() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success() && !stderr.contains("panicked"), "{:?} {stderr}", out.status);
 }
+
+/// `--timings`: the stages' sum against the wall time, and peak memory.
+fn timed_share(args: &[&str]) -> (f64, f64) {
+    let mut all: Vec<&str> = args.to_vec();
+    all.push("--timings");
+    let run = arlux(&all);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    let share: f64 = stderr
+        .split("(stages: ")
+        .nth(1)
+        .and_then(|t| t.split('%').next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("no stage share in: {stderr}"));
+    let memory: f64 = stderr
+        .split("peak memory ")
+        .nth(1)
+        .and_then(|t| t.split(" MB").next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("no peak memory in: {stderr}"));
+    (share, memory)
+}
+
+#[test]
+fn timings_add_up_to_the_wall_time_on_every_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    let scene = format!("{DESK}/scene.toml");
+    let commands: Vec<Vec<String>> = vec![
+        vec!["info".into(), scene.clone()],
+        vec!["ids".into(), scene.clone(), "-o".into(), out("ids.png")],
+        vec!["compare".into(), format!("{DESK}/photo.exr"), format!("{DESK}/truth/box_floor_a.exr")],
+        vec!["render".into(), scene.clone(), "--variant".into(), "box_floor_a".into(), "-o".into(), out("a.exr")],
+        vec!["radiosity".into(), scene.clone(), "-o".into(), out("r.exr"), "--patch-size".into(), "0.5".into()],
+        vec!["hdr".into(), "--bracket".into(), format!("{DESK}/brackets/ev-1.png:-1"), "--bracket".into(), format!("{DESK}/brackets/ev+1.png:1"), "-o".into(), out("m.exr")],
+    ];
+    for c in &commands {
+        let args: Vec<&str> = c.iter().map(|s| s.as_str()).collect();
+        let (share, memory) = timed_share(&args);
+        println!("{}: stages {share:.1}% of the wall time, peak memory {memory:.1} MB", c[0]);
+        assert!(share >= 95.0 && share <= 100.0, "{}: stages cover {share}% of the wall time", c[0]);
+        assert!(memory > 1.0, "{}: peak memory {memory} MB", c[0]);
+    }
+}
