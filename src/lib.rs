@@ -27,6 +27,7 @@ pub mod scene;
 pub mod shadows;
 pub mod shaft;
 pub mod surface_ids;
+pub mod sweep;
 pub mod trace;
 
 pub use error::{Error, Result};

@@ -229,6 +229,24 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Error against run time: render a variant (or a motion) over a grid
+    /// of quality settings, measure each against its reference, and write
+    /// DIR/sweep.csv and DIR/sweep.png (error against time, Pareto front marked).
+    Sweep {
+        scene: PathBuf,
+        #[arg(long, conflicts_with = "motion", required_unless_present = "motion")]
+        variant: Option<String>,
+        /// Sweep a motion instead: full first pose, updates after; time and mean error over the poses.
+        #[arg(long)]
+        motion: Option<String>,
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Six settings from cheapest to dearest, for a smoke check.
+        #[arg(long)]
+        quick: bool,
+        #[arg(long)]
+        json: bool,
+    },
     /// Error of an image against a reference: RMSE and relative RMSE in
     /// linear radiance, PSNR of the sRGB-encoded images, and their means.
     Compare {
@@ -302,6 +320,7 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Hdr { brackets, output, response } => hdr_cmd(&brackets, &output, response.as_deref()),
         Command::Motion { scene, motion, output, debug_blocks, json } => motion_cmd(&scene, &motion, &output, debug_blocks.as_deref(), json),
+        Command::Sweep { scene, variant, motion, output, quick, json } => sweep_cmd(&scene, variant.as_deref(), motion.as_deref(), &output, quick, json),
         Command::Gonio { scene, output, plot, vertical_step, horizontal_step, json } => {
             gonio_cmd(&scene, &output, plot.as_deref(), vertical_step, horizontal_step, json)
         }
@@ -589,6 +608,72 @@ fn photo_in_units(scene: &Scene, tracer: &arlux::trace::Tracer, times: &mut arlu
         }
     }
     Ok(photo)
+}
+
+fn sweep_cmd(path: &Path, variant: Option<&str>, motion: Option<&str>, dir: &Path, quick: bool, as_json: bool) -> Result<()> {
+    use arlux::sweep::{Target, grid, plot, run, to_csv};
+    let scene = stage("load", || load(path, None))?;
+    let (target, label) = match (variant, motion) {
+        (_, Some(m)) => (Target::Motion { name: m }, format!("motion {m}")),
+        (Some(v), None) => (Target::Variant { name: v }, format!("variant {v}")),
+        (None, None) => bail!("give --variant or --motion"),
+    };
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: could not create the folder", dir.display()))?;
+    let settings = grid(quick);
+    let bar = indicatif::ProgressBar::new(settings.len() as u64);
+    bar.set_style(indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} settings, {elapsed} {msg}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
+    let rows = stage("renders", || {
+        run(&scene, &target, &settings, |_, row| {
+            bar.set_message(format!("last: {:.2} s, RMSE {:.5}", row.seconds, row.rmse));
+            bar.inc(1);
+        })
+    })?;
+    bar.finish_and_clear();
+    let reference = match &target {
+        Target::Variant { name } => scene.variant(name)?.reference.as_ref().map_or(String::new(), |r| rel(&scene, r)),
+        Target::Motion { name } => format!("{} references of motion {name}", scene.motion(name)?.references.len()),
+    };
+    let csv = dir.join("sweep.csv");
+    let png = dir.join("sweep.png");
+    stage("write", || -> Result<()> {
+        image_io::write_atomic(&csv, to_csv(&rows, &reference).as_bytes())?;
+        plot(&rows, &format!("{}: {label}, error against time ({} settings)", scene.name, rows.len()), &png)?;
+        Ok(())
+    })?;
+    let mut front: Vec<&arlux::sweep::SweepRow> = rows.iter().filter(|r| r.pareto).collect();
+    front.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
+    let describe = |r: &arlux::sweep::SweepRow| {
+        let s = &r.settings;
+        json!({
+            "shadow_rays": [1u32 << s.min_level, 1u32 << s.penumbra_level], "supersample": s.supersample,
+            "patch_size": s.patch_size, "epsilon": s.epsilon, "seconds": r.seconds, "rmse": r.rmse,
+            "relative_rmse": r.relative_rmse, "pareto": r.pareto,
+        })
+    };
+    if as_json {
+        say!("{}", serde_json::to_string_pretty(&json!({
+            "target": label, "settings": rows.len(), "csv": csv.display().to_string(), "plot": png.display().to_string(),
+            "rows": rows.iter().map(describe).collect::<Vec<_>>(),
+        }))?);
+        return Ok(());
+    }
+    say!("{} settings of {label}; wrote {} and {}", rows.len(), csv.display(), png.display());
+    say!("Pareto front (faster and closer than nothing else):");
+    say!("  {:>11} {:>10} {:>10} {:>8} {:>9} {:>10}", "shadow rays", "supersamp.", "patch", "epsilon", "seconds", "RMSE");
+    for r in front {
+        let s = &r.settings;
+        say!(
+            "  {:>5}-{:<5} {:>10} {:>10} {:>8} {:>9.3} {:>10.6}",
+            1u32 << s.min_level,
+            1u32 << s.penumbra_level,
+            s.supersample,
+            s.patch_size.map_or("auto".to_string(), |m| format!("{m} m")),
+            s.epsilon,
+            r.seconds,
+            r.rmse
+        );
+    }
+    Ok(())
 }
 
 fn gonio_cmd(path: &Path, output: &Path, plot: Option<&Path>, vertical_step: f64, horizontal_step: f64, as_json: bool) -> Result<()> {

@@ -1,0 +1,301 @@
+//! Error against run time: renders a variant (or a motion) over a grid of
+//! quality settings, measures each against the reference, and marks the
+//! Pareto front (no other setting both faster and closer).
+
+use std::path::Path;
+use std::time::Instant;
+
+use crate::compare::{Comparison, compare};
+use crate::error::{Error, Result};
+use crate::image_io::{Image, read_image};
+use crate::model::{StageTimes, TransportMethod};
+use crate::pda::PdaSettings;
+use crate::render::{PatchSize, RenderSettings, Session, render};
+use crate::scene::Scene;
+
+/// One point of the grid.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SweepSettings {
+    /// 2^min_level shadow rays everywhere, 2^penumbra_level in penumbra.
+    pub min_level: usize,
+    pub penumbra_level: usize,
+    pub supersample: u32,
+    /// None: the automatic patch size.
+    pub patch_size: Option<f64>,
+    /// Hierarchical radiosity's link threshold (the solve tolerance's knob).
+    pub epsilon: f64,
+}
+
+impl SweepSettings {
+    pub fn render_settings(&self) -> RenderSettings {
+        let d = RenderSettings::default();
+        RenderSettings {
+            model: crate::model::ModelSettings { transport: TransportMethod::Hierarchical { epsilon: self.epsilon }, ..d.model },
+            patch_size: self.patch_size.map_or(PatchSize::Auto, PatchSize::Metres),
+            pda: PdaSettings { min_level: self.min_level, penumbra_level: self.penumbra_level, supersample: self.supersample },
+            ..d
+        }
+    }
+
+    /// The renderer's defaults as a grid point.
+    pub fn defaults() -> SweepSettings {
+        let d = RenderSettings::default();
+        let epsilon = match d.model.transport {
+            TransportMethod::Hierarchical { epsilon } => epsilon,
+            TransportMethod::Full => crate::radiosity::DEFAULT_LINK_EPSILON,
+        };
+        SweepSettings {
+            min_level: d.pda.min_level,
+            penumbra_level: d.pda.penumbra_level,
+            supersample: d.pda.supersample,
+            patch_size: match d.patch_size {
+                PatchSize::Auto => None,
+                PatchSize::Metres(m) => Some(m),
+            },
+            epsilon,
+        }
+    }
+}
+
+/// The grid: `quick` is six settings from cheapest to dearest (a smoke
+/// check); otherwise shadow rays 1…256 × supersampling 1…4 × three patch
+/// sizes × two radiosity thresholds (120 renders).
+pub fn grid(quick: bool) -> Vec<SweepSettings> {
+    let d = SweepSettings::defaults();
+    if quick {
+        return [(0, 0, 1), (0, 2, 1), (1, 3, 2), (2, 4, 3), (3, 5, 3), (4, 6, 4)]
+            .into_iter()
+            .map(|(min_level, penumbra_level, supersample)| SweepSettings { min_level, penumbra_level, supersample, ..d })
+            .collect();
+    }
+    let mut out = Vec::new();
+    for (min_level, penumbra_level) in [(0, 0), (0, 2), (1, 4), (2, 4), (4, 8)] {
+        for supersample in 1..=4 {
+            for patch_size in [None, Some(0.5), Some(0.125)] {
+                for epsilon in [0.008, d.epsilon] {
+                    out.push(SweepSettings { min_level, penumbra_level, supersample, patch_size, epsilon });
+                }
+            }
+        }
+    }
+    out
+}
+
+/// One measured setting.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepRow {
+    pub settings: SweepSettings,
+    /// Seconds per stage, summed over the run (a motion: over all poses).
+    pub stages: Vec<(String, f64)>,
+    pub seconds: f64,
+    /// Against the reference (a motion: the mean over its poses with one).
+    pub rmse: f64,
+    pub relative_rmse: f64,
+    pub psnr_srgb_db: f64,
+    /// Images compared.
+    pub compared: usize,
+    pub pareto: bool,
+}
+
+/// What to render at each setting.
+pub enum Target<'a> {
+    Variant { name: &'a str },
+    Motion { name: &'a str },
+}
+
+/// Renders `target` of `scene` at every setting of `grid`, calling
+/// `progress` after each.
+pub fn run(scene: &Scene, target: &Target, grid: &[SweepSettings], mut progress: impl FnMut(usize, &SweepRow)) -> Result<Vec<SweepRow>> {
+    let photo = scene.load_photo()?;
+    let references: Vec<Image> = match target {
+        Target::Variant { name } => {
+            let v = scene.variant(name)?;
+            let Some(r) = &v.reference else {
+                return Err(Error::key(&scene.file, format!("variant '{name}'.reference"), "a sweep measures error: the variant needs a reference"));
+            };
+            vec![read_image(r)?]
+        }
+        Target::Motion { name } => {
+            let m = scene.motion(name)?;
+            if m.references.is_empty() {
+                return Err(Error::key(&scene.file, format!("motion '{name}'.references"), "a sweep measures error: the motion needs references"));
+            }
+            m.references.iter().map(|r| read_image(r)).collect::<Result<_>>()?
+        }
+    };
+    for r in &references {
+        scene.check_size(r, "reference")?;
+    }
+    // One untimed render first: the thread pool and the page cache warm up
+    // there, not in whichever setting happens to come first.
+    if let (Some(first), Target::Variant { name }) = (grid.first(), target) {
+        render(&scene.with_variant(name)?, &photo, &first.render_settings(), &mut StageTimes::default())?;
+    }
+    let mut rows = Vec::with_capacity(grid.len());
+    for (i, s) in grid.iter().enumerate() {
+        let settings = s.render_settings();
+        let mut times = StageTimes::default();
+        let t0 = Instant::now();
+        let comparisons: Vec<Comparison> = match target {
+            Target::Variant { name } => {
+                let effective = scene.with_variant(name)?;
+                let out = render(&effective, &photo, &settings, &mut times)?;
+                vec![compare(&out.composite.image, &references[0], None)]
+            }
+            Target::Motion { name } => {
+                let m = scene.motion(name)?;
+                let first = scene.with_motion_pose(name, 0)?;
+                let mut session = Session::start(&first, &photo, &settings, &mut times)?;
+                let mut out = vec![compare(&session.composite.image, &references[0], None)];
+                for pose in 1..m.translations.len() {
+                    let posed = scene.with_motion_pose(name, pose)?;
+                    session.update(&posed, &mut times)?;
+                    if let Some(r) = references.get(pose) {
+                        out.push(compare(&session.composite.image, r, None));
+                    }
+                }
+                out
+            }
+        };
+        let seconds = t0.elapsed().as_secs_f64();
+        let n = comparisons.len() as f64;
+        let mut stages: Vec<(String, f64)> = Vec::new();
+        for (name, d) in &times.0 {
+            match stages.iter_mut().find(|(n, _)| n == name) {
+                Some(s) => s.1 += d.as_secs_f64(),
+                None => stages.push((name.to_string(), d.as_secs_f64())),
+            }
+        }
+        let row = SweepRow {
+            settings: *s,
+            stages,
+            seconds,
+            rmse: comparisons.iter().map(|c| c.rmse).sum::<f64>() / n,
+            relative_rmse: comparisons.iter().map(|c| c.relative_rmse.unwrap_or(f64::NAN)).sum::<f64>() / n,
+            psnr_srgb_db: comparisons.iter().map(|c| c.psnr_srgb_db.unwrap_or(f64::INFINITY)).sum::<f64>() / n,
+            compared: comparisons.len(),
+            pareto: false,
+        };
+        progress(i, &row);
+        rows.push(row);
+    }
+    mark_pareto(&mut rows);
+    Ok(rows)
+}
+
+/// Marks the rows no other row beats on both time and error.
+pub fn mark_pareto(rows: &mut [SweepRow]) {
+    let mut order: Vec<usize> = (0..rows.len()).collect();
+    order.sort_by(|&a, &b| rows[a].seconds.total_cmp(&rows[b].seconds).then(rows[a].rmse.total_cmp(&rows[b].rmse)));
+    let mut best = f64::INFINITY;
+    for i in order {
+        rows[i].pareto = rows[i].rmse < best;
+        if rows[i].pareto {
+            best = rows[i].rmse;
+        }
+    }
+}
+
+/// The rows as CSV: settings, seconds per stage (the union of stages, in
+/// first-seen order), total seconds, error figures, Pareto flag.
+pub fn to_csv(rows: &[SweepRow], reference: &str) -> String {
+    let mut names: Vec<String> = Vec::new();
+    for r in rows {
+        for (n, _) in &r.stages {
+            if !names.contains(n) {
+                names.push(n.clone());
+            }
+        }
+    }
+    let mut out = String::from("method,min_level,penumbra_level,shadow_rays_min,shadow_rays_max,supersample,patch_size,epsilon");
+    for n in &names {
+        out.push_str(&format!(",s_{}", n.replace([' ', ',', '+'], "_")));
+    }
+    out.push_str(",total_seconds,rmse,relative_rmse,psnr_srgb_db,images_compared,reference,pareto\n");
+    for r in rows {
+        let s = &r.settings;
+        out.push_str(&format!(
+            "pda,{},{},{},{},{},{},{}",
+            s.min_level,
+            s.penumbra_level,
+            1u32 << s.min_level,
+            1u32 << s.penumbra_level,
+            s.supersample,
+            s.patch_size.map_or("auto".to_string(), |m| m.to_string()),
+            s.epsilon
+        ));
+        for n in &names {
+            let v = r.stages.iter().find(|(m, _)| m == n).map_or(0.0, |x| x.1);
+            out.push_str(&format!(",{v:.6}"));
+        }
+        out.push_str(&format!(
+            ",{:.6},{:.8},{:.8},{:.4},{},{},{}\n",
+            r.seconds, r.rmse, r.relative_rmse, r.psnr_srgb_db, r.compared, reference, r.pareto as u8
+        ));
+    }
+    out
+}
+
+/// Error against time, every row a point, the front joined and ringed;
+/// text drawn with the font shipped in `assets/` (no system font needed).
+pub fn plot(rows: &[SweepRow], title: &str, path: &Path) -> Result<()> {
+    use plotters::prelude::*;
+    static FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
+    static REGISTERED: std::sync::Once = std::sync::Once::new();
+    REGISTERED.call_once(|| {
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
+    });
+    let (w, h) = (900u32, 600u32);
+    let mut buffer = vec![255u8; (w * h * 3) as usize];
+    let fail = |e: String| Error::file(path, format!("could not draw the plot: {e}"));
+    {
+        let root = BitMapBackend::with_buffer(&mut buffer, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| fail(e.to_string()))?;
+        let t_max = rows.iter().map(|r| r.seconds).fold(0.0, f64::max) * 1.1;
+        let e_min = rows.iter().map(|r| r.rmse).fold(f64::INFINITY, f64::min) * 0.9;
+        let e_max = rows.iter().map(|r| r.rmse).fold(0.0, f64::max) * 1.1;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 20))
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(80)
+            .build_cartesian_2d(0.0..t_max.max(1e-3), e_min.max(0.0)..e_max.max(e_min + 1e-9))
+            .map_err(|e| fail(e.to_string()))?;
+        chart
+            .configure_mesh()
+            .x_desc("seconds")
+            .y_desc("RMSE against the reference")
+            .label_style(("sans-serif", 14))
+            .y_label_formatter(&|y| format!("{y:.5}"))
+            .draw()
+            .map_err(|e| fail(e.to_string()))?;
+        chart
+            .draw_series(rows.iter().map(|r| Circle::new((r.seconds, r.rmse), 3, RGBColor(120, 120, 120).filled())))
+            .map_err(|e| fail(e.to_string()))?;
+        let mut front: Vec<&SweepRow> = rows.iter().filter(|r| r.pareto).collect();
+        front.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
+        chart
+            .draw_series(LineSeries::new(front.iter().map(|r| (r.seconds, r.rmse)), RGBColor(220, 90, 20).stroke_width(2)))
+            .map_err(|e| fail(e.to_string()))?
+            .label("Pareto front")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(220, 90, 20).stroke_width(2)));
+        chart
+            .draw_series(front.iter().map(|r| Circle::new((r.seconds, r.rmse), 6, RGBColor(220, 90, 20).stroke_width(2))))
+            .map_err(|e| fail(e.to_string()))?;
+        let d = SweepSettings::defaults();
+        chart
+            .draw_series(rows.iter().filter(|r| r.settings == d).map(|r| TriangleMarker::new((r.seconds, r.rmse), 9, BLUE.filled())))
+            .map_err(|e| fail(e.to_string()))?
+            .label("defaults")
+            .legend(|(x, y)| TriangleMarker::new((x + 10, y), 6, BLUE.filled()));
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 14))
+            .draw()
+            .map_err(|e| fail(e.to_string()))?;
+        root.present().map_err(|e| fail(e.to_string()))?;
+    }
+    crate::image_io::write_png_rgb8(path, w, h, buffer)
+}

@@ -1,0 +1,64 @@
+//! `arlux sweep --quick` on the desk: the CSV's rows, its Pareto front, and
+//! the error of one row checked by an independent render and comparison.
+
+use std::process::Command;
+
+const DESK: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/desk");
+
+#[test]
+fn a_quick_sweep_measures_every_row_and_its_front_falls_as_cost_rises() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = Command::new(env!("CARGO_BIN_EXE_arlux"))
+        .args(["sweep", &format!("{DESK}/scene.toml"), "--variant", "box_floor_a", "-o", dir.path().to_str().unwrap(), "--quick"])
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let csv = std::fs::read_to_string(dir.path().join("sweep.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
+    let rows: Vec<Vec<String>> = lines.map(|l| l.split(',').map(str::to_string).collect()).collect();
+    assert!(rows.len() >= 6, "{} rows", rows.len());
+    let num = |r: &Vec<String>, name: &str| -> f64 { r[col(name)].parse().unwrap() };
+    for r in &rows {
+        assert_eq!(r[col("reference")], "truth/box_floor_a.exr");
+        assert_eq!(r[col("images_compared")], "1");
+        let e = num(r, "rmse");
+        assert!(e.is_finite() && e > 0.0 && e < 0.01, "rmse {e}");
+        assert!(num(r, "total_seconds") > 0.0);
+    }
+    let mut front: Vec<(f64, f64)> = rows.iter().filter(|r| r[col("pareto")] == "1").map(|r| (num(r, "total_seconds"), num(r, "rmse"))).collect();
+    front.sort_by(|a, b| a.0.total_cmp(&b.0));
+    assert!(front.len() >= 2, "a front of {} settings", front.len());
+    for w in front.windows(2) {
+        assert!(w[1].1 < w[0].1, "the front's error rises with cost: {front:?}");
+    }
+    // No row off the front may beat a front row on both counts.
+    for r in rows.iter().filter(|r| r[col("pareto")] == "0") {
+        let (t, e) = (num(r, "total_seconds"), num(r, "rmse"));
+        assert!(front.iter().any(|(ft, fe)| *ft <= t && *fe <= e), "row ({t}, {e}) is dominated by nothing on the front");
+    }
+
+    // The defaults' row against an independent render + compare (rendering is deterministic).
+    let default_row = rows
+        .iter()
+        .find(|r| r[col("min_level")] == "2" && r[col("penumbra_level")] == "4" && r[col("supersample")] == "3" && r[col("patch_size")] == "auto")
+        .expect("the defaults are in the quick grid");
+    let image = dir.path().join("default.exr");
+    let render = Command::new(env!("CARGO_BIN_EXE_arlux"))
+        .args(["render", &format!("{DESK}/scene.toml"), "--variant", "box_floor_a", "-o", image.to_str().unwrap(), "--json"])
+        .output()
+        .unwrap();
+    assert!(render.status.success());
+    let compare = Command::new(env!("CARGO_BIN_EXE_arlux"))
+        .args(["compare", image.to_str().unwrap(), &format!("{DESK}/truth/box_floor_a.exr"), "--json"])
+        .output()
+        .unwrap();
+    let c: serde_json::Value = serde_json::from_slice(&compare.stdout).unwrap();
+    let independent = c["rmse"].as_f64().unwrap();
+    let swept = num(default_row, "rmse");
+    assert!((independent - swept).abs() < 1e-6, "sweep {swept} vs render + compare {independent}");
+
+    let png = image::open(dir.path().join("sweep.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (900, 600));
+}
