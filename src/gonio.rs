@@ -576,6 +576,9 @@ fn gather_from_photo(scene: &Scene, tracer: &Tracer, patches: &Patches, photo: &
     flat
 }
 
+/// How many steps an edge correction walks to find a plain pair.
+const EDGE_WALK: usize = 6;
+
 /// Takes each surface's texture out of the samples' radiosity (Grosch
 /// assumes one reflectance per polygon, which a textured floor breaks at
 /// every pixel): ln ρ(x) = ln ρ̄ + u(x), where u changes only across
@@ -591,15 +594,20 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
     for (i, s) in samples.iter().enumerate() {
         at[s.pixel as usize] = i as u32;
     }
-    let log_b = |s: &Sample| (s.b.element_sum() / 3.0).max(1e-30).ln();
+    let log_b = |s: &Sample| s.b.max(DVec3::splat(1e-30)).to_array().map(f64::ln);
     let changes = |a: f64, b: f64| (a - b).abs() > 0.1 * a.max(b);
-    // Pixel pairs (i, j, target u_j − u_i).
-    let mut pairs: Vec<(u32, u32, f64)> = Vec::new();
-    let mut edges = 0;
+    // Pixel pairs (i, j) with the target u_j − u_i per channel: a texture
+    // is coloured (a brown and cream checkerboard steps differently in
+    // each channel), so each channel is integrated on its own.
+    let mut pairs: Vec<(u32, u32)> = Vec::new();
+    let mut jumps: Vec<[f64; 3]> = Vec::new();
+    let mut is_edge: Vec<bool> = Vec::new();
+    // The pair leaving each pixel rightwards and downwards, if any.
+    let mut leaving = vec![[u32::MAX; 2]; samples.len()];
     for i in 0..samples.len() {
         let p = &samples[i];
         let (col, row) = (p.pixel % width, p.pixel / width);
-        for (dc, dr) in [(1u32, 0u32), (0, 1)] {
+        for (dir, (dc, dr)) in [(1u32, 0u32), (0, 1)].into_iter().enumerate() {
             if col + dc >= width || row + dr >= height {
                 continue;
             }
@@ -614,27 +622,77 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
             if !same_plane || !lit_alike {
                 continue;
             }
-            let jump = log_b(q) - log_b(p);
-            let target = if jump.abs() > edge {
-                edges += 1;
-                jump
-            } else {
-                0.0
-            };
-            pairs.push((i as u32, j, target));
+            let (lp, lq) = (log_b(p), log_b(q));
+            let jump = [lq[0] - lp[0], lq[1] - lp[1], lq[2] - lp[2]];
+            leaving[i][dir] = pairs.len() as u32;
+            pairs.push((i as u32, j));
+            // An edge where any channel steps; there every channel keeps its own step.
+            is_edge.push(jump.iter().any(|x| x.abs() > edge));
+            jumps.push(jump);
         }
     }
-    let u = integrate_jumps(samples.len(), &pairs);
-    let mut mean: HashMap<u32, (f64, f64)> = HashMap::new();
-    for (s, ui) in samples.iter().zip(&u) {
-        let m = mean.entry(s.surface).or_insert((0.0, 0.0));
-        m.0 += s.area * ui.exp();
+    // A step across a texture edge also holds the illumination's change
+    // over one pixel; left in, it would pile up edge after edge across a
+    // lit region. Take out the mean step of the plain pairs just before and
+    // after the edge in the same direction.
+    let mut arriving = vec![[u32::MAX; 2]; samples.len()];
+    for (k, &(_, j)) in pairs.iter().enumerate() {
+        let dir = if samples[j as usize].pixel == samples[pairs[k].0 as usize].pixel + 1 { 0 } else { 1 };
+        arriving[j as usize][dir] = k as u32;
+    }
+    let mut targets: [Vec<f64>; 3] = Default::default();
+    let mut edges = 0;
+    for (k, &(i, j)) in pairs.iter().enumerate() {
+        if !is_edge[k] {
+            for c in 0..3 {
+                targets[c].push(0.0);
+            }
+            continue;
+        }
+        edges += 1;
+        let dir = if samples[j as usize].pixel == samples[i as usize].pixel + 1 { 0 } else { 1 };
+        // Walk past the other steps of the same edge (an anti-aliased edge
+        // spans two or three pixels) to the first plain pair on each side.
+        let mut neighbours: Vec<usize> = Vec::new();
+        let mut back = arriving[i as usize][dir];
+        for _ in 0..EDGE_WALK {
+            if back == u32::MAX {
+                break;
+            }
+            if !is_edge[back as usize] {
+                neighbours.push(back as usize);
+                break;
+            }
+            back = arriving[pairs[back as usize].0 as usize][dir];
+        }
+        let mut ahead = leaving[j as usize][dir];
+        for _ in 0..EDGE_WALK {
+            if ahead == u32::MAX {
+                break;
+            }
+            if !is_edge[ahead as usize] {
+                neighbours.push(ahead as usize);
+                break;
+            }
+            ahead = leaving[pairs[ahead as usize].1 as usize][dir];
+        }
+        for c in 0..3 {
+            let illumination = if neighbours.is_empty() { 0.0 } else { neighbours.iter().map(|&n| jumps[n][c]).sum::<f64>() / neighbours.len() as f64 };
+            targets[c].push(jumps[k][c] - illumination);
+        }
+    }
+    let u: Vec<Vec<f64>> = targets.par_iter().map(|t| integrate_jumps(samples.len(), &pairs, t)).collect();
+    let mut mean: HashMap<u32, (DVec3, f64)> = HashMap::new();
+    let texture_at = |k: usize| DVec3::new(u[0][k].exp(), u[1][k].exp(), u[2][k].exp());
+    for (k, s) in samples.iter().enumerate() {
+        let m = mean.entry(s.surface).or_insert((DVec3::ZERO, 0.0));
+        m.0 += texture_at(k) * s.area;
         m.1 += s.area;
     }
-    for (s, ui) in samples.iter_mut().zip(&u) {
-        let (sum, area) = mean[&s.surface];
-        let texture = ui.exp() * area / sum.max(1e-300);
-        s.b /= texture;
+    for k in 0..samples.len() {
+        let (sum, area) = mean[&samples[k].surface];
+        let texture = texture_at(k) * area / sum.max(DVec3::splat(1e-300));
+        samples[k].b /= texture;
     }
     edges
 }
@@ -642,10 +700,10 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
 /// Least-squares u with u_j − u_i ≈ target over `pairs` (a graph
 /// Laplacian system, solved by conjugate gradients; each connected piece
 /// keeps mean 0, so the singular system stays consistent).
-fn integrate_jumps(n: usize, pairs: &[(u32, u32, f64)]) -> Vec<f64> {
+fn integrate_jumps(n: usize, pairs: &[(u32, u32)], targets: &[f64]) -> Vec<f64> {
     let mut degree = vec![0.0f64; n];
     let mut rhs = vec![0.0f64; n];
-    for &(i, j, t) in pairs {
+    for (&(i, j), &t) in pairs.iter().zip(targets) {
         degree[i as usize] += 1.0;
         degree[j as usize] += 1.0;
         rhs[j as usize] += t;
@@ -658,7 +716,7 @@ fn integrate_jumps(n: usize, pairs: &[(u32, u32, f64)]) -> Vec<f64> {
         for (o, (d, xi)) in out.iter_mut().zip(degree.iter().zip(x)) {
             *o = d * xi;
         }
-        for &(i, j, _) in pairs {
+        for &(i, j) in pairs {
             let (i, j) = (i as usize, j as usize);
             out[i] -= x[j];
             out[j] -= x[i];

@@ -244,6 +244,9 @@ enum Command {
         /// Six settings from cheapest to dearest, for a smoke check.
         #[arg(long)]
         quick: bool,
+        /// Runs per setting; the fastest counts (default 3, 1 with --quick).
+        #[arg(long)]
+        repeats: Option<usize>,
         #[arg(long)]
         json: bool,
     },
@@ -320,7 +323,9 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Hdr { brackets, output, response } => hdr_cmd(&brackets, &output, response.as_deref()),
         Command::Motion { scene, motion, output, debug_blocks, json } => motion_cmd(&scene, &motion, &output, debug_blocks.as_deref(), json),
-        Command::Sweep { scene, variant, motion, output, quick, json } => sweep_cmd(&scene, variant.as_deref(), motion.as_deref(), &output, quick, json),
+        Command::Sweep { scene, variant, motion, output, quick, repeats, json } => {
+            sweep_cmd(&scene, variant.as_deref(), motion.as_deref(), &output, quick, repeats.unwrap_or(if quick { 1 } else { 3 }), json)
+        }
         Command::Gonio { scene, output, plot, vertical_step, horizontal_step, json } => {
             gonio_cmd(&scene, &output, plot.as_deref(), vertical_step, horizontal_step, json)
         }
@@ -610,7 +615,10 @@ fn photo_in_units(scene: &Scene, tracer: &arlux::trace::Tracer, times: &mut arlu
     Ok(photo)
 }
 
-fn sweep_cmd(path: &Path, variant: Option<&str>, motion: Option<&str>, dir: &Path, quick: bool, as_json: bool) -> Result<()> {
+fn sweep_cmd(path: &Path, variant: Option<&str>, motion: Option<&str>, dir: &Path, quick: bool, repeats: usize, as_json: bool) -> Result<()> {
+    if repeats == 0 {
+        bail!("--repeats must be at least 1");
+    }
     use arlux::sweep::{Target, grid, plot, run, to_csv};
     let scene = stage("load", || load(path, None))?;
     let (target, label) = match (variant, motion) {
@@ -623,7 +631,7 @@ fn sweep_cmd(path: &Path, variant: Option<&str>, motion: Option<&str>, dir: &Pat
     let bar = indicatif::ProgressBar::new(settings.len() as u64);
     bar.set_style(indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} settings, {elapsed} {msg}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
     let rows = stage("renders", || {
-        run(&scene, &target, &settings, |_, row| {
+        run(&scene, &target, &settings, repeats, |_, row| {
             bar.set_message(format!("last: {:.2} s, RMSE {:.5}", row.seconds, row.rmse));
             bar.inc(1);
         })
