@@ -517,7 +517,7 @@ fn propagate(grid: &Grid, samples: &[Sample], known_rho: &HashMap<u32, DVec3>, s
 /// and all); elsewhere it is left to the radiosity solution, by patch.
 /// Returns the flat list of those patches ([`Sample::unseen`] ranges).
 fn gather_from_photo(scene: &Scene, tracer: &Tracer, patches: &Patches, photo: &Image, samples: &mut [Sample], rays: u32) -> Vec<u32> {
-    use crate::light::{offset_origin, unit_random};
+    use crate::light::offset_origin;
     use crate::trace::TraceRay;
     let cam = &scene.camera;
     let side = (rays as f64).sqrt().ceil().max(1.0) as u32;
@@ -526,20 +526,8 @@ fn gather_from_photo(scene: &Scene, tracer: &Tracer, patches: &Patches, photo: &
     let per: Vec<(DVec3, Vec<u32>)> = samples
         .par_iter()
         .map(|s| {
-            let n = s.n;
-            let t = if n.x.abs() < 0.9 { DVec3::X.cross(n).normalize() } else { DVec3::Y.cross(n).normalize() };
-            let b = n.cross(t);
-            let origin = offset_origin(s.x, n, s.x + n);
-            let mut state = hash2(s.pixel as u64, 0x6A7E_6011);
-            let dirs: Vec<DVec3> = (0..count)
-                .map(|k| {
-                    let (i, j) = (k % side, k / side);
-                    let u1 = (i as f64 + unit_random(&mut state)) / side as f64;
-                    let u2 = (j as f64 + unit_random(&mut state)) / side as f64;
-                    let (r, phi) = (u1.sqrt(), 2.0 * pi * u2);
-                    t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt()
-                })
-                .collect();
+            let origin = offset_origin(s.x, s.n, s.x + s.n);
+            let dirs = crate::gather::cosine_directions(s.n, side, hash2(s.pixel as u64, 0x6A7E_6011));
             let traced: Vec<TraceRay> = dirs.iter().map(|d| TraceRay::new(origin.as_vec3(), d.as_vec3())).collect();
             let mut hits = vec![None; traced.len()];
             tracer.intersect_batch(&traced, Layer::Real, &mut hits);
@@ -547,13 +535,7 @@ fn gather_from_photo(scene: &Scene, tracer: &Tracer, patches: &Patches, photo: &
             for (d, hit) in dirs.iter().zip(&hits) {
                 let Some(hit) = hit else { continue };
                 let y = origin + *d * hit.t as f64;
-                let seen = cam.project(y).and_then(|(px, py, _)| {
-                    if px < 0.0 || py < 0.0 || px >= cam.width as f64 || py >= cam.height as f64 {
-                        return None;
-                    }
-                    let back = TraceRay::segment(cam.position.as_vec3(), y.as_vec3(), 1e-4);
-                    (!tracer.occluded(&back, Layer::Real)).then(|| photo.get(px as u32, py as u32).as_dvec3())
-                });
+                let seen = crate::gather::photo_radiance_at(cam, tracer, photo, y);
                 match seen {
                     Some(radiance) if radiance.is_finite() => sum += radiance,
                     _ => {
@@ -653,29 +635,25 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
         let dir = if samples[j as usize].pixel == samples[i as usize].pixel + 1 { 0 } else { 1 };
         // Walk past the other steps of the same edge (an anti-aliased edge
         // spans two or three pixels) to the first plain pair on each side.
-        let mut neighbours: Vec<usize> = Vec::new();
-        let mut back = arriving[i as usize][dir];
-        for _ in 0..EDGE_WALK {
-            if back == u32::MAX {
-                break;
+        let first_plain = |mut k: u32, next: &dyn Fn(u32) -> u32| -> Option<usize> {
+            for _ in 0..EDGE_WALK {
+                if k == u32::MAX {
+                    return None;
+                }
+                if !is_edge[k as usize] {
+                    return Some(k as usize);
+                }
+                k = next(k);
             }
-            if !is_edge[back as usize] {
-                neighbours.push(back as usize);
-                break;
-            }
-            back = arriving[pairs[back as usize].0 as usize][dir];
-        }
-        let mut ahead = leaving[j as usize][dir];
-        for _ in 0..EDGE_WALK {
-            if ahead == u32::MAX {
-                break;
-            }
-            if !is_edge[ahead as usize] {
-                neighbours.push(ahead as usize);
-                break;
-            }
-            ahead = leaving[pairs[ahead as usize].1 as usize][dir];
-        }
+            None
+        };
+        let neighbours: Vec<usize> = [
+            first_plain(arriving[i as usize][dir], &|k| arriving[pairs[k as usize].0 as usize][dir]),
+            first_plain(leaving[j as usize][dir], &|k| leaving[pairs[k as usize].1 as usize][dir]),
+        ]
+        .into_iter()
+        .flatten()
+        .collect();
         for c in 0..3 {
             let illumination = if neighbours.is_empty() { 0.0 } else { neighbours.iter().map(|&n| jumps[n][c]).sum::<f64>() / neighbours.len() as f64 };
             targets[c].push(jumps[k][c] - illumination);

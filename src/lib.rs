@@ -12,6 +12,7 @@ pub mod compare;
 pub mod composite;
 pub mod error;
 pub mod estimate;
+pub mod gather;
 pub mod geometry;
 pub mod gonio;
 pub mod hdr;

@@ -416,7 +416,7 @@ fn final_gather(
     radiosity_without: &[DVec3],
     rays: u32,
 ) -> Vec<(usize, DVec3)> {
-    use crate::light::{hash2, offset_origin, unit_random};
+    use crate::light::{hash2, offset_origin};
     use crate::trace::TraceRay;
     use rayon::prelude::*;
     // Each virtual vertex with the normal of the plane it lies in.
@@ -437,19 +437,8 @@ fn final_gather(
         .map(|&(v, n)| {
             let p = patches.vertices[v as usize];
             // Faces are one-sided here (solids face out, open surfaces face the camera).
-            let t = if n.x.abs() < 0.9 { DVec3::X.cross(n).normalize() } else { DVec3::Y.cross(n).normalize() };
-            let b = n.cross(t);
             let origin = offset_origin(p, n, p + n);
-            let mut state = hash2(v as u64, 0x6A7E);
-            let dirs: Vec<DVec3> = (0..side * side)
-                .map(|k| {
-                    let (i, j) = (k % side, k / side);
-                    let u1 = (i as f64 + unit_random(&mut state)) / side as f64;
-                    let u2 = (j as f64 + unit_random(&mut state)) / side as f64;
-                    let (r, phi) = (u1.sqrt(), 2.0 * pi * u2);
-                    t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt()
-                })
-                .collect();
+            let dirs = crate::gather::cosine_directions(n, side, hash2(v as u64, 0x6A7E));
             let traced: Vec<TraceRay> = dirs.iter().map(|d| TraceRay::new(origin.as_vec3(), d.as_vec3())).collect();
             let mut hits = vec![None; traced.len()];
             tracer.intersect_batch(&traced, Layer::All, &mut hits);
@@ -465,13 +454,7 @@ fn final_gather(
                     continue;
                 }
                 // Seen by the camera? Then the photo knows its radiance.
-                let seen = cam.project(y).and_then(|(px, py, _)| {
-                    if px < 0.0 || py < 0.0 || px >= cam.width as f64 || py >= cam.height as f64 {
-                        return None;
-                    }
-                    let back = TraceRay::segment(cam.position.as_vec3(), y.as_vec3(), 1e-4);
-                    (!tracer.occluded(&back, Layer::Real)).then(|| photo.get(px as u32, py as u32).as_dvec3())
-                });
+                let seen = crate::gather::photo_radiance_at(cam, tracer, photo, y);
                 sum += match seen {
                     Some(radiance) => {
                         let ratio = (radiosity_with[k] / radiosity_without[k].max(DVec3::splat(1e-12))).min(DVec3::splat(4.0));
