@@ -109,7 +109,10 @@ struct Changes {
 /// A render kept alive for updates: after virtual objects move,
 /// [`Session::update`] recomputes only what their old and new places can change.
 pub struct Session {
+    /// The scene as rendered (a light to reconstruct replaced by what was recovered).
     scene: Scene,
+    /// The lights as the caller gave them: updates must keep them.
+    given_lights: Vec<crate::scene::Light>,
     photo: Image,
     settings: RenderSettings,
     tracer: crate::trace::Tracer,
@@ -166,6 +169,7 @@ impl Session {
         } else {
             photo.clone()
         };
+        let given_lights = scene.lights.clone();
         // A light to reconstruct is recovered from the photo first (Grosch §2.3).
         let resolved;
         let scene = match crate::gonio::light_to_reconstruct(scene)? {
@@ -202,6 +206,7 @@ impl Session {
         let rays = pda.rays;
         let mut session = Session {
             scene: scene.clone(),
+            given_lights,
             photo,
             settings,
             tracer,
@@ -274,7 +279,7 @@ impl Session {
     /// objects' image and edges are re-traced; the indirect light is solved
     /// again on the room's links with the objects re-linked.
     pub fn update(&mut self, scene: &Scene, times: &mut StageTimes) -> Result<UpdateStats> {
-        let same_lights = scene.lights == self.scene.lights;
+        let same_lights = scene.lights == self.given_lights;
         if !same_lights || scene.camera != self.scene.camera || scene.surfaces.len() != self.scene.surfaces.len() {
             return Err(crate::error::Error::file(&scene.file, "an update moves virtual objects only; lights, camera and real geometry must stay"));
         }
@@ -285,7 +290,8 @@ impl Session {
         let sets: Vec<crate::trace::SurfaceTriangles> =
             virt.iter().map(|(id, t)| crate::trace::SurfaceTriangles { surface: *id, triangles: t }).collect();
         times.time("move objects", || self.tracer.rebuild_virtual(&sets)).map_err(|e| crate::error::Error::file(&scene.file, e.to_string()))?;
-        self.scene = scene.clone();
+        // Keep the lights as rendered (a reconstructed one stays recovered).
+        self.scene = Scene { lights: self.scene.lights.clone(), ..scene.clone() };
         self.bounds = VirtualBounds::of(&virt);
         self.changes = solve_changes(&self.scene, &self.photo, &self.tracer, &self.model, &self.scales_with, &self.settings, times);
         let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| &o.0);

@@ -134,3 +134,17 @@ fn spot_axis(l: &LightSource) -> DVec3 {
         _ => panic!("the desk's spot"),
     }
 }
+
+#[test]
+fn a_motion_updates_with_the_recovered_light_as_a_full_render_does() {
+    use arlux::render::{RenderSettings, Session, render};
+    let s = scene("scene_reconstruct.toml");
+    let photo = s.load_photo().unwrap();
+    let settings = RenderSettings::default();
+    let mut times = arlux::model::StageTimes::default();
+    let mut session = Session::start(&s.with_motion_pose("box_slide", 0).unwrap(), &photo, &settings, &mut times).unwrap();
+    // The pose's scene still says "reconstruct": the update keeps the recovered light.
+    session.update(&s.with_motion_pose("box_slide", 3).unwrap(), &mut times).unwrap();
+    let full = render(&s.with_motion_pose("box_slide", 3).unwrap(), &photo, &settings, &mut times).unwrap();
+    assert!(session.composite.image == full.composite.image, "the update differs from a full render of the pose");
+}
