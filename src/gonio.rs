@@ -144,16 +144,37 @@ impl Reconstruction {
 
     /// `scene` with the light's intensity replaced by the recovered table.
     pub fn apply(&self, scene: &Scene) -> Scene {
-        let mut out = scene.clone();
-        out.lights[self.light].intensity = Intensity::Ies {
-            file: scene.dir().join("reconstructed.ies"),
-            profile: self.profile.clone(),
-            rgb: self.colour,
-            direction: AXIS,
-            reference: REFERENCE,
-        };
-        out
+        apply_profile(scene, self.light, &self.profile, self.colour)
     }
+
+    /// The recovered light as an IES file that also records its colour
+    /// (keyword `_ARLUX_RGB`) and light index (`_ARLUX_LIGHT`), for a cache.
+    pub fn to_cache_text(&self) -> String {
+        let mut profile = self.profile.clone();
+        profile.keywords.push(("_ARLUX_RGB".to_string(), format!("{} {} {}", self.colour.x, self.colour.y, self.colour.z)));
+        profile.keywords.push(("_ARLUX_LIGHT".to_string(), self.light.to_string()));
+        profile.to_lm63()
+    }
+}
+
+/// Reads what [`Reconstruction::to_cache_text`] wrote: (light, table, colour).
+pub fn from_cache_text(text: &str, path: &std::path::Path) -> Option<(usize, IesProfile, DVec3)> {
+    let profile = IesProfile::parse(text, path).ok()?;
+    let keyword = |k: &str| profile.keywords.iter().find(|(key, _)| key == k).map(|(_, v)| v.clone());
+    let rgb: Vec<f64> = keyword("_ARLUX_RGB")?.split_whitespace().filter_map(|v| v.parse().ok()).collect();
+    let light: usize = keyword("_ARLUX_LIGHT")?.trim().parse().ok()?;
+    (rgb.len() == 3 && rgb.iter().all(|c| c.is_finite() && *c >= 0.0)).then(|| (light, profile.clone(), DVec3::new(rgb[0], rgb[1], rgb[2])))
+}
+
+/// `scene` with light `light`'s intensity replaced by a recovered table.
+pub fn apply_profile(scene: &Scene, light: usize, profile: &IesProfile, colour: DVec3) -> Scene {
+    let mut out = scene.clone();
+    out.lights[light].intensity =
+        Intensity::Ies { file: scene.dir().join("reconstructed.ies"), profile: profile.clone(), rgb: colour, direction: AXIS, reference: REFERENCE };
+    out
+}
+
+impl Reconstruction {
 }
 
 /// Type C angles (degrees) of unit direction `d` in the reconstruction frame.
@@ -980,28 +1001,20 @@ pub fn direction_at(v_deg: f64, h_deg: f64) -> DVec3 {
 /// A picture of the recovered distribution (cf. Grosch Fig. 7), as RGB8:
 /// left, the polar candela diagram in the vertical plane through the peak
 /// (orange) and the plane at right angles to it (blue), nadir down, grey
-/// where unknown; right, the whole table as a map (horizontal angle across,
+/// where unknown, scaled to the 99th percentile of the known values (the
+/// outer ring); right, the whole table as a map (horizontal angle across,
 /// vertical angle down from nadir), unknown directions hatched.
 pub fn polar_plot(rec: &Reconstruction) -> (u32, u32, Vec<u8>) {
     const S: i64 = 480;
     let (w, h) = (2 * S as u32, S as u32);
-    let mut px = vec![255u8; (w * h * 3) as usize];
-    let mut put = |px: &mut Vec<u8>, x: i64, y: i64, c: [u8; 3]| {
-        if x >= 0 && y >= 0 && x < w as i64 && y < h as i64 {
-            let i = ((y as u32 * w + x as u32) * 3) as usize;
-            px[i..i + 3].copy_from_slice(&c);
-        }
-    };
-    let line = |px: &mut Vec<u8>, put: &mut dyn FnMut(&mut Vec<u8>, i64, i64, [u8; 3]), a: (f64, f64), b: (f64, f64), c: [u8; 3]| {
-        let n = ((b.0 - a.0).abs().max((b.1 - a.1).abs()).ceil() as i64).max(1);
-        for i in 0..=n {
-            let t = i as f64 / n as f64;
-            put(px, (a.0 + (b.0 - a.0) * t).round() as i64, (a.1 + (b.1 - a.1) * t).round() as i64, c);
-        }
-    };
+    let mut canvas = Canvas { px: vec![255u8; (w * h * 3) as usize], w, h };
     let p = &rec.profile;
-    let (peak_value, peak_dir) = peak(rec);
-    let peak_value = peak_value.max(1e-300);
+    let (_, peak_dir) = peak(rec);
+    // Scale to the 99th percentile of the known values: a few nodes at
+    // surfaces' rims can spike, and would squash the whole diagram.
+    let mut known_values: Vec<f64> = p.candela.iter().zip(&rec.known).filter(|(_, k)| **k).map(|(c, _)| *c).collect();
+    known_values.sort_by(f64::total_cmp);
+    let peak_value = known_values.get(known_values.len() * 99 / 100).copied().unwrap_or(0.0).max(1e-300);
     let (_, peak_h) = angles(peak_dir);
     // Polar diagram: centre, radius for the peak.
     let (cx, cy, r) = (S as f64 / 2.0, S as f64 / 2.0, S as f64 * 0.45);
@@ -1011,12 +1024,12 @@ pub fn polar_plot(rec: &Reconstruction) -> (u32, u32, Vec<u8>) {
         let steps = 360;
         for i in 0..steps {
             let (a0, a1) = (i as f64 / steps as f64 * std::f64::consts::TAU, (i + 1) as f64 / steps as f64 * std::f64::consts::TAU);
-            line(&mut px, &mut put, (cx + rr * a0.cos(), cy + rr * a0.sin()), (cx + rr * a1.cos(), cy + rr * a1.sin()), grid_c);
+            canvas.line((cx + rr * a0.cos(), cy + rr * a0.sin()), (cx + rr * a1.cos(), cy + rr * a1.sin()), grid_c);
         }
     }
     for spoke in 0..12 {
         let a = spoke as f64 * 30f64.to_radians();
-        line(&mut px, &mut put, (cx, cy), (cx + r * a.cos(), cy + r * a.sin()), grid_c);
+        canvas.line((cx, cy), (cx + r * a.cos(), cy + r * a.sin()), grid_c);
     }
     // A plane through the axis: angle γ ∈ [0, 360) from nadir, the second
     // half being the opposite horizontal angle.
@@ -1024,7 +1037,7 @@ pub fn polar_plot(rec: &Reconstruction) -> (u32, u32, Vec<u8>) {
         let point = |gamma: f64| -> ((f64, f64), bool) {
             let (v, hh) = if gamma <= 180.0 { (gamma, h0) } else { (360.0 - gamma, h0 + 180.0) };
             let d = direction_at(v, hh);
-            let value = p.candela_towards(d, AXIS, REFERENCE) / peak_value;
+            let value = (p.candela_towards(d, AXIS, REFERENCE) / peak_value).min(1.05);
             let known = rec.is_known(d);
             // Nadir down on the picture; the plane's h0 side to the right.
             let a = gamma.to_radians();
@@ -1034,8 +1047,8 @@ pub fn polar_plot(rec: &Reconstruction) -> (u32, u32, Vec<u8>) {
         for i in 1..=720 {
             let next = point(i as f64 * 0.5);
             let c = if prev.1 && next.1 { colour } else { [170, 170, 170] };
-            line(&mut px, &mut put, prev.0, next.0, c);
-            line(&mut px, &mut put, (prev.0.0 + 1.0, prev.0.1), (next.0.0 + 1.0, next.0.1), c);
+            canvas.line(prev.0, next.0, c);
+            canvas.line((prev.0.0 + 1.0, prev.0.1), (next.0.0 + 1.0, next.0.1), c);
             prev = next;
         }
     }
@@ -1053,23 +1066,158 @@ pub fn polar_plot(rec: &Reconstruction) -> (u32, u32, Vec<u8>) {
             } else {
                 [235, 235, 235]
             };
-            put(&mut px, x0 as i64 + xx, y0 as i64 + yy, c);
+            canvas.put(x0 as i64 + xx, y0 as i64 + yy, c);
         }
     }
     let nv_lines = [0.0, 45.0, 90.0, 135.0, 180.0];
     for v in nv_lines {
         let y = y0 + v / 180.0 * mh;
-        line(&mut px, &mut put, (x0, y), (x0 + mw, y), [255, 255, 255]);
+        canvas.line((x0, y), (x0 + mw, y), [255, 255, 255]);
     }
     for hh in [90.0, 180.0, 270.0] {
         let x = x0 + hh / 360.0 * mw;
-        line(&mut px, &mut put, (x, y0), (x, y0 + mh), [255, 255, 255]);
+        canvas.line((x, y0), (x, y0 + mh), [255, 255, 255]);
     }
-    (w, h, px)
+    (w, h, canvas.px)
+}
+
+/// An RGB8 picture to draw on.
+struct Canvas {
+    px: Vec<u8>,
+    w: u32,
+    h: u32,
+}
+
+impl Canvas {
+    fn put(&mut self, x: i64, y: i64, c: [u8; 3]) {
+        if x >= 0 && y >= 0 && x < self.w as i64 && y < self.h as i64 {
+            let i = ((y as u32 * self.w + x as u32) * 3) as usize;
+            self.px[i..i + 3].copy_from_slice(&c);
+        }
+    }
+
+    fn line(&mut self, a: (f64, f64), b: (f64, f64), c: [u8; 3]) {
+        let n = ((b.0 - a.0).abs().max((b.1 - a.1).abs()).ceil() as i64).max(1);
+        for i in 0..=n {
+            let t = i as f64 / n as f64;
+            self.put((a.0 + (b.0 - a.0) * t).round() as i64, (a.1 + (b.1 - a.1) * t).round() as i64, c);
+        }
+    }
 }
 
 /// Black → red → yellow → white.
 fn heat(t: f64) -> [u8; 3] {
     let c = |x: f64| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
     [c(3.0 * t), c(3.0 * t - 1.0), c(3.0 * t - 2.0)]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample_reconstruction() -> Reconstruction {
+        let grid = Grid::new(&GonioSettings::default());
+        let scalar: Vec<f64> = (0..grid.len()).map(|k| ((k * 7919) % 1000) as f64 / 37.0).collect();
+        Reconstruction {
+            light: 1,
+            position: DVec3::new(1.0, 2.0, 3.0),
+            colour: DVec3::new(1.2345678901234567, 1.0, 0.765432109876543),
+            profile: table_profile(&grid, &scalar),
+            known: vec![true; grid.len()],
+            coverage: 1.0,
+            colour_residual: 0.0,
+            reflectances: Vec::new(),
+            rounds: 1,
+            change: 0.0,
+            samples: 0,
+            texture_edges: 0,
+            patches: 0,
+            seconds: 0.0,
+        }
+    }
+
+    #[test]
+    fn the_cache_file_gives_back_the_same_light_to_the_last_bit() {
+        let rec = sample_reconstruction();
+        let (light, profile, colour) = from_cache_text(&rec.to_cache_text(), std::path::Path::new("cache.ies")).unwrap();
+        assert_eq!(light, 1);
+        assert_eq!(colour, rec.colour);
+        assert_eq!(profile.candela, rec.profile.candela);
+        assert_eq!((profile.vertical.clone(), profile.horizontal.clone()), (rec.profile.vertical.clone(), rec.profile.horizontal.clone()));
+        for d in [DVec3::NEG_Y, DVec3::new(0.3, -0.8, 0.52).normalize(), DVec3::new(-0.7, 0.1, -0.7).normalize()] {
+            assert_eq!(profile.candela_towards(d, AXIS, REFERENCE), rec.profile.candela_towards(d, AXIS, REFERENCE));
+        }
+        // A damaged cache is no cache.
+        assert!(from_cache_text("IESNA:LM-63-2002\nTILT=NONE\n1 -1", std::path::Path::new("cache.ies")).is_none());
+    }
+
+    #[test]
+    fn directions_and_angles_agree_and_nodes_cover_the_sphere() {
+        for (v, h) in [(0.0, 0.0), (37.0, 12.5), (90.0, 270.0), (179.0, 355.0)] {
+            let (v2, h2) = angles(direction_at(v, h));
+            assert!((v2 - v).abs() < 1e-9, "{v} -> {v2}");
+            if v > 0.0 && v < 180.0 {
+                assert!((h2 - h).abs() < 1e-9, "{h} -> {h2}");
+            }
+        }
+        let grid = Grid::new(&GonioSettings::default());
+        let total: f64 = (0..grid.nv).map(|vi| grid.solid_angle(vi)).sum::<f64>() * grid.nh as f64;
+        assert!((total - 4.0 * std::f64::consts::PI).abs() < 1e-9, "{total}");
+    }
+
+    /// A checkerboard (coloured, 8-pixel squares, edges mixed by the pixel
+    /// filter) under light that grows 2% per pixel: what is left after
+    /// removing the texture must be the light times the board's mean
+    /// reflectance, everywhere.
+    #[test]
+    fn a_checkerboard_under_a_light_gradient_comes_out_flat() {
+        let (w, h) = (64u32, 32u32);
+        let dark = DVec3::new(0.30, 0.25, 0.20);
+        let light = DVec3::new(0.80, 0.78, 0.70);
+        let mut samples: Vec<Sample> = Vec::new();
+        for row in 0..h {
+            for col in 0..w {
+                // Squares shifted by a third of a pixel: the camera's box filter
+                // mixes the two colours in the pixels on their edges.
+                let at = |x: f64, y: f64| if ((x / 8.0).floor() as i64 + (y / 8.0).floor() as i64) % 2 == 0 { dark } else { light };
+                let (x, y) = (col as f64 + 0.7, row as f64 + 0.7);
+                let rho = (at(x, y) + at(x + 0.5, y) + at(x, y + 0.5) + at(x + 0.5, y + 0.5)) * 0.25;
+                let illumination = (0.02 * col as f64).exp();
+                samples.push(Sample {
+                    surface: 0,
+                    v: 0.0,
+                    h: 0.0,
+                    g: 1.0,
+                    e_known: DVec3::ONE,
+                    b: rho * illumination,
+                    h_ind: DVec3::ZERO,
+                    pixel: row * w + col,
+                    x: DVec3::new(col as f64 * 0.01, 0.0, row as f64 * 0.01),
+                    n: DVec3::Y,
+                    area: 1.0,
+                    gathered_photo: DVec3::ZERO,
+                    unseen: (0, 0),
+                });
+            }
+        }
+        remove_texture(&mut samples, w, h, 0.1);
+        let mean = (dark + light) * 0.5;
+        let worst = samples
+            .iter()
+            .map(|s| ((s.b / ((0.02 * (s.pixel % w) as f64).exp() * mean)) - DVec3::ONE).abs().max_element())
+            .fold(0.0, f64::max);
+        assert!(worst < 0.01, "texture left over: {:.2}%", 100.0 * worst);
+    }
+
+    #[test]
+    fn integrating_jumps_recovers_a_step_texture() {
+        // A row of 10 pixels: a step of ln 2 between 4 and 5, nothing else.
+        let pairs: Vec<(u32, u32)> = (0..9).map(|i| (i, i + 1)).collect();
+        let targets: Vec<f64> = (0..9).map(|i| if i == 4 { 2f64.ln() } else { 0.0 }).collect();
+        let u = integrate_jumps(10, &pairs, &targets);
+        for i in 0..10 {
+            let expect = if i <= 4 { -0.5 * 2f64.ln() } else { 0.5 * 2f64.ln() };
+            assert!((u[i] - expect).abs() < 1e-6, "u[{i}] = {}", u[i]);
+        }
+    }
 }

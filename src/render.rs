@@ -174,8 +174,7 @@ impl Session {
         let resolved;
         let scene = match crate::gonio::light_to_reconstruct(scene)? {
             Some(_) => {
-                let rec = times.time("goniometric", || crate::gonio::reconstruct(scene, &photo, &tracer, &crate::gonio::GonioSettings::default()))?;
-                resolved = rec.apply(scene);
+                resolved = times.time("goniometric", || reconstruct_cached(scene, &photo, &tracer))?;
                 &resolved
             }
             None => scene,
@@ -483,6 +482,36 @@ fn room_diagonal(scene: &Scene) -> f64 {
 /// The patch size at which the room's radiosity is accurate per patch.
 pub fn fine_patch_size(scene: &Scene) -> f64 {
     room_diagonal(scene) / 24.0
+}
+
+/// `scene` with its light to reconstruct recovered from `photo`
+/// ([`crate::gonio::reconstruct`]), through a cache next to the scene keyed
+/// by the scene file, its meshes, the photo's files and the settings.
+fn reconstruct_cached(scene: &Scene, photo: &Image, tracer: &crate::trace::Tracer) -> Result<Scene> {
+    let settings = crate::gonio::GonioSettings::default();
+    let mut files: Vec<std::path::PathBuf> = vec![scene.file.clone()];
+    files.extend(scene.surfaces.iter().map(|s| s.mesh.clone()));
+    match &scene.photo {
+        crate::scene::Photo::Image(p) => files.push(p.clone()),
+        crate::scene::Photo::Brackets(b) => files.extend(b.iter().map(|b| b.image.clone())),
+    }
+    files.dedup();
+    let mut hash = crate::hdr::ContentHash::default();
+    let readable = files.iter().all(|f| std::fs::read(f).map(|bytes| hash.feed(&bytes)).is_ok());
+    hash.feed(format!("{settings:?}").as_bytes());
+    let cache = scene.dir().join(".arlux-cache").join(format!("gonio-{:016x}.ies", hash.value()));
+    if readable {
+        if let Some((light, profile, colour)) =
+            std::fs::read_to_string(&cache).ok().and_then(|t| crate::gonio::from_cache_text(&t, &cache)).filter(|(l, _, _)| *l < scene.lights.len())
+        {
+            return Ok(crate::gonio::apply_profile(scene, light, &profile, colour));
+        }
+    }
+    let rec = crate::gonio::reconstruct(scene, photo, tracer, &settings)?;
+    if readable && cache.parent().is_some_and(|d| std::fs::create_dir_all(d).is_ok()) {
+        let _ = crate::image_io::write_atomic(&cache, rec.to_cache_text().as_bytes());
+    }
+    Ok(rec.apply(scene))
 }
 
 /// [`crate::model::bracket_scale`] on a fine mesh (the factor rests on a
