@@ -37,6 +37,10 @@ use crate::scene::{Intensity, Scene};
 use crate::surface_ids::row_hits;
 use crate::trace::{Layer, Tracer};
 
+/// Bumped whenever the reconstruction's results change, so that a cached
+/// light from an earlier arlux is not taken for a current one.
+pub const ALGORITHM_VERSION: u32 = 2;
+
 /// Photometric zero of the reconstructed table (type C nadir) and the
 /// direction of horizontal angle 0: world down and world +x.
 pub const AXIS: DVec3 = DVec3::NEG_Y;
@@ -642,6 +646,30 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
     for (k, &(_, j)) in pairs.iter().enumerate() {
         let dir = if samples[j as usize].pixel == samples[pairs[k].0 as usize].pixel + 1 { 0 } else { 1 };
         arriving[j as usize][dir] = k as u32;
+    }
+    // A texture edge the camera's filter (or the texture's own) spreads
+    // over a few pixels steps less than `edge` per pixel: a pair is also an
+    // edge when the three steps around it, in the same direction, add up to
+    // more than `edge` and its own step is a real part of that (a third).
+    let ramp: Vec<bool> = (0..pairs.len())
+        .map(|k| {
+            if is_edge[k] {
+                return false;
+            }
+            let (i, j) = pairs[k];
+            let dir = if samples[j as usize].pixel == samples[i as usize].pixel + 1 { 0 } else { 1 };
+            let (before, after) = (arriving[i as usize][dir], leaving[j as usize][dir]);
+            if before == u32::MAX || after == u32::MAX {
+                return false;
+            }
+            (0..3).any(|c| {
+                let span = jumps[before as usize][c] + jumps[k][c] + jumps[after as usize][c];
+                span.abs() > edge && jumps[k][c].abs() > edge / 3.0 && jumps[k][c].signum() == span.signum()
+            })
+        })
+        .collect();
+    for (k, r) in ramp.into_iter().enumerate() {
+        is_edge[k] |= r;
     }
     let mut targets: [Vec<f64>; 3] = Default::default();
     let mut edges = 0;

@@ -498,7 +498,7 @@ fn reconstruct_cached(scene: &Scene, photo: &Image, tracer: &crate::trace::Trace
     files.dedup();
     let mut hash = crate::hdr::ContentHash::default();
     let readable = files.iter().all(|f| std::fs::read(f).map(|bytes| hash.feed(&bytes)).is_ok());
-    hash.feed(format!("{settings:?}").as_bytes());
+    hash.feed(format!("{settings:?} {}", crate::gonio::ALGORITHM_VERSION).as_bytes());
     let cache = scene.dir().join(".arlux-cache").join(format!("gonio-{:016x}.ies", hash.value()));
     if readable {
         if let Some((light, profile, colour)) =
