@@ -39,7 +39,7 @@ use crate::trace::{Layer, Tracer};
 
 /// Bumped whenever the reconstruction's results change, so that a cached
 /// light from an earlier arlux is not taken for a current one.
-pub const ALGORITHM_VERSION: u32 = 2;
+pub const ALGORITHM_VERSION: u32 = 3;
 
 /// Photometric zero of the reconstructed table (type C nadir) and the
 /// direction of horizontal angle 0: world down and world +x.
@@ -583,6 +583,42 @@ fn gather_from_photo(scene: &Scene, tracer: &Tracer, patches: &Patches, photo: &
     flat
 }
 
+/// Whether neighbouring pixels `p` and `q` see one plane of one surface
+/// under the same lights (no light's visibility or direct light changes by
+/// more than 10% between them): then only texture and smooth illumination
+/// separate their values.
+fn continuous(p: &Sample, q: &Sample) -> bool {
+    let changes = |a: f64, b: f64| (a - b).abs() > 0.1 * a.max(b);
+    let depth = (p.x - q.x).length().max(1e-12);
+    let same_plane = q.surface == p.surface && p.n.dot(q.n) > 0.9 && (q.x - p.x).dot(p.n).abs() < 0.05 * depth;
+    same_plane && !changes(p.g, q.g) && !changes(p.e_known.element_sum(), q.e_known.element_sum())
+}
+
+/// The samples whose pixel mixes what it shows: a neighbour on another
+/// surface or plane (a silhouette: the pixel's value blends both, its
+/// sample point has one), or across a shadow edge (partly lit, its centre
+/// fully). EQ1 and EQ2 leave them out.
+fn mixed_pixels(samples: &[Sample], width: u32, height: u32) -> Vec<bool> {
+    let mut at = vec![u32::MAX; (width * height) as usize];
+    for (i, s) in samples.iter().enumerate() {
+        at[s.pixel as usize] = i as u32;
+    }
+    samples
+        .iter()
+        .map(|p| {
+            let (col, row) = ((p.pixel % width) as i64, (p.pixel / width) as i64);
+            [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)].iter().any(|(dc, dr)| {
+                let (c, r) = (col + dc, row + dr);
+                if c < 0 || r < 0 || c >= width as i64 || r >= height as i64 {
+                    return false;
+                }
+                let j = at[(r as u32 * width + c as u32) as usize];
+                j == u32::MAX || !continuous(p, &samples[j as usize])
+            })
+        })
+        .collect()
+}
+
 /// How many steps an edge correction walks to find a plain pair.
 const EDGE_WALK: usize = 6;
 
@@ -602,7 +638,6 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
         at[s.pixel as usize] = i as u32;
     }
     let log_b = |s: &Sample| s.b.max(DVec3::splat(1e-30)).to_array().map(f64::ln);
-    let changes = |a: f64, b: f64| (a - b).abs() > 0.1 * a.max(b);
     // Pixel pairs (i, j) with the target u_j − u_i per channel: a texture
     // is coloured (a brown and cream checkerboard steps differently in
     // each channel), so each channel is integrated on its own.
@@ -622,13 +657,10 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
             if j == u32::MAX {
                 continue;
             }
-            let q = &samples[j as usize];
-            let depth = (p.x - q.x).length().max(1e-12);
-            let same_plane = q.surface == p.surface && p.n.dot(q.n) > 0.9 && (q.x - p.x).dot(p.n).abs() < 0.05 * depth;
-            let lit_alike = !changes(p.g, q.g) && !changes(p.e_known.element_sum(), q.e_known.element_sum());
-            if !same_plane || !lit_alike {
+            if !continuous(p, &samples[j as usize]) {
                 continue;
             }
+            let q = &samples[j as usize];
             let (lp, lq) = (log_b(p), log_b(q));
             let jump = [lq[0] - lp[0], lq[1] - lp[1], lq[2] - lp[2]];
             leaving[i][dir] = pairs.len() as u32;
@@ -876,6 +908,9 @@ pub fn reconstruct(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &Gon
         })
         .collect();
     let texture_edges = remove_texture(&mut samples, cam.width, cam.height, settings.texture_edge);
+    let mixed = mixed_pixels(&samples, cam.width, cam.height);
+    let mut keep = mixed.iter().map(|m| !m);
+    samples.retain(|_| keep.next().unwrap_or(false));
     let unseen_hits = gather_from_photo(scene, tracer, &patches, photo, &mut samples, settings.gather_rays);
     if !samples.iter().any(|s| s.g > 0.0) {
         return Err(Error::key(&scene.file, format!("light[{index}].position"), "the photo shows no surface this light can reach: nothing to reconstruct from"));

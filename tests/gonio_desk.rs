@@ -49,6 +49,7 @@ fn the_desk_spot_is_recovered_within_ten_percent_where_the_photo_sees_it() {
     let (mut worst, mut count, mut over) = (0.0f64, 0usize, 0usize);
     let peak_true = spot.intensity(spot_axis(&spot)).element_sum() / 3.0;
     let mut errors = Vec::new();
+    let mut of_peak = Vec::new();
     let mut by: std::collections::BTreeMap<(u32, u32), (usize, usize, f64)> = Default::default();
     for row in (0..cam.height).step_by(2) {
         for (col, hit) in row_hits(cam, &tracer, Layer::Real, row).iter().enumerate().step_by(2) {
@@ -63,6 +64,7 @@ fn the_desk_spot_is_recovered_within_ten_percent_where_the_photo_sees_it() {
             // Relative to the true value, or to a tenth of the peak where the spot is dimmer than that.
             let e = (r - t).abs() / t.max(0.1 * peak_true);
             errors.push(e);
+            of_peak.push((r - t).abs() / peak_true);
             let key = (hit.surface, (t / peak_true * 4.0).min(4.0) as u32);
             let entry = by.entry(key).or_insert((0usize, 0usize, 0.0f64));
             entry.0 += 1;
@@ -79,6 +81,15 @@ fn the_desk_spot_is_recovered_within_ten_percent_where_the_photo_sees_it() {
         println!("surface {} level {}: {} directions, {} over 10%, mean signed error {:.1}%", k.0, k.1, v.0, v.1, 100.0 * v.2 / v.0 as f64);
     }
     errors.sort_by(f64::total_cmp);
+    of_peak.sort_by(f64::total_cmp);
+    println!(
+        "as a share of the true peak: median {:.2}%, 95th percentile {:.2}%, 99th {:.2}%, worst {:.1}%, over 10%: {}",
+        100.0 * of_peak[count / 2],
+        100.0 * of_peak[count * 95 / 100],
+        100.0 * of_peak[count * 99 / 100],
+        100.0 * of_peak[count - 1],
+        of_peak.iter().filter(|e| **e > 0.1).count()
+    );
     println!(
         "{count} directions: median error {:.2}%, 95th percentile {:.2}%, worst {:.1}%, over 10%: {over}",
         100.0 * errors[count / 2],
@@ -87,10 +98,12 @@ fn the_desk_spot_is_recovered_within_ten_percent_where_the_photo_sees_it() {
     );
 
     // Progress guard, not yet the bound (every direction within 10%):
-    // half the directions are within 1.2%; the spot's brightest directions
-    // on the textured floor still come out about 7% low, and some at the
-    // table's rims far more.
+    // half the directions are within 1.2% (of the true value, or of a tenth
+    // of the peak where it is dimmer); as a share of the peak, 95% are within
+    // 10.1%. The spot's brightest directions on the textured floor come out
+    // about 7% low; the worst are at the table and the cone's edge.
     assert!(errors[count / 2] < 0.02, "median direction error {:.1}%", 100.0 * errors[count / 2]);
+    assert!(of_peak[count * 95 / 100] < 0.12, "95th percentile {:.1}% of the peak", 100.0 * of_peak[count * 95 / 100]);
 
     let reference = reference_reflectances(&truth_scene);
     let mut worst_rho = 0.0f64;
@@ -101,9 +114,9 @@ fn the_desk_spot_is_recovered_within_ten_percent_where_the_photo_sees_it() {
         assert!(!matches!(r.source, ReflectanceSource::Unreached), "{} unreached", r.name);
         worst_rho = worst_rho.max(e);
     }
-    // The bound is 10%: the floor is within 0.5%, the ceiling 1.2%,
-    // the back wall 8.1%, the table top 10.1%, the thin table legs 24%.
-    assert!(worst_rho < 0.25, "worst reflectance {:.1}%", 100.0 * worst_rho);
+    // The bound is 10%: the floor is within 0.2%, the ceiling 1.3%,
+    // the table top 8.4%, the back wall 9.0%, the thin table legs 19%.
+    assert!(worst_rho < 0.2, "worst reflectance {:.1}%", 100.0 * worst_rho);
 
     // The box variant rendered with the recovered spot, against the true spot's render.
     let variant = |s: &Scene| s.with_variant("box_floor_a").unwrap();
