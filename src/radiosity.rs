@@ -277,18 +277,16 @@ impl Transport {
                 out
             })
             .collect();
-        let new: Vec<Link> = object_roots
+        // One task per (object root, root) pair: a few object roots would
+        // leave cores idle while the largest face refines.
+        let pairs: Vec<(u32, u32)> = object_roots.iter().flat_map(|&v| all_roots.iter().filter(move |&&r| r != v).map(move |&r| (v, r))).collect();
+        let new: Vec<Link> = pairs
             .par_iter()
-            .flat_map_iter(|&v| {
+            .flat_map_iter(|&(v, r)| {
                 let mut out = Vec::new();
-                for &r in all_roots {
-                    if r == v {
-                        continue;
-                    }
-                    refine(patches, tracer, Layer::All, epsilon, v, r, all_roots, &mut out);
-                    if !is_virtual(&r) {
-                        refine(patches, tracer, Layer::All, epsilon, r, v, all_roots, &mut out);
-                    }
+                refine(patches, tracer, Layer::All, epsilon, v, r, all_roots, &mut out);
+                if !is_virtual(&r) {
+                    refine(patches, tracer, Layer::All, epsilon, r, v, all_roots, &mut out);
                 }
                 out
             })
