@@ -833,101 +833,167 @@ fn median_rgb(values: &[DVec3]) -> DVec3 {
     )
 }
 
+/// Everything the rounds of a reconstruction share: the pixel samples
+/// (textures removed, mixed pixels left out, indirect light gathered from
+/// the photo where it sees the hit) and the radiosity model that supplies
+/// the rest of the indirect light.
+struct Evidence {
+    index: usize,
+    unit: LightSource,
+    samples: Vec<Sample>,
+    unseen_hits: Vec<u32>,
+    texture_edges: usize,
+    patches: Patches,
+    transport: Transport,
+    photo_patches: PhotoPatches,
+    known_rho: HashMap<u32, DVec3>,
+    /// Direct irradiance per patch of the other (known) real lights.
+    direct_known: Vec<DVec3>,
+}
+
+impl Evidence {
+    fn gather(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &GonioSettings) -> Result<Evidence> {
+        let Some(index) = light_to_reconstruct(scene)? else {
+            return Err(Error::key(&scene.file, "light", "no light has intensity = \"reconstruct\""));
+        };
+        if scene.reflectances.is_empty() {
+            return Err(Error::key(&scene.file, format!("light[{index}].intensity"), "\"reconstruct\" needs at least one [[reflectance]]"));
+        }
+        // The unknown light at unit intensity gives each sample's geometry term.
+        let mut unit_scene = scene.clone();
+        unit_scene.lights[index].intensity = Intensity::Uniform(DVec3::ONE);
+        let unit = LightSource::from_scene(&unit_scene, index)?;
+        let position = unit.position;
+        let others: Vec<LightSource> =
+            (0..scene.lights.len()).filter(|&j| j != index && scene.lights[j].real).map(|j| LightSource::from_scene(scene, j)).collect::<Result<_>>()?;
+        let patches = Patches::of_scene(scene, false, settings.patch_size);
+        let cam = &scene.camera;
+        let level = settings.light_level;
+        let pi = std::f64::consts::PI;
+        let mut samples: Vec<Sample> = (0..cam.height)
+            .into_par_iter()
+            .flat_map_iter(|row| {
+                let hits = row_hits(cam, tracer, Layer::Real, row);
+                let mut out = Vec::new();
+                for (col, hit) in hits.iter().enumerate() {
+                    let Some(hit) = hit else { continue };
+                    let ray = cam.pixel_ray(col as u32, row);
+                    let x = ray.origin + ray.direction * hit.t as f64;
+                    // The hit normal faces the camera: a light behind the surface does not light what the photo shows.
+                    let n = hit.normal.as_dvec3();
+                    let seed = hash2((row as usize * cam.width as usize + col) as u64, 0x0060_1110);
+                    let g = if (position - x).dot(n) > 0.0 {
+                        let d = unit.direct(tracer, Layer::Real, x, n, level, seed);
+                        (d.unoccluded * d.visibility).x
+                    } else {
+                        0.0
+                    };
+                    let mut e_known = DVec3::ZERO;
+                    for (j, l) in others.iter().enumerate() {
+                        if (l.position - x).dot(n) > 0.0 {
+                            let d = l.direct(tracer, Layer::Real, x, n, level, hash2(seed, j as u64 + 1));
+                            e_known += d.unoccluded * d.visibility;
+                        }
+                    }
+                    let b = photo.get(col as u32, row).as_dvec3() * pi;
+                    if !b.is_finite() || (g <= 0.0 && e_known == DVec3::ZERO) {
+                        continue;
+                    }
+                    let (v, h) = angles((x - position).normalize_or_zero());
+                    let area = (hit.t as f64).powi(2) / n.dot(ray.direction).abs().max(0.05);
+                    let pixel = row * cam.width + col as u32;
+                    out.push(Sample {
+                        surface: hit.surface,
+                        v,
+                        h,
+                        g,
+                        e_known,
+                        b,
+                        h_ind: DVec3::ZERO,
+                        pixel,
+                        x,
+                        n,
+                        area,
+                        gathered_photo: DVec3::ZERO,
+                        unseen: (0, 0),
+                    });
+                }
+                out
+            })
+            .collect();
+        let texture_edges = remove_texture(&mut samples, cam.width, cam.height, settings.texture_edge);
+        let mixed = mixed_pixels(&samples, cam.width, cam.height);
+        let mut keep = mixed.iter().map(|m| !m);
+        samples.retain(|_| keep.next().unwrap_or(false));
+        let unseen_hits = gather_from_photo(scene, tracer, &patches, photo, &mut samples, settings.gather_rays);
+        if !samples.iter().any(|s| s.g > 0.0) {
+            return Err(Error::key(&scene.file, format!("light[{index}].position"), "the photo shows no surface this light can reach: nothing to reconstruct from"));
+        }
+        let transport = Transport::hierarchical(&patches, tracer, Layer::Real, DEFAULT_LINK_EPSILON);
+        let photo_patches = PhotoPatches::measure(cam, tracer, &patches, photo);
+        let known_rho: HashMap<u32, DVec3> = scene.reflectances.iter().map(|k| (k.surface as u32, k.rgb)).collect();
+        let direct_known: Vec<DVec3> = {
+            let per = direct_irradiance(&patches, &others, tracer, Layer::Real, settings.light_level);
+            (0..patches.patch_count()).map(|k| per.iter().map(|p| p[k]).sum()).collect()
+        };
+        Ok(Evidence { index, unit, samples, unseen_hits, texture_edges, patches, transport, photo_patches, known_rho, direct_known })
+    }
+
+    /// Sets each sample's indirect light: gathered from the photo, plus what
+    /// its rays met unseen from the radiosity solution with `light` (the
+    /// unknown light as currently known; `None`: not at all).
+    fn update_indirect(&mut self, light: Option<&LightSource>, tracer: &Tracer, settings: &GonioSettings) {
+        let pi = std::f64::consts::PI;
+        let direct: Vec<DVec3> = match light {
+            None => self.direct_known.clone(),
+            Some(light) => {
+                let per = direct_irradiance(&self.patches, std::slice::from_ref(light), tracer, Layer::Real, settings.light_level);
+                self.direct_known.iter().zip(&per[0]).map(|(a, b)| *a + *b).collect()
+            }
+        };
+        let est = estimate_reflectances(&self.patches, &self.transport, &direct, &self.photo_patches, &self.known_rho, EstimateSettings::default());
+        let mixed: Vec<DVec3> = (0..self.patches.patch_count())
+            .map(|k| if self.photo_patches.pixels[k] > 0 { self.photo_patches.radiance[k] * pi } else { est.solution.radiosity[k] })
+            .collect();
+        let scale = 1.0 / settings.gather_rays as f64;
+        let unseen_hits = &self.unseen_hits;
+        self.samples.par_iter_mut().for_each(|s| {
+            let unseen: DVec3 = unseen_hits[s.unseen.0 as usize..s.unseen.1 as usize].iter().map(|&k| mixed[k as usize]).sum();
+            s.h_ind = s.gathered_photo + unseen * scale;
+        });
+    }
+}
+
+/// What EQ2 gives each surface when the light to reconstruct is known to be
+/// `distribution` (the same samples, textures and indirect light as a
+/// reconstruction uses): the reflectances a reconstruction would find with
+/// a perfect goniometric, per surface (median over its samples). For
+/// measuring a reconstruction when no reflectance ground truth exists.
+pub fn reflectances_given(scene: &Scene, distribution: &Distribution, photo: &Image, tracer: &Tracer, settings: &GonioSettings) -> Result<HashMap<u32, DVec3>> {
+    let mut ev = Evidence::gather(scene, photo, tracer, settings)?;
+    let mut light = ev.unit.clone();
+    light.distribution = distribution.clone();
+    ev.update_indirect(Some(&light), tracer, settings);
+    let mut by_surface: HashMap<u32, Vec<DVec3>> = HashMap::new();
+    for s in &ev.samples {
+        let irradiance = distribution.intensity(direction_at(s.v, s.h)) * s.g + s.e_known + s.h_ind;
+        if irradiance.min_element() > 0.0 {
+            by_surface.entry(s.surface).or_default().push(s.b / irradiance);
+        }
+    }
+    Ok(by_surface.into_iter().map(|(k, v)| (k, median_rgb(&v))).collect())
+}
+
 /// Reconstructs the goniometric of the scene's `"reconstruct"` light from
 /// `photo` (radiance in the scene's units).
 pub fn reconstruct(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &GonioSettings) -> Result<Reconstruction> {
     let t0 = Instant::now();
-    let Some(index) = light_to_reconstruct(scene)? else {
-        return Err(Error::key(&scene.file, "light", "no light has intensity = \"reconstruct\""));
-    };
-    if scene.reflectances.is_empty() {
-        return Err(Error::key(&scene.file, format!("light[{index}].intensity"), "\"reconstruct\" needs at least one [[reflectance]]"));
-    }
-    // The unknown light at unit intensity gives each sample's geometry term.
-    let mut unit_scene = scene.clone();
-    unit_scene.lights[index].intensity = Intensity::Uniform(DVec3::ONE);
-    let unit = LightSource::from_scene(&unit_scene, index)?;
-    let position = unit.position;
-    let others: Vec<LightSource> =
-        (0..scene.lights.len()).filter(|&j| j != index && scene.lights[j].real).map(|j| LightSource::from_scene(scene, j)).collect::<Result<_>>()?;
-
-    let patches = Patches::of_scene(scene, false, settings.patch_size);
+    let mut ev = Evidence::gather(scene, photo, tracer, settings)?;
     let grid = Grid::new(settings);
-    let cam = &scene.camera;
-    let level = settings.light_level;
-    let pi = std::f64::consts::PI;
-    let mut samples: Vec<Sample> = (0..cam.height)
-        .into_par_iter()
-        .flat_map_iter(|row| {
-            let hits = row_hits(cam, tracer, Layer::Real, row);
-            let mut out = Vec::new();
-            for (col, hit) in hits.iter().enumerate() {
-                let Some(hit) = hit else { continue };
-                let ray = cam.pixel_ray(col as u32, row);
-                let x = ray.origin + ray.direction * hit.t as f64;
-                // The hit normal faces the camera: a light behind the surface does not light what the photo shows.
-                let n = hit.normal.as_dvec3();
-                let seed = hash2((row as usize * cam.width as usize + col) as u64, 0x0060_1110);
-                let g = if (position - x).dot(n) > 0.0 {
-                    let d = unit.direct(tracer, Layer::Real, x, n, level, seed);
-                    (d.unoccluded * d.visibility).x
-                } else {
-                    0.0
-                };
-                let mut e_known = DVec3::ZERO;
-                for (j, l) in others.iter().enumerate() {
-                    if (l.position - x).dot(n) > 0.0 {
-                        let d = l.direct(tracer, Layer::Real, x, n, level, hash2(seed, j as u64 + 1));
-                        e_known += d.unoccluded * d.visibility;
-                    }
-                }
-                let b = photo.get(col as u32, row).as_dvec3() * pi;
-                if !b.is_finite() || (g <= 0.0 && e_known == DVec3::ZERO) {
-                    continue;
-                }
-                let (v, h) = angles((x - position).normalize_or_zero());
-                let area = (hit.t as f64).powi(2) / n.dot(ray.direction).abs().max(0.05);
-                let pixel = row * cam.width + col as u32;
-                out.push(Sample {
-                    surface: hit.surface,
-                    v,
-                    h,
-                    g,
-                    e_known,
-                    b,
-                    h_ind: DVec3::ZERO,
-                    pixel,
-                    x,
-                    n,
-                    area,
-                    gathered_photo: DVec3::ZERO,
-                    unseen: (0, 0),
-                });
-            }
-            out
-        })
-        .collect();
-    let texture_edges = remove_texture(&mut samples, cam.width, cam.height, settings.texture_edge);
-    let mixed = mixed_pixels(&samples, cam.width, cam.height);
-    let mut keep = mixed.iter().map(|m| !m);
-    samples.retain(|_| keep.next().unwrap_or(false));
-    let unseen_hits = gather_from_photo(scene, tracer, &patches, photo, &mut samples, settings.gather_rays);
-    if !samples.iter().any(|s| s.g > 0.0) {
-        return Err(Error::key(&scene.file, format!("light[{index}].position"), "the photo shows no surface this light can reach: nothing to reconstruct from"));
-    }
-
-    let transport = Transport::hierarchical(&patches, tracer, Layer::Real, DEFAULT_LINK_EPSILON);
-    let photo_patches = PhotoPatches::measure(cam, tracer, &patches, photo);
-    let known_rho: HashMap<u32, DVec3> = scene.reflectances.iter().map(|k| (k.surface as u32, k.rgb)).collect();
-    let mut surfaces: Vec<u32> = samples.iter().map(|s| s.surface).collect();
+    let mut surfaces: Vec<u32> = ev.samples.iter().map(|s| s.surface).collect();
     surfaces.sort_unstable();
     surfaces.dedup();
-    let direct_known: Vec<DVec3> = {
-        let per = direct_irradiance(&patches, &others, tracer, Layer::Real, settings.light_level);
-        (0..patches.patch_count()).map(|k| per.iter().map(|p| p[k]).sum()).collect()
-    };
-
-    let mut light = unit.clone();
+    let mut light = ev.unit.clone();
     let mut table: Option<Vec<DVec3>> = None;
     let (mut rounds, mut change) = (0, f64::INFINITY);
     let mut result = None;
@@ -935,24 +1001,8 @@ pub fn reconstruct(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &Gon
         rounds += 1;
         // The indirect light: the photo's radiosity where it sees a patch,
         // the model's (with the current reconstruction) where it does not.
-        let direct: Vec<DVec3> = match &table {
-            None => direct_known.clone(),
-            Some(_) => {
-                let per = direct_irradiance(&patches, std::slice::from_ref(&light), tracer, Layer::Real, settings.light_level);
-                direct_known.iter().zip(&per[0]).map(|(a, b)| *a + *b).collect()
-            }
-        };
-        let est = estimate_reflectances(&patches, &transport, &direct, &photo_patches, &known_rho, EstimateSettings::default());
-        let mixed: Vec<DVec3> = (0..patches.patch_count())
-            .map(|k| if photo_patches.pixels[k] > 0 { photo_patches.radiance[k] * pi } else { est.solution.radiosity[k] })
-            .collect();
-        let scale = pi / settings.gather_rays as f64;
-        samples.par_iter_mut().for_each(|s| {
-            let unseen: DVec3 = unseen_hits[s.unseen.0 as usize..s.unseen.1 as usize].iter().map(|&k| mixed[k as usize]).sum();
-            s.h_ind = s.gathered_photo + unseen * (scale / pi);
-        });
-
-        let (fit, rho) = propagate(&grid, &samples, &known_rho, &surfaces);
+        ev.update_indirect(table.as_ref().map(|_| &light), tracer, settings);
+        let (fit, rho) = propagate(&grid, &ev.samples, &ev.known_rho, &surfaces);
         let values = fit.values();
         let peak = values.iter().map(|v| v.max_element()).fold(0.0, f64::max).max(1e-300);
         change = match &table {
@@ -981,8 +1031,8 @@ pub fn reconstruct(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &Gon
     let total: f64 = (0..grid.nv).map(|vi| grid.solid_angle(vi)).sum::<f64>() * grid.nh as f64;
     let covered: f64 = (0..grid.len()).filter(|&k| known[k]).map(|k| grid.solid_angle(k % grid.nv)).sum();
     Ok(Reconstruction {
-        light: index,
-        position,
+        light: ev.index,
+        position: ev.unit.position,
         colour,
         profile,
         known,
@@ -991,9 +1041,9 @@ pub fn reconstruct(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &Gon
         reflectances,
         rounds,
         change,
-        samples: samples.len(),
-        texture_edges,
-        patches: patches.patch_count(),
+        samples: ev.samples.len(),
+        texture_edges: ev.texture_edges,
+        patches: ev.patches.patch_count(),
         seconds: t0.elapsed().as_secs_f64(),
     })
 }
