@@ -10,6 +10,12 @@
 //! least squares per direction node, which averages a texture the same way
 //! while resolving the distribution as finely as the photo does.
 //!
+//! Before that, each surface's texture is divided out ([`remove_texture`]:
+//! a [[reflectance]] is a surface's mean, and a checkerboard breaks "one
+//! reflectance per polygon" at every pixel), pixels that mix surfaces or
+//! shadow sides are left out, and each pixel's indirect light is gathered
+//! from the photo itself ([`crate::gather`]).
+//!
 //! Surfaces of unknown reflectance are taken in order of the smallest
 //! angle to a known direction (EQ2 with the nearby intensity assumed; its
 //! samples ranked by that angle times the share of their light the
