@@ -10,8 +10,8 @@
 //! least squares per direction node, which averages a texture the same way
 //! while resolving the distribution as finely as the photo does.
 //!
-//! Before that, each surface's texture is divided out ([`remove_texture`]:
-//! a [[reflectance]] is a surface's mean, and a checkerboard breaks "one
+//! Before that, each surface's texture is divided out (`remove_texture`:
+//! a `[[reflectance]]` is a surface's mean, and a checkerboard breaks "one
 //! reflectance per polygon" at every pixel), pixels that mix surfaces or
 //! shadow sides are left out, and each pixel's indirect light is gathered
 //! from the photo itself ([`crate::gather`]).

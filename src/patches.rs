@@ -153,7 +153,7 @@ fn compute_gauss_legendre(n: usize) -> (Vec<f64>, Vec<f64>) {
 }
 
 /// Where an element lies inside its root, in the root's parameters:
-/// quads (s, t) ∈ [0,1]², triangles barycentric-style (s, t) with s+t ≤ 1.
+/// quads (s, t) ∈ \[0,1\]², triangles barycentric-style (s, t) with s+t ≤ 1.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Region {
     Quad { s0: f64, s1: f64, t0: f64, t1: f64 },

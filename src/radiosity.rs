@@ -134,7 +134,7 @@ impl<'a> ShaftTest<'a> {
 }
 
 /// The root elements among `candidates` that may block light between `p`
-/// and `q` (see [`ShaftTest`]). Empty means certainly visible. A child
+/// and `q` (see `ShaftTest`). Empty means certainly visible. A child
 /// pair's shaft lies inside its parents', so their occluders are a subset.
 pub fn occluders_between(patches: &Patches, layer: Layer, p: &Element, q: &Element, candidates: &[u32]) -> Vec<u32> {
     if candidates.is_empty() {
@@ -230,7 +230,7 @@ impl Transport {
     }
 
     /// Hierarchical radiosity: starting from every pair of root elements,
-    /// refined (see [`refine`]) until one form factor represents each
+    /// refined (see `refine`) until one form factor represents each
     /// exchange to within `epsilon`.
     pub fn hierarchical(patches: &Patches, tracer: &Tracer, layer: Layer, epsilon: f64) -> Transport {
         let links: Vec<Link> = patches
@@ -472,7 +472,7 @@ fn refine(patches: &Patches, tracer: &Tracer, layer: Layer, epsilon: f64, p: u32
 
 /// Direct irradiance per patch from each light (before the light's scale):
 /// the mean over 2×2 points of unoccluded irradiance × visibility, with
-/// `2^level` shadow rays per point to rect lights. Indexed [light][patch].
+/// `2^level` shadow rays per point to rect lights. Indexed `[light][patch]`.
 pub fn direct_irradiance(patches: &Patches, lights: &[LightSource], tracer: &Tracer, layer: Layer, level: usize) -> Vec<Vec<DVec3>> {
     lights
         .iter()
