@@ -2,7 +2,7 @@
 //! parsed, evaluated with bilinear interpolation in the two angles, and
 //! written back so that a profile round-trips.
 //!
-//! Accepted: TILT=NONE, TILT=INCLUDE and TILT=<file>; photometric types C, B
+//! Accepted: TILT=NONE, TILT=INCLUDE and `TILT=<file>`; photometric types C, B
 //! and A; the horizontal symmetries 0, 0-90, 0-180, 90-270 and 0-360 (type
 //! C) or 0-90 and -90-90 (types A, B); keyword lines with or without a space
 //! after the bracket; values split across lines in any way, separated by

@@ -226,13 +226,13 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     })
 }
 
-/// sRGB transfer function, encoding: linear [0,1] → encoded [0,1] (clamped).
+/// sRGB transfer function, encoding: linear \[0,1\] → encoded \[0,1\] (clamped).
 pub fn linear_to_srgb(c: f32) -> f32 {
     let c = if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 };
     if c <= 0.003_130_8 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 }
 }
 
-/// sRGB transfer function, decoding: encoded [0,1] → linear.
+/// sRGB transfer function, decoding: encoded \[0,1\] → linear.
 pub fn srgb_to_linear(c: f32) -> f32 {
     if c <= 0.040_45 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
 }
