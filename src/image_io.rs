@@ -222,6 +222,10 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     })();
     result.map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
+        // Writing, "not found" means the folder: say so.
+        if e.kind() == std::io::ErrorKind::NotFound && !dir.is_dir() {
+            return Error::file(path, format!("cannot write: the folder {} does not exist", dir.display()));
+        }
         Error::io(path, &e)
     })
 }

@@ -287,7 +287,29 @@ fn main() -> ExitCode {
     }
 }
 
+/// The files a command will write (folders it creates itself are not here).
+fn output_files(command: &Command) -> Vec<&Path> {
+    let mut out: Vec<&Path> = Vec::new();
+    match command {
+        Command::Ids { output, exr, .. } => out.extend([Some(output.as_path()), exr.as_deref()].into_iter().flatten()),
+        Command::Render { output, png, .. } => out.extend([Some(output.as_path()), png.as_deref()].into_iter().flatten()),
+        Command::Hdr { output, response, .. } => out.extend([Some(output.as_path()), response.as_deref()].into_iter().flatten()),
+        Command::Radiosity { output, mesh, .. } => out.extend([Some(output.as_path()), mesh.as_deref()].into_iter().flatten()),
+        Command::Gonio { output, plot, .. } => out.extend([Some(output.as_path()), plot.as_deref()].into_iter().flatten()),
+        Command::Motion { debug_blocks, .. } => out.extend(debug_blocks.as_deref()),
+        Command::Info { .. } | Command::Compare { .. } | Command::Sweep { .. } => {}
+    }
+    out
+}
+
 fn run(cli: Cli) -> Result<()> {
+    // Refuse an output whose folder is missing before any work, not after it.
+    for file in output_files(&cli.command) {
+        let dir = file.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        if !dir.is_dir() {
+            bail!(arlux::Error::file(file, format!("cannot write: the folder {} does not exist", dir.display())));
+        }
+    }
     match cli.command {
         Command::Info { scene, variant, json } => info(&scene, variant.as_deref(), json),
         Command::Ids { scene, output, exr, with_virtual, variant } => {

@@ -386,3 +386,22 @@ fn timings_add_up_to_the_wall_time_on_every_command() {
         assert!(memory > 1.0, "{}: peak memory {memory} MB", c[0]);
     }
 }
+
+#[test]
+fn an_output_in_a_missing_folder_is_refused_before_any_work() {
+    let scene = format!("{DESK}/scene.toml");
+    for args in [
+        vec!["render", scene.as_str(), "--variant", "box_floor_a", "-o", "/nonexistent-arlux/a.exr"],
+        vec!["render", scene.as_str(), "--variant", "box_floor_a", "-o", "a.exr", "--png", "/nonexistent-arlux/a.png"],
+        vec!["radiosity", scene.as_str(), "-o", "/nonexistent-arlux/m.exr"],
+        vec!["ids", scene.as_str(), "-o", "/nonexistent-arlux/ids.png"],
+    ] {
+        let run = arlux(&args);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains("/nonexistent-arlux") && stderr.contains("does not exist"), "{stderr}");
+        // Refused up front: nothing was rendered or reported.
+        assert!(run.stdout.is_empty(), "{args:?} printed {}", String::from_utf8_lossy(&run.stdout));
+    }
+    assert!(!std::path::Path::new("a.exr").exists(), "nothing written");
+}
