@@ -648,6 +648,8 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
     // is coloured (a brown and cream checkerboard steps differently in
     // each channel), so each channel is integrated on its own.
     let mut pairs: Vec<(u32, u32)> = Vec::new();
+    // 0: rightwards, 1: downwards.
+    let mut directions: Vec<usize> = Vec::new();
     let mut jumps: Vec<[f64; 3]> = Vec::new();
     let mut is_edge: Vec<bool> = Vec::new();
     // The pair leaving each pixel rightwards and downwards, if any.
@@ -671,6 +673,7 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
             let jump = [lq[0] - lp[0], lq[1] - lp[1], lq[2] - lp[2]];
             leaving[i][dir] = pairs.len() as u32;
             pairs.push((i as u32, j));
+            directions.push(dir);
             // An edge where any channel steps; there every channel keeps its own step.
             is_edge.push(jump.iter().any(|x| x.abs() > edge));
             jumps.push(jump);
@@ -682,8 +685,7 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
     // after the edge in the same direction.
     let mut arriving = vec![[u32::MAX; 2]; samples.len()];
     for (k, &(_, j)) in pairs.iter().enumerate() {
-        let dir = if samples[j as usize].pixel == samples[pairs[k].0 as usize].pixel + 1 { 0 } else { 1 };
-        arriving[j as usize][dir] = k as u32;
+        arriving[j as usize][directions[k]] = k as u32;
     }
     // A texture edge the camera's filter (or the texture's own) spreads
     // over a few pixels steps less than `edge` per pixel: a pair is also an
@@ -694,8 +696,7 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
             if is_edge[k] {
                 return false;
             }
-            let (i, j) = pairs[k];
-            let dir = if samples[j as usize].pixel == samples[i as usize].pixel + 1 { 0 } else { 1 };
+            let ((i, j), dir) = (pairs[k], directions[k]);
             let (before, after) = (arriving[i as usize][dir], leaving[j as usize][dir]);
             if before == u32::MAX || after == u32::MAX {
                 return false;
@@ -719,7 +720,7 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
             continue;
         }
         edges += 1;
-        let dir = if samples[j as usize].pixel == samples[i as usize].pixel + 1 { 0 } else { 1 };
+        let dir = directions[k];
         // Walk past the other steps of the same edge (an anti-aliased edge
         // spans two or three pixels) to the first plain pair on each side.
         let first_plain = |mut k: u32, next: &dyn Fn(u32) -> u32| -> Option<usize> {
@@ -757,7 +758,11 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
     for k in 0..samples.len() {
         let (sum, area) = mean[&samples[k].surface];
         let texture = texture_at(k) * area / sum.max(DVec3::splat(1e-300));
-        samples[k].b /= texture;
+        // A pathological chain of jumps (black pixels beside bright ones)
+        // could overflow: such a pixel keeps its value rather than lose it.
+        if texture.is_finite() && texture.min_element() > 0.0 {
+            samples[k].b /= texture;
+        }
     }
     edges
 }

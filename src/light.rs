@@ -172,7 +172,7 @@ impl LightSource {
                 Distribution::Ies { profile: Box::new(profile.clone()), axis: *direction, reference: *reference, rgb: *rgb * tilt }
             }
             Intensity::Reconstruct => {
-                return Err(Error::key(&scene.file, key("intensity"), "this light's goniometric must be reconstructed from the photo first (gonio::reconstruct)"));
+                return Err(Error::key(&scene.file, key("intensity"), "\"reconstruct\": the goniometric must be recovered from the photo before this light can be used (arlux gonio, render and radiosity do it)"));
             }
         };
         let grid = match emitter {

@@ -807,15 +807,13 @@ fn radiosity_cmd(
     }
     let mut times = StageTimes::default();
     let scene = times.time("load", || load(path, None))?;
-    let mut photo = times.time("read photo", || scene.load_photo())?;
     let tracer = times.time("tracer", || scene.build_tracer())?;
-    if scene.photo_is_relative() {
-        let base = ModelSettings::default();
-        match times.time("bracket scale", || arlux::render::bracket_scale_cached(&scene, &photo, &tracer, &base, arlux::render::fine_patch_size(&scene))) {
-            Some(s) => photo.pixels.iter_mut().for_each(|p| *p *= s as f32),
-            None => eprintln!("warning: the photo comes from brackets and no reflectance is known: radiance is relative"),
-        }
-    }
+    let photo = photo_in_units(&scene, &tracer, &mut times)?;
+    // A light to reconstruct is recovered first, as `render` does.
+    let scene = match arlux::gonio::light_to_reconstruct(&scene)? {
+        Some(_) => times.time("goniometric", || arlux::render::reconstruct_cached(&scene, &photo, &tracer))?,
+        None => scene,
+    };
     let settings = ModelSettings {
         patch_size,
         transport: if full { TransportMethod::Full } else { TransportMethod::Hierarchical { epsilon } },

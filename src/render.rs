@@ -487,7 +487,7 @@ pub fn fine_patch_size(scene: &Scene) -> f64 {
 /// `scene` with its light to reconstruct recovered from `photo`
 /// ([`crate::gonio::reconstruct`]), through a cache next to the scene keyed
 /// by the scene file, its meshes, the photo's files and the settings.
-fn reconstruct_cached(scene: &Scene, photo: &Image, tracer: &crate::trace::Tracer) -> Result<Scene> {
+pub fn reconstruct_cached(scene: &Scene, photo: &Image, tracer: &crate::trace::Tracer) -> Result<Scene> {
     let settings = crate::gonio::GonioSettings::default();
     let mut files: Vec<std::path::PathBuf> = vec![scene.file.clone()];
     files.extend(scene.surfaces.iter().map(|s| s.mesh.clone()));

@@ -91,8 +91,10 @@ pub struct SweepRow {
     pub seconds: f64,
     /// Against the reference (a motion: the mean over its poses with one).
     pub rmse: f64,
-    pub relative_rmse: f64,
-    pub psnr_srgb_db: f64,
+    /// None where a reference is black (relative error undefined) or an
+    /// image equals its reference (PSNR infinite).
+    pub relative_rmse: Option<f64>,
+    pub psnr_srgb_db: Option<f64>,
     /// Images compared.
     pub compared: usize,
     pub pareto: bool,
@@ -189,8 +191,8 @@ pub fn run(scene: &Scene, target: &Target, grid: &[SweepSettings], repeats: usiz
             stages,
             seconds,
             rmse: comparisons.iter().map(|c| c.rmse).sum::<f64>() / n,
-            relative_rmse: comparisons.iter().map(|c| c.relative_rmse.unwrap_or(f64::NAN)).sum::<f64>() / n,
-            psnr_srgb_db: comparisons.iter().map(|c| c.psnr_srgb_db.unwrap_or(f64::INFINITY)).sum::<f64>() / n,
+            relative_rmse: comparisons.iter().map(|c| c.relative_rmse).sum::<Option<f64>>().map(|s| s / n),
+            psnr_srgb_db: comparisons.iter().map(|c| c.psnr_srgb_db).sum::<Option<f64>>().map(|s| s / n),
             compared: comparisons.len(),
             pareto: false,
         };
@@ -215,7 +217,8 @@ pub fn mark_pareto(rows: &mut [SweepRow]) {
 }
 
 /// The rows as CSV: settings, seconds per stage (the union of stages, in
-/// first-seen order), total seconds, error figures, Pareto flag.
+/// first-seen order), total seconds, error figures (empty where undefined),
+/// Pareto flag.
 pub fn to_csv(rows: &[SweepRow], reference: &str) -> String {
     let mut names: Vec<String> = Vec::new();
     for r in rows {
@@ -246,9 +249,16 @@ pub fn to_csv(rows: &[SweepRow], reference: &str) -> String {
             let v = r.stages.iter().find(|(m, _)| m == n).map_or(0.0, |x| x.1);
             out.push_str(&format!(",{v:.6}"));
         }
+        let cell = |v: Option<f64>, digits: usize| v.map_or(String::new(), |v| format!("{v:.digits$}"));
         out.push_str(&format!(
-            ",{:.6},{:.8},{:.8},{:.4},{},{},{}\n",
-            r.seconds, r.rmse, r.relative_rmse, r.psnr_srgb_db, r.compared, reference, r.pareto as u8
+            ",{:.6},{:.8},{},{},{},{},{}\n",
+            r.seconds,
+            r.rmse,
+            cell(r.relative_rmse, 8),
+            cell(r.psnr_srgb_db, 4),
+            r.compared,
+            reference,
+            r.pareto as u8
         ));
     }
     out
