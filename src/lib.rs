@@ -22,6 +22,7 @@ pub mod model;
 pub mod patches;
 pub mod pda;
 pub mod radiosity;
+pub mod relight;
 pub mod render;
 pub mod image_io;
 pub mod scene;

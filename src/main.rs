@@ -125,8 +125,9 @@ enum Command {
         /// Also each layer as its own EXR in this folder.
         #[arg(long)]
         aov: Option<PathBuf>,
-        /// Rendering method.
-        #[arg(long, default_value = "pda", value_parser = ["pda"])]
+        /// Rendering method: pda (per-pixel differential rendering, Grosch)
+        /// or texture (shadow-free textures × B/D, Loscos).
+        #[arg(long, default_value = "pda", value_parser = ["pda", "texture"])]
         method: String,
         /// How real pixels take the change: ratio (photo × L_with/L_without) or additive.
         #[arg(long, default_value = "ratio", value_parser = ["ratio", "additive"])]
@@ -322,7 +323,7 @@ fn run(cli: Cli) -> Result<()> {
             output,
             png,
             aov,
-            method: _,
+            method,
             composite,
             patch_size,
             virtual_patch_size,
@@ -341,7 +342,11 @@ fn run(cli: Cli) -> Result<()> {
                 bail!("--virtual-patch-size must be a positive number of metres, not {virtual_patch_size}");
             }
             settings.virtual_patch_size = virtual_patch_size;
-            render_cmd(&scene, variant.as_deref(), &output, png.as_deref(), aov.as_deref(), &settings, json)
+            let method = match method.as_str() {
+                "texture" => Method::Texture(arlux::relight::TextureSettings { patch_size, link_epsilon: epsilon, ..Default::default() }),
+                _ => Method::Pda(settings),
+            };
+            render_cmd(&scene, variant.as_deref(), &output, png.as_deref(), aov.as_deref(), &method, json)
         }
         Command::Hdr { brackets, output, response } => hdr_cmd(&brackets, &output, response.as_deref()),
         Command::Motion { scene, motion, output, debug_blocks, json } => motion_cmd(&scene, &motion, &output, debug_blocks.as_deref(), json),
@@ -930,15 +935,13 @@ fn render_settings(
     })
 }
 
-fn render_cmd(
-    path: &Path,
-    variant: Option<&str>,
-    output: &Path,
-    png: Option<&Path>,
-    aov: Option<&Path>,
-    settings: &arlux::render::RenderSettings,
-    as_json: bool,
-) -> Result<()> {
+/// How `render` renders.
+enum Method {
+    Pda(arlux::render::RenderSettings),
+    Texture(arlux::relight::TextureSettings),
+}
+
+fn render_cmd(path: &Path, variant: Option<&str>, output: &Path, png: Option<&Path>, aov: Option<&Path>, method: &Method, as_json: bool) -> Result<()> {
     use arlux::model::StageTimes;
     let mut times = StageTimes::default();
     let base = times.time("load", || load(path, None))?;
@@ -948,7 +951,10 @@ fn render_cmd(
     };
     let reference = variant.and_then(|v| base.variant(v).ok()).and_then(|v| v.reference.clone());
     let photo = times.time("read photo", || scene.load_photo())?;
-    let out = arlux::render::render(&scene, &photo, settings, &mut times)?;
+    let out = match method {
+        Method::Pda(settings) => arlux::render::render(&scene, &photo, settings, &mut times)?,
+        Method::Texture(settings) => arlux::relight::render_texture(&scene, &photo, settings, &mut times)?,
+    };
     let c = &out.composite;
     times.time("write", || -> Result<()> {
         let (w, h) = (photo.width, photo.height);
@@ -969,6 +975,9 @@ fn render_cmd(
                 image_io::write_exr(&dir.join(format!("{name}.exr")), w, h, &[image_io::ExrLayer::Rgb("", img)])?;
             }
             image_io::write_exr(&dir.join("alpha.exr"), w, h, &[image_io::ExrLayer::Channel("Y", &c.alpha)])?;
+            if let Some((_, unoccluded, _)) = &out.texture {
+                image_io::write_exr(&dir.join("unoccluded_texture.exr"), w, h, &[image_io::ExrLayer::Rgb("", unoccluded)])?;
+            }
         }
         Ok(())
     })?;
@@ -992,9 +1001,16 @@ fn render_cmd(
         "patches": out.patches,
         "patch_size_m": out.patch_size,
         "links": out.links,
-        "rays": out.rays,
+        "method": if out.texture.is_some() { "texture" } else { "pda" },
+        "rays": out.texture.is_none().then_some(out.rays),
         "pda_bytes": out.pda_bytes,
         "pda_bytes_per_pixel": out.pda_bytes as f64 / out.pda_pixels.max(1) as f64,
+        "texture": out.texture.as_ref().map(|(s, _, change)| json!({
+            "refinement_rounds": s.rounds, "splits": s.splits, "splits_undone": s.undone, "leaves": s.leaves,
+            "occluded_leaves": s.occluded, "corrected_from_frontier": s.by_frontier,
+            "corrected_from_user_reference": s.by_user_reference, "uncorrected": s.uncorrected,
+            "texels": s.texels, "texture_bytes": s.texture_bytes, "light_change_seconds": change.as_secs_f64(),
+        })),
         "error_against_reference": error,
         "left_out": out.left_out,
         "stages": stages_json(&times),
@@ -1004,19 +1020,35 @@ fn render_cmd(
         say!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
-    say!(
-        "{} pixels, {} copied from the photo unchanged; {} patches ({:.2} m), {} form factors; {} rays; pixel data {:.1} MB ({:.0} bytes per pixel)",
-        out.pda_pixels,
-        c.copied,
-        out.patches,
-        out.patch_size,
-        out.links,
-        out.rays,
-        out.pda_bytes as f64 / 1e6,
-        out.pda_bytes as f64 / out.pda_pixels.max(1) as f64
-    );
+    match &out.texture {
+        None => say!(
+            "{} pixels, {} copied from the photo unchanged; {} patches ({:.2} m), {} form factors; {} rays; pixel data {:.1} MB ({:.0} bytes per pixel)",
+            out.pda_pixels,
+            c.copied,
+            out.patches,
+            out.patch_size,
+            out.links,
+            out.rays,
+            out.pda_bytes as f64 / 1e6,
+            out.pda_bytes as f64 / out.pda_pixels.max(1) as f64
+        ),
+        Some((s, _, change)) => {
+            say!(
+                "texture path: {} leaves from {:.2} m patches after {} refinement rounds ({} splits, {} undone: no visibility change); {} form factors",
+                out.patches, out.patch_size, s.rounds, s.splits, s.undone, out.links
+            );
+            say!(
+                "{} seen leaves in some real shadow: {} corrected from a frontier leaf, {} from the user's [[texture_reference]], {} left as Step 1 made them",
+                s.occluded, s.by_frontier, s.by_user_reference, s.uncorrected
+            );
+            say!("textures {:.1} MB ({} texels); the light change alone (radiosity step + display): {:.3} s (Loscos: 0.8 s)", s.texture_bytes as f64 / 1e6, s.texels, change.as_secs_f64());
+        }
+    }
     if c.ratio_fallbacks > 0 || c.clamped > 0 {
-        say!("{} samples fell back from the ratio to the additive form (dark before), {} were clamped at zero", c.ratio_fallbacks, c.clamped);
+        match out.texture {
+            None => say!("{} samples fell back from the ratio to the additive form (dark before), {} were clamped at zero", c.ratio_fallbacks, c.clamped),
+            Some(_) => say!("{} pixels show the radiosity B/π: the photo saw them unlit (D ≈ 0)", c.ratio_fallbacks),
+        }
     }
     if let Some(e) = error {
         say!(

@@ -227,7 +227,19 @@ impl Patches {
         p
     }
 
+    /// [`Patches::of_scene_with`] with the real leaves in `marks` split once
+    /// more (the meshes are otherwise identical: same roots, same order).
+    pub fn of_scene_refined(scene: &crate::scene::Scene, with_virtual: bool, target_size: f64, virtual_size: f64, marks: &SplitMarks) -> Patches {
+        let mut p = Self::of_scene_two_sided_marked(scene, with_virtual, target_size, virtual_size, marks);
+        p.face_open_surfaces_towards(scene.camera.position);
+        p
+    }
+
     fn of_scene_two_sided(scene: &crate::scene::Scene, with_virtual: bool, target_size: f64, virtual_size: f64) -> Patches {
+        Self::of_scene_two_sided_marked(scene, with_virtual, target_size, virtual_size, &SplitMarks::new())
+    }
+
+    fn of_scene_two_sided_marked(scene: &crate::scene::Scene, with_virtual: bool, target_size: f64, virtual_size: f64, marks: &SplitMarks) -> Patches {
         let virt = if with_virtual { scene.virtual_world_surfaces() } else { Vec::new() };
         let inputs: Vec<SurfaceInput> = scene
             .surfaces
@@ -235,7 +247,8 @@ impl Patches {
             .enumerate()
             .map(|(i, s)| SurfaceInput { surface: i as u32, triangles: &s.triangles, is_virtual: false })
             .collect();
-        let mut p = Patches::build(&inputs, target_size);
+        let mut p = Patches::build(&[], target_size);
+        p.append_marked(&inputs, target_size, marks);
         if !virt.is_empty() {
             let virt_inputs: Vec<SurfaceInput> = virt.iter().map(|(id, t)| SurfaceInput { surface: *id, triangles: t, is_virtual: true }).collect();
             p.append(&virt_inputs, virtual_size);
@@ -285,6 +298,12 @@ impl Patches {
 
     /// Meshes more surfaces into this mesh, after what it holds.
     pub fn append(&mut self, inputs: &[SurfaceInput], target_size: f64) {
+        self.append_marked(inputs, target_size, &SplitMarks::new());
+    }
+
+    /// [`Patches::append`], splitting further every element that holds a
+    /// marked leaf (its root and centre) and is at least as large.
+    fn append_marked(&mut self, inputs: &[SurfaceInput], target_size: f64, marks: &SplitMarks) {
         let mut weld: HashMap<(u32, [i64; 4], [i64; 3]), u32> = HashMap::new();
         for input in inputs {
             self.surface_is_virtual.insert(input.surface, input.is_virtual);
@@ -311,7 +330,8 @@ impl Patches {
                 for t in tris {
                     self.root_of_triangle.insert((input.surface, t), root);
                 }
-                self.subdivide(root, target_size, 0, &mut weld);
+                let ordinal = self.roots.len() as u32 - 1;
+                self.subdivide(root, target_size, 0, &mut weld, marks.get(&ordinal).map_or(&[][..], |m| &m[..]));
             }
         }
     }
@@ -338,9 +358,11 @@ impl Patches {
         (self.elements.len() - 1) as u32
     }
 
-    fn subdivide(&mut self, e: u32, target: f64, depth: u32, weld: &mut HashMap<(u32, [i64; 4], [i64; 3]), u32>) {
+    fn subdivide(&mut self, e: u32, target: f64, depth: u32, weld: &mut HashMap<(u32, [i64; 4], [i64; 3]), u32>, marks: &[(DVec2, f64)]) {
         let el = self.elements[e as usize].clone();
-        if el.shape.size() <= target || depth >= 40 {
+        let size = el.shape.size();
+        let marked = || marks.iter().any(|(st, s)| size >= s * (1.0 - 1e-9) && distance_outside(&el.region, *st) <= 1e-12);
+        if (size <= target && !marked()) || depth >= 40 {
             let patch = self.patches.len() as u32;
             self.patches.push(e);
             self.elements[e as usize].patch = Some(patch);
@@ -361,37 +383,12 @@ impl Patches {
             self.patch_vertices.push(ids);
             return;
         }
-        let halves: [(Shape, Region); 2] = match (el.shape, el.region) {
-            (Shape::Quad { origin, u, v }, Region::Quad { s0, s1, t0, t1 }) => {
-                if u.length() >= v.length() {
-                    let (h, sm) = (0.5 * u, 0.5 * (s0 + s1));
-                    [
-                        (Shape::Quad { origin, u: h, v }, Region::Quad { s0, s1: sm, t0, t1 }),
-                        (Shape::Quad { origin: origin + h, u: h, v }, Region::Quad { s0: sm, s1, t0, t1 }),
-                    ]
-                } else {
-                    let (h, tm) = (0.5 * v, 0.5 * (t0 + t1));
-                    [
-                        (Shape::Quad { origin, u, v: h }, Region::Quad { s0, s1, t0, t1: tm }),
-                        (Shape::Quad { origin: origin + h, u, v: h }, Region::Quad { s0, s1, t0: tm, t1 }),
-                    ]
-                }
-            }
-            (Shape::Tri(p), Region::Tri(q)) => {
-                // Bisect the longest edge (i, j); k is the opposite corner.
-                let lens = [(p[1] - p[0]).length(), (p[2] - p[1]).length(), (p[0] - p[2]).length()];
-                let i = (0..3).max_by(|&a, &b| lens[a].total_cmp(&lens[b])).unwrap();
-                let (j, k) = ((i + 1) % 3, (i + 2) % 3);
-                let (m, mq) = (0.5 * (p[i] + p[j]), 0.5 * (q[i] + q[j]));
-                [(Shape::Tri([p[i], m, p[k]]), Region::Tri([q[i], mq, q[k]])), (Shape::Tri([m, p[j], p[k]]), Region::Tri([mq, q[j], q[k]]))]
-            }
-            _ => unreachable!("an element's region matches its shape"),
-        };
+        let halves = split(el.shape, el.region);
         let a = self.push_element(halves[0].0, el.surface, el.root, Some(e), halves[0].1);
         let b = self.push_element(halves[1].0, el.surface, el.root, Some(e), halves[1].1);
         self.elements[e as usize].children = Some([a, b]);
-        self.subdivide(a, target, depth + 1, weld);
-        self.subdivide(b, target, depth + 1, weld);
+        self.subdivide(a, target, depth + 1, weld, marks);
+        self.subdivide(b, target, depth + 1, weld, marks);
     }
 
     pub fn patch_count(&self) -> usize {
@@ -406,11 +403,38 @@ impl Patches {
     /// (as the tracer reports them), with interpolation weights.
     pub fn locate(&self, surface: u32, triangle: u32, x: DVec3) -> Option<Location> {
         let root = *self.root_of_triangle.get(&(surface, triangle))?;
-        let r = &self.elements[root as usize];
-        let st = match r.shape {
+        Some(self.locate_in_root(root, x))
+    }
+
+    /// A root element's place in `roots` (the same in every mesh of a scene).
+    pub fn root_ordinal(&self, root: u32) -> u32 {
+        self.roots.binary_search(&root).expect("a root element") as u32
+    }
+
+    /// The root element holding triangle `triangle` of `surface`.
+    pub fn root_of(&self, surface: u32, triangle: u32) -> Option<u32> {
+        self.root_of_triangle.get(&(surface, triangle)).copied()
+    }
+
+    /// `x`'s parameters (s, t) in root element `root`.
+    pub fn root_params(&self, root: u32, x: DVec3) -> DVec2 {
+        match self.elements[root as usize].shape {
             Shape::Quad { origin, u, v } => plane_params(x - origin, u, v),
             Shape::Tri([a, b, c]) => plane_params(x - a, b - a, c - a),
-        };
+        }
+    }
+
+    /// The world point at parameters `st` of root element `root`.
+    pub fn root_point(&self, root: u32, st: DVec2) -> DVec3 {
+        match self.elements[root as usize].shape {
+            Shape::Quad { origin, u, v } => origin + u * st.x + v * st.y,
+            Shape::Tri([a, b, c]) => a + (b - a) * st.x + (c - a) * st.y,
+        }
+    }
+
+    /// The leaf of root `root` under world point `x` (in its plane).
+    pub fn locate_in_root(&self, root: u32, x: DVec3) -> Location {
+        let st = self.root_params(root, x);
         let mut e = root;
         while let Some([a, b]) = self.elements[e as usize].children {
             e = if distance_outside(&self.elements[a as usize].region, st) <= distance_outside(&self.elements[b as usize].region, st) { a } else { b };
@@ -430,7 +454,7 @@ impl Patches {
                 [(ids[0], l[0] / sum), (ids[1], l[1] / sum), (ids[2], l[2] / sum), (ids[0], 0.0)]
             }
         };
-        Some(Location { patch, weights })
+        Location { patch, weights }
     }
 
     /// Per-vertex values: the area-weighted mean of the patches sharing the vertex.
@@ -454,6 +478,50 @@ impl Patches {
     }
 }
 
+/// Which leaves to split once more: per root ordinal (its place in
+/// `roots`, stable across rebuilds, unlike its element index), (centre in
+/// the root's parameters, leaf size). See [`Patches::of_scene_refined`].
+pub type SplitMarks = HashMap<u32, Vec<(DVec2, f64)>>;
+
+/// An element's two halves: quads across their longer side, triangles
+/// across their longest edge.
+pub fn split(shape: Shape, region: Region) -> [(Shape, Region); 2] {
+    match (shape, region) {
+        (Shape::Quad { origin, u, v }, Region::Quad { s0, s1, t0, t1 }) => {
+            if u.length() >= v.length() {
+                let (h, sm) = (0.5 * u, 0.5 * (s0 + s1));
+                [
+                    (Shape::Quad { origin, u: h, v }, Region::Quad { s0, s1: sm, t0, t1 }),
+                    (Shape::Quad { origin: origin + h, u: h, v }, Region::Quad { s0: sm, s1, t0, t1 }),
+                ]
+            } else {
+                let (h, tm) = (0.5 * v, 0.5 * (t0 + t1));
+                [
+                    (Shape::Quad { origin, u, v: h }, Region::Quad { s0, s1, t0, t1: tm }),
+                    (Shape::Quad { origin: origin + h, u, v: h }, Region::Quad { s0, s1, t0: tm, t1 }),
+                ]
+            }
+        }
+        (Shape::Tri(p), Region::Tri(q)) => {
+            // Bisect the longest edge (i, j); k is the opposite corner.
+            let lens = [(p[1] - p[0]).length(), (p[2] - p[1]).length(), (p[0] - p[2]).length()];
+            let i = (0..3).max_by(|&a, &b| lens[a].total_cmp(&lens[b])).unwrap();
+            let (j, k) = ((i + 1) % 3, (i + 2) % 3);
+            let (m, mq) = (0.5 * (p[i] + p[j]), 0.5 * (q[i] + q[j]));
+            [(Shape::Tri([p[i], m, p[k]]), Region::Tri([q[i], mq, q[k]])), (Shape::Tri([m, p[j], p[k]]), Region::Tri([mq, q[j], q[k]]))]
+        }
+        _ => unreachable!("an element's region matches its shape"),
+    }
+}
+
+/// The centre of a region, in its root's parameters.
+pub fn region_centre(region: &Region) -> DVec2 {
+    match *region {
+        Region::Quad { s0, s1, t0, t1 } => DVec2::new(0.5 * (s0 + s1), 0.5 * (t0 + t1)),
+        Region::Tri(q) => (q[0] + q[1] + q[2]) / 3.0,
+    }
+}
+
 /// (s, t) with x ≈ s·u + t·v, by least squares in the plane of u and v.
 fn plane_params(x: DVec3, u: DVec3, v: DVec3) -> DVec2 {
     let (uu, uv, vv) = (u.dot(u), u.dot(v), v.dot(v));
@@ -472,7 +540,7 @@ fn barycentric(p: DVec2, q: [DVec2; 3]) -> [f64; 3] {
 
 /// How far `st` lies outside a region (0 inside): picks the child that
 /// holds a point, robustly at shared edges.
-fn distance_outside(region: &Region, st: DVec2) -> f64 {
+pub fn distance_outside(region: &Region, st: DVec2) -> f64 {
     match *region {
         Region::Quad { s0, s1, t0, t1 } => (s0 - st.x).max(st.x - s1).max(0.0) + (t0 - st.y).max(st.y - t1).max(0.0),
         Region::Tri(q) => barycentric(st, q).iter().map(|w| (-w).max(0.0)).sum(),

@@ -75,6 +75,9 @@ pub struct RenderOutput {
     pub links: usize,
     /// The room's patch size used, metres.
     pub patch_size: f64,
+    /// `--method texture`: what the preprocess did, the shadow-free texture
+    /// seen from the camera, and the time of the light change alone.
+    pub texture: Option<(crate::relight::TextureStats, Image, std::time::Duration)>,
 }
 
 /// Renders `scene` (an effective scene: a variant or motion pose of the
@@ -93,7 +96,7 @@ pub fn render(scene: &Scene, photo: &Image, settings: &RenderSettings, times: &m
             clamped: 0,
         };
         let left_out = vec!["everything: the scene shows the photo's state (no virtual object, lights as photographed)".to_string()];
-        return Ok(RenderOutput { composite, left_out, pda_bytes: 0, pda_pixels: n, rays: 0, patches: 0, links: 0, patch_size: 0.0 });
+        return Ok(RenderOutput { composite, left_out, pda_bytes: 0, pda_pixels: n, rays: 0, patches: 0, links: 0, patch_size: 0.0, texture: None });
     }
     Ok(Session::start(scene, photo, settings, times)?.into_output())
 }
@@ -157,28 +160,9 @@ impl Session {
         };
         let settings = RenderSettings { model: ModelSettings { patch_size, ..settings.model }, ..*settings };
         let tracer = times.time("tracer", || scene.build_tracer())?;
-        // Merged brackets are radiance up to a factor: fix it from the known reflectances.
-        let photo = if scene.photo_is_relative() {
-            match times.time("bracket scale", || bracket_scale_cached(scene, photo, &tracer, &settings.model, fine_patch_size(scene))) {
-                Some(s) => Image { pixels: photo.pixels.iter().map(|p| *p * s as f32).collect(), ..photo.clone() },
-                None => {
-                    left_out.push("absolute scale: the photo comes from brackets and no reflectance is known, so radiance is relative".to_string());
-                    photo.clone()
-                }
-            }
-        } else {
-            photo.clone()
-        };
         let given_lights = scene.lights.clone();
-        // A light to reconstruct is recovered from the photo first (Grosch §2.3).
-        let resolved;
-        let scene = match crate::gonio::light_to_reconstruct(scene)? {
-            Some(_) => {
-                resolved = times.time("goniometric", || reconstruct_cached(scene, &photo, &tracer))?;
-                &resolved
-            }
-            None => scene,
-        };
+        let (resolved, photo) = resolve_inputs(scene, photo, &tracer, &settings.model, times, &mut left_out)?;
+        let scene = resolved.as_ref().unwrap_or(scene);
         let model = Model::build(scene, &photo, &tracer, &settings.model, times)?;
         let scales_without: Vec<f64> = model.lights.iter().map(|l| l.photo_scale()).collect();
         let scales_with: Vec<f64> = model.lights.iter().map(|l| l.scale).collect();
@@ -347,6 +331,7 @@ impl Session {
             patch_size: self.settings.model.patch_size,
             composite: self.composite,
             left_out: self.left_out,
+            texture: None,
         }
     }
 }
@@ -471,6 +456,36 @@ fn final_gather(
             (v as usize, sum * (pi / dirs.len() as f64))
         })
         .collect()
+}
+
+/// What every method needs before it starts: the photo in absolute units
+/// (merged brackets are radiance up to a factor, fixed from the known
+/// reflectances) and a light to reconstruct recovered from it (Grosch
+/// §2.3). Returns the scene with the recovered light, if there was one.
+pub fn resolve_inputs(
+    scene: &Scene,
+    photo: &Image,
+    tracer: &crate::trace::Tracer,
+    settings: &ModelSettings,
+    times: &mut StageTimes,
+    left_out: &mut Vec<String>,
+) -> Result<(Option<Scene>, Image)> {
+    let photo = if scene.photo_is_relative() {
+        match times.time("bracket scale", || bracket_scale_cached(scene, photo, tracer, settings, fine_patch_size(scene))) {
+            Some(s) => Image { pixels: photo.pixels.iter().map(|p| *p * s as f32).collect(), ..photo.clone() },
+            None => {
+                left_out.push("absolute scale: the photo comes from brackets and no reflectance is known, so radiance is relative".to_string());
+                photo.clone()
+            }
+        }
+    } else {
+        photo.clone()
+    };
+    let resolved = match crate::gonio::light_to_reconstruct(scene)? {
+        Some(_) => Some(times.time("goniometric", || reconstruct_cached(scene, &photo, tracer))?),
+        None => None,
+    };
+    Ok((resolved, photo))
 }
 
 /// The diagonal of the real geometry's bounding box.

@@ -37,6 +37,9 @@ pub struct Scene {
     /// meshes in manifest order, then `o`/`g` names in file order.
     pub surfaces: Vec<Surface>,
     pub reflectances: Vec<KnownReflectance>,
+    /// `[[texture_reference]]`: per surface, a point the user knows lies in
+    /// full light of every real lamp (Loscos §4.3's default reference patch).
+    pub texture_references: Vec<TextureReference>,
     pub lights: Vec<Light>,
     pub objects: Vec<VirtualObject>,
     pub variants: Vec<Variant>,
@@ -65,6 +68,13 @@ pub enum Photo {
 pub struct Bracket {
     pub image: PathBuf,
     pub ev: f64,
+}
+
+/// A point of a real surface in full light, for the texture path.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TextureReference {
+    pub surface: usize,
+    pub point: DVec3,
 }
 
 /// A known diffuse reflectance of a real surface.
@@ -522,6 +532,21 @@ impl Loader<'_> {
             reflectances.push(KnownReflectance { surface, rgb });
         }
 
+        let mut texture_references: Vec<TextureReference> = Vec::new();
+        for r in top.tables("texture_reference")? {
+            let sname = r.req_str("surface")?;
+            let surface = surfaces.iter().position(|s| s.name == sname).ok_or_else(|| {
+                let names: Vec<&str> = surfaces.iter().map(|s| s.name.as_str()).collect();
+                r.error("surface", format!("no real surface named '{sname}' (surfaces: {})", list(&names)))
+            })?;
+            let point = r.req_vec3("point")?;
+            if texture_references.iter().any(|k| k.surface == surface) {
+                return Err(r.error("surface", format!("'{sname}' is given twice")));
+            }
+            r.finish()?;
+            texture_references.push(TextureReference { surface, point });
+        }
+
         let mut lights: Vec<Light> = Vec::new();
         for l in top.tables("light")? {
             let light = self.light(&l, !reflectances.is_empty())?;
@@ -565,6 +590,7 @@ impl Loader<'_> {
             photo,
             surfaces,
             reflectances,
+            texture_references,
             lights,
             objects,
             variants,
