@@ -654,7 +654,7 @@ fn sweep_cmd(path: &Path, variant: Option<&str>, motion: Option<&str>, dir: &Pat
         (None, None) => bail!("give --variant or --motion"),
     };
     std::fs::create_dir_all(dir).with_context(|| format!("{}: could not create the folder", dir.display()))?;
-    let settings = grid(quick);
+    let settings = grid(quick, matches!(target, Target::Variant { .. }));
     let bar = indicatif::ProgressBar::new(settings.len() as u64);
     bar.set_style(indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} settings, {elapsed} {msg}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
     let rows = stage("renders", || {
@@ -679,7 +679,12 @@ fn sweep_cmd(path: &Path, variant: Option<&str>, motion: Option<&str>, dir: &Pat
     front.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
     let describe = |r: &arlux::sweep::SweepRow| {
         let s = &r.settings;
+        let method = match s.method {
+            arlux::sweep::SweepMethod::Pda => json!("pda"),
+            arlux::sweep::SweepMethod::Texture { min_leaf_pixels } => json!({ "texture": { "min_leaf_pixels": min_leaf_pixels } }),
+        };
         json!({
+            "method": method,
             "shadow_rays": [1u32 << s.min_level, 1u32 << s.penumbra_level], "supersample": s.supersample,
             "patch_size": s.patch_size, "epsilon": s.epsilon, "seconds": r.seconds, "rmse": r.rmse,
             "relative_rmse": r.relative_rmse, "pareto": r.pareto,
@@ -694,14 +699,18 @@ fn sweep_cmd(path: &Path, variant: Option<&str>, motion: Option<&str>, dir: &Pat
     }
     say!("{} settings of {label}; wrote {} and {}", rows.len(), csv.display(), png.display());
     say!("Pareto front (faster and closer than nothing else):");
-    say!("  {:>11} {:>10} {:>10} {:>8} {:>9} {:>10}", "shadow rays", "supersamp.", "patch", "epsilon", "seconds", "RMSE");
+    say!("  {:>7} {:>11} {:>10} {:>10} {:>8} {:>9} {:>10}", "method", "shadow rays", "supersamp.", "patch", "epsilon", "seconds", "RMSE");
     for r in front {
         let s = &r.settings;
+        let (method, rays, supersample) = match s.method {
+            arlux::sweep::SweepMethod::Pda => ("pda", format!("{}-{}", 1u32 << s.min_level, 1u32 << s.penumbra_level), s.supersample.to_string()),
+            arlux::sweep::SweepMethod::Texture { min_leaf_pixels } => ("texture", format!("leaf {min_leaf_pixels} px"), "-".to_string()),
+        };
         say!(
-            "  {:>5}-{:<5} {:>10} {:>10} {:>8} {:>9.3} {:>10.6}",
-            1u32 << s.min_level,
-            1u32 << s.penumbra_level,
-            s.supersample,
+            "  {:>7} {:>11} {:>10} {:>10} {:>8} {:>9.3} {:>10.6}",
+            method,
+            rays,
+            supersample,
             s.patch_size.map_or("auto".to_string(), |m| format!("{m} m")),
             s.epsilon,
             r.seconds,

@@ -126,11 +126,6 @@ impl Texture {
         let j = (((st.y - self.t0) / self.dt).floor().max(0.0) as usize).min(self.nv - 1);
         j * self.nu + i
     }
-
-    fn centre(&self, k: usize) -> DVec2 {
-        let (i, j) = (k % self.nu, k / self.nu);
-        DVec2::new(self.s0 + (i as f64 + 0.5) * self.ds, self.t0 + (j as f64 + 0.5) * self.dt)
-    }
 }
 
 /// What the camera sees at a pixel centre.
@@ -503,7 +498,7 @@ impl TexturePath {
 
         // The textures: photo re-projected, then Steps 1 and 2 applied per texel.
         let textures = times.time("textures", || {
-            build_textures(scene, tracer, &patches, &hits, photo, pixel_angle, settings.texels_per_pixel, &|root, x| {
+            build_textures(scene, &patches, &hits, photo, pixel_angle, settings.texels_per_pixel, &|root, x| {
                 let at = patches.locate_in_root(root, x);
                 step1(x, patches.patch(at.patch as usize).normal, &at) * step2(&at)
             })
@@ -873,12 +868,12 @@ fn refine_round(
 
 /// The photo re-projected into each seen root polygon, texel by texel, at
 /// `texels_per_pixel` per pixel footprint (over the part of the root the
-/// camera sees); each texel is then multiplied by `modulation(root, x)`.
-/// A texel the camera does not see takes its nearest seen texel's value.
-#[allow(clippy::too_many_arguments)]
+/// camera sees): a texel takes the pixel it projects into when that
+/// pixel's centre sees the same polygon; each texel is then multiplied by
+/// `modulation(root, x)`. A texel the photo does not show takes its
+/// nearest shown texel's value.
 fn build_textures(
     scene: &Scene,
-    tracer: &Tracer,
     patches: &Patches,
     hits: &[Option<RealHit>],
     photo: &Image,
@@ -917,71 +912,44 @@ fn build_textures(
             let (ds, dt) = ((s1 - s0) / nu as f64, (t1 - t0) / nv as f64);
             let mut tex = Texture { s0, t0, ds, dt, nu, nv, texels: vec![Vec3::ZERO; nu * nv] };
             let mut known = vec![false; nu * nv];
-            for k in 0..nu * nv {
-                let x = patches.root_point(root, tex.centre(k));
-                let Some((px, py, _)) = cam.project(x) else { continue };
+            let centre = |k: usize| DVec2::new(s0 + ((k % nu) as f64 + 0.5) * ds, t0 + ((k / nu) as f64 + 0.5) * dt);
+            tex.texels.par_iter_mut().zip(known.par_iter_mut()).enumerate().for_each(|(k, (texel, known))| {
+                let x = patches.root_point(root, centre(k));
+                let Some((px, py, _)) = cam.project(x) else { return };
                 if px < 0.0 || py < 0.0 || px >= cam.width as f64 || py >= cam.height as f64 {
-                    continue;
+                    return;
                 }
                 let (col, row) = (px as u32, py as u32);
-                // Seen: the camera's ray towards x meets this root at x.
-                let d = x - cam.position;
-                let dist = d.length();
-                let ray = crate::trace::TraceRay::new(cam.position.as_vec3(), (d / dist).as_vec3());
-                let visible = match tracer.intersect(&ray, Layer::Real) {
-                    Some(h) => (h.t as f64 - dist).abs() <= 1e-4 * dist.max(1.0) || patches.root_of(h.surface, h.triangle) == Some(root),
-                    None => false,
-                };
-                if visible {
-                    tex.texels[k] = photo.get(col, row);
-                    known[k] = true;
+                // Seen: the photo's pixel there shows this polygon (its centre's ray meets it).
+                if hits[(row * cam.width + col) as usize].is_some_and(|h| patches.root_of(h.surface, h.triangle) == Some(root)) {
+                    *texel = photo.get(col, row);
+                    *known = true;
                 }
-            }
+            });
             fill_unknown(&mut tex, &mut known);
-            for k in 0..nu * nv {
-                let x = patches.root_point(root, tex.centre(k));
-                let m = modulation(root, x);
-                tex.texels[k] = (tex.texels[k].as_dvec3() * m).as_vec3();
-            }
+            tex.texels.par_iter_mut().enumerate().for_each(|(k, texel)| {
+                let m = modulation(root, patches.root_point(root, centre(k)));
+                *texel = (texel.as_dvec3() * m).as_vec3();
+            });
             (root, tex)
         })
         .collect()
 }
 
-/// Gives unknown texels their nearest known neighbour's value, ring by ring.
+/// Gives unknown texels the value of their nearest known texel (4-connected
+/// steps, breadth first from every known texel at once: linear time).
 fn fill_unknown(tex: &mut Texture, known: &mut [bool]) {
     let (nu, nv) = (tex.nu, tex.nv);
-    if !known.iter().any(|&k| k) {
-        return;
-    }
-    loop {
-        let mut changed = Vec::new();
-        for j in 0..nv {
-            for i in 0..nu {
-                let k = j * nu + i;
-                if known[k] {
-                    continue;
-                }
-                let mut sum = Vec3::ZERO;
-                let mut count = 0;
-                for (di, dj) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
-                    let (a, b) = (i as i64 + di, j as i64 + dj);
-                    if a >= 0 && b >= 0 && (a as usize) < nu && (b as usize) < nv && known[b as usize * nu + a as usize] {
-                        sum += tex.texels[b as usize * nu + a as usize];
-                        count += 1;
-                    }
-                }
-                if count > 0 {
-                    changed.push((k, sum / count as f32));
-                }
+    let mut queue: std::collections::VecDeque<usize> = (0..nu * nv).filter(|&k| known[k]).collect();
+    while let Some(k) = queue.pop_front() {
+        let (i, j) = (k % nu, k / nu);
+        let around = [(i > 0).then(|| k - 1), (i + 1 < nu).then(|| k + 1), (j > 0).then(|| k - nu), (j + 1 < nv).then(|| k + nu)];
+        for n in around.into_iter().flatten() {
+            if !known[n] {
+                known[n] = true;
+                tex.texels[n] = tex.texels[k];
+                queue.push_back(n);
             }
-        }
-        if changed.is_empty() {
-            return;
-        }
-        for (k, v) in changed {
-            tex.texels[k] = v;
-            known[k] = true;
         }
     }
 }

@@ -13,9 +13,20 @@ use crate::pda::PdaSettings;
 use crate::render::{PatchSize, RenderSettings, Session, render};
 use crate::scene::Scene;
 
+/// Which renderer a grid point uses.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SweepMethod {
+    /// Per-pixel differential rendering (Grosch): every setting applies.
+    Pda,
+    /// The texture path (Loscos) with its smallest leaf in pixel footprints;
+    /// patch size and ε apply, shadow rays and supersampling do not.
+    Texture { min_leaf_pixels: f64 },
+}
+
 /// One point of the grid.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SweepSettings {
+    pub method: SweepMethod,
     /// 2^min_level shadow rays everywhere, 2^penumbra_level in penumbra.
     pub min_level: usize,
     pub penumbra_level: usize,
@@ -27,6 +38,19 @@ pub struct SweepSettings {
 }
 
 impl SweepSettings {
+    /// The texture path's settings at this point.
+    pub fn texture_settings(&self) -> Option<crate::relight::TextureSettings> {
+        match self.method {
+            SweepMethod::Pda => None,
+            SweepMethod::Texture { min_leaf_pixels } => Some(crate::relight::TextureSettings {
+                patch_size: self.patch_size,
+                link_epsilon: self.epsilon,
+                min_leaf_pixels,
+                ..Default::default()
+            }),
+        }
+    }
+
     pub fn render_settings(&self) -> RenderSettings {
         let d = RenderSettings::default();
         RenderSettings {
@@ -45,6 +69,7 @@ impl SweepSettings {
             TransportMethod::Full => crate::radiosity::DEFAULT_LINK_EPSILON,
         };
         SweepSettings {
+            method: SweepMethod::Pda,
             min_level: d.pda.min_level,
             penumbra_level: d.pda.penumbra_level,
             supersample: d.pda.supersample,
@@ -60,22 +85,37 @@ impl SweepSettings {
 /// The grid: `quick` is six settings from cheapest to dearest (a smoke
 /// check); otherwise shadow rays 1…256 × supersampling 1…4 × three patch
 /// sizes (auto, 0.5 m, 0.25 m: the room's fine mesh) × two radiosity
-/// thresholds (120 settings).
-pub fn grid(quick: bool) -> Vec<SweepSettings> {
+/// thresholds (120 settings). With `texture` (a variant: the texture path
+/// has no incremental update for motions), the texture path joins: its
+/// defaults in the quick grid, otherwise smallest leaves of 1.5, 3 and 6
+/// pixels × the automatic and 0.5 m starting mesh.
+pub fn grid(quick: bool, texture: bool) -> Vec<SweepSettings> {
     let d = SweepSettings::defaults();
+    let texture_default = crate::relight::TextureSettings::default();
     if quick {
-        return [(0, 0, 1), (0, 2, 1), (1, 3, 2), (2, 4, 3), (3, 5, 3), (4, 6, 4)]
+        let mut out: Vec<SweepSettings> = [(0, 0, 1), (0, 2, 1), (1, 3, 2), (2, 4, 3), (3, 5, 3), (4, 6, 4)]
             .into_iter()
             .map(|(min_level, penumbra_level, supersample)| SweepSettings { min_level, penumbra_level, supersample, ..d })
             .collect();
+        if texture {
+            out.push(SweepSettings { method: SweepMethod::Texture { min_leaf_pixels: texture_default.min_leaf_pixels }, supersample: 1, ..d });
+        }
+        return out;
     }
     let mut out = Vec::new();
     for (min_level, penumbra_level) in [(0, 0), (0, 2), (1, 4), (2, 4), (4, 8)] {
         for supersample in 1..=4 {
             for patch_size in [None, Some(0.5), Some(0.25)] {
                 for epsilon in [0.008, d.epsilon] {
-                    out.push(SweepSettings { min_level, penumbra_level, supersample, patch_size, epsilon });
+                    out.push(SweepSettings { method: SweepMethod::Pda, min_level, penumbra_level, supersample, patch_size, epsilon });
                 }
+            }
+        }
+    }
+    if texture {
+        for min_leaf_pixels in [1.5, 3.0, 6.0] {
+            for patch_size in [None, Some(0.5)] {
+                out.push(SweepSettings { method: SweepMethod::Texture { min_leaf_pixels }, supersample: 1, patch_size, ..d });
             }
         }
     }
@@ -153,9 +193,16 @@ pub fn run(scene: &Scene, target: &Target, grid: &[SweepSettings], repeats: usiz
             match target {
                 Target::Variant { name } => {
                     let effective = scene.with_variant(name)?;
-                    images.push(render(&effective, &photo, &settings, &mut times)?.composite.image);
+                    let out = match s.texture_settings() {
+                        Some(t) => crate::relight::render_texture(&effective, &photo, &t, &mut times)?,
+                        None => render(&effective, &photo, &settings, &mut times)?,
+                    };
+                    images.push(out.composite.image);
                 }
                 Target::Motion { name } => {
+                    if s.texture_settings().is_some() {
+                        return Err(Error::key(&scene.file, format!("motion '{name}'"), "the texture path renders variants; a motion sweeps the pixel path"));
+                    }
                     let m = scene.motion(name)?;
                     let first = scene.with_motion_pose(name, 0)?;
                     let mut session = Session::start(&first, &photo, &settings, &mut times)?;
@@ -228,23 +275,27 @@ pub fn to_csv(rows: &[SweepRow], reference: &str) -> String {
             }
         }
     }
-    let mut out = String::from("method,min_level,penumbra_level,shadow_rays_min,shadow_rays_max,supersample,patch_size,epsilon");
+    let mut out = String::from("method,min_level,penumbra_level,shadow_rays_min,shadow_rays_max,supersample,min_leaf_pixels,patch_size,epsilon");
     for n in &names {
         out.push_str(&format!(",s_{}", n.replace([' ', ',', '+'], "_")));
     }
     out.push_str(",total_seconds,rmse,relative_rmse,psnr_srgb_db,images_compared,reference,pareto\n");
     for r in rows {
         let s = &r.settings;
-        out.push_str(&format!(
-            "pda,{},{},{},{},{},{},{}",
-            s.min_level,
-            s.penumbra_level,
-            1u32 << s.min_level,
-            1u32 << s.penumbra_level,
-            s.supersample,
-            s.patch_size.map_or("auto".to_string(), |m| m.to_string()),
-            s.epsilon
-        ));
+        let patch = s.patch_size.map_or("auto".to_string(), |m| m.to_string());
+        out.push_str(&match s.method {
+            SweepMethod::Pda => format!(
+                "pda,{},{},{},{},{},,{patch},{}",
+                s.min_level,
+                s.penumbra_level,
+                1u32 << s.min_level,
+                1u32 << s.penumbra_level,
+                s.supersample,
+                s.epsilon
+            ),
+            // Shadow rays and supersampling do not apply: its leaves take 2^4 rays per point.
+            SweepMethod::Texture { min_leaf_pixels } => format!("texture,,,,,,{min_leaf_pixels},{patch},{}", s.epsilon),
+        });
         for n in &names {
             let v = r.stages.iter().find(|(m, _)| m == n).map_or(0.0, |x| x.1);
             out.push_str(&format!(",{v:.6}"));
@@ -307,8 +358,23 @@ pub fn plot(rows: &[SweepRow], title: &str, path: &Path) -> Result<()> {
             .draw()
             .map_err(|e| fail(e.to_string()))?;
         chart
-            .draw_series(rows.iter().map(|r| Circle::new((lt(r.seconds), r.rmse), 3, RGBColor(120, 120, 120).filled())))
-            .map_err(|e| fail(e.to_string()))?;
+            .draw_series(
+                rows.iter().filter(|r| r.settings.method == SweepMethod::Pda).map(|r| Circle::new((lt(r.seconds), r.rmse), 3, RGBColor(120, 120, 120).filled())),
+            )
+            .map_err(|e| fail(e.to_string()))?
+            .label("pixel path (pda)")
+            .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(120, 120, 120).filled()));
+        if rows.iter().any(|r| r.settings.method != SweepMethod::Pda) {
+            chart
+                .draw_series(
+                    rows.iter()
+                        .filter(|r| r.settings.method != SweepMethod::Pda)
+                        .map(|r| Rectangle::new([(lt(r.seconds) - 0.006, r.rmse - (e_max - e_min) * 0.006), (lt(r.seconds) + 0.006, r.rmse + (e_max - e_min) * 0.006)], RGBColor(40, 140, 60).filled())),
+                )
+                .map_err(|e| fail(e.to_string()))?
+                .label("texture path")
+                .legend(|(x, y)| Rectangle::new([(x + 6, y - 3), (x + 12, y + 3)], RGBColor(40, 140, 60).filled()));
+        }
         let mut front: Vec<&SweepRow> = rows.iter().filter(|r| r.pareto).collect();
         front.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
         chart

@@ -19,6 +19,9 @@ fn a_quick_sweep_measures_every_row_and_its_front_falls_as_cost_rises() {
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
     let rows: Vec<Vec<String>> = lines.map(|l| l.split(',').map(str::to_string).collect()).collect();
     assert!(rows.len() >= 6, "{} rows", rows.len());
+    // Both methods: the texture path's defaults join the quick grid of a variant.
+    assert_eq!(rows.iter().filter(|r| r[col("method")] == "texture").count(), 1);
+    assert!(rows.iter().filter(|r| r[col("method")] == "pda").count() >= 6);
     let num = |r: &Vec<String>, name: &str| -> f64 { r[col(name)].parse().unwrap() };
     for r in &rows {
         assert_eq!(r[col("reference")], "truth/box_floor_a.exr");
