@@ -434,20 +434,25 @@ impl TexturePath {
         let seen = |k: usize| lp.count[k] > 0;
         let frontier: Vec<usize> = (0..real_patches).filter(|&k| seen(k) && !occluded[k] && near[k].iter().any(|&n| occluded[n as usize])).collect();
         let lab: Vec<DVec3> = rho_inter.iter().map(|r| cielab(*r, 1.0)).collect();
-        let user_reference: HashMap<u32, usize> = scene
-            .texture_references
-            .iter()
-            .filter_map(|r| {
-                let root = patches.roots.iter().copied().find(|&root| {
-                    let el = &patches.elements[root as usize];
-                    el.surface == r.surface as u32 && (patches.root_point(root, patches.root_params(root, r.point)) - r.point).length() < 1e-3 && {
-                        let st = patches.root_params(root, r.point);
-                        crate::patches::distance_outside(&el.region, st) <= 1e-9
-                    }
-                })?;
-                Some((r.surface as u32, patches.locate_in_root(root, r.point).patch as usize))
-            })
-            .collect();
+        let mut user_reference: HashMap<u32, usize> = HashMap::new();
+        for (i, r) in scene.texture_references.iter().enumerate() {
+            // The root polygon of that surface whose plane holds the point, inside it.
+            let root = patches.roots.iter().copied().find(|&root| {
+                let el = &patches.elements[root as usize];
+                let st = patches.root_params(root, r.point);
+                el.surface == r.surface as u32
+                    && (patches.root_point(root, st) - r.point).length() < 1e-3
+                    && crate::patches::distance_outside(&el.region, st) <= 1e-6
+            });
+            let Some(root) = root else {
+                return Err(crate::error::Error::key(
+                    &scene.file,
+                    format!("texture_reference[{i}].point"),
+                    format!("{:?} does not lie on surface '{}' (within 1 mm)", r.point.to_array(), scene.surfaces[r.surface].name),
+                ));
+            };
+            user_reference.insert(r.surface as u32, patches.locate_in_root(root, r.point).patch as usize);
+        }
         let mut correction = vec![DVec3::ONE; real_patches];
         for k in (0..real_patches).filter(|&k| occluded[k] && seen(k)) {
             stats.occluded += 1;

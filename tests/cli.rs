@@ -259,6 +259,30 @@ fn render_writes_layers_and_aovs_and_reports_the_error() {
 }
 
 #[test]
+fn render_method_texture_writes_the_shadow_free_texture() {
+    let desk = Desk::new();
+    let out = desk.path("p.exr");
+    let aov = desk.path("aov");
+    let run = arlux(&["render", &desk.scene(), "--variant", "panel_off", "--method", "texture", "-o", out.to_str().unwrap(), "--aov", aov.to_str().unwrap(), "--json"]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(report["method"], "texture");
+    assert!(report["rays"].is_null());
+    // Measured 0.00236.
+    let rmse = report["error_against_reference"]["rmse"].as_f64().unwrap();
+    assert!(rmse < 0.003, "{rmse}");
+    let t = &report["texture"];
+    assert!(t["light_change_seconds"].as_f64().unwrap() > 0.0 && t["splits"].as_u64().unwrap() > 0 && t["texels"].as_u64().unwrap() > 100_000, "{t}");
+    // The shadow-free texture is the photo with shadows lifted: brighter on
+    // the whole, and almost nowhere darker (Step 2 may pull back where Step 1 overshot).
+    let texture = arlux::image_io::read_image(&aov.join("unoccluded_texture.exr")).unwrap();
+    let photo = arlux::image_io::read_image(std::path::Path::new(&format!("{DESK}/photo.exr"))).unwrap();
+    let darker = texture.pixels.iter().zip(&photo.pixels).filter(|(t, p)| !t.cmpge(**p * 0.999).all()).count();
+    assert!(darker < photo.pixels.len() / 50, "{darker} pixels darker than the photo");
+    assert!(texture.mean() > photo.mean() * 1.005, "{} against {}", texture.mean(), photo.mean());
+}
+
+#[test]
 fn rendering_a_light_change_leaves_out_the_virtual_stages() {
     let desk = Desk::new();
     let out = desk.path("off.exr");

@@ -196,3 +196,34 @@ fn one_preprocess_serves_every_light_change() {
         assert!(e < bound, "{variant}: {e}");
     }
 }
+
+/// `[[texture_reference]]`: where no frontier leaf of similar colour is
+/// found (here: none may match, the colour threshold at 0), a surface's
+/// shadowed leaves take the user's reference; without one they keep Step 1.
+/// A point off its surface is an error naming the key.
+#[test]
+fn a_user_reference_serves_where_no_frontier_leaf_matches() {
+    use arlux::scene::TextureReference;
+    let base = desk();
+    let mut scene = base.with_variant("panel_off").unwrap();
+    let photo = scene.load_photo().unwrap();
+    let tracer = scene.build_tracer().unwrap();
+    let floor = scene.surfaces.iter().position(|s| s.name == "floor").unwrap();
+    let point = glam::DVec3::new(0.6, 0.0, 0.2);
+    for light in LightSource::all(&scene).unwrap().iter().filter(|l| l.real) {
+        let d = light.direct(&tracer, Layer::Real, point, glam::DVec3::Y, 6, 1);
+        assert!(d.unoccluded.element_sum() > 0.0 && d.visibility == 1.0, "{} must light the reference fully", light.name);
+    }
+    let settings = TextureSettings { reference_colour_threshold: 0.0, ..Default::default() };
+    let without = TexturePath::prepare(&scene, &photo, &tracer, &settings, &mut StageTimes::default()).unwrap().stats;
+    assert_eq!((without.by_frontier, without.by_user_reference), (0, 0));
+    assert_eq!(without.uncorrected, without.occluded);
+    scene.texture_references.push(TextureReference { surface: floor, point });
+    let with = TexturePath::prepare(&scene, &photo, &tracer, &settings, &mut StageTimes::default()).unwrap().stats;
+    println!("occluded seen leaves {}: {} from the floor's reference, {} uncorrected", with.occluded, with.by_user_reference, with.uncorrected);
+    assert!(with.by_user_reference > 50, "{with:?}");
+    assert_eq!(with.by_user_reference + with.uncorrected, with.occluded);
+    scene.texture_references[0].point = glam::DVec3::new(0.6, 0.5, 0.2);
+    let err = TexturePath::prepare(&scene, &photo, &tracer, &settings, &mut StageTimes::default()).err().expect("a point off the floor");
+    assert!(err.to_string().contains("texture_reference[0].point: [0.6, 0.5, 0.2] does not lie on surface 'floor'"), "{err}");
+}

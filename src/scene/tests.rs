@@ -148,6 +148,10 @@ fn bad_values_name_the_key_path() {
             "photo.brackets[1].ev: two brackets have ev = 0"),
         (&[("image = \"photo.exr\"", "image = \"photo.exr\"\nbrackets = []")], "photo.brackets: give image or brackets, not both"),
         (&[("position = [0.9, 1.9, 0.3]", "position = { shadow_lines = [] }")], "light[2].position: needs shadow_lines or shadow_planes"),
+        (&[("[[light]]\nname = \"panel\"", "[[texture_reference]]\nsurface = \"flor\"\npoint = [0.0, 0.0, 0.0]\n\n[[light]]\nname = \"panel\"")],
+            "texture_reference[0].surface: no real surface named 'flor'"),
+        (&[("[[light]]\nname = \"panel\"", "[[texture_reference]]\nsurface = \"floor\"\npoint = [0.0, 0.0]\n\n[[light]]\nname = \"panel\"")],
+            "texture_reference[0].point: must be an array of 3 numbers"),
     ];
     for (edits, expected) in cases {
         let err = error_of(edits);
