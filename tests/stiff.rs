@@ -70,3 +70,51 @@ fn zero_reflectance_of_a_known_surface() {
         .collect();
     assert!(floor_b.iter().all(|b| *b == DVec3::ZERO), "a black floor reflects nothing");
 }
+
+/// The texture path on the stiff cases: a virtual bulb 1 mm above the floor
+/// (its forced refinement meets the singular peak), a bulb grazing a wall,
+/// a known reflectance of 0.99, and a photo spanning 1e6:1. Every layer
+/// stays finite and non-negative, every light change too.
+#[test]
+fn the_texture_path_stays_finite_on_stiff_cases() {
+    use arlux::relight::{TexturePath, TextureSettings};
+    let settings = TextureSettings { patch_size: Some(0.5), ..TextureSettings::default() };
+    let cases: Vec<(&str, Box<dyn Fn(&mut Scene, &mut Image)>)> = vec![
+        ("virtual bulb 1 mm above the floor", Box::new(|s: &mut Scene, _: &mut Image| {
+            let bulb = s.light_index("bulb").unwrap();
+            s.lights[bulb].position = LightPosition::Known(DVec3::new(-0.5, 0.001, 0.5));
+            s.lights[bulb].scale = 1.0;
+        })),
+        ("virtual bulb grazing the left wall", Box::new(|s: &mut Scene, _: &mut Image| {
+            let bulb = s.light_index("bulb").unwrap();
+            s.lights[bulb].position = LightPosition::Known(DVec3::new(-1.999, 1.2, 0.0));
+            s.lights[bulb].scale = 1.0;
+        })),
+        ("reflectance 0.99", Box::new(|s: &mut Scene, _: &mut Image| {
+            s.reflectances[0].rgb = DVec3::splat(0.99);
+        })),
+        ("a photo spanning 1e6:1", Box::new(|_: &mut Scene, photo: &mut Image| {
+            let w = photo.width as usize;
+            for (i, p) in photo.pixels.iter_mut().enumerate() {
+                *p *= if (i % w) < w / 2 { 1e3 } else { 1e-3 };
+            }
+        })),
+    ];
+    for (name, edit) in cases {
+        let mut scene = desk();
+        scene.objects.iter_mut().for_each(|o| o.enabled = false);
+        let mut photo = scene.load_photo().unwrap();
+        edit(&mut scene, &mut photo);
+        let tracer = scene.build_tracer().unwrap();
+        let path = TexturePath::prepare(&scene, &photo, &tracer, &settings, &mut StageTimes::default()).unwrap();
+        assert!(all_finite(&path.unoccluded_texture()), "{name}: the unoccluded texture");
+        let n = scene.lights.len();
+        for scales in [scene.lights.iter().map(|l| l.scale).collect::<Vec<f64>>(), vec![0.0; n], vec![1e3; n]] {
+            let out = path.relight(&scales, &mut StageTimes::default());
+            for (layer, img) in [("image", &out.image), ("direct", &out.direct), ("indirect", &out.indirect)] {
+                assert!(all_finite(img), "{name}, scales {scales:?}: {layer} has a non-finite or negative pixel");
+            }
+            assert!(out.change.pixels.iter().all(|p| p.is_finite()), "{name}: change");
+        }
+    }
+}
