@@ -182,7 +182,7 @@ pub fn write_exr(path: &Path, width: u32, height: u32, layers: &[ExrLayer]) -> R
             }
         }
     }
-    let layer = x::Layer::new((w, h), x::LayerAttributes::default(), x::Encoding::FAST_LOSSLESS, x::AnyChannels::sort(list));
+    let layer = x::Layer::new((w, h), x::LayerAttributes::default(), x::Encoding { line_order: x::LineOrder::Increasing, ..x::Encoding::FAST_LOSSLESS }, x::AnyChannels::sort(list));
     let image = x::Image::from_layer(layer);
     let mut bytes = std::io::Cursor::new(Vec::new());
     image.write().to_buffered(&mut bytes).map_err(|e| Error::file(path, format!("could not encode EXR: {e}")))?;
@@ -268,6 +268,22 @@ mod tests {
         assert_eq!(read_exr_channel(&p, "direct.G").unwrap().2, vec![0.0; 15]);
         let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
         assert_eq!(leftovers.len(), 1, "no temporary file left behind");
+    }
+
+    #[test]
+    fn exr_bytes_are_the_same_every_time() {
+        // Chunks are compressed in parallel; written in increasing order, the
+        // file does not depend on which thread finished first.
+        let dir = tempfile::tempdir().unwrap();
+        let img = ramp(512, 384);
+        let files: Vec<Vec<u8>> = (0..4)
+            .map(|i| {
+                let p = dir.path().join(format!("{i}.exr"));
+                write_exr(&p, 512, 384, &[ExrLayer::Rgb("", &img), ExrLayer::Rgb("direct", &img)]).unwrap();
+                std::fs::read(&p).unwrap()
+            })
+            .collect();
+        assert!(files.windows(2).all(|w| w[0] == w[1]));
     }
 
     #[test]

@@ -529,6 +529,10 @@ pub fn reconstruct_cached(scene: &Scene, photo: &Image, tracer: &crate::trace::T
     Ok(rec.apply(scene))
 }
 
+/// Bumped when [`crate::model::bracket_scale`] changes what it returns, so
+/// that caches written by an older arlux are not read.
+pub const BRACKET_SCALE_VERSION: u32 = 2;
+
 /// [`crate::model::bracket_scale`] on a fine mesh (the factor rests on a
 /// few surfaces' estimates, which coarse patches bias), cached next to the
 /// scene under a hash of the scene file, its meshes and the brackets.
@@ -545,6 +549,8 @@ pub fn bracket_scale_cached(scene: &Scene, photo: &Image, tracer: &crate::trace:
         feed(&std::fs::read(f).ok()?);
     }
     feed(&patch_size.to_le_bytes());
+    // A change to how the factor is found, or to its settings, is a new entry.
+    feed(format!("{BRACKET_SCALE_VERSION} {settings:?}").as_bytes());
     let cache = scene.dir().join(".arlux-cache").join(format!("scale-{:016x}.txt", hash.value()));
     if let Some(s) = std::fs::read_to_string(&cache).ok().and_then(|t| t.trim().parse::<f64>().ok()).filter(|s| s.is_finite() && *s > 0.0) {
         return Some(s);
