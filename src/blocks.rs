@@ -13,13 +13,16 @@ use crate::light::{Emitter, LightSource};
 use crate::pda::PixelDataArray;
 use crate::shaft::Shaft;
 
+/// One level of the hierarchy: its width and height in blocks, and each block's box.
+type Level = (u32, u32, Vec<(Vec3, Vec3)>);
+
 /// Boxes per level, level 0 = pixels; an empty block has lo > hi.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BlockHierarchy {
     pub width: u32,
     pub height: u32,
     /// (width, height, boxes) per level.
-    levels: Vec<(u32, u32, Vec<(Vec3, Vec3)>)>,
+    levels: Vec<Level>,
 }
 
 /// What a traversal did.

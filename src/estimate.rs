@@ -204,10 +204,10 @@ fn fill_unseen(patches: &Patches, rho: &mut [DVec3], estimated: &[bool], known: 
 /// Area-weighted mean reflectance of a surface's patches.
 pub fn surface_mean(patches: &Patches, reflectance: &[DVec3], surface: u32) -> Option<DVec3> {
     let (mut sum, mut area) = (DVec3::ZERO, 0.0);
-    for k in 0..patches.patch_count() {
+    for (k, r) in reflectance.iter().enumerate().take(patches.patch_count()) {
         let el = patches.patch(k);
         if el.surface == surface {
-            sum += reflectance[k] * el.area;
+            sum += *r * el.area;
             area += el.area;
         }
     }

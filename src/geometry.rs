@@ -120,7 +120,7 @@ pub fn is_closed(triangles: &[Triangle]) -> bool {
 pub fn encloses(triangles: &[Triangle], p: DVec3) -> bool {
     let dirs = [
         DVec3::new(0.5773, 0.5774, 0.5775),
-        DVec3::new(-0.6123, 0.3536, 0.7071),
+        DVec3::new(-0.6123, 0.3536, 0.7072),
         DVec3::new(0.2673, -0.8018, 0.5345),
     ];
     let inside_votes = dirs

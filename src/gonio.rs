@@ -714,8 +714,8 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
     let mut edges = 0;
     for (k, &(i, j)) in pairs.iter().enumerate() {
         if !is_edge[k] {
-            for c in 0..3 {
-                targets[c].push(0.0);
+            for t in targets.iter_mut() {
+                t.push(0.0);
             }
             continue;
         }
@@ -1339,9 +1339,9 @@ mod tests {
         let pairs: Vec<(u32, u32)> = (0..9).map(|i| (i, i + 1)).collect();
         let targets: Vec<f64> = (0..9).map(|i| if i == 4 { 2f64.ln() } else { 0.0 }).collect();
         let u = integrate_jumps(10, &pairs, &targets);
-        for i in 0..10 {
+        for (i, ui) in u.iter().enumerate() {
             let expect = if i <= 4 { -0.5 * 2f64.ln() } else { 0.5 * 2f64.ln() };
-            assert!((u[i] - expect).abs() < 1e-6, "u[{i}] = {}", u[i]);
+            assert!((ui - expect).abs() < 1e-6, "u[{i}] = {ui}");
         }
     }
 }

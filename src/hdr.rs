@@ -262,10 +262,10 @@ pub fn merge_cached(scene_dir: &Path, brackets: &[(PathBuf, f64)]) -> Result<Ima
         exposures.push((path, *ev));
     }
     let cache = scene_dir.join(".arlux-cache").join(format!("merged-{:016x}.exr", hash.value()));
-    if cache.is_file() {
-        if let Ok(img) = crate::image_io::read_image(&cache) {
-            return Ok(img);
-        }
+    if cache.is_file()
+        && let Ok(img) = crate::image_io::read_image(&cache)
+    {
+        return Ok(img);
     }
     let exposures: Vec<Exposure> = exposures.iter().map(|(p, ev)| Exposure::read(p, *ev)).collect::<Result<_>>()?;
     let response = recover_response(&exposures, 64, 20.0)?;

@@ -172,7 +172,7 @@ impl IesProfile {
         }
 
         let (tilt_line_no, tilt_line) = lines[tilt_at];
-        let tilt_value = tilt_line.trim().splitn(2, '=').nth(1).map(str::trim).ok_or_else(|| {
+        let tilt_value = tilt_line.trim().split_once('=').map(|(_, v)| v.trim()).ok_or_else(|| {
             Error::line(path, tilt_line_no, "TILT line needs '=': TILT=NONE, TILT=INCLUDE or TILT=<file>")
         })?;
         let mut tokens = Tokens::new(path, &lines[tilt_at + 1..]);

@@ -218,10 +218,10 @@ impl LightSource {
     /// Intensity of the whole light towards `d` (unit, away from the
     /// light), zero behind a rect's emitting side; before `scale`.
     pub fn intensity(&self, d: DVec3) -> DVec3 {
-        if let Emitter::Rect { normal, .. } = self.emitter {
-            if d.dot(normal) <= 0.0 {
-                return DVec3::ZERO;
-            }
+        if let Emitter::Rect { normal, .. } = self.emitter
+            && d.dot(normal) <= 0.0
+        {
+            return DVec3::ZERO;
         }
         self.distribution.intensity(d)
     }

@@ -425,7 +425,7 @@ fn info_report(scene: &Scene, names: &[String], photo: serde_json::Value, as_jso
         .enumerate()
         .map(|(i, s)| {
             let known = scene.reflectances.iter().find(|k| k.surface == i).map(|k| k.rgb.to_array());
-            json!({ "id": i, "name": s.name, "triangles": s.triangles.len(), "mesh": rel(&scene, &s.mesh), "known_reflectance": known })
+            json!({ "id": i, "name": s.name, "triangles": s.triangles.len(), "mesh": rel(scene, &s.mesh), "known_reflectance": known })
         })
         .collect();
     let lights: Vec<_> = scene
@@ -448,7 +448,7 @@ fn info_report(scene: &Scene, names: &[String], photo: serde_json::Value, as_jso
                 Intensity::Spot { rgb, beam_deg, cutoff_deg, .. } => {
                     format!("spot {} beam {beam_deg}° cutoff {cutoff_deg}°", fmt3(*rgb))
                 }
-                Intensity::Ies { file, rgb, .. } => format!("ies {} x {}", rel(&scene, file), fmt3(*rgb)),
+                Intensity::Ies { file, rgb, .. } => format!("ies {} x {}", rel(scene, file), fmt3(*rgb)),
                 Intensity::Reconstruct => "reconstruct from the photo".to_string(),
             };
             json!({ "name": l.name, "real": l.real, "scale": l.scale, "position": position, "shape": shape, "intensity": intensity })
@@ -459,7 +459,7 @@ fn info_report(scene: &Scene, names: &[String], photo: serde_json::Value, as_jso
         .iter()
         .map(|o| {
             json!({
-                "name": o.name, "mesh": rel(&scene, &o.mesh), "enabled": o.enabled,
+                "name": o.name, "mesh": rel(scene, &o.mesh), "enabled": o.enabled,
                 "triangles": o.surfaces.iter().map(|s| s.triangles.len()).sum::<usize>(),
                 "surfaces": o.surfaces.iter().map(|s| json!({ "name": s.name, "rgb": s.rgb.to_array() })).collect::<Vec<_>>(),
                 "translate": o.pose.translate.to_array(), "rotate_y_deg": o.pose.rotate_y_deg, "scale": o.pose.scale,
@@ -476,7 +476,7 @@ fn info_report(scene: &Scene, names: &[String], photo: serde_json::Value, as_jso
                 "objects": v.objects.iter().map(|(o, _)| scene.objects[*o].name.clone()).collect::<Vec<_>>(),
                 "hide": v.hide_objects.iter().map(|o| scene.objects[*o].name.clone())
                     .chain(v.hide_lights.iter().map(|l| scene.lights[*l].name.clone())).collect::<Vec<_>>(),
-                "reference": v.reference.as_ref().map(|r| rel(&scene, r)),
+                "reference": v.reference.as_ref().map(|r| rel(scene, r)),
             })
         })
         .collect();
@@ -799,6 +799,8 @@ fn gonio_cmd(path: &Path, output: &Path, plot: Option<&Path>, vertical_step: f64
     Ok(())
 }
 
+// One argument per command-line flag.
+#[allow(clippy::too_many_arguments)]
 fn radiosity_cmd(
     path: &Path,
     output: &Path,
@@ -1095,8 +1097,8 @@ fn hdr_cmd(brackets: &[String], output: &Path, response_csv: Option<&Path>) -> R
         image_io::write_exr(output, merged.image.width, merged.image.height, &[image_io::ExrLayer::Rgb("", &merged.image)])?;
         if let Some(csv) = response_csv {
             let mut text = String::from("code,ln_exposure_r,ln_exposure_g,ln_exposure_b\n");
-            for z in 0..256 {
-                text.push_str(&format!("{z},{},{},{}\n", response[0][z], response[1][z], response[2][z]));
+            for (z, ((r, g), b)) in response[0].iter().zip(&response[1]).zip(&response[2]).enumerate() {
+                text.push_str(&format!("{z},{r},{g},{b}\n"));
             }
             image_io::write_atomic(csv, text.as_bytes())?;
         }

@@ -127,7 +127,9 @@ impl ModelView {
         let (w, h) = (cam.width as usize, cam.height as usize);
         let vertex_indirect = model.patches.vertex_values(&model.estimate.solution.indirect_irradiance);
         let pi = std::f64::consts::PI;
-        let rows: Vec<Vec<(DVec3, DVec3, DVec3, DVec3, i32, u64)>> = (0..h)
+        // Per pixel: radiance, direct, indirect, reflectance, surface id, rays.
+        type Sample = (DVec3, DVec3, DVec3, DVec3, i32, u64);
+        let rows: Vec<Vec<Sample>> = (0..h)
             .into_par_iter()
             .map(|row| {
                 row_hits(cam, tracer, Layer::Real, row as u32)
@@ -215,10 +217,10 @@ pub fn bracket_scale(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &M
     // Start from direct light alone: it overestimates reflectance, so the
     // first guess cannot push estimates into the clamp.
     let (mut lit, mut shown) = (0.0, 0.0);
-    for k in 0..patches.patch_count() {
+    for (k, d) in direct.iter().enumerate().take(patches.patch_count()) {
         if measured.pixels[k] > 0 && known.contains_key(&patches.patch(k).surface) {
             let a = patches.patch(k).area;
-            lit += direct[k].element_sum() * a;
+            lit += d.element_sum() * a;
             shown += measured.radiance[k].element_sum() * std::f64::consts::PI * a;
         }
     }

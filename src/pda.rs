@@ -307,11 +307,11 @@ impl PixelDataArray {
                         r.rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), seed, &mut r.real_terms);
                         r.real.push((pixel, p));
                     }
-                    if let Some(hit) = all_hits[col as usize].as_ref().filter(|h| h.is_virtual) {
-                        if let Some(p) = input.point(hit, ray.origin, ray.direction) {
-                            r.rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 1), &mut r.virt_terms);
-                            r.virt.push((pixel, p));
-                        }
+                    if let Some(hit) = all_hits[col as usize].as_ref().filter(|h| h.is_virtual)
+                        && let Some(p) = input.point(hit, ray.origin, ray.direction)
+                    {
+                        r.rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 1), &mut r.virt_terms);
+                        r.virt.push((pixel, p));
                     }
                     if near_virtual.iter().any(|b| b.contains(col, row)) {
                         if let Some((kept, rays)) = edge_samples(input, col, row, seed, &mut r.edge_terms) {

@@ -188,6 +188,9 @@ fn element_light(shape: &Shape, normal: DVec3, light: &LightSource, tracer: &Tra
     t
 }
 
+/// Light terms already computed, by (element identity, light, through the objects too).
+type TermCache = HashMap<((u32, i64, i64, i64), usize, bool), LightTerm>;
+
 /// An element's identity across rebuilds of the mesh (its root, centre and size).
 fn element_key(patches: &Patches, el: &Element) -> (u32, i64, i64, i64) {
     let c = region_centre(&el.region);
@@ -327,7 +330,7 @@ impl TexturePath {
             l.get(l.len() * 99 / 100).copied().unwrap_or(1.0).max(1e-30)
         };
         let mut marks = SplitMarks::new();
-        let mut cache: HashMap<((u32, i64, i64, i64), usize, bool), LightTerm> = HashMap::new();
+        let mut cache = TermCache::new();
         let patches = times.time("texture-based refinement", || {
             let mut patches = base;
             for _ in 0..settings.max_rounds {
@@ -547,7 +550,9 @@ impl TexturePath {
 
         // What each pixel shows, through the objects too, with each light's unoccluded irradiance.
         let layer = if has_objects { Layer::All } else { Layer::Real };
-        let rows: Vec<Vec<Option<(PixelPoint, Vec<Vec3>)>>> = times.time("pixel points", || {
+        // Per pixel: what it shows and each light's unoccluded irradiance there.
+        type Row = Vec<Option<(PixelPoint, Vec<Vec3>)>>;
+        let rows: Vec<Row> = times.time("pixel points", || {
             (0..cam.height)
                 .into_par_iter()
                 .map(|row| {
@@ -777,7 +782,7 @@ fn refine_round(
     criteria: &Criteria,
     tracer: &Tracer,
     settings: &TextureSettings,
-    cache: &mut HashMap<((u32, i64, i64, i64), usize, bool), LightTerm>,
+    cache: &mut TermCache,
     marks: &mut SplitMarks,
     stats: &mut TextureStats,
 ) -> usize {

@@ -515,12 +515,11 @@ pub fn reconstruct_cached(scene: &Scene, photo: &Image, tracer: &crate::trace::T
     let readable = files.iter().all(|f| std::fs::read(f).map(|bytes| hash.feed(&bytes)).is_ok());
     hash.feed(format!("{settings:?} {}", crate::gonio::ALGORITHM_VERSION).as_bytes());
     let cache = scene.dir().join(".arlux-cache").join(format!("gonio-{:016x}.ies", hash.value()));
-    if readable {
-        if let Some((light, profile, colour)) =
+    if readable
+        && let Some((light, profile, colour)) =
             std::fs::read_to_string(&cache).ok().and_then(|t| crate::gonio::from_cache_text(&t, &cache)).filter(|(l, _, _)| *l < scene.lights.len())
-        {
-            return Ok(crate::gonio::apply_profile(scene, light, &profile, colour));
-        }
+    {
+        return Ok(crate::gonio::apply_profile(scene, light, &profile, colour));
     }
     let rec = crate::gonio::reconstruct(scene, photo, tracer, &settings)?;
     if readable && cache.parent().is_some_and(|d| std::fs::create_dir_all(d).is_ok()) {

@@ -100,6 +100,8 @@ fn plane_normal(points: &[DVec3]) -> Option<DVec3> {
 }
 
 /// Eigenvalues and unit eigenvectors of a symmetric 3×3 matrix (cyclic Jacobi).
+// A rotation updates a row and a column of two matrices at once: indices read best.
+#[allow(clippy::needless_range_loop)]
 fn symmetric_eigen(m: DMat3) -> ([f64; 3], [DVec3; 3]) {
     let mut a = m.to_cols_array_2d();
     let mut v = DMat3::IDENTITY.to_cols_array_2d();

@@ -363,6 +363,8 @@ impl Geometry {
         self.triangles
     }
 
+    // Embree's hit record, field by field, as its two ray layouts store it.
+    #[allow(clippy::too_many_arguments)]
     fn hit_from(&self, geom_id: u32, prim_id: u32, u: f32, v: f32, t: f32, ng: Vec3, dir: Vec3) -> Option<Hit> {
         if geom_id == ffi::RTC_INVALID_GEOMETRY_ID {
             return None;

@@ -246,7 +246,7 @@ fn render_writes_layers_and_aovs_and_reports_the_error() {
         assert!(v.iter().all(|x| x.is_finite()), "{layer}");
     }
     let (_, _, alpha) = arlux::image_io::read_exr_channel(&out, "A").unwrap();
-    assert!(alpha.iter().any(|a| *a == 1.0) && alpha.iter().any(|a| *a > 0.0 && *a < 1.0), "covered and edge pixels");
+    assert!(alpha.contains(&1.0) && alpha.iter().any(|a| *a > 0.0 && *a < 1.0), "covered and edge pixels");
     for f in ["direct.exr", "indirect.exr", "change.exr", "alpha.exr"] {
         assert!(aov.join(f).exists(), "{f}");
     }
@@ -408,7 +408,7 @@ fn timings_add_up_to_the_wall_time_on_every_command() {
         // them between stages is not arlux's.
         let (share, memory) = (0..3).map(|_| timed_share(&args)).max_by(|a, b| a.0.total_cmp(&b.0)).unwrap();
         println!("{}: stages {share:.1}% of the wall time, peak memory {memory:.1} MB", c[0]);
-        assert!(share >= 95.0 && share <= 100.0, "{}: stages cover {share}% of the wall time", c[0]);
+        assert!((95.0..=100.0).contains(&share), "{}: stages cover {share}% of the wall time", c[0]);
         assert!(memory > 1.0, "{}: peak memory {memory} MB", c[0]);
     }
 }

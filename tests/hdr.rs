@@ -30,10 +30,10 @@ fn recovered_response_and_merged_map_match_the_truth() {
     // exposures to pin the toe down), and over every code as a fraction of
     // full scale.
     let (mut relative, mut absolute): (f64, f64) = (0.0, 0.0);
-    for c in 0..3 {
-        let scale = truth[128] / response[c][128].exp();
-        for z in 0..=255 {
-            let ours = response[c][z].exp() * scale;
+    for channel in &response {
+        let scale = truth[128] / channel[128].exp();
+        for (z, g) in channel.iter().enumerate() {
+            let ours = g.exp() * scale;
             absolute = absolute.max((ours - truth[z]).abs() / truth[255]);
             if (16..=250).contains(&z) {
                 relative = relative.max((ours / truth[z] - 1.0).abs());

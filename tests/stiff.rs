@@ -79,7 +79,8 @@ fn zero_reflectance_of_a_known_surface() {
 fn the_texture_path_stays_finite_on_stiff_cases() {
     use arlux::relight::{TexturePath, TextureSettings};
     let settings = TextureSettings { patch_size: Some(0.5), ..TextureSettings::default() };
-    let cases: Vec<(&str, Box<dyn Fn(&mut Scene, &mut Image)>)> = vec![
+    type Edit = Box<dyn Fn(&mut Scene, &mut Image)>;
+    let cases: Vec<(&str, Edit)> = vec![
         ("virtual bulb 1 mm above the floor", Box::new(|s: &mut Scene, _: &mut Image| {
             let bulb = s.light_index("bulb").unwrap();
             s.lights[bulb].position = LightPosition::Known(DVec3::new(-0.5, 0.001, 0.5));

@@ -145,6 +145,8 @@ pub enum LightShape {
 }
 
 /// Goniometric intensity I(direction), RGB in W/sr, before `scale`.
+// A scene holds a handful of lights: boxing the table-holding variant would save nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum Intensity {
     Uniform(DVec3),
@@ -774,13 +776,13 @@ impl Loader<'_> {
                         let normal = unit(&t, "normal")?;
                         let rgb = t.req_rgb("rgb")?;
                         t.finish()?;
-                        if let LightShape::Rect { u, v } = shape {
-                            if normal.dot(u.cross(*v).normalize()) < 0.99 {
-                                return Err(t.error(
-                                    "normal",
-                                    "disagrees with the shape: a rect emits on the side of u×v, which must be the lambertian normal",
-                                ));
-                            }
+                        if let LightShape::Rect { u, v } = shape
+                            && normal.dot(u.cross(*v).normalize()) < 0.99
+                        {
+                            return Err(t.error(
+                                "normal",
+                                "disagrees with the shape: a rect emits on the side of u×v, which must be the lambertian normal",
+                            ));
                         }
                         Intensity::Lambertian { normal, rgb }
                     }
@@ -826,10 +828,10 @@ impl Loader<'_> {
         let name = v.req_str("name")?.to_string();
         let path = self.existing_path(v, "mesh", v.req_str("mesh")?)?;
         let rgb = v.opt_vec3("rgb")?;
-        if let Some(rgb) = rgb {
-            if rgb.min_element() < 0.0 || rgb.max_element() > 1.0 {
-                return Err(v.error("rgb", "a reflectance lies in [0, 1]"));
-            }
+        if let Some(rgb) = rgb
+            && (rgb.min_element() < 0.0 || rgb.max_element() > 1.0)
+        {
+            return Err(v.error("rgb", "a reflectance lies in [0, 1]"));
         }
         let pose = Pose {
             translate: v.opt_vec3("translate")?.unwrap_or(DVec3::ZERO),
