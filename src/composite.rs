@@ -47,6 +47,33 @@ pub struct CompositeInput<'a> {
     pub reflectance: &'a [DVec3],
     pub patch_vertices: &'a [[u32; 4]],
     pub mode: CompositeMode,
+    /// The "without" irradiance of every real point, kept between updates
+    /// (it depends on nothing a moved object changes); None: computed here.
+    pub without: Option<&'a WithoutIrradiance>,
+}
+
+/// Per real point of the PDA, E_without and H_without, and the floor under
+/// which a ratio is not trusted (a thousandth of their sum's mean).
+#[derive(Debug, Clone, PartialEq)]
+pub struct WithoutIrradiance {
+    pub real: Vec<(DVec3, DVec3)>,
+    pub floor: DVec3,
+}
+
+impl WithoutIrradiance {
+    pub fn of(input: &CompositeInput) -> WithoutIrradiance {
+        let pda = input.pda;
+        let lights = pda.light_count;
+        let real: Vec<(DVec3, DVec3)> = pda
+            .real
+            .points
+            .par_iter()
+            .enumerate()
+            .map(|(i, p)| (input.irradiance(&pda.real.terms[i * lights..(i + 1) * lights], input.scales_without, false), input.interpolate(input.indirect_without, &p.location)))
+            .collect();
+        let floor = real.iter().map(|(e, h)| *e + *h).sum::<DVec3>() / real.len().max(1) as f64 * 1e-3;
+        WithoutIrradiance { real, floor }
+    }
 }
 
 /// The augmented photo and its layers.
@@ -96,10 +123,10 @@ impl CompositeInput<'_> {
 
     /// A real surface point under the photo pixel `photo`; `floor` is the
     /// irradiance below which a ratio is not trusted.
-    fn shade_real(&self, p: &SurfacePoint, terms: &[LightTerm], photo: DVec3, floor: DVec3) -> Shade {
-        let e_wo = self.irradiance(terms, self.scales_without, false);
+    /// `without`: E_without and H_without there, when already known.
+    fn shade_real(&self, p: &SurfacePoint, terms: &[LightTerm], photo: DVec3, floor: DVec3, without: Option<(DVec3, DVec3)>) -> Shade {
+        let (e_wo, h_wo) = without.unwrap_or_else(|| (self.irradiance(terms, self.scales_without, false), self.interpolate(self.indirect_without, &p.location)));
         let e_w = self.irradiance(terms, self.scales_with, true);
-        let h_wo = self.interpolate(self.indirect_without, &p.location);
         let h_w = self.interpolate(self.indirect_with, &p.location);
         let (without, with) = (e_wo + h_wo, e_w + h_w);
         if e_w == e_wo && (h_w - h_wo).abs().cmple(without * UNCHANGED_INDIRECT).all() {
@@ -132,91 +159,124 @@ impl CompositeInput<'_> {
     }
 }
 
+impl Composite {
+    /// No pixels yet.
+    pub fn empty() -> Composite {
+        Composite {
+            image: Image::new(0, 0),
+            direct: Image::new(0, 0),
+            indirect: Image::new(0, 0),
+            change: Image::new(0, 0),
+            alpha: Vec::new(),
+            copied: 0,
+            ratio_fallbacks: 0,
+            clamped: 0,
+        }
+    }
+}
+
 /// Composites every pixel.
 pub fn composite(input: &CompositeInput) -> Composite {
+    let mut out = Composite::empty();
+    composite_into(input, &mut out);
+    out
+}
+
+/// [`composite`] into `out`, reusing its buffers when they have the
+/// image's size (an update rewrites the same image: no new pages to fault in).
+pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
     let pda = input.pda;
     let lights = pda.light_count;
-    let n = (pda.width * pda.height) as usize;
+    let (w, h) = (pda.width, pda.height);
+    let n = (w * h) as usize;
     // D ≈ 0: a thousandth of the mean "without" irradiance of the real points.
-    let mean = pda
-        .real
-        .points
-        .iter()
-        .enumerate()
-        .map(|(i, p)| input.irradiance(&pda.real.terms[i * lights..(i + 1) * lights], input.scales_without, false) + input.interpolate(input.indirect_without, &p.location))
-        .sum::<DVec3>()
-        / pda.real.points.len().max(1) as f64;
-    let floor = mean * 1e-3;
+    let computed;
+    let without = match input.without {
+        Some(w) => w,
+        None => {
+            computed = WithoutIrradiance::of(input);
+            &computed
+        }
+    };
+    let floor = without.floor;
     let mut edge_of = vec![u32::MAX; n];
     for (k, e) in pda.edges.iter().enumerate() {
         edge_of[e.pixel as usize] = k as u32;
     }
-
-    let shaded: Vec<(Shade, f32)> = (0..n)
-        .into_par_iter()
-        .map(|i| {
-            let photo = input.photo.pixels[i].as_dvec3();
-            if edge_of[i] != u32::MAX {
-                let e = pda.edges[edge_of[i] as usize];
-                let mut sum = Shade { value: DVec3::ZERO, direct: DVec3::ZERO, indirect: DVec3::ZERO, copied: false, fallback: false, clamped: false };
-                let mut virtual_count = 0;
-                for k in e.start..e.start + e.count {
-                    let p = &pda.edge_samples.points[k as usize];
-                    let terms = &pda.edge_samples.terms[k as usize * lights..(k as usize + 1) * lights];
-                    let s = if p.is_virtual {
-                        virtual_count += 1;
-                        input.shade_virtual(p, terms)
-                    } else {
-                        input.shade_real(p, terms, photo, floor)
-                    };
-                    sum.value += s.value;
-                    sum.direct += s.direct;
-                    sum.indirect += s.indirect;
-                    sum.fallback |= s.fallback;
-                    sum.clamped |= s.clamped;
-                }
-                // Sub-pixels that see no surface keep the photo's background.
-                let total = (pda.supersample * pda.supersample) as f64;
-                sum.value += photo * (total - e.count as f64);
-                return (
-                    Shade { value: sum.value / total, direct: sum.direct / total, indirect: sum.indirect / total, ..sum },
-                    virtual_count as f32 / total as f32,
-                );
-            }
-            if pda.virtual_index[i] != u32::MAX {
-                let k = pda.virtual_index[i] as usize;
-                return (input.shade_virtual(&pda.virtual_samples.points[k], &pda.virtual_samples.terms[k * lights..(k + 1) * lights]), 1.0);
-            }
-            if pda.real_index[i] != u32::MAX {
-                let k = pda.real_index[i] as usize;
-                return (input.shade_real(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], photo, floor), 0.0);
-            }
-            (Shade { value: photo, direct: DVec3::ZERO, indirect: DVec3::ZERO, copied: true, fallback: false, clamped: false }, 0.0)
-        })
-        .collect();
-
-    let (w, h) = (pda.width, pda.height);
-    let mut out = Composite {
-        image: Image::new(w, h),
-        direct: Image::new(w, h),
-        indirect: Image::new(w, h),
-        change: Image::new(w, h),
-        alpha: Vec::with_capacity(n),
-        copied: 0,
-        ratio_fallbacks: 0,
-        clamped: 0,
-    };
-    for (i, (s, a)) in shaded.into_iter().enumerate() {
-        // Copied pixels keep the photo's exact bits.
-        let value: Vec3 = if s.copied { input.photo.pixels[i] } else { s.value.as_vec3() };
-        out.image.pixels[i] = value;
-        out.direct.pixels[i] = s.direct.as_vec3();
-        out.indirect.pixels[i] = s.indirect.as_vec3();
-        out.change.pixels[i] = value - input.photo.pixels[i];
-        out.alpha.push(a);
-        out.copied += s.copied as usize;
-        out.ratio_fallbacks += s.fallback as usize;
-        out.clamped += s.clamped as usize;
+    if out.image.pixels.len() != n || out.alpha.len() != n {
+        *out = Composite {
+            image: Image::new(w, h),
+            direct: Image::new(w, h),
+            indirect: Image::new(w, h),
+            change: Image::new(w, h),
+            alpha: vec![0.0; n],
+            copied: 0,
+            ratio_fallbacks: 0,
+            clamped: 0,
+        };
     }
-    out
+    let shade = |i: usize| -> (Shade, f32) {
+        let photo = input.photo.pixels[i].as_dvec3();
+        if edge_of[i] != u32::MAX {
+            let e = pda.edges[edge_of[i] as usize];
+            let mut sum = Shade { value: DVec3::ZERO, direct: DVec3::ZERO, indirect: DVec3::ZERO, copied: false, fallback: false, clamped: false };
+            let mut virtual_count = 0;
+            for k in e.start..e.start + e.count {
+                let p = &pda.edge_samples.points[k as usize];
+                let terms = &pda.edge_samples.terms[k as usize * lights..(k as usize + 1) * lights];
+                let s = if p.is_virtual {
+                    virtual_count += 1;
+                    input.shade_virtual(p, terms)
+                } else {
+                    input.shade_real(p, terms, photo, floor, None)
+                };
+                sum.value += s.value;
+                sum.direct += s.direct;
+                sum.indirect += s.indirect;
+                sum.fallback |= s.fallback;
+                sum.clamped |= s.clamped;
+            }
+            // Sub-pixels that see no surface keep the photo's background.
+            let total = (pda.supersample * pda.supersample) as f64;
+            sum.value += photo * (total - e.count as f64);
+            return (
+                Shade { value: sum.value / total, direct: sum.direct / total, indirect: sum.indirect / total, ..sum },
+                virtual_count as f32 / total as f32,
+            );
+        }
+        if pda.virtual_index[i] != u32::MAX {
+            let k = pda.virtual_index[i] as usize;
+            return (input.shade_virtual(&pda.virtual_samples.points[k], &pda.virtual_samples.terms[k * lights..(k + 1) * lights]), 1.0);
+        }
+        if pda.real_index[i] != u32::MAX {
+            let k = pda.real_index[i] as usize;
+            return (input.shade_real(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], photo, floor, Some(without.real[k])), 0.0);
+        }
+        (Shade { value: photo, direct: DVec3::ZERO, indirect: DVec3::ZERO, copied: true, fallback: false, clamped: false }, 0.0)
+    };
+    let photo = &input.photo.pixels;
+    let (copied, fallbacks, clamped) = out
+        .image
+        .pixels
+        .par_iter_mut()
+        .zip(out.direct.pixels.par_iter_mut())
+        .zip(out.indirect.pixels.par_iter_mut())
+        .zip(out.change.pixels.par_iter_mut())
+        .zip(out.alpha.par_iter_mut())
+        .enumerate()
+        .map(|(i, ((((image, direct), indirect), change), alpha))| {
+            let (s, a) = shade(i);
+            // Copied pixels keep the photo's exact bits.
+            let value: Vec3 = if s.copied { photo[i] } else { s.value.as_vec3() };
+            *image = value;
+            *direct = s.direct.as_vec3();
+            *indirect = s.indirect.as_vec3();
+            *change = value - photo[i];
+            *alpha = a;
+            (s.copied as usize, s.fallback as usize, s.clamped as usize)
+        })
+        .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
+    out.copied = copied;
+    out.ratio_fallbacks = fallbacks;
+    out.clamped = clamped;
 }

@@ -9,7 +9,7 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 
-use crate::composite::{Composite, CompositeInput, CompositeMode, composite};
+use crate::composite::{Composite, CompositeInput, CompositeMode, WithoutIrradiance, composite_into};
 use crate::error::Result;
 use crate::image_io::Image;
 use crate::model::{Model, ModelSettings, StageTimes, TransportMethod};
@@ -130,6 +130,8 @@ pub struct Session {
     /// Built for the first update only: a still render does not need it.
     blocks: Option<crate::blocks::BlockHierarchy>,
     pub composite: Composite,
+    /// The photo's irradiance per real pixel point (see [`WithoutIrradiance`]).
+    without: Option<WithoutIrradiance>,
     left_out: Vec<String>,
     rays: u64,
 }
@@ -202,16 +204,8 @@ impl Session {
             bounds,
             pda,
             blocks: None,
-            composite: Composite {
-                image: Image::new(0, 0),
-                direct: Image::new(0, 0),
-                indirect: Image::new(0, 0),
-                change: Image::new(0, 0),
-                alpha: Vec::new(),
-                copied: 0,
-                ratio_fallbacks: 0,
-                clamped: 0,
-            },
+            composite: Composite::empty(),
+            without: None,
             left_out,
             rays,
         };
@@ -221,8 +215,10 @@ impl Session {
 
     fn recomposite(&mut self, times: &mut StageTimes) {
         let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| &o.0);
-        self.composite = times.time("composite", || {
-            composite(&CompositeInput {
+        let without = self.without.take();
+        let mut out = std::mem::replace(&mut self.composite, crate::composite::Composite::empty());
+        let without = times.time("composite", || {
+            let input = CompositeInput {
                 pda: &self.pda,
                 photo: &self.photo,
                 lights: &self.model.lights,
@@ -233,8 +229,15 @@ impl Session {
                 reflectance: &self.changes.reflectance,
                 patch_vertices: &patches.patch_vertices,
                 mode: self.settings.mode,
-            })
+                without: None,
+            };
+            // The photo's irradiance per real point: once, then kept for every update.
+            let without = without.unwrap_or_else(|| WithoutIrradiance::of(&input));
+            composite_into(&CompositeInput { without: Some(&without), ..input }, &mut out);
+            without
         });
+        self.composite = out;
+        self.without = Some(without);
     }
 
     /// Builds the pixel-block hierarchy updates traverse (done by the first

@@ -44,6 +44,10 @@ impl Shaft {
                         let s = normal.dot(*p) - d;
                         above |= s > tolerance;
                         below |= s < -tolerance;
+                        // Points on both sides: not a face, whatever the rest say.
+                        if above && below {
+                            break;
+                        }
                     }
                     let plane = match (above, below) {
                         (true, true) => continue,
