@@ -152,6 +152,18 @@ enum Command {
         /// n×n sub-pixels where real and virtual surfaces meet.
         #[arg(long, default_value_t = 3)]
         supersample: u32,
+        /// Texture path: CIELAB distance under which two leaves have similar colour (default 10).
+        #[arg(long)]
+        colour_threshold: Option<f64>,
+        /// Texture path: visibility difference (0..0.5) under which two leaves see a light alike (default 0.2).
+        #[arg(long)]
+        visibility_threshold: Option<f64>,
+        /// Texture path: CIELAB distance under which a frontier leaf may be a reference (default 10).
+        #[arg(long)]
+        reference_colour_threshold: Option<f64>,
+        /// Texture path: the smallest leaf, in pixel footprints (default 3).
+        #[arg(long)]
+        min_leaf_pixels: Option<f64>,
         #[arg(long)]
         json: bool,
     },
@@ -332,6 +344,10 @@ fn run(cli: Cli) -> Result<()> {
             min_level,
             penumbra_level,
             supersample,
+            colour_threshold,
+            visibility_threshold,
+            reference_colour_threshold,
+            min_leaf_pixels,
             json,
         } => {
             let mut settings = render_settings(patch_size.unwrap_or(0.25), full, epsilon, min_level, penumbra_level, supersample, &composite)?;
@@ -342,8 +358,34 @@ fn run(cli: Cli) -> Result<()> {
                 bail!("--virtual-patch-size must be a positive number of metres, not {virtual_patch_size}");
             }
             settings.virtual_patch_size = virtual_patch_size;
+            let texture_flags = [
+                ("--colour-threshold", colour_threshold, 0.0, f64::INFINITY),
+                ("--visibility-threshold", visibility_threshold, 0.0, 0.5),
+                ("--reference-colour-threshold", reference_colour_threshold, 0.0, f64::INFINITY),
+                ("--min-leaf-pixels", min_leaf_pixels, 0.0, f64::INFINITY),
+            ];
+            for (flag, value, lo, hi) in texture_flags {
+                let Some(v) = value else { continue };
+                if method != "texture" {
+                    bail!("{flag} applies to --method texture");
+                }
+                if !(v.is_finite() && v > lo && v < hi) {
+                    bail!("{flag} must be a number in ({lo}, {hi}), not {v}");
+                }
+            }
             let method = match method.as_str() {
-                "texture" => Method::Texture(arlux::relight::TextureSettings { patch_size, link_epsilon: epsilon, ..Default::default() }),
+                "texture" => {
+                    let d = arlux::relight::TextureSettings::default();
+                    Method::Texture(arlux::relight::TextureSettings {
+                        patch_size,
+                        link_epsilon: epsilon,
+                        colour_threshold: colour_threshold.unwrap_or(d.colour_threshold),
+                        visibility_threshold: visibility_threshold.unwrap_or(d.visibility_threshold),
+                        reference_colour_threshold: reference_colour_threshold.unwrap_or(d.reference_colour_threshold),
+                        min_leaf_pixels: min_leaf_pixels.unwrap_or(d.min_leaf_pixels),
+                        ..d
+                    })
+                }
                 _ => Method::Pda(settings),
             };
             render_cmd(&scene, variant.as_deref(), &output, png.as_deref(), aov.as_deref(), &method, json)

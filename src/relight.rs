@@ -374,6 +374,7 @@ impl TexturePath {
             estimate_reflectances(&patches, &transport, &e_occluded, &measured, &known, crate::estimate::EstimateSettings::default())
         });
         let h = &estimate.solution.indirect_irradiance;
+        let steps_started = std::time::Instant::now();
         let pi = std::f64::consts::PI;
 
         // Visibility per light at the real vertices (the mesh's shadows).
@@ -499,6 +500,7 @@ impl TexturePath {
         let rho_final: Vec<DVec3> = (0..real_patches)
             .map(|k| if occluded[k] && seen(k) && !known.contains_key(&patches.patch(k).surface) { rho_of(t_final_leaf[k], k) } else { estimate.reflectance[k] })
             .collect();
+        times.0.push(("steps 1 and 2", steps_started.elapsed()));
         let final_solution = times.time("solve unoccluded", || {
             let b: Vec<DVec3> = rho_final.iter().zip(&e_occluded).map(|(r, e)| *r * *e).collect();
             solve_from(&patches, &transport, &rho_final, &b, Some(&estimate.solution.radiosity), 1e-7, 500)
@@ -537,6 +539,7 @@ impl TexturePath {
             (patches, real_direct, transport)
         };
         stats.links = transport.link_count();
+        let rest_started = std::time::Instant::now();
         let visibility = vis_vertex(&direct, &patches);
         let direct: Vec<Vec<DVec3>> = direct.iter().map(|l| l.iter().map(|t| t.occluded).collect()).collect();
         let virtual_rgb = scene.virtual_surface_rgb();
@@ -548,6 +551,7 @@ impl TexturePath {
         h_final.resize(patches.patch_count(), DVec3::ZERO);
         let h_final_vertex = patches.vertex_values(&h_final);
 
+        times.0.push(("reflectances and links", rest_started.elapsed()));
         // What each pixel shows, through the objects too, with each light's unoccluded irradiance.
         let layer = if has_objects { Layer::All } else { Layer::Real };
         // Per pixel: what it shows and each light's unoccluded irradiance there.
@@ -575,6 +579,7 @@ impl TexturePath {
                 })
                 .collect()
         });
+        let display_started = std::time::Instant::now();
         let mut pixels = Vec::with_capacity(cam.pixel_count());
         let mut unoccluded = vec![Vec3::ZERO; cam.pixel_count() * lights.len()];
         for (i, p) in rows.into_iter().flatten().enumerate() {
@@ -599,6 +604,7 @@ impl TexturePath {
             let d: Vec<f64> = display.iter().zip(&pixels).filter(|(_, p)| matches!(p, Some(PixelPoint::Real { .. }))).map(|(d, _)| luminance(d.as_dvec3())).collect();
             1e-3 * d.iter().sum::<f64>() / d.len().max(1) as f64
         };
+        times.0.push(("display factors", display_started.elapsed()));
         Ok(TexturePath {
             patches,
             real_patches,
@@ -757,7 +763,7 @@ pub fn render_texture(scene: &Scene, photo: &Image, settings: &TextureSettings, 
     let composite = path.relight(&scales, times);
     let light_change = times.total() - before;
     let unoccluded = times.time("unoccluded texture", || path.unoccluded_texture());
-    Ok(crate::render::RenderOutput {
+    let out = crate::render::RenderOutput {
         composite,
         left_out,
         pda_bytes: path.memory_bytes(),
@@ -767,7 +773,9 @@ pub fn render_texture(scene: &Scene, photo: &Image, settings: &TextureSettings, 
         links: path.stats.links,
         patch_size: path.stats.patch_size,
         texture: Some((path.stats.clone(), unoccluded, light_change)),
-    })
+    };
+    times.time("free", || drop(path));
+    Ok(out)
 }
 
 /// One round of Fig. 12 over the current leaves; returns the splits added to `marks`.

@@ -280,6 +280,15 @@ fn render_method_texture_writes_the_shadow_free_texture() {
     let darker = texture.pixels.iter().zip(&photo.pixels).filter(|(t, p)| !t.cmpge(**p * 0.999).all()).count();
     assert!(darker < photo.pixels.len() / 50, "{darker} pixels darker than the photo");
     assert!(texture.mean() > photo.mean() * 1.005, "{} against {}", texture.mean(), photo.mean());
+
+    // Its thresholds are flags, checked, and for the texture path only.
+    let bad = arlux(&["render", &desk.scene(), "--variant", "panel_off", "--method", "texture", "--visibility-threshold", "0.7", "-o", desk.path("b.exr").to_str().unwrap()]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--visibility-threshold must be a number in (0, 0.5), not 0.7"), "{}", String::from_utf8_lossy(&bad.stderr));
+    let pda = arlux(&["render", &desk.scene(), "--variant", "panel_off", "--min-leaf-pixels", "2", "-o", desk.path("b.exr").to_str().unwrap()]);
+    assert_eq!(pda.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&pda.stderr).contains("--min-leaf-pixels applies to --method texture"));
+    assert!(!desk.path("b.exr").exists());
 }
 
 #[test]
@@ -399,6 +408,7 @@ fn timings_add_up_to_the_wall_time_on_every_command() {
         vec!["ids".into(), scene.clone(), "-o".into(), out("ids.png")],
         vec!["compare".into(), format!("{DESK}/photo.exr"), format!("{DESK}/truth/box_floor_a.exr")],
         vec!["render".into(), scene.clone(), "--variant".into(), "box_floor_a".into(), "-o".into(), out("a.exr")],
+        vec!["render".into(), scene.clone(), "--variant".into(), "spot_x2".into(), "--method".into(), "texture".into(), "-o".into(), out("t.exr")],
         vec!["radiosity".into(), scene.clone(), "-o".into(), out("r.exr"), "--patch-size".into(), "0.5".into()],
         vec!["hdr".into(), "--bracket".into(), format!("{DESK}/brackets/ev-1.png:-1"), "--bracket".into(), format!("{DESK}/brackets/ev+1.png:1"), "-o".into(), out("m.exr")],
     ];
