@@ -60,6 +60,15 @@ fn coplanar(p: &Element, q: &Element) -> bool {
     p.normal.dot(q.normal).abs() > 1.0 - 1e-9 && (q.centre - p.centre).dot(p.normal).abs() < 1e-9 * scale.max(1e-9)
 }
 
+/// Whether a one-sided element has the other wholly behind its plane: then
+/// [`point_factor`] is zero for every point of every sub-element pair (the
+/// receiver sees nothing behind it, the source sends nothing backwards), so
+/// the pair needs neither an occluder search nor a link.
+fn faces_away(p: &Element, q: &Element) -> bool {
+    let behind = |e: &Element, other: &Element| e.one_sided && other.shape.corners().iter().all(|c| (*c - e.centre).dot(e.normal) <= 0.0);
+    behind(p, q) || behind(q, p)
+}
+
 /// The exact unoccluded form factor from point `x` of receiver `p` to the
 /// polygon of source `q`, minding one-sided elements: a solid's face
 /// receives only from outside and sends only outwards.
@@ -110,18 +119,20 @@ impl<'a> ShaftTest<'a> {
     /// layer, coplanar with neither, and the shaft does not exclude it.
     fn may_block(&mut self, r: u32) -> bool {
         let root = &self.patches.elements[r as usize];
-        let is_virtual = self.patches.surface_is_virtual.get(&root.surface).copied().unwrap_or(false);
-        let in_layer = match self.layer {
-            Layer::Real => !is_virtual,
-            Layer::Virtual => is_virtual,
-            Layer::All => true,
-        };
-        if !in_layer || coplanar(root, self.p) || coplanar(root, self.q) {
-            return false;
-        }
-        // Boxes that only touch cannot hold an occluder between p and q.
+        // Cheapest first: most roots lie outside the pair's box. Boxes that
+        // only touch cannot hold an occluder between p and q.
         let (rlo, rhi) = root.shape.bounds();
         if (rlo - self.slack).cmpge(self.hi).any() || (rhi + self.slack).cmple(self.lo).any() {
+            return false;
+        }
+        let in_layer = match self.layer {
+            Layer::All => true,
+            layer => {
+                let is_virtual = self.patches.surface_is_virtual.get(&root.surface).copied().unwrap_or(false);
+                is_virtual == (layer == Layer::Virtual)
+            }
+        };
+        if !in_layer || coplanar(root, self.p) || coplanar(root, self.q) {
             return false;
         }
         let corners = root.shape.corners();
@@ -433,7 +444,7 @@ fn source_spread(p: &Element, q: &Element) -> f64 {
 #[allow(clippy::too_many_arguments)]
 fn refine(patches: &Patches, tracer: &Tracer, layer: Layer, epsilon: f64, p: u32, q: u32, candidates: &[u32], out: &mut Vec<Link>) {
     let (ep, eq) = (&patches.elements[p as usize], &patches.elements[q as usize]);
-    if coplanar(ep, eq) {
+    if coplanar(ep, eq) || faces_away(ep, eq) {
         return;
     }
     let occluders = occluders_between(patches, layer, ep, eq, candidates);
