@@ -188,6 +188,23 @@ fn element_light(shape: &Shape, normal: DVec3, light: &LightSource, tracer: &Tra
     t
 }
 
+/// Each light's terms per leaf, `[light][leaf]`, seeded by the leaf's
+/// identity (the same leaf gets the same rays in every mesh that holds it).
+fn leaf_light(patches: &Patches, lights: &[LightSource], tracer: &Tracer, layer: Layer, level: usize) -> Vec<Vec<LightTerm>> {
+    lights
+        .iter()
+        .map(|light| {
+            (0..patches.patch_count())
+                .into_par_iter()
+                .map(|k| {
+                    let el = patches.patch(k);
+                    element_light(&el.shape, el.normal, light, tracer, layer, level, element_seed(patches, el))
+                })
+                .collect()
+        })
+        .collect()
+}
+
 /// Light terms already computed, by (element identity, light, through the objects too).
 type TermCache = HashMap<((u32, i64, i64, i64), usize, bool), LightTerm>;
 
@@ -348,20 +365,7 @@ impl TexturePath {
 
         // The illumination model on the refined mesh (links at the leaves for
         // the light sources: direct light is per leaf).
-        let real_direct: Vec<Vec<LightTerm>> = times.time("direct light", || {
-            lights
-                .iter()
-                .map(|light| {
-                    (0..real_patches)
-                        .into_par_iter()
-                        .map(|k| {
-                            let el = patches.patch(k);
-                            element_light(&el.shape, el.normal, light, tracer, Layer::Real, settings.light_level, element_seed(&patches, el))
-                        })
-                        .collect()
-                })
-                .collect()
-        });
+        let real_direct = times.time("direct light", || leaf_light(&patches, &lights, tracer, Layer::Real, settings.light_level));
         let transport = times.time("form factors", || Transport::hierarchical(&patches, tracer, Layer::Real, settings.link_epsilon));
         let measured = times.time("photo per patch", || PhotoPatches::measure(cam, tracer, &patches, photo));
         let known: HashMap<u32, DVec3> = scene.reflectances.iter().map(|k| (k.surface as u32, k.rgb)).collect();
@@ -519,20 +523,7 @@ impl TexturePath {
         // The mesh with the inserted objects, and the direct light through them.
         let (patches, direct, transport) = if has_objects {
             let all = times.time("virtual mesh", || Patches::of_scene_refined(scene, true, patch_size, virtual_size, &marks));
-            let direct: Vec<Vec<LightTerm>> = times.time("direct light with objects", || {
-                lights
-                    .iter()
-                    .map(|light| {
-                        (0..all.patch_count())
-                            .into_par_iter()
-                            .map(|k| {
-                                let el = all.patch(k);
-                                element_light(&el.shape, el.normal, light, tracer, Layer::All, settings.light_level, element_seed(&all, el))
-                            })
-                            .collect()
-                    })
-                    .collect()
-            });
+            let direct = times.time("direct light with objects", || leaf_light(&all, &lights, tracer, Layer::All, settings.light_level));
             let transport = times.time("form factors with objects", || transport.with_objects(&all, tracer, settings.link_epsilon));
             (all, direct, transport)
         } else {

@@ -456,6 +456,16 @@ impl Scene {
     }
 }
 
+/// A table's `surface` key: the name and the index of the real surface it names.
+fn real_surface<'a>(r: &Fields<'a>, surfaces: &[Surface]) -> Result<(&'a str, usize)> {
+    let name = r.req_str("surface")?;
+    let index = surfaces.iter().position(|s| s.name == name).ok_or_else(|| {
+        let names: Vec<&str> = surfaces.iter().map(|s| s.name.as_str()).collect();
+        r.error("surface", format!("no real surface named '{name}' (surfaces: {})", list(&names)))
+    })?;
+    Ok((name, index))
+}
+
 fn list(names: &[&str]) -> String {
     if names.is_empty() { "none".into() } else { names.join(", ") }
 }
@@ -518,11 +528,7 @@ impl Loader<'_> {
 
         let mut reflectances = Vec::new();
         for r in top.tables("reflectance")? {
-            let sname = r.req_str("surface")?;
-            let surface = surfaces.iter().position(|s| s.name == sname).ok_or_else(|| {
-                let names: Vec<&str> = surfaces.iter().map(|s| s.name.as_str()).collect();
-                r.error("surface", format!("no real surface named '{sname}' (surfaces: {})", list(&names)))
-            })?;
+            let (sname, surface) = real_surface(&r, &surfaces)?;
             let rgb = r.req_rgb("rgb")?;
             if rgb.max_element() > 1.0 {
                 return Err(r.error("rgb", "a reflectance lies in [0, 1]"));
@@ -536,11 +542,7 @@ impl Loader<'_> {
 
         let mut texture_references: Vec<TextureReference> = Vec::new();
         for r in top.tables("texture_reference")? {
-            let sname = r.req_str("surface")?;
-            let surface = surfaces.iter().position(|s| s.name == sname).ok_or_else(|| {
-                let names: Vec<&str> = surfaces.iter().map(|s| s.name.as_str()).collect();
-                r.error("surface", format!("no real surface named '{sname}' (surfaces: {})", list(&names)))
-            })?;
+            let (sname, surface) = real_surface(&r, &surfaces)?;
             let point = r.req_vec3("point")?;
             if texture_references.iter().any(|k| k.surface == surface) {
                 return Err(r.error("surface", format!("'{sname}' is given twice")));
