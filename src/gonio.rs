@@ -45,7 +45,7 @@ use crate::trace::{Layer, Tracer};
 
 /// Bumped whenever the reconstruction's results change, so that a cached
 /// light from an earlier arlux is not taken for a current one.
-pub const ALGORITHM_VERSION: u32 = 3;
+pub const ALGORITHM_VERSION: u32 = 4;
 
 /// Photometric zero of the reconstructed table (type C nadir) and the
 /// direction of horizontal angle 0: world down and world +x.
@@ -385,25 +385,43 @@ struct Fit {
     den: Vec<f64>,
     /// Σ bilinear weight: how many samples' worth constrain the node.
     weight: Vec<f64>,
+    /// Σ w·g and Σ w·(all the light the samples received, mean channel):
+    /// with the fitted I, the share of the samples' light the node explains.
+    g_sum: Vec<f64>,
+    light: Vec<f64>,
 }
 
 impl Fit {
     fn new(n: usize) -> Fit {
-        Fit { num: vec![DVec3::ZERO; n], den: vec![0.0; n], weight: vec![0.0; n] }
+        Fit { num: vec![DVec3::ZERO; n], den: vec![0.0; n], weight: vec![0.0; n], g_sum: vec![0.0; n], light: vec![0.0; n] }
     }
 
-    fn add(&mut self, grid: &Grid, s: &Sample, y: DVec3) {
+    /// A sample: `y` = g·I by EQ1, `total` the irradiance it received from everything.
+    fn add(&mut self, grid: &Grid, s: &Sample, y: DVec3, total: DVec3) {
         for (k, w) in grid.corners(s.v, s.h) {
             if w > 0.0 {
                 self.num[k] += y * (w * s.g);
                 self.den[k] += w * s.g * s.g;
                 self.weight[k] += w;
+                self.g_sum[k] += w * s.g;
+                self.light[k] += w * total.element_sum() / 3.0;
             }
         }
     }
 
     fn known(&self) -> Vec<bool> {
         self.den.iter().map(|&d| d > 0.0).collect()
+    }
+
+    /// The fitted table, with a node that explains less than `min_share`
+    /// of the light its samples received set to zero: there the light's
+    /// part is below what the other terms are known to, so the photo says
+    /// it sends (next to) nothing that way.
+    fn values_above(&self, min_share: f64) -> Vec<DVec3> {
+        let values = self.values();
+        (0..values.len())
+            .map(|k| if values[k].element_sum() / 3.0 * self.g_sum[k] >= min_share * self.light[k] { values[k] } else { DVec3::ZERO })
+            .collect()
     }
 
     /// Nodes constrained by at least `samples` samples' worth of weight.
@@ -440,6 +458,14 @@ const SAFE_RISK: f64 = 0.03;
 /// noise) counts against it, next to the relative doubt in its direct light.
 const INDIRECT_DOUBT: f64 = 0.1;
 
+/// The least share of its samples' light a direction must explain not to
+/// be taken as dark: where the light gives under 5% of what a surface
+/// receives, EQ1 subtracts two nearly equal numbers (the photo's light and
+/// the other lights' plus the indirect, known to a few percent) and what is
+/// left is their error, not the light (on the desk: the ceiling, which the
+/// spot never reaches, came out at 7% of the peak).
+const MIN_LIGHT_SHARE: f64 = 0.05;
+
 /// Samples' worth of weight a node needs before EQ2 may lean on it.
 const WELL_KNOWN_SAMPLES: f64 = 4.0;
 
@@ -452,15 +478,16 @@ fn propagate(grid: &Grid, samples: &[Sample], known_rho: &HashMap<u32, DVec3>, s
     for (i, s) in samples.iter().enumerate() {
         by_surface.entry(s.surface).or_default().push(i);
     }
-    let eq1 = |s: &Sample, r: DVec3| -> DVec3 {
+    let eq1 = |s: &Sample, r: DVec3| -> (DVec3, DVec3) {
         let safe = r.max(DVec3::splat(1e-6));
-        s.b / safe - s.e_known - s.h_ind
+        (s.b / safe - s.e_known - s.h_ind, s.b / safe)
     };
     for (&surface, &r) in known_rho {
         rho.insert(surface, (r, ReflectanceSource::Known));
         for &i in by_surface.get(&surface).into_iter().flatten() {
             if samples[i].g > 0.0 {
-                fit.add(grid, &samples[i], eq1(&samples[i], r));
+                let (y, total) = eq1(&samples[i], r);
+                fit.add(grid, &samples[i], y, total);
             }
         }
     }
@@ -534,7 +561,8 @@ fn propagate(grid: &Grid, samples: &[Sample], known_rho: &HashMap<u32, DVec3>, s
         rho.insert(surface, (r, ReflectanceSource::Propagated { step, angle_deg: angle.to_degrees(), samples: take }));
         for &i in &by_surface[&surface] {
             if samples[i].g > 0.0 {
-                fit.add(grid, &samples[i], eq1(&samples[i], r));
+                let (y, total) = eq1(&samples[i], r);
+                fit.add(grid, &samples[i], y, total);
             }
         }
     }
@@ -1014,13 +1042,13 @@ pub fn reconstruct(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &Gon
         // the model's (with the current reconstruction) where it does not.
         ev.update_indirect(table.as_ref().map(|_| &light), tracer, settings);
         let (fit, rho) = propagate(&grid, &ev.samples, &ev.known_rho, &surfaces);
-        let values = fit.values();
+        let known = fit.known();
+        let values = fit.values_above(MIN_LIGHT_SHARE);
         let peak = values.iter().map(|v| v.max_element()).fold(0.0, f64::max).max(1e-300);
         change = match &table {
             None => f64::INFINITY,
             Some(old) => old.iter().zip(&values).map(|(a, b)| (*a - *b).abs().max_element()).fold(0.0, f64::max) / peak,
         };
-        let known = fit.known();
         let (colour, scalar, residual) = factor_colour(&values, &known);
         let profile = table_profile(&grid, &scalar);
         light.distribution = Distribution::Ies { profile: Box::new(profile.clone()), axis: AXIS, reference: REFERENCE, rgb: colour };

@@ -98,12 +98,13 @@ fn the_desk_spot_is_recovered_within_ten_percent_where_the_photo_sees_it() {
     );
 
     // Progress guard, not yet the bound (every direction within 10%):
-    // half the directions are within 1.2% (of the true value, or of a tenth
-    // of the peak where it is dimmer); as a share of the peak, 95% are within
-    // 10.1%. The spot's brightest directions on the textured floor come out
-    // about 7% low; the worst are at the table and the cone's edge.
+    // over half the directions are exact (the spot sends nothing there and
+    // the table says so); as a share of the peak, 95% are within 9.9% and
+    // 99% within 18.7%. The spot's brightest directions on the textured floor
+    // come out about 7% low; the worst are at the table and the cone's edge.
     assert!(errors[count / 2] < 0.02, "median direction error {:.1}%", 100.0 * errors[count / 2]);
-    assert!(of_peak[count * 95 / 100] < 0.12, "95th percentile {:.1}% of the peak", 100.0 * of_peak[count * 95 / 100]);
+    assert!(of_peak[count * 95 / 100] < 0.105, "95th percentile {:.1}% of the peak", 100.0 * of_peak[count * 95 / 100]);
+    assert!(of_peak[count * 99 / 100] < 0.20, "99th percentile {:.1}% of the peak", 100.0 * of_peak[count * 99 / 100]);
 
     // The desk ships no reflectance ground truth. Two references: arlux's
     // patch estimator given the true spot, and EQ2 per pixel given the true
