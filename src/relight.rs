@@ -131,14 +131,14 @@ impl Texture {
 /// What the camera sees at a pixel centre.
 #[derive(Debug, Clone, Copy)]
 enum PixelPoint {
-    Real { root: u32, at: Location, texel: u32 },
+    /// `texture` indexes [`TexturePath::textures`].
+    Real { texture: u32, at: Location, texel: u32 },
     Virtual { at: Location },
 }
 
 /// The preprocessed scene: mesh, links, shadow-free textures, D.
 pub struct TexturePath {
     patches: Patches,
-    real_patches: usize,
     lights: Vec<LightSource>,
     /// Direct irradiance per light and leaf before scales, through every
     /// layer the scene has (virtual objects shadow the room).
@@ -155,7 +155,8 @@ pub struct TexturePath {
     /// Each light's unoccluded irradiance per pixel (pixel-major).
     unoccluded: Vec<Vec3>,
     d_floor: f64,
-    textures: HashMap<u32, Texture>,
+    /// One per root polygon the camera sees, in root order.
+    textures: Vec<Texture>,
     pixels: Vec<Option<PixelPoint>>,
     photo: Image,
     solve_tolerance: f64,
@@ -517,7 +518,12 @@ impl TexturePath {
                 step1(x, patches.patch(at.patch as usize).normal, &at) * step2(&at)
             })
         });
-        stats.texels = textures.values().map(|t| t.texels.len()).sum();
+        // Indexed, not hashed: the display looks one up per pixel.
+        let mut by_root: Vec<(u32, Texture)> = textures.into_iter().collect();
+        by_root.sort_unstable_by_key(|(root, _)| *root);
+        let texture_of: HashMap<u32, u32> = by_root.iter().enumerate().map(|(i, (root, _))| (*root, i as u32)).collect();
+        let textures: Vec<Texture> = by_root.into_iter().map(|(_, t)| t).collect();
+        stats.texels = textures.iter().map(|t| t.texels.len()).sum();
         stats.texture_bytes = stats.texels * std::mem::size_of::<Vec3>();
 
         // The mesh with the inserted objects, and the direct light through them.
@@ -563,8 +569,9 @@ impl TexturePath {
                             if h.is_virtual {
                                 return Some((PixelPoint::Virtual { at }, e));
                             }
-                            let texel = textures.get(&root)?.texel_of(patches.root_params(root, x)) as u32;
-                            Some((PixelPoint::Real { root, at, texel }, e))
+                            let texture = *texture_of.get(&root)?;
+                            let texel = textures[texture as usize].texel_of(patches.root_params(root, x)) as u32;
+                            Some((PixelPoint::Real { texture, at, texel }, e))
                         })
                         .collect()
                 })
@@ -598,7 +605,6 @@ impl TexturePath {
         times.0.push(("display factors", display_started.elapsed()));
         Ok(TexturePath {
             patches,
-            real_patches,
             lights,
             direct,
             visibility,
@@ -626,18 +632,22 @@ impl TexturePath {
     pub fn unoccluded_texture(&self) -> Image {
         let mut out = self.photo.clone();
         for (o, p) in out.pixels.iter_mut().zip(&self.pixels) {
-            if let Some(PixelPoint::Real { root, texel, .. }) = p {
-                *o = self.textures[root].texels[*texel as usize];
+            if let Some(PixelPoint::Real { texture, texel, .. }) = p {
+                *o = self.textures[*texture as usize].texels[*texel as usize];
             }
         }
         out
     }
 
-    /// Leaves of the mesh (real and virtual) and bytes of the textures.
+    /// Bytes of the textures and of what is kept per pixel (its point, D,
+    /// each light's unoccluded irradiance).
     pub fn memory_bytes(&self) -> usize {
-        self.stats.texture_bytes + self.pixels.len() * std::mem::size_of::<Option<PixelPoint>>()
+        self.stats.texture_bytes
+            + self.pixels.len() * std::mem::size_of::<Option<PixelPoint>>()
+            + (self.display.len() + self.unoccluded.len()) * std::mem::size_of::<Vec3>()
     }
 
+    /// Leaves of the mesh, the inserted objects' included.
     pub fn patch_count(&self) -> usize {
         self.patches.patch_count()
     }
@@ -670,15 +680,33 @@ impl TexturePath {
         let pi = std::f64::consts::PI;
         let photo = &self.photo;
         let nl = self.lights.len();
-        let shaded: Vec<(Vec3, Vec3, Vec3, f32, bool, bool)> = self
+        let (w, h) = (photo.width, photo.height);
+        let mut out = Composite {
+            image: Image::new(w, h),
+            direct: Image::new(w, h),
+            indirect: Image::new(w, h),
+            change: Image::new(w, h),
+            alpha: vec![0.0; (w * h) as usize],
+            copied: 0,
+            ratio_fallbacks: 0,
+            clamped: 0,
+        };
+        let (copied, fallbacks) = out
+            .image
             .pixels
-            .par_iter()
+            .par_iter_mut()
+            .zip(out.direct.pixels.par_iter_mut())
+            .zip(out.indirect.pixels.par_iter_mut())
+            .zip(out.change.pixels.par_iter_mut())
+            .zip(out.alpha.par_iter_mut())
             .enumerate()
-            .map(|(i, px)| {
-                let original = photo.pixels[i];
-                let Some(px) = px else { return (original, Vec3::ZERO, Vec3::ZERO, 0.0, true, false) };
+            .map(|(i, ((((image, direct), indirect), change), alpha))| {
+                let Some(px) = &self.pixels[i] else {
+                    *image = photo.pixels[i];
+                    return (1, 0);
+                };
                 let (at, texture) = match px {
-                    PixelPoint::Real { at, root, texel } => (at, Some(self.textures[root].texels[*texel as usize])),
+                    PixelPoint::Real { at, texture, texel } => (at, Some(self.textures[*texture as usize].texels[*texel as usize])),
                     PixelPoint::Virtual { at } => (at, None),
                 };
                 let mut e = DVec3::ZERO;
@@ -688,52 +716,34 @@ impl TexturePath {
                         e += self.unoccluded[i * nl + l].as_dvec3() * (s * v.clamp(0.0, 1.0));
                     }
                 }
-                let h = p.interpolate(&h_v, at);
+                let hh = p.interpolate(&h_v, at);
                 let rho = self.reflectance[at.patch as usize];
-                let mut fallback = false;
+                let mut fallback = 0;
                 let value = match texture {
                     Some(t) => {
                         let d = self.display[i].as_dvec3();
                         if luminance(d) > self.d_floor && d.min_element() > 0.0 {
-                            t.as_dvec3() * (e + h) / d
+                            t.as_dvec3() * (e + hh) / d
                         } else {
                             // D ≈ 0: the photo saw this surface unlit; only the model knows it.
-                            fallback = true;
-                            rho * (e + h) / pi
+                            fallback = 1;
+                            rho * (e + hh) / pi
                         }
                     }
-                    None => rho * (e + h) / pi,
+                    None => rho * (e + hh) / pi,
                 };
-                let value = if value.is_finite() { value.max(DVec3::ZERO) } else { DVec3::ZERO };
-                (value.as_vec3(), e.as_vec3(), h.as_vec3(), if texture.is_some() { 0.0 } else { 1.0 }, false, fallback)
+                let value = if value.is_finite() { value.max(DVec3::ZERO) } else { DVec3::ZERO }.as_vec3();
+                *image = value;
+                *direct = e.as_vec3();
+                *indirect = hh.as_vec3();
+                *change = value - photo.pixels[i];
+                *alpha = if texture.is_some() { 0.0 } else { 1.0 };
+                (0, fallback)
             })
-            .collect();
-        let (w, h) = (photo.width, photo.height);
-        let mut out = Composite {
-            image: Image::new(w, h),
-            direct: Image::new(w, h),
-            indirect: Image::new(w, h),
-            change: Image::new(w, h),
-            alpha: vec![0.0; shaded.len()],
-            copied: 0,
-            ratio_fallbacks: 0,
-            clamped: 0,
-        };
-        for (i, (v, e, hh, a, copied, fallback)) in shaded.into_iter().enumerate() {
-            out.image.pixels[i] = v;
-            out.direct.pixels[i] = e;
-            out.indirect.pixels[i] = hh;
-            out.change.pixels[i] = v - photo.pixels[i];
-            out.alpha[i] = a;
-            out.copied += copied as usize;
-            out.ratio_fallbacks += fallback as usize;
-        }
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+        out.copied = copied;
+        out.ratio_fallbacks = fallbacks;
         out
-    }
-
-    /// How many real leaves the mesh has (before inserted objects).
-    pub fn real_leaf_count(&self) -> usize {
-        self.real_patches
     }
 }
 
