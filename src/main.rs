@@ -111,7 +111,8 @@ enum Command {
         variant: Option<String>,
     },
     /// The augmented photo of a variant: virtual objects inserted, lights
-    /// changed or added, by per-pixel differential rendering.
+    /// changed or added, by per-pixel differential rendering (or, with
+    /// --method texture, shadow-free textures × B/D).
     Render {
         scene: PathBuf,
         #[arg(long)]
@@ -140,8 +141,11 @@ enum Command {
         /// Largest patch edge on virtual objects, metres.
         #[arg(long, default_value_t = 0.1)]
         virtual_patch_size: f64,
+        /// Every patch against every other (the form-factor oracle) instead
+        /// of hierarchical radiosity; pixel path only.
         #[arg(long)]
         full: bool,
+        /// Hierarchical radiosity's link threshold (both methods).
         #[arg(long, default_value_t = arlux::radiosity::DEFAULT_LINK_EPSILON)]
         epsilon: f64,
         /// 2^level shadow rays per rect light everywhere, 2^penumbra_level in penumbra.
@@ -364,6 +368,19 @@ fn run(cli: Cli) -> Result<()> {
                 ("--reference-colour-threshold", reference_colour_threshold, 0.0, f64::INFINITY),
                 ("--min-leaf-pixels", min_leaf_pixels, 0.0, f64::INFINITY),
             ];
+            if method == "texture" {
+                let d = arlux::render::RenderSettings::default();
+                let pda_only = [
+                    ("--full", full),
+                    ("--composite", composite != "ratio"),
+                    ("--min-level", min_level != d.pda.min_level),
+                    ("--penumbra-level", penumbra_level != d.pda.penumbra_level),
+                    ("--supersample", supersample != d.pda.supersample),
+                ];
+                if let Some((flag, _)) = pda_only.iter().find(|(_, given)| *given) {
+                    bail!("{flag} applies to --method pda (the texture path casts its shadow rays per leaf and displays T×B/D)");
+                }
+            }
             for (flag, value, lo, hi) in texture_flags {
                 let Some(v) = value else { continue };
                 if method != "texture" {
