@@ -266,7 +266,11 @@ impl Transport {
     /// kept; the others are refined again with the objects as occluders;
     /// the objects' elements are linked with everything. A full matrix is
     /// rebuilt.
-    pub fn with_objects(&self, patches: &Patches, tracer: &Tracer, epsilon: f64) -> Transport {
+    ///
+    /// With `objects_receive` false the objects get no links of their own to
+    /// gather through (the caller supplies their light, e.g. by final
+    /// gathering from the photo); they still send light and shadow the room.
+    pub fn with_objects(&self, patches: &Patches, tracer: &Tracer, epsilon: f64, objects_receive: bool) -> Transport {
         let Transport::Hierarchical { links: room_links, .. } = self else {
             return Transport::full(patches, tracer, Layer::All);
         };
@@ -295,7 +299,9 @@ impl Transport {
             .par_iter()
             .flat_map_iter(|&(v, r)| {
                 let mut out = Vec::new();
-                refine(patches, tracer, Layer::All, epsilon, v, r, all_roots, &mut out);
+                if objects_receive {
+                    refine(patches, tracer, Layer::All, epsilon, v, r, all_roots, &mut out);
+                }
                 if !is_virtual(&r) {
                     refine(patches, tracer, Layer::All, epsilon, r, v, all_roots, &mut out);
                 }

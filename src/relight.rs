@@ -530,7 +530,7 @@ impl TexturePath {
         let (patches, direct, transport) = if has_objects {
             let all = times.time("virtual mesh", || Patches::of_scene_refined(scene, true, patch_size, virtual_size, &marks));
             let direct = times.time("direct light with objects", || leaf_light(&all, &lights, tracer, Layer::All, settings.light_level));
-            let transport = times.time("form factors with objects", || transport.with_objects(&all, tracer, settings.link_epsilon));
+            let transport = times.time("form factors with objects", || transport.with_objects(&all, tracer, settings.link_epsilon, true));
             (all, direct, transport)
         } else {
             (patches, real_direct, transport)

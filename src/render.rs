@@ -360,7 +360,8 @@ fn solve_changes(
             TransportMethod::Full => crate::radiosity::DEFAULT_LINK_EPSILON,
             TransportMethod::Hierarchical { epsilon } => epsilon,
         };
-        let transport = times.time("form factors with objects", || model.transport.with_objects(&patches, tracer, epsilon));
+        // With final gathering the objects' light comes from the photo: they need no links to gather through.
+        let transport = times.time("form factors with objects", || model.transport.with_objects(&patches, tracer, epsilon, settings.gather_rays == 0));
         (patches, direct, transport)
     });
     let (patches, direct_per_light, transport) = match &own {
@@ -372,12 +373,13 @@ fn solve_changes(
     let reflectance: Vec<DVec3> = (0..patches.patch_count())
         .map(|k| if k < real_count { model.estimate.reflectance[k] } else { virtual_rgb[&patches.patch(k).surface] })
         .collect();
+    let e = total_direct(scales_with, direct_per_light);
+    let mut b: Vec<DVec3> = reflectance.iter().zip(&e).map(|(r, e)| *r * *e).collect();
+    let tolerance = settings.model.estimate.solve_tolerance;
     let with = times.time("solve with changes", || {
-        let e = total_direct(scales_with, direct_per_light);
-        let b: Vec<DVec3> = reflectance.iter().zip(&e).map(|(r, e)| *r * *e).collect();
         let mut guess = model.estimate.solution.radiosity.clone();
         guess.resize(patches.patch_count(), DVec3::ZERO);
-        solve_from(patches, transport, &reflectance, &b, Some(&guess), settings.model.estimate.solve_tolerance, 500)
+        solve_from(patches, transport, &reflectance, &b, Some(&guess), tolerance, 500)
     });
     let mut indirect_with = patches.vertex_values(&with.indirect_irradiance);
     if has_virtual && settings.gather_rays > 0 {
@@ -388,6 +390,20 @@ fn solve_changes(
         for (v, h) in gathered {
             indirect_with[v] = h;
         }
+        // The objects have no links to gather through: their radiosity is
+        // their direct light plus what they gathered, and the room takes it
+        // from there in a second solve (from the first: a few iterations).
+        let again = times.time("solve with changes", || {
+            for k in real_count..patches.patch_count() {
+                let ids = &patches.patch_vertices[k];
+                let corners: Vec<u32> = ids.iter().copied().filter(|&v| v != u32::MAX).collect();
+                let h = corners.iter().map(|&v| indirect_with[v as usize]).sum::<DVec3>() / corners.len().max(1) as f64;
+                b[k] = reflectance[k] * (e[k] + h);
+            }
+            solve_from(patches, transport, &reflectance, &b, Some(&with.radiosity), tolerance, 500)
+        });
+        let room = patches.vertex_values(&again.indirect_irradiance);
+        indirect_with[..real_vertices].copy_from_slice(&room[..real_vertices]);
     }
     Changes { own, reflectance, indirect_with }
 }
