@@ -47,6 +47,9 @@ pub struct RenderSettings {
     pub mode: CompositeMode,
     /// Rays per virtual-object vertex gathering indirect light from the
     /// photo (final gathering); 0 keeps the radiosity solution's value.
+    /// 144 (12×12 strata): on the desk's box variants the error on the box
+    /// is the same as at 256 and 1024 to within ±2.5% (the truth's own
+    /// noise), at 4 ms against 7 and 27; 64 and 16 lose up to 3% and 20%.
     pub gather_rays: u32,
 }
 
@@ -58,7 +61,7 @@ impl Default for RenderSettings {
             virtual_patch_size: 0.1,
             pda: PdaSettings::default(),
             mode: CompositeMode::Ratio,
-            gather_rays: 256,
+            gather_rays: 144,
         }
     }
 }
