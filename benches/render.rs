@@ -1,5 +1,5 @@
 //! Rendering the desk's `box_floor_a` (512×384; 4 shadow rays per rect
-//! light, 16 in penumbra; 3×3 sub-pixels at the box's edges): the whole
+//! light, 16 in penumbra; 4×4 sub-pixels at the box's edges): the whole
 //! render, and the Pixel Data Array alone with its ray throughput (compare
 //! with the `trace` bench's occlusion rays per second, the bound).
 

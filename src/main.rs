@@ -154,7 +154,7 @@ enum Command {
         #[arg(long, default_value_t = 4)]
         penumbra_level: usize,
         /// n×n sub-pixels where real and virtual surfaces meet.
-        #[arg(long, default_value_t = 3)]
+        #[arg(long, default_value_t = 4)]
         supersample: u32,
         /// Texture path: CIELAB distance under which two leaves have similar colour (default 10).
         #[arg(long)]

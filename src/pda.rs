@@ -35,7 +35,7 @@ pub struct PdaSettings {
 
 impl Default for PdaSettings {
     fn default() -> Self {
-        PdaSettings { min_level: 2, penumbra_level: 4, supersample: 3 }
+        PdaSettings { min_level: 2, penumbra_level: 4, supersample: 4 }
     }
 }
 

@@ -93,7 +93,7 @@ pub fn grid(quick: bool, texture: bool) -> Vec<SweepSettings> {
     let d = SweepSettings::defaults();
     let texture_default = crate::relight::TextureSettings::default();
     if quick {
-        let mut out: Vec<SweepSettings> = [(0, 0, 1), (0, 2, 1), (1, 3, 2), (2, 4, 3), (3, 5, 3), (4, 6, 4)]
+        let mut out: Vec<SweepSettings> = [(0, 0, 1), (0, 2, 1), (1, 3, 2), (2, 4, 4), (3, 5, 3), (4, 6, 4)]
             .into_iter()
             .map(|(min_level, penumbra_level, supersample)| SweepSettings { min_level, penumbra_level, supersample, ..d })
             .collect();

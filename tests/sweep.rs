@@ -45,7 +45,7 @@ fn a_quick_sweep_measures_every_row_and_its_front_falls_as_cost_rises() {
     // The defaults' row against an independent render + compare (rendering is deterministic).
     let default_row = rows
         .iter()
-        .find(|r| r[col("min_level")] == "2" && r[col("penumbra_level")] == "4" && r[col("supersample")] == "3" && r[col("patch_size")] == "auto")
+        .find(|r| r[col("min_level")] == "2" && r[col("penumbra_level")] == "4" && r[col("supersample")] == "4" && r[col("patch_size")] == "auto")
         .expect("the defaults are in the quick grid");
     let image = dir.path().join("default.exr");
     let render = Command::new(env!("CARGO_BIN_EXE_arlux"))
