@@ -159,7 +159,46 @@ impl CompositeInput<'_> {
     }
 }
 
+/// One pixel's layers for [`Composite::fill`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PixelShade {
+    pub value: Vec3,
+    pub direct: Vec3,
+    pub indirect: Vec3,
+    pub alpha: f32,
+    pub copied: bool,
+    pub fallback: bool,
+    pub clamped: bool,
+}
+
 impl Composite {
+    /// Sets every pixel, in parallel, to `shade(pixel)` (the change layer
+    /// is value − photo) and counts the copied, fallen-back and clamped ones.
+    pub fn fill(&mut self, photo: &Image, shade: impl Fn(usize) -> PixelShade + Sync + Send) {
+        let (copied, fallbacks, clamped) = self
+            .image
+            .pixels
+            .par_iter_mut()
+            .zip(self.direct.pixels.par_iter_mut())
+            .zip(self.indirect.pixels.par_iter_mut())
+            .zip(self.change.pixels.par_iter_mut())
+            .zip(self.alpha.par_iter_mut())
+            .enumerate()
+            .map(|(i, ((((image, direct), indirect), change), alpha))| {
+                let s = shade(i);
+                *image = s.value;
+                *direct = s.direct;
+                *indirect = s.indirect;
+                *change = s.value - photo.pixels[i];
+                *alpha = s.alpha;
+                (s.copied as usize, s.fallback as usize, s.clamped as usize)
+            })
+            .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
+        self.copied = copied;
+        self.ratio_fallbacks = fallbacks;
+        self.clamped = clamped;
+    }
+
     /// No pixels yet.
     pub fn empty() -> Composite {
         Composite {
@@ -255,28 +294,10 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
         (Shade { value: photo, direct: DVec3::ZERO, indirect: DVec3::ZERO, copied: true, fallback: false, clamped: false }, 0.0)
     };
     let photo = &input.photo.pixels;
-    let (copied, fallbacks, clamped) = out
-        .image
-        .pixels
-        .par_iter_mut()
-        .zip(out.direct.pixels.par_iter_mut())
-        .zip(out.indirect.pixels.par_iter_mut())
-        .zip(out.change.pixels.par_iter_mut())
-        .zip(out.alpha.par_iter_mut())
-        .enumerate()
-        .map(|(i, ((((image, direct), indirect), change), alpha))| {
-            let (s, a) = shade(i);
-            // Copied pixels keep the photo's exact bits.
-            let value: Vec3 = if s.copied { photo[i] } else { s.value.as_vec3() };
-            *image = value;
-            *direct = s.direct.as_vec3();
-            *indirect = s.indirect.as_vec3();
-            *change = value - photo[i];
-            *alpha = a;
-            (s.copied as usize, s.fallback as usize, s.clamped as usize)
-        })
-        .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
-    out.copied = copied;
-    out.ratio_fallbacks = fallbacks;
-    out.clamped = clamped;
+    out.fill(input.photo, |i| {
+        let (s, a) = shade(i);
+        // Copied pixels keep the photo's exact bits.
+        let value: Vec3 = if s.copied { photo[i] } else { s.value.as_vec3() };
+        PixelShade { value, direct: s.direct.as_vec3(), indirect: s.indirect.as_vec3(), alpha: a, copied: s.copied, fallback: s.fallback, clamped: s.clamped }
+    });
 }

@@ -35,7 +35,7 @@ use std::collections::HashMap;
 use glam::{DVec2, DVec3, Vec3};
 use rayon::prelude::*;
 
-use crate::composite::Composite;
+use crate::composite::{Composite, PixelShade};
 use crate::error::Result;
 use crate::estimate::{PhotoPatches, estimate_reflectances};
 use crate::image_io::Image;
@@ -691,58 +691,41 @@ impl TexturePath {
             ratio_fallbacks: 0,
             clamped: 0,
         };
-        let (copied, fallbacks) = out
-            .image
-            .pixels
-            .par_iter_mut()
-            .zip(out.direct.pixels.par_iter_mut())
-            .zip(out.indirect.pixels.par_iter_mut())
-            .zip(out.change.pixels.par_iter_mut())
-            .zip(out.alpha.par_iter_mut())
-            .enumerate()
-            .map(|(i, ((((image, direct), indirect), change), alpha))| {
-                let Some(px) = &self.pixels[i] else {
-                    *image = photo.pixels[i];
-                    return (1, 0);
-                };
-                let (at, texture) = match px {
-                    PixelPoint::Real { at, texture, texel } => (at, Some(self.textures[*texture as usize].texels[*texel as usize])),
-                    PixelPoint::Virtual { at } => (at, None),
-                };
-                let mut e = DVec3::ZERO;
-                for (l, &s) in scales.iter().enumerate() {
-                    if s > 0.0 {
-                        let v: f64 = at.weights.iter().map(|&(k, w)| self.visibility[l][k as usize] * w).sum();
-                        e += self.unoccluded[i * nl + l].as_dvec3() * (s * v.clamp(0.0, 1.0));
+        out.fill(photo, |i| {
+            let Some(px) = &self.pixels[i] else {
+                return PixelShade { value: photo.pixels[i], direct: Vec3::ZERO, indirect: Vec3::ZERO, alpha: 0.0, copied: true, fallback: false, clamped: false };
+            };
+            let (at, texture) = match px {
+                PixelPoint::Real { at, texture, texel } => (at, Some(self.textures[*texture as usize].texels[*texel as usize])),
+                PixelPoint::Virtual { at } => (at, None),
+            };
+            let mut e = DVec3::ZERO;
+            for (l, &s) in scales.iter().enumerate() {
+                if s > 0.0 {
+                    let v: f64 = at.weights.iter().map(|&(k, w)| self.visibility[l][k as usize] * w).sum();
+                    e += self.unoccluded[i * nl + l].as_dvec3() * (s * v.clamp(0.0, 1.0));
+                }
+            }
+            let hh = p.interpolate(&h_v, at);
+            let rho = self.reflectance[at.patch as usize];
+            let mut fallback = false;
+            let value = match texture {
+                Some(t) => {
+                    let d = self.display[i].as_dvec3();
+                    if luminance(d) > self.d_floor && d.min_element() > 0.0 {
+                        t.as_dvec3() * (e + hh) / d
+                    } else {
+                        // D ≈ 0: the photo saw this surface unlit; only the model knows it.
+                        fallback = true;
+                        rho * (e + hh) / pi
                     }
                 }
-                let hh = p.interpolate(&h_v, at);
-                let rho = self.reflectance[at.patch as usize];
-                let mut fallback = 0;
-                let value = match texture {
-                    Some(t) => {
-                        let d = self.display[i].as_dvec3();
-                        if luminance(d) > self.d_floor && d.min_element() > 0.0 {
-                            t.as_dvec3() * (e + hh) / d
-                        } else {
-                            // D ≈ 0: the photo saw this surface unlit; only the model knows it.
-                            fallback = 1;
-                            rho * (e + hh) / pi
-                        }
-                    }
-                    None => rho * (e + hh) / pi,
-                };
-                let value = if value.is_finite() { value.max(DVec3::ZERO) } else { DVec3::ZERO }.as_vec3();
-                *image = value;
-                *direct = e.as_vec3();
-                *indirect = hh.as_vec3();
-                *change = value - photo.pixels[i];
-                *alpha = if texture.is_some() { 0.0 } else { 1.0 };
-                (0, fallback)
-            })
-            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
-        out.copied = copied;
-        out.ratio_fallbacks = fallbacks;
+                None => rho * (e + hh) / pi,
+            };
+            let value = if value.is_finite() { value.max(DVec3::ZERO) } else { DVec3::ZERO }.as_vec3();
+            let alpha = if texture.is_some() { 0.0 } else { 1.0 };
+            PixelShade { value, direct: e.as_vec3(), indirect: hh.as_vec3(), alpha, copied: false, fallback, clamped: false }
+        });
         out
     }
 }
