@@ -341,6 +341,24 @@ impl TexturePath {
 
         // Texture-based refinement (Fig. 12), one level per round.
         let base = times.time("mesh", || Patches::of_scene(scene, false, patch_size));
+        // The user's references, checked before any work: (surface, root ordinal, point).
+        let mut user_points: Vec<(u32, u32, DVec3)> = Vec::new();
+        for (i, r) in scene.texture_references.iter().enumerate() {
+            // The root polygon of that surface whose plane holds the point, inside it.
+            let root = base.roots.iter().copied().find(|&root| {
+                let el = &base.elements[root as usize];
+                let st = base.root_params(root, r.point);
+                el.surface == r.surface as u32 && (base.root_point(root, st) - r.point).length() < 1e-3 && crate::patches::distance_outside(&el.region, st) <= 1e-6
+            });
+            let Some(root) = root else {
+                return Err(crate::error::Error::key(
+                    &scene.file,
+                    format!("texture_reference[{i}].point"),
+                    format!("{:?} does not lie on surface '{}' (within 1 mm)", r.point.to_array(), scene.surfaces[r.surface].name),
+                ));
+            };
+            user_points.push((r.surface as u32, base.root_ordinal(root), r.point));
+        }
         let hits = times.time("camera rays", || real_hits(scene, tracer));
         let white = {
             let mut l: Vec<f64> = hits.iter().zip(&photo.pixels).filter(|(h, _)| h.is_some()).map(|(_, p)| luminance(p.as_dvec3())).collect();
@@ -379,6 +397,7 @@ impl TexturePath {
             estimate_reflectances(&patches, &transport, &e_occluded, &measured, &known, crate::estimate::EstimateSettings::default())
         });
         let h = &estimate.solution.indirect_irradiance;
+        let solve_tolerance = crate::estimate::EstimateSettings::default().solve_tolerance;
         let steps_started = std::time::Instant::now();
         let pi = std::f64::consts::PI;
 
@@ -388,20 +407,17 @@ impl TexturePath {
         };
         let real_vis = vis_vertex(&real_direct, &patches);
         let h_vertex = patches.vertex_values(h);
-        // Per point: Σ photo-scaled unoccluded irradiance, exact; and through the mesh's visibility.
-        let unoccluded_at = |x: DVec3, n: DVec3| -> Vec<DVec3> { lights.iter().map(|l| l.unoccluded_irradiance(x, n)).collect() };
-        let photo_light = |e: &[DVec3], at: &Location, vis: &[Vec<f64>]| -> (DVec3, DVec3) {
+        // Step 1 (Eq. 5-6) at a point: the blocked direct light added back.
+        // The photo's lights' unoccluded irradiance there is exact; their
+        // visibility is the mesh's.
+        let step1 = |x: DVec3, n: DVec3, at: &Location| -> DVec3 {
             let (mut unocc, mut occ) = (DVec3::ZERO, DVec3::ZERO);
             for &l in &criteria.texture {
-                let v: f64 = at.weights.iter().map(|&(k, w)| vis[l][k as usize] * w).sum();
-                unocc += e[l] * photo_scales[l];
-                occ += e[l] * photo_scales[l] * v.clamp(0.0, 1.0);
+                let e = lights[l].unoccluded_irradiance(x, n) * photo_scales[l];
+                let v: f64 = at.weights.iter().map(|&(k, w)| real_vis[l][k as usize] * w).sum();
+                unocc += e;
+                occ += e * v.clamp(0.0, 1.0);
             }
-            (unocc, occ)
-        };
-        // Step 1 (Eq. 5-6) at a point: the blocked direct light added back.
-        let step1 = |x: DVec3, n: DVec3, at: &Location| -> DVec3 {
-            let (unocc, occ) = photo_light(&unoccluded_at(x, n), at, &real_vis);
             let hh = patches.interpolate(&h_vertex, at);
             let (num, den) = (unocc + hh, occ + hh);
             // Where the photo holds almost none of the light there is nothing
@@ -443,25 +459,8 @@ impl TexturePath {
         let seen = |k: usize| lp.count[k] > 0;
         let frontier: Vec<usize> = (0..real_patches).filter(|&k| seen(k) && !occluded[k] && near[k].iter().any(|&n| occluded[n as usize])).collect();
         let lab: Vec<DVec3> = rho_inter.iter().map(|r| cielab(*r, 1.0)).collect();
-        let mut user_reference: HashMap<u32, usize> = HashMap::new();
-        for (i, r) in scene.texture_references.iter().enumerate() {
-            // The root polygon of that surface whose plane holds the point, inside it.
-            let root = patches.roots.iter().copied().find(|&root| {
-                let el = &patches.elements[root as usize];
-                let st = patches.root_params(root, r.point);
-                el.surface == r.surface as u32
-                    && (patches.root_point(root, st) - r.point).length() < 1e-3
-                    && crate::patches::distance_outside(&el.region, st) <= 1e-6
-            });
-            let Some(root) = root else {
-                return Err(crate::error::Error::key(
-                    &scene.file,
-                    format!("texture_reference[{i}].point"),
-                    format!("{:?} does not lie on surface '{}' (within 1 mm)", r.point.to_array(), scene.surfaces[r.surface].name),
-                ));
-            };
-            user_reference.insert(r.surface as u32, patches.locate_in_root(root, r.point).patch as usize);
-        }
+        let user_reference: HashMap<u32, usize> =
+            user_points.iter().map(|&(surface, ordinal, point)| (surface, patches.locate_in_root(patches.roots[ordinal as usize], point).patch as usize)).collect();
         let mut correction = vec![DVec3::ONE; real_patches];
         for k in (0..real_patches).filter(|&k| occluded[k] && seen(k)) {
             stats.occluded += 1;
@@ -508,7 +507,7 @@ impl TexturePath {
         times.0.push(("steps 1 and 2", steps_started.elapsed()));
         let final_solution = times.time("solve unoccluded", || {
             let b: Vec<DVec3> = rho_final.iter().zip(&e_occluded).map(|(r, e)| *r * *e).collect();
-            solve_from(&patches, &transport, &rho_final, &b, Some(&estimate.solution.radiosity), 1e-7, 500)
+            solve_from(&patches, &transport, &rho_final, &b, Some(&estimate.solution.radiosity), solve_tolerance, 500)
         });
 
         // The textures: photo re-projected, then Steps 1 and 2 applied per texel.
@@ -549,50 +548,43 @@ impl TexturePath {
         let h_final_vertex = patches.vertex_values(&h_final);
 
         times.0.push(("reflectances and links", rest_started.elapsed()));
-        // What each pixel shows, through the objects too, with each light's unoccluded irradiance.
+        // What each pixel shows (through the objects too) and each light's
+        // unoccluded irradiance there, written row by row in place.
         let layer = if has_objects { Layer::All } else { Layer::Real };
-        // Per pixel: what it shows and each light's unoccluded irradiance there.
-        type Row = Vec<Option<(PixelPoint, Vec<Vec3>)>>;
-        let rows: Vec<Row> = times.time("pixel points", || {
-            (0..cam.height)
-                .into_par_iter()
-                .map(|row| {
-                    let hits = crate::surface_ids::row_hits(cam, tracer, layer, row);
-                    hits.into_iter()
-                        .enumerate()
-                        .map(|(col, h)| {
-                            let h = h?;
-                            let x = cam.position + cam.pixel_ray(col as u32, row).direction * h.t as f64;
-                            let root = patches.root_of(h.surface, h.triangle)?;
-                            let at = patches.locate_in_root(root, x);
-                            let e: Vec<Vec3> = unoccluded_at(x, patches.patch(at.patch as usize).normal).iter().map(|v| v.as_vec3()).collect();
-                            if h.is_virtual {
-                                return Some((PixelPoint::Virtual { at }, e));
-                            }
-                            let texture = *texture_of.get(&root)?;
+        let (w, nl) = (cam.width as usize, lights.len());
+        let mut pixels: Vec<Option<PixelPoint>> = vec![None; cam.pixel_count()];
+        let mut unoccluded = vec![Vec3::ZERO; cam.pixel_count() * nl];
+        times.time("pixel points", || {
+            pixels.par_chunks_mut(w).zip(unoccluded.par_chunks_mut(w * nl)).enumerate().for_each(|(row, (points, irradiance))| {
+                let hits = crate::surface_ids::row_hits(cam, tracer, layer, row as u32);
+                for (col, h) in hits.into_iter().enumerate() {
+                    let Some(h) = h else { continue };
+                    let x = cam.position + cam.pixel_ray(col as u32, row as u32).direction * h.t as f64;
+                    let Some(root) = patches.root_of(h.surface, h.triangle) else { continue };
+                    let at = patches.locate_in_root(root, x);
+                    let n = patches.patch(at.patch as usize).normal;
+                    for (e, light) in irradiance[col * nl..(col + 1) * nl].iter_mut().zip(&lights) {
+                        *e = light.unoccluded_irradiance(x, n).as_vec3();
+                    }
+                    points[col] = if h.is_virtual {
+                        Some(PixelPoint::Virtual { at })
+                    } else {
+                        texture_of.get(&root).map(|&texture| {
                             let texel = textures[texture as usize].texel_of(patches.root_params(root, x)) as u32;
-                            Some((PixelPoint::Real { texture, at, texel }, e))
+                            PixelPoint::Real { texture, at, texel }
                         })
-                        .collect()
-                })
-                .collect()
+                    };
+                }
+            });
         });
         let display_started = std::time::Instant::now();
-        let mut pixels = Vec::with_capacity(cam.pixel_count());
-        let mut unoccluded = vec![Vec3::ZERO; cam.pixel_count() * lights.len()];
-        for (i, p) in rows.into_iter().flatten().enumerate() {
-            pixels.push(p.as_ref().map(|p| p.0));
-            if let Some((_, e)) = p {
-                unoccluded[i * lights.len()..(i + 1) * lights.len()].copy_from_slice(&e);
-            }
-        }
         // D per pixel: the photo's lights unoccluded, plus the final indirect light.
         let display: Vec<Vec3> = pixels
             .iter()
             .enumerate()
             .map(|(i, p)| match p {
                 Some(PixelPoint::Real { at, .. }) => {
-                    let e: DVec3 = criteria.texture.iter().map(|&l| unoccluded[i * lights.len() + l].as_dvec3() * photo_scales[l]).sum();
+                    let e: DVec3 = criteria.texture.iter().map(|&l| unoccluded[i * nl + l].as_dvec3() * photo_scales[l]).sum();
                     (e + patches.interpolate(&h_final_vertex, at)).as_vec3()
                 }
                 _ => Vec3::ZERO,
@@ -617,7 +609,7 @@ impl TexturePath {
             textures,
             pixels,
             photo: photo.clone(),
-            solve_tolerance: 1e-7,
+            solve_tolerance,
             stats,
         })
     }

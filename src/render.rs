@@ -398,9 +398,8 @@ fn solve_changes(
         // from there in a second solve (from the first: a few iterations).
         let again = times.time("solve with changes", || {
             for k in real_count..patches.patch_count() {
-                let ids = &patches.patch_vertices[k];
-                let corners: Vec<u32> = ids.iter().copied().filter(|&v| v != u32::MAX).collect();
-                let h = corners.iter().map(|&v| indirect_with[v as usize]).sum::<DVec3>() / corners.len().max(1) as f64;
+                let corners = patches.patch_vertices[k].iter().filter(|&&v| v != u32::MAX);
+                let h = corners.clone().map(|&v| indirect_with[v as usize]).sum::<DVec3>() / corners.count().max(1) as f64;
                 b[k] = reflectance[k] * (e[k] + h);
             }
             solve_from(patches, transport, &reflectance, &b, Some(&with.radiosity), tolerance, 500)

@@ -5,15 +5,22 @@ use std::process::Command;
 
 const DESK: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/desk");
 
-#[test]
-fn a_quick_sweep_measures_every_row_and_its_front_falls_as_cost_rises() {
+/// `arlux sweep --quick` of the desk with `target` into a fresh folder: the folder and its CSV.
+fn quick_sweep(target: &[&str]) -> (tempfile::TempDir, String) {
     let dir = tempfile::tempdir().unwrap();
-    let run = Command::new(env!("CARGO_BIN_EXE_arlux"))
-        .args(["sweep", &format!("{DESK}/scene.toml"), "--variant", "box_floor_a", "-o", dir.path().to_str().unwrap(), "--quick"])
-        .output()
-        .unwrap();
+    let scene = format!("{DESK}/scene.toml");
+    let mut args = vec!["sweep", scene.as_str()];
+    args.extend_from_slice(target);
+    args.extend(["-o", dir.path().to_str().unwrap(), "--quick"]);
+    let run = Command::new(env!("CARGO_BIN_EXE_arlux")).args(&args).output().unwrap();
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
     let csv = std::fs::read_to_string(dir.path().join("sweep.csv")).unwrap();
+    (dir, csv)
+}
+
+#[test]
+fn a_quick_sweep_measures_every_row_and_its_front_falls_as_cost_rises() {
+    let (dir, csv) = quick_sweep(&["--variant", "box_floor_a"]);
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
@@ -68,13 +75,7 @@ fn a_quick_sweep_measures_every_row_and_its_front_falls_as_cost_rises() {
 
 #[test]
 fn a_motion_sweep_compares_every_pose() {
-    let dir = tempfile::tempdir().unwrap();
-    let run = Command::new(env!("CARGO_BIN_EXE_arlux"))
-        .args(["sweep", &format!("{DESK}/scene.toml"), "--motion", "box_slide", "-o", dir.path().to_str().unwrap(), "--quick"])
-        .output()
-        .unwrap();
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
-    let csv = std::fs::read_to_string(dir.path().join("sweep.csv")).unwrap();
+    let (_dir, csv) = quick_sweep(&["--motion", "box_slide"]);
     let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
     let at = |name: &str| header.iter().position(|h| *h == name).unwrap();
     for line in csv.lines().skip(1) {
