@@ -273,6 +273,8 @@ impl PixelDataArray {
         let has_virtual = input.tracer.virtual_objects.is_some();
         // Pixels near a virtual object's image are tested for mixed sub-pixels.
         let near_virtual = screen_boxes(cam, input.bounds);
+        let candidates = if near_virtual.is_empty() { None } else { edge_candidates(input) };
+        let candidate = |pixel: u32| candidates.as_ref().is_none_or(|m| m[pixel as usize]);
 
         struct Row {
             real: Vec<(u32, SurfacePoint)>,
@@ -313,12 +315,11 @@ impl PixelDataArray {
                         r.rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 1), &mut r.virt_terms);
                         r.virt.push((pixel, p));
                     }
-                    if near_virtual.iter().any(|b| b.contains(col, row)) {
-                        if let Some((kept, rays)) = edge_samples(input, col, row, seed, &mut r.edge_terms) {
+                    if near_virtual.iter().any(|b| b.contains(col, row)) && candidate(pixel) {
+                        let (kept, rays) = edge_samples(input, col, row, seed, &mut r.edge_terms);
+                        r.rays += rays;
+                        if let Some(kept) = kept {
                             r.edges.push((pixel, kept));
-                            r.rays += rays;
-                        } else {
-                            r.rays += (input.settings.supersample as u64).pow(2) * (input.settings.supersample > 1) as u64;
                         }
                     }
                 }
@@ -400,6 +401,8 @@ impl PixelDataArray {
         self.edges.clear();
         self.edge_samples = Samples::default();
         let boxes = screen_boxes(cam, input.bounds);
+        let candidates = if boxes.is_empty() { None } else { edge_candidates(input) };
+        let candidate = |pixel: u32| candidates.as_ref().is_none_or(|m| m[pixel as usize]);
         // The nearest any object can be to the camera: a pixel whose real
         // surface (and its neighbours', which its sub-pixels may reach) is
         // nearer hides every object, and needs no ray.
@@ -448,16 +451,9 @@ impl PixelDataArray {
                     (p, terms)
                 });
                 let mut edge_terms = Vec::new();
-                let edge = match edge_samples(input, col, row, seed, &mut edge_terms) {
-                    Some((kept, r)) => {
-                        rays += r;
-                        Some((kept, edge_terms))
-                    }
-                    None => {
-                        rays += (input.settings.supersample as u64).pow(2) * (input.settings.supersample > 1) as u64;
-                        None
-                    }
-                };
+                let (kept, r) = if candidate(pixel) { edge_samples(input, col, row, seed, &mut edge_terms) } else { (None, 0) };
+                rays += r;
+                let edge = kept.map(|kept| (kept, edge_terms));
                 (pixel, virt, edge, rays)
             })
             .collect();
@@ -492,18 +488,18 @@ impl PixelDataArray {
 
 /// The sub-pixel samples of a pixel whose n×n sub-pixels mix real and
 /// virtual surfaces, with their light terms appended to `terms`; `None`
-/// (after n² sub-pixel rays) where they do not mix. Returns rays cast.
-fn edge_samples(input: &PdaInput, col: u32, row: u32, seed: u64, terms: &mut Vec<LightTerm>) -> Option<(Vec<SurfacePoint>, u64)> {
+/// where they do not mix. Returns rays cast.
+fn edge_samples(input: &PdaInput, col: u32, row: u32, seed: u64, terms: &mut Vec<LightTerm>) -> (Option<Vec<SurfacePoint>>, u64) {
     let n = input.settings.supersample;
     if n <= 1 {
-        return None;
+        return (None, 0);
+    }
+    let (mixed, mut rays) = sub_pixels_mix(input, col, row, n);
+    if !mixed {
+        return (None, rays);
     }
     let subs = sub_points(input, col, row, n);
-    let virtual_count = subs.iter().filter(|s| s.as_ref().is_some_and(|p| p.is_virtual)).count();
-    if virtual_count == 0 || virtual_count == subs.len() {
-        return None;
-    }
-    let mut rays = (n * n) as u64;
+    rays += (n * n) as u64;
     let mut kept = Vec::new();
     for (k, s) in subs.into_iter().enumerate() {
         // A sub-pixel that sees nothing counts as the photo's background.
@@ -512,7 +508,123 @@ fn edge_samples(input: &PdaInput, col: u32, row: u32, seed: u64, terms: &mut Vec
             kept.push(p);
         }
     }
-    Some((kept, rays))
+    (Some(kept), rays)
+}
+
+/// Whether some of a pixel's n×n sub-pixels see a virtual object and some
+/// do not. The sub-rays meet the objects alone first (a few triangles);
+/// only those that hit one ask the room whether a real surface is nearer,
+/// with an occlusion query that stops at the object. Most pixels near an
+/// object's image are decided by the first step, or need only short rays.
+/// Returns the answer and the rays cast.
+fn sub_pixels_mix(input: &PdaInput, col: u32, row: u32, n: u32) -> (bool, u64) {
+    const MAX: usize = 256;
+    let count = (n * n) as usize;
+    debug_assert!(count <= MAX);
+    let cam = input.camera;
+    let mut rays = [TraceRay::new(glam::Vec3::ZERO, glam::Vec3::Z); MAX];
+    for (k, ray) in rays[..count].iter_mut().enumerate() {
+        let (i, j) = (k as u32 % n, k as u32 / n);
+        let r = cam.ray(col as f64 + (i as f64 + 0.5) / n as f64, row as f64 + (j as f64 + 0.5) / n as f64);
+        *ray = TraceRay::new(r.origin.as_vec3(), r.direction.as_vec3());
+    }
+    let mut hits = [None; MAX];
+    input.tracer.intersect_batch(&rays[..count], Layer::Virtual, &mut hits[..count]);
+    let meets = hits[..count].iter().filter(|h| h.is_some()).count();
+    if meets == 0 {
+        return (false, count as u64);
+    }
+    // Of the sub-rays meeting an object, those a real surface hides before it.
+    let mut short = [TraceRay::new(glam::Vec3::ZERO, glam::Vec3::Z); MAX];
+    let mut m = 0;
+    for (ray, hit) in rays[..count].iter().zip(&hits[..count]) {
+        if let Some(h) = hit {
+            short[m] = TraceRay { tfar: h.t, ..*ray };
+            m += 1;
+        }
+    }
+    let mut hidden = [false; MAX];
+    input.tracer.occluded_batch(&short[..m], Layer::Real, &mut hidden[..m]);
+    let seen = hidden[..m].iter().filter(|b| !**b).count();
+    ((seen > 0 && seen < count), (count + m) as u64)
+}
+
+/// The pixels whose sub-pixels may mix real and virtual surfaces, as a
+/// mask over the image, or `None` when every pixel near an object's image
+/// must be tested. With no real surface between the camera and an object's
+/// box, which of a pixel's sub-rays meet the object changes only across
+/// the projected edges of the object's polygons: a pixel no edge comes
+/// near sees the object through all its sub-pixels or through none. Real
+/// geometry in front of the box (or cutting into it) draws boundaries of
+/// its own, so then every pixel is tested, as is an object reaching behind
+/// the camera.
+fn edge_candidates(input: &PdaInput) -> Option<Vec<bool>> {
+    let cam = input.camera;
+    let patches = input.patches;
+    let is_virtual = |r: &u32| patches.surface_is_virtual.get(&patches.elements[*r as usize].surface).copied().unwrap_or(false);
+    for (lo, hi) in &input.bounds.boxes {
+        let mut ends = vec![cam.position];
+        ends.extend(box_corners(*lo, *hi));
+        let hull = Shaft::hull(&ends);
+        let (hlo, hhi) = (lo.min(cam.position), hi.max(cam.position));
+        let in_front = patches.roots.iter().filter(|r| !is_virtual(r)).any(|&r| {
+            let shape = &patches.elements[r as usize].shape;
+            let (rlo, rhi) = shape.bounds();
+            !(rlo.cmpgt(hhi).any() || rhi.cmplt(hlo).any()) && !hull.excludes(&shape.corners())
+        });
+        if in_front {
+            return None;
+        }
+    }
+    let (w, h) = (cam.width, cam.height);
+    let mut marks = vec![false; (w * h) as usize];
+    // Within this many pixels of an edge a sub-ray may fall either side
+    // once the tracer's single precision has rounded it.
+    const MARGIN: f64 = 0.01;
+    for &r in patches.roots.iter().filter(|r| is_virtual(r)) {
+        let corners = patches.elements[r as usize].shape.corners();
+        let projected: Option<Vec<(f64, f64)>> = corners.iter().map(|c| cam.project(*c).map(|(x, y, _)| (x, y))).collect();
+        let projected = projected?;
+        for (k, a) in projected.iter().enumerate() {
+            let b = projected[(k + 1) % projected.len()];
+            mark_segment(&mut marks, w, h, *a, b, MARGIN);
+        }
+    }
+    Some(marks)
+}
+
+/// Marks every pixel whose square comes within `margin` of segment a–b.
+fn mark_segment(marks: &mut [bool], w: u32, h: u32, a: (f64, f64), b: (f64, f64), margin: f64) {
+    let (y_lo, y_hi) = (a.1.min(b.1) - margin, a.1.max(b.1) + margin);
+    let first = y_lo.floor().max(0.0);
+    let last = y_hi.floor().min(h as f64 - 1.0);
+    if first > last {
+        return;
+    }
+    let at = |t: f64| (a.0 + (b.0 - a.0) * t, a.1 + (b.1 - a.1) * t);
+    for row in first as u32..=last as u32 {
+        // The part of the segment within the row's band, margin included.
+        let (band_lo, band_hi) = (row as f64 - margin, row as f64 + 1.0 + margin);
+        let (t0, t1) = if b.1 == a.1 {
+            (0.0, 1.0)
+        } else {
+            let (ta, tb) = ((band_lo - a.1) / (b.1 - a.1), (band_hi - a.1) / (b.1 - a.1));
+            (ta.min(tb).max(0.0), ta.max(tb).min(1.0))
+        };
+        if t0 > t1 {
+            continue;
+        }
+        let (x0, x1) = (at(t0).0, at(t1).0);
+        let (x_lo, x_hi) = (x0.min(x1) - margin, x0.max(x1) + margin);
+        if x_hi < 0.0 || x_lo > w as f64 - 1e-9 {
+            continue;
+        }
+        let c0 = x_lo.floor().max(0.0) as u32;
+        let c1 = (x_hi.floor().max(0.0) as u32).min(w - 1);
+        for col in c0..=c1 {
+            marks[(row * w + col) as usize] = true;
+        }
+    }
 }
 
 /// The n×n sub-pixel surface points of a pixel (None where a ray leaves the scene).

@@ -95,24 +95,23 @@ struct ShaftTest<'a> {
     layer: Layer,
     p: &'a Element,
     q: &'a Element,
-    ends: Vec<DVec3>,
     lo: DVec3,
     hi: DVec3,
     slack: f64,
-    /// Haines & Wallace's shaft between the two elements' boxes: cheap, and
-    /// holding the exact hull, so what it excludes the hull excludes too.
-    coarse: Shaft,
-    shaft: Option<Shaft>,
+    /// Haines & Wallace's shaft between the two elements' boxes (cheap, and
+    /// holding the exact hull, so what it excludes the hull excludes too),
+    /// then the hull: both built only once a root passes the box test,
+    /// which most pairs' roots never do.
+    shafts: Option<(Shaft, Option<Shaft>)>,
 }
 
 impl<'a> ShaftTest<'a> {
     fn new(patches: &'a Patches, layer: Layer, p: &'a Element, q: &'a Element) -> Self {
-        let mut ends: Vec<DVec3> = p.shape.corners().to_vec();
-        ends.extend_from_slice(&q.shape.corners());
-        let (lo, hi) = crate::geometry::bounds(ends.iter().copied());
+        let (plo, phi) = p.shape.bounds();
+        let (qlo, qhi) = q.shape.bounds();
+        let (lo, hi) = (plo.min(qlo), phi.max(qhi));
         let slack = 1e-9 * (hi - lo).max_element().max(1.0);
-        let coarse = Shaft::between_boxes(p.shape.bounds(), q.shape.bounds());
-        ShaftTest { patches, layer, p, q, ends, lo, hi, slack, coarse, shaft: None }
+        ShaftTest { patches, layer, p, q, lo, hi, slack, shafts: None }
     }
 
     /// Whether root `r` may block light between p and q: it is in the
@@ -136,11 +135,18 @@ impl<'a> ShaftTest<'a> {
             return false;
         }
         let corners = root.shape.corners();
-        if self.coarse.excludes(&corners) {
+        let (p, q) = (self.p, self.q);
+        let (coarse, hull) = self.shafts.get_or_insert_with(|| (Shaft::between_boxes(p.shape.bounds(), q.shape.bounds()), None));
+        if coarse.excludes(&corners) {
             return false;
         }
-        let ends = &self.ends;
-        !self.shaft.get_or_insert_with(|| Shaft::hull(ends)).excludes(&corners)
+        !hull
+            .get_or_insert_with(|| {
+                let mut ends: Vec<DVec3> = p.shape.corners().to_vec();
+                ends.extend_from_slice(&q.shape.corners());
+                Shaft::hull(&ends)
+            })
+            .excludes(&corners)
     }
 }
 
@@ -277,33 +283,44 @@ impl Transport {
         let is_virtual = |r: &u32| patches.surface_is_virtual.get(&patches.elements[*r as usize].surface).copied().unwrap_or(false);
         let object_roots: Vec<u32> = patches.roots.iter().copied().filter(is_virtual).collect();
         let all_roots = &patches.roots;
-        let mut links: Vec<Link> = room_links
-            .par_chunks(1024)
-            .flat_map_iter(|chunk| {
-                let mut out = Vec::with_capacity(chunk.len());
-                for l in chunk {
-                    let (ep, eq) = (&patches.elements[l.receiver as usize], &patches.elements[l.source as usize]);
-                    if may_be_occluded(patches, Layer::Virtual, ep, eq, &object_roots) {
-                        refine(patches, tracer, Layer::All, epsilon, l.receiver, l.source, all_roots, &mut out);
-                    } else {
-                        out.push(*l);
-                    }
-                }
-                out
-            })
+        // The objects' joint box first: most room links' boxes miss it.
+        let (olo, ohi) = object_roots
+            .iter()
+            .map(|&r| patches.elements[r as usize].shape.bounds())
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), (a, b)| (lo.min(a), hi.max(b)));
+        let near_objects = |l: &Link| {
+            let (a, b) = (&patches.elements[l.receiver as usize], &patches.elements[l.source as usize]);
+            let ((alo, ahi), (blo, bhi)) = (a.shape.bounds(), b.shape.bounds());
+            let (lo, hi) = (alo.min(blo), ahi.max(bhi));
+            !(olo.cmpgt(hi).any() || ohi.cmplt(lo).any()) && may_be_occluded(patches, Layer::Virtual, a, b, &object_roots)
+        };
+        let (blocked, mut links): (Vec<Link>, Vec<Link>) = room_links.par_iter().partition(|l| near_objects(l));
+        // One task per room link the objects may shadow and per (object
+        // root, root) pair, so that both cores share the few large ones.
+        enum Task {
+            Room(Link),
+            Object(u32, u32),
+        }
+        let tasks: Vec<Task> = blocked
+            .into_iter()
+            .map(Task::Room)
+            .chain(object_roots.iter().flat_map(|&v| all_roots.iter().filter(move |&&r| r != v).map(move |&r| Task::Object(v, r))))
             .collect();
-        // One task per (object root, root) pair: a few object roots would
-        // leave cores idle while the largest face refines.
-        let pairs: Vec<(u32, u32)> = object_roots.iter().flat_map(|&v| all_roots.iter().filter(move |&&r| r != v).map(move |&r| (v, r))).collect();
-        let new: Vec<Link> = pairs
+        let new: Vec<Link> = tasks
             .par_iter()
-            .flat_map_iter(|&(v, r)| {
+            .with_max_len(4)
+            .flat_map_iter(|task| {
                 let mut out = Vec::new();
-                if objects_receive {
-                    refine(patches, tracer, Layer::All, epsilon, v, r, all_roots, &mut out);
-                }
-                if !is_virtual(&r) {
-                    refine(patches, tracer, Layer::All, epsilon, r, v, all_roots, &mut out);
+                match *task {
+                    Task::Room(l) => refine(patches, tracer, Layer::All, epsilon, l.receiver, l.source, all_roots, &mut out),
+                    Task::Object(v, r) => {
+                        if objects_receive {
+                            refine(patches, tracer, Layer::All, epsilon, v, r, all_roots, &mut out);
+                        }
+                        if !is_virtual(&r) {
+                            refine(patches, tracer, Layer::All, epsilon, r, v, all_roots, &mut out);
+                        }
+                    }
                 }
                 out
             })

@@ -257,6 +257,10 @@ impl Session {
         (self.pda.memory_bytes(), self.blocks.as_ref().map_or(0, |b| b.memory_bytes()))
     }
 
+    pub fn pda(&self) -> &PixelDataArray {
+        &self.pda
+    }
+
     pub fn blocks(&self) -> Option<&crate::blocks::BlockHierarchy> {
         self.blocks.as_ref()
     }

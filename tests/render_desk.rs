@@ -142,3 +142,51 @@ fn real_pixels_whose_light_is_unchanged_are_the_photo() {
     let unchanged = c.image.pixels.iter().zip(&photo.pixels).filter(|(a, b)| a == b).count();
     assert!(c.copied > 4000 && unchanged >= c.copied, "copied {} unchanged {unchanged}", c.copied);
 }
+
+/// Pixels whose 4×4 sub-pixels mix real and virtual surfaces, by brute
+/// force: every sub-ray of every pixel traced against everything.
+fn mixed_pixels(scene: &Scene) -> Vec<u32> {
+    use arlux::trace::{Layer, TraceRay};
+    let tracer = scene.build_tracer().unwrap();
+    let cam = &scene.camera;
+    let n = 4;
+    (0..cam.width * cam.height)
+        .filter(|&pixel| {
+            let (col, row) = (pixel % cam.width, pixel / cam.width);
+            let rays: Vec<TraceRay> = (0..n * n)
+                .map(|k| {
+                    let r = cam.ray(col as f64 + ((k % n) as f64 + 0.5) / n as f64, row as f64 + ((k / n) as f64 + 0.5) / n as f64);
+                    TraceRay::new(r.origin.as_vec3(), r.direction.as_vec3())
+                })
+                .collect();
+            let mut hits = vec![None; rays.len()];
+            tracer.intersect_batch(&rays, Layer::All, &mut hits);
+            let virtual_count = hits.iter().filter(|h| h.is_some_and(|h| h.is_virtual)).count();
+            virtual_count > 0 && virtual_count < hits.len()
+        })
+        .collect()
+}
+
+#[test]
+fn edge_pixels_are_exactly_those_whose_sub_pixels_mix() {
+    // Only pixels near the object's projected edges are tested when no real
+    // surface lies between the camera and the object; every pixel of its
+    // image when one does (under the table), or when the floor cuts into it.
+    let base = desk();
+    let mut scenes: Vec<(String, Scene)> = ["box_floor_a", "box_floor_b", "box_table"].iter().map(|v| (v.to_string(), base.with_variant(v).unwrap())).collect();
+    for (name, at) in [("under the table", glam::DVec3::new(-0.35, 0.0, -1.4)), ("sunk into the floor", glam::DVec3::new(0.35, -0.05, -0.25))] {
+        let mut s = base.with_variant("box_floor_a").unwrap();
+        s.objects[0].pose.translate = at;
+        scenes.push((name.to_string(), s));
+    }
+    let settings = RenderSettings::default();
+    for (name, scene) in scenes {
+        let photo = scene.load_photo().unwrap();
+        let session = arlux::render::Session::start(&scene, &photo, &settings, &mut StageTimes::default()).unwrap();
+        let found: Vec<u32> = session.pda().edges.iter().map(|e| e.pixel).collect();
+        let truth = mixed_pixels(&scene);
+        println!("{name}: {} edge pixels, brute force {}", found.len(), truth.len());
+        assert!(truth.len() > 50, "{name}: the object shows no edge");
+        assert_eq!(found, truth, "{name}: edge pixels differ from the brute force");
+    }
+}
