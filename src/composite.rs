@@ -47,32 +47,48 @@ pub struct CompositeInput<'a> {
     pub reflectance: &'a [DVec3],
     pub patch_vertices: &'a [[u32; 4]],
     pub mode: CompositeMode,
-    /// The "without" irradiance of every real point, kept between updates
-    /// (it depends on nothing a moved object changes); None: computed here.
-    pub without: Option<&'a WithoutIrradiance>,
+    /// The irradiance of every real point that a moved object leaves alone,
+    /// kept between updates; None: computed here.
+    pub known: Option<&'a PointIrradiance>,
 }
 
-/// Per real point of the PDA, E_without and H_without, and the floor under
-/// which a ratio is not trusted (a thousandth of their sum's mean).
+/// Per real point of the PDA: E_without and H_without (nothing a moved
+/// object changes), E_with (an update refreshes the points it recomputed),
+/// and the floor under which a ratio is not trusted (a thousandth of the
+/// mean "without" irradiance).
 #[derive(Debug, Clone, PartialEq)]
-pub struct WithoutIrradiance {
-    pub real: Vec<(DVec3, DVec3)>,
+pub struct PointIrradiance {
+    pub without: Vec<(DVec3, DVec3)>,
+    pub direct_with: Vec<DVec3>,
     pub floor: DVec3,
 }
 
-impl WithoutIrradiance {
-    pub fn of(input: &CompositeInput) -> WithoutIrradiance {
+impl PointIrradiance {
+    pub fn of(input: &CompositeInput) -> PointIrradiance {
         let pda = input.pda;
         let lights = pda.light_count;
-        let real: Vec<(DVec3, DVec3)> = pda
+        let (without, direct_with): (Vec<(DVec3, DVec3)>, Vec<DVec3>) = pda
             .real
             .points
             .par_iter()
             .enumerate()
-            .map(|(i, p)| (input.irradiance(&pda.real.terms[i * lights..(i + 1) * lights], input.scales_without, false), input.interpolate(input.indirect_without, &p.location)))
-            .collect();
-        let floor = real.iter().map(|(e, h)| *e + *h).sum::<DVec3>() / real.len().max(1) as f64 * 1e-3;
-        WithoutIrradiance { real, floor }
+            .map(|(i, p)| {
+                let terms = &pda.real.terms[i * lights..(i + 1) * lights];
+                let without = (input.irradiance(terms, input.scales_without, false), input.interpolate(input.indirect_without, &p.location));
+                (without, input.irradiance(terms, input.scales_with, true))
+            })
+            .unzip();
+        let floor = without.iter().map(|(e, h)| *e + *h).sum::<DVec3>() / without.len().max(1) as f64 * 1e-3;
+        PointIrradiance { without, direct_with, floor }
+    }
+
+    /// Recomputes E_with of real points `points` (indices into the PDA's real samples).
+    pub fn refresh_direct(&mut self, input: &CompositeInput, points: &[u32]) {
+        let lights = input.pda.light_count;
+        for &k in points {
+            let k = k as usize;
+            self.direct_with[k] = input.irradiance(&input.pda.real.terms[k * lights..(k + 1) * lights], input.scales_with, true);
+        }
     }
 }
 
@@ -123,10 +139,12 @@ impl CompositeInput<'_> {
 
     /// A real surface point under the photo pixel `photo`; `floor` is the
     /// irradiance below which a ratio is not trusted.
-    /// `without`: E_without and H_without there, when already known.
-    fn shade_real(&self, p: &SurfacePoint, terms: &[LightTerm], photo: DVec3, floor: DVec3, without: Option<(DVec3, DVec3)>) -> Shade {
-        let (e_wo, h_wo) = without.unwrap_or_else(|| (self.irradiance(terms, self.scales_without, false), self.interpolate(self.indirect_without, &p.location)));
-        let e_w = self.irradiance(terms, self.scales_with, true);
+    /// `known`: E_without, H_without and E_with there, when already known.
+    fn shade_real(&self, p: &SurfacePoint, terms: &[LightTerm], photo: DVec3, floor: DVec3, known: Option<((DVec3, DVec3), DVec3)>) -> Shade {
+        let ((e_wo, h_wo), e_w) = known.unwrap_or_else(|| {
+            let without = (self.irradiance(terms, self.scales_without, false), self.interpolate(self.indirect_without, &p.location));
+            (without, self.irradiance(terms, self.scales_with, true))
+        });
         let h_w = self.interpolate(self.indirect_with, &p.location);
         let (without, with) = (e_wo + h_wo, e_w + h_w);
         if e_w == e_wo && (h_w - h_wo).abs().cmple(without * UNCHANGED_INDIRECT).all() {
@@ -228,16 +246,15 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
     let lights = pda.light_count;
     let (w, h) = (pda.width, pda.height);
     let n = (w * h) as usize;
-    // D ≈ 0: a thousandth of the mean "without" irradiance of the real points.
     let computed;
-    let without = match input.without {
-        Some(w) => w,
+    let known = match input.known {
+        Some(k) => k,
         None => {
-            computed = WithoutIrradiance::of(input);
+            computed = PointIrradiance::of(input);
             &computed
         }
     };
-    let floor = without.floor;
+    let floor = known.floor;
     let mut edge_of = vec![u32::MAX; n];
     for (k, e) in pda.edges.iter().enumerate() {
         edge_of[e.pixel as usize] = k as u32;
@@ -289,7 +306,7 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
         }
         if pda.real_index[i] != u32::MAX {
             let k = pda.real_index[i] as usize;
-            return (input.shade_real(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], photo, floor, Some(without.real[k])), 0.0);
+            return (input.shade_real(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], photo, floor, Some((known.without[k], known.direct_with[k]))), 0.0);
         }
         (Shade { value: photo, direct: DVec3::ZERO, indirect: DVec3::ZERO, copied: true, fallback: false, clamped: false }, 0.0)
     };

@@ -363,28 +363,43 @@ impl PixelDataArray {
         pda
     }
 
-    /// Recomputes the light terms of the real point at `pixel` for `light`
-    /// (after the virtual objects moved), exactly as [`build`] computes
-    /// them; returns rays cast.
+    /// Recomputes the light terms of the real points at `pixels` for
+    /// `light` (after the virtual objects moved), exactly as [`build`]
+    /// computes them; returns rays cast.
     ///
     /// [`build`]: PixelDataArray::build
-    pub fn recompute_real_term(&mut self, input: &PdaInput, pixel: u32, light: usize) -> u64 {
-        let k = self.real_index[pixel as usize];
-        if k == NONE || !input.active[light] {
+    pub fn recompute_real_terms(&mut self, input: &PdaInput, pixels: &[u32], light: usize) -> u64 {
+        if !input.active[light] {
             return 0;
         }
-        let p = self.real.points[k as usize];
-        let seed = hash2(pixel as u64, 0x5A17);
-        let (term, rays) = light_term(
-            input.tracer,
-            &input.lights[light],
-            input.bounds,
-            p.position.as_dvec3(),
-            p.normal.as_dvec3(),
-            hash2(seed, light as u64),
-            input.settings,
-        );
-        self.real.terms[k as usize * self.light_count + light] = term;
+        let lights = self.light_count;
+        let (real_index, points) = (&self.real_index, &self.real.points);
+        let fresh: Vec<(usize, LightTerm, u64)> = pixels
+            .par_iter()
+            .with_min_len(64)
+            .filter_map(|&pixel| {
+                let k = real_index[pixel as usize];
+                (k != NONE).then(|| {
+                    let p = points[k as usize];
+                    let seed = hash2(pixel as u64, 0x5A17);
+                    let (term, rays) = light_term(
+                        input.tracer,
+                        &input.lights[light],
+                        input.bounds,
+                        p.position.as_dvec3(),
+                        p.normal.as_dvec3(),
+                        hash2(seed, light as u64),
+                        input.settings,
+                    );
+                    (k as usize * lights + light, term, rays)
+                })
+            })
+            .collect();
+        let mut rays = 0;
+        for (at, term, r) in fresh {
+            self.real.terms[at] = term;
+            rays += r;
+        }
         rays
     }
 
@@ -570,7 +585,7 @@ fn edge_candidates(input: &PdaInput) -> Option<Vec<bool>> {
         let in_front = patches.roots.iter().filter(|r| !is_virtual(r)).any(|&r| {
             let shape = &patches.elements[r as usize].shape;
             let (rlo, rhi) = shape.bounds();
-            !(rlo.cmpgt(hhi).any() || rhi.cmplt(hlo).any()) && !hull.excludes(&shape.corners())
+            !(rlo.cmpgt(hhi).any() || rhi.cmplt(hlo).any() || hull.excludes(&shape.corners()))
         });
         if in_front {
             return None;

@@ -9,7 +9,7 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 
-use crate::composite::{Composite, CompositeInput, CompositeMode, WithoutIrradiance, composite_into};
+use crate::composite::{Composite, CompositeInput, CompositeMode, PointIrradiance, composite_into};
 use crate::error::Result;
 use crate::image_io::Image;
 use crate::model::{Model, ModelSettings, StageTimes, TransportMethod};
@@ -133,8 +133,8 @@ pub struct Session {
     /// Built for the first update only: a still render does not need it.
     blocks: Option<crate::blocks::BlockHierarchy>,
     pub composite: Composite,
-    /// The photo's irradiance per real pixel point (see [`WithoutIrradiance`]).
-    without: Option<WithoutIrradiance>,
+    /// The irradiance per real pixel point an update keeps (see [`PointIrradiance`]).
+    known: Option<PointIrradiance>,
     left_out: Vec<String>,
     rays: u64,
 }
@@ -208,19 +208,21 @@ impl Session {
             pda,
             blocks: None,
             composite: Composite::empty(),
-            without: None,
+            known: None,
             left_out,
             rays,
         };
-        session.recomposite(times);
+        session.recomposite(times, &[]);
         Ok(session)
     }
 
-    fn recomposite(&mut self, times: &mut StageTimes) {
+    /// Composites the image; `recomputed` lists the real points whose
+    /// light terms changed since the last composite.
+    fn recomposite(&mut self, times: &mut StageTimes, recomputed: &[u32]) {
         let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| &o.0);
-        let without = self.without.take();
+        let known = self.known.take();
         let mut out = std::mem::replace(&mut self.composite, crate::composite::Composite::empty());
-        let without = times.time("composite", || {
+        let known = times.time("composite", || {
             let input = CompositeInput {
                 pda: &self.pda,
                 photo: &self.photo,
@@ -232,15 +234,21 @@ impl Session {
                 reflectance: &self.changes.reflectance,
                 patch_vertices: &patches.patch_vertices,
                 mode: self.settings.mode,
-                without: None,
+                known: None,
             };
-            // The photo's irradiance per real point: once, then kept for every update.
-            let without = without.unwrap_or_else(|| WithoutIrradiance::of(&input));
-            composite_into(&CompositeInput { without: Some(&without), ..input }, &mut out);
-            without
+            // Once, then kept for every update, which refreshes only what it recomputed.
+            let known = match known {
+                Some(mut k) => {
+                    k.refresh_direct(&input, recomputed);
+                    k
+                }
+                None => PointIrradiance::of(&input),
+            };
+            composite_into(&CompositeInput { known: Some(&known), ..input }, &mut out);
+            known
         });
         self.composite = out;
-        self.without = Some(without);
+        self.known = Some(known);
     }
 
     /// Builds the pixel-block hierarchy updates traverse (done by the first
@@ -308,7 +316,7 @@ impl Session {
             use rayon::prelude::*;
             input.lights.par_iter().enumerate().map(|(l, light)| input.active[l].then(|| blocks.traverse(light, &boxes))).collect()
         });
-        times.time("recompute pixels", || {
+        let touched = times.time("recompute pixels", || {
             let mut touched = vec![false; (pda.width * pda.height) as usize];
             for (l, t) in traversals.into_iter().enumerate() {
                 let Some(t) = t else {
@@ -316,16 +324,19 @@ impl Session {
                     continue;
                 };
                 stats.shaft_tests += t.shaft_tests;
+                stats.rays += pda.recompute_real_terms(&input, &t.pixels, l);
                 for &pixel in &t.pixels {
-                    stats.rays += pda.recompute_real_term(&input, pixel, l);
                     touched[pixel as usize] = true;
                 }
                 stats.skipped_blocks.push(t.skipped);
             }
             stats.pixels_recomputed = touched.iter().filter(|t| **t).count();
+            touched
         });
+        let real_index = &self.pda.real_index;
+        let recomputed: Vec<u32> = (0..touched.len()).filter(|&p| touched[p] && real_index[p] != u32::MAX).map(|p| real_index[p]).collect();
         self.rays = stats.rays;
-        self.recomposite(times);
+        self.recomposite(times, &recomputed);
         Ok(stats)
     }
 
