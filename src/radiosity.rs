@@ -142,9 +142,7 @@ impl<'a> ShaftTest<'a> {
         }
         !hull
             .get_or_insert_with(|| {
-                let mut ends: Vec<DVec3> = p.shape.corners().to_vec();
-                ends.extend_from_slice(&q.shape.corners());
-                Shaft::hull(&ends)
+                Shaft::between_polygons(&p.shape.corners(), &q.shape.corners())
             })
             .excludes(&corners)
     }

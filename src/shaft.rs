@@ -63,6 +63,59 @@ impl Shaft {
         Shaft { planes, tolerance }
     }
 
+    /// The convex hull of two planar convex polygons (an element pair's
+    /// shaft), the same as [`Shaft::hull`] of their corners but searched
+    /// among fewer planes: a face of the hull meets each polygon in a
+    /// face of it, so it is a polygon's own plane or holds an edge of one
+    /// and a corner of the other.
+    pub fn between_polygons(p: &[DVec3], q: &[DVec3]) -> Shaft {
+        let points: Vec<DVec3> = p.iter().chain(q).copied().collect();
+        let scale = points.iter().map(|x| x.abs().max_element()).fold(1.0, f64::max);
+        let extent = points.iter().map(|x| (*x - points[0]).length()).fold(0.0, f64::max).max(1e-12);
+        let tolerance = 1e-9 * scale.max(extent);
+        let mut planes: Vec<(DVec3, f64)> = Vec::with_capacity(16);
+        let mut try_plane = |a: DVec3, b: DVec3, c: DVec3| {
+            let normal = (b - a).cross(c - a);
+            let len = normal.length();
+            if len < 1e-12 * extent * extent {
+                return;
+            }
+            let normal = normal / len;
+            let d = normal.dot(a);
+            let (mut above, mut below) = (false, false);
+            for x in &points {
+                let s = normal.dot(*x) - d;
+                above |= s > tolerance;
+                below |= s < -tolerance;
+                if above && below {
+                    return;
+                }
+            }
+            let plane = if above { (-normal, -d) } else { (normal, d) };
+            if !planes.iter().any(|(m, e)| (*m - plane.0).length() < 1e-9 && (e - plane.1).abs() <= tolerance) {
+                planes.push(plane);
+            }
+        };
+        for poly in [p, q] {
+            if poly.len() >= 3 {
+                try_plane(poly[0], poly[1], poly[2]);
+            }
+        }
+        for (a, b) in [(p, q), (q, p)] {
+            for i in 0..a.len() {
+                let (e0, e1) = (a[i], a[(i + 1) % a.len()]);
+                for &v in b {
+                    try_plane(e0, e1, v);
+                }
+            }
+        }
+        // Coplanar polygons have a flat hull: the general search handles it.
+        if planes.len() < 4 {
+            return Shaft::hull(&points);
+        }
+        Shaft { planes, tolerance }
+    }
+
     /// The pyramid from `apex` to a planar convex polygon `base` (a pixel's
     /// shaft to a rect light): its faces written down instead of searched
     /// for. Falls back to [`Shaft::hull`] when the apex lies in the base's plane.
@@ -239,6 +292,38 @@ mod tests {
 #[cfg(test)]
 mod random_tests {
     use super::*;
+
+    /// The polygon-pair hull excludes exactly what the general hull does.
+    #[test]
+    fn polygon_shafts_equal_the_general_hull() {
+        let mut state = 7u64;
+        let mut r = || crate::light::unit_random(&mut state);
+        let mut polygon = |r: &mut dyn FnMut() -> f64| -> Vec<DVec3> {
+            let origin = DVec3::new(r() * 4.0 - 2.0, r() * 3.0, r() * 4.0 - 2.0);
+            let u = DVec3::new(r() - 0.5, r() - 0.5, r() - 0.5);
+            let v = DVec3::new(r() - 0.5, r() - 0.5, r() - 0.5);
+            if r() < 0.5 { vec![origin, origin + u, origin + u + v, origin + v] } else { vec![origin, origin + u, origin + v] }
+        };
+        for case in 0..2000 {
+            let p = polygon(&mut r);
+            let mut q = polygon(&mut r);
+            if case % 10 == 0 {
+                // Parallel to p, as a floor and a ceiling are.
+                let lift = DVec3::new(0.1, 1.5, -0.2);
+                q = p.iter().map(|x| *x * 0.7 + lift).collect();
+            }
+            let all: Vec<DVec3> = p.iter().chain(&q).copied().collect();
+            let (general, fast) = (Shaft::hull(&all), Shaft::between_polygons(&p, &q));
+            let centre = all.iter().copied().sum::<DVec3>() / all.len() as f64;
+            for _ in 0..50 {
+                // Near the hull's boundary: a point of it pushed in or out.
+                let weights: Vec<f64> = all.iter().map(|_| r().powi(4)).collect();
+                let x = all.iter().zip(&weights).map(|(p, w)| *p * *w).sum::<DVec3>() / weights.iter().sum::<f64>();
+                let probe = vec![centre + (x - centre) * (0.7 + 0.6 * r())];
+                assert_eq!(general.excludes(&probe), fast.excludes(&probe), "case {case}");
+            }
+        }
+    }
 
     /// Conservative: no point of the true hull of the two boxes (a random
     /// convex combination of their corners) is ever excluded. (The face
