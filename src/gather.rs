@@ -27,10 +27,27 @@ pub fn cosine_directions(n: DVec3, side: u32, mut state: u64) -> Vec<DVec3> {
 /// The photo's radiance at the real point `y`, when the camera sees it
 /// (inside the frame, nothing real in between).
 pub fn photo_radiance_at(camera: &Camera, tracer: &Tracer, photo: &Image, y: DVec3) -> Option<DVec3> {
-    let (px, py, _) = camera.project(y)?;
-    if px < 0.0 || py < 0.0 || px >= camera.width as f64 || py >= camera.height as f64 {
-        return None;
+    photo_radiances(camera, tracer, photo, &[y])[0]
+}
+
+/// [`photo_radiance_at`] of many points, their rays back to the camera
+/// traced in packets.
+pub fn photo_radiances(camera: &Camera, tracer: &Tracer, photo: &Image, points: &[DVec3]) -> Vec<Option<DVec3>> {
+    let mut out = vec![None; points.len()];
+    let mut framed: Vec<(usize, u32, u32)> = Vec::with_capacity(points.len());
+    for (i, y) in points.iter().enumerate() {
+        let Some((px, py, _)) = camera.project(*y) else { continue };
+        if px >= 0.0 && py >= 0.0 && px < camera.width as f64 && py < camera.height as f64 {
+            framed.push((i, px as u32, py as u32));
+        }
     }
-    let back = TraceRay::segment(camera.position.as_vec3(), y.as_vec3(), 1e-4);
-    (!tracer.occluded(&back, Layer::Real)).then(|| photo.get(px as u32, py as u32).as_dvec3())
+    let back: Vec<TraceRay> = framed.iter().map(|&(i, _, _)| TraceRay::segment(camera.position.as_vec3(), points[i].as_vec3(), 1e-4)).collect();
+    let mut hidden = vec![false; back.len()];
+    tracer.occluded_batch(&back, Layer::Real, &mut hidden);
+    for (&(i, px, py), hidden) in framed.iter().zip(hidden) {
+        if !hidden {
+            out[i] = Some(photo.get(px, py).as_dvec3());
+        }
+    }
+    out
 }

@@ -468,20 +468,28 @@ fn final_gather(
             let traced: Vec<TraceRay> = dirs.iter().map(|d| TraceRay::new(origin.as_vec3(), d.as_vec3())).collect();
             let mut hits = vec![None; traced.len()];
             tracer.intersect_batch(&traced, Layer::All, &mut hits);
+            // Where each ray lands and on which patch; the real points' photo radiance in one batch.
+            let landed: Vec<Option<(DVec3, usize, bool)>> = dirs
+                .iter()
+                .zip(&hits)
+                .map(|(d, hit)| {
+                    let hit = hit.as_ref()?;
+                    let y = origin + *d * hit.t as f64;
+                    let at = patches.locate(hit.surface, hit.triangle, y)?;
+                    Some((y, at.patch as usize, hit.is_virtual))
+                })
+                .collect();
+            let real_points: Vec<DVec3> = landed.iter().flatten().filter(|l| !l.2).map(|l| l.0).collect();
+            let mut seen = crate::gather::photo_radiances(cam, tracer, photo, &real_points).into_iter();
             let mut sum = DVec3::ZERO;
-            for (d, hit) in dirs.iter().zip(&hits) {
-                let Some(hit) = hit else { continue };
-                let y = origin + *d * hit.t as f64;
-                let Some(at) = patches.locate(hit.surface, hit.triangle, y) else { continue };
-                let k = at.patch as usize;
+            for &(_, k, is_virtual) in landed.iter().flatten() {
                 let model = radiosity_with[k] / pi;
-                if hit.is_virtual {
+                if is_virtual {
                     sum += model;
                     continue;
                 }
                 // Seen by the camera? Then the photo knows its radiance.
-                let seen = crate::gather::photo_radiance_at(cam, tracer, photo, y);
-                sum += match seen {
+                sum += match seen.next().flatten() {
                     Some(radiance) => {
                         let ratio = (radiosity_with[k] / radiosity_without[k].max(DVec3::splat(1e-12))).min(DVec3::splat(4.0));
                         radiance * ratio
