@@ -62,6 +62,38 @@ impl LightTerm {
     }
 }
 
+/// Which of a real point's shadow rays to one light real geometry blocks,
+/// bit k for sample k, at the oracle's first level and (once traced) at its
+/// penumbra level: kept so that an update, which can only change what the
+/// virtual objects block, traces no ray through the room again.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct RealMask {
+    first: u16,
+    penumbra: u16,
+    /// Bit 0: `first` is known; bit 1: `penumbra` is.
+    known: u8,
+}
+
+impl RealMask {
+    /// At most this many samples per level are kept.
+    const MAX_SAMPLES: usize = 16;
+
+    fn get(&self, penumbra: bool) -> Option<u16> {
+        let (bit, v) = if penumbra { (2, self.penumbra) } else { (1, self.first) };
+        (self.known & bit != 0).then_some(v)
+    }
+
+    fn set(&mut self, penumbra: bool, v: u16) {
+        if penumbra {
+            self.penumbra = v;
+            self.known |= 2;
+        } else {
+            self.first = v;
+            self.known |= 1;
+        }
+    }
+}
+
 /// Where a point lies on its patch: the weights of the patch's corner
 /// vertices (in `Patches::patch_vertices` order; triangles use three).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -107,6 +139,8 @@ pub struct PixelDataArray {
     /// Per pixel, index into `real` (u32::MAX: no real surface).
     pub real_index: Vec<u32>,
     pub real: Samples,
+    /// Per real point and light (as `real.terms`), its shadow rays' real blockers.
+    pub real_masks: Vec<RealMask>,
     /// Per pixel, index into `virtual_samples` (u32::MAX: no virtual surface in front).
     pub virtual_index: Vec<u32>,
     pub virtual_samples: Samples,
@@ -170,17 +204,23 @@ pub struct PdaInput<'a> {
 }
 
 impl PdaInput<'_> {
-    /// The light terms of a surface point; returns rays cast.
-    fn terms(&self, x: DVec3, n: DVec3, seed: u64, out: &mut Vec<LightTerm>) -> u64 {
+    /// The light terms of a surface point; returns rays cast. `masks`:
+    /// where to keep each light's real blockers (real points only).
+    fn terms(&self, x: DVec3, n: DVec3, seed: u64, out: &mut Vec<LightTerm>, mut masks: Option<&mut Vec<RealMask>>) -> u64 {
         let mut rays = 0;
         for (l, light) in self.lights.iter().enumerate() {
-            if !self.active[l] {
+            let mut mask = RealMask::default();
+            if self.active[l] {
+                let keep = masks.is_some().then_some(&mut mask);
+                let (term, r) = light_term(self.tracer, light, self.bounds, x, n, hash2(seed, l as u64), self.settings, None, keep);
+                out.push(term);
+                rays += r;
+            } else {
                 out.push(LightTerm::default());
-                continue;
             }
-            let (term, r) = light_term(self.tracer, light, self.bounds, x, n, hash2(seed, l as u64), self.settings);
-            out.push(term);
-            rays += r;
+            if let Some(m) = masks.as_deref_mut() {
+                m.push(mask);
+            }
         }
         rays
     }
@@ -194,21 +234,51 @@ impl PdaInput<'_> {
 }
 
 /// Visibility of one light from x through the two worlds, by the oracle.
-fn light_term(tracer: &Tracer, light: &LightSource, bounds: &VirtualBounds, x: DVec3, n: DVec3, seed: u64, settings: PdaSettings) -> (LightTerm, u64) {
-    let g = light.unoccluded_irradiance(x, n);
-    let colour = light.colour().max_element();
-    if g == DVec3::ZERO || colour <= 0.0 {
-        return (LightTerm::default(), 0);
-    }
-    let unoccluded = (g.max_element() / colour) as f32;
+/// `unoccluded`: the term's geometry factor when already known (positive);
+/// `real`: the real blockers already known for these samples, where rays
+/// traced through the room are kept (a real point's; samples beyond
+/// [`RealMask::MAX_SAMPLES`] are always traced).
+#[allow(clippy::too_many_arguments)]
+fn light_term(
+    tracer: &Tracer,
+    light: &LightSource,
+    bounds: &VirtualBounds,
+    x: DVec3,
+    n: DVec3,
+    seed: u64,
+    settings: PdaSettings,
+    unoccluded: Option<f32>,
+    mut real: Option<&mut RealMask>,
+) -> (LightTerm, u64) {
+    let unoccluded = match unoccluded {
+        Some(u) if u > 0.0 => u,
+        _ => {
+            let g = light.unoccluded_irradiance(x, n);
+            let colour = light.colour().max_element();
+            if g == DVec3::ZERO || colour <= 0.0 {
+                return (LightTerm::default(), 0);
+            }
+            (g.max_element() / colour) as f32
+        }
+    };
     let check_virtual = bounds.may_shadow(x, light);
     let origin = offset_origin(x, n, light.position);
     let Some(grid) = &light.grid else {
         let ray = segment(origin, light.position);
-        let real = !tracer.occluded(&ray, Layer::Real);
-        let all = real && !(check_virtual && tracer.occluded(&ray, Layer::Virtual));
+        let (real_visible, mut rays_cast) = match real.as_ref().and_then(|m| m.get(false)) {
+            Some(bits) => (bits == 0, 0),
+            None => {
+                let blocked = tracer.occluded(&ray, Layer::Real);
+                if let Some(m) = real {
+                    m.set(false, blocked as u16);
+                }
+                (!blocked, 1)
+            }
+        };
+        let all = real_visible && !(check_virtual && tracer.occluded(&ray, Layer::Virtual));
+        rays_cast += (real_visible && check_virtual) as u64;
         let f = |b: bool| if b { 1.0 } else { 0.0 };
-        return (LightTerm::new(unoccluded, f(real), f(all)), 1 + check_virtual as u64);
+        return (LightTerm::new(unoccluded, f(real_visible), f(all)), rays_cast);
     };
     let mut level = settings.min_level;
     let mut rays_cast = 0u64;
@@ -226,13 +296,24 @@ fn light_term(tracer: &Tracer, light: &LightSource, bounds: &VirtualBounds, x: D
             rays[count] = segment(origin, targets[count]);
             count += 1;
         }
-        tracer.occluded_batch(&rays[..count], Layer::Real, &mut real_blocked[..count]);
+        let penumbra = level != settings.min_level;
+        let keep = real.as_deref_mut().filter(|_| count <= RealMask::MAX_SAMPLES);
+        match keep.as_ref().and_then(|m| m.get(penumbra)) {
+            Some(bits) => (0..count).for_each(|k| real_blocked[k] = bits >> k & 1 == 1),
+            None => {
+                tracer.occluded_batch(&rays[..count], Layer::Real, &mut real_blocked[..count]);
+                rays_cast += count as u64;
+                if let Some(m) = keep {
+                    m.set(penumbra, (0..count).fold(0u16, |b, k| b | (real_blocked[k] as u16) << k));
+                }
+            }
+        }
         if check_virtual {
             tracer.occluded_batch(&rays[..count], Layer::Virtual, &mut virt_blocked[..count]);
+            rays_cast += count as u64;
         } else {
             virt_blocked[..count].fill(false);
         }
-        rays_cast += count as u64 * (1 + check_virtual as u64);
         let mixed = |b: &[bool]| b.iter().any(|x| *x) && b.iter().any(|x| !*x);
         let any_all_mixed = {
             let (mut some, mut none) = (false, false);
@@ -279,6 +360,7 @@ impl PixelDataArray {
         struct Row {
             real: Vec<(u32, SurfacePoint)>,
             real_terms: Vec<LightTerm>,
+            real_masks: Vec<RealMask>,
             virt: Vec<(u32, SurfacePoint)>,
             virt_terms: Vec<LightTerm>,
             edges: Vec<(u32, Vec<SurfacePoint>)>,
@@ -288,7 +370,7 @@ impl PixelDataArray {
         let rows: Vec<Row> = (0..h)
             .into_par_iter()
             .map(|row| {
-                let mut r = Row { real: vec![], real_terms: vec![], virt: vec![], virt_terms: vec![], edges: vec![], edge_terms: vec![], rays: 0 };
+                let mut r = Row { real: vec![], real_terms: vec![], real_masks: vec![], virt: vec![], virt_terms: vec![], edges: vec![], edge_terms: vec![], rays: 0 };
                 let rays: Vec<TraceRay> = (0..w)
                     .map(|col| {
                         let ray = cam.pixel_ray(col, row);
@@ -306,13 +388,13 @@ impl PixelDataArray {
                     let seed = hash2(pixel as u64, 0x5A17);
                     let ray = cam.pixel_ray(col, row);
                     if let Some(p) = real_hits[col as usize].as_ref().and_then(|hit| input.point(hit, ray.origin, ray.direction)) {
-                        r.rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), seed, &mut r.real_terms);
+                        r.rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), seed, &mut r.real_terms, Some(&mut r.real_masks));
                         r.real.push((pixel, p));
                     }
                     if let Some(hit) = all_hits[col as usize].as_ref().filter(|h| h.is_virtual)
                         && let Some(p) = input.point(hit, ray.origin, ray.direction)
                     {
-                        r.rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 1), &mut r.virt_terms);
+                        r.rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 1), &mut r.virt_terms, None);
                         r.virt.push((pixel, p));
                     }
                     if near_virtual.iter().any(|b| b.contains(col, row)) && candidate(pixel) {
@@ -335,6 +417,7 @@ impl PixelDataArray {
             supersample: input.settings.supersample.max(1),
             real_index: vec![NONE; n],
             real: Samples::default(),
+            real_masks: Vec::new(),
             virtual_index: vec![NONE; n],
             virtual_samples: Samples::default(),
             edges: Vec::new(),
@@ -347,6 +430,7 @@ impl PixelDataArray {
                 pda.real.points.push(p);
             }
             pda.real.terms.extend(r.real_terms);
+            pda.real_masks.extend(r.real_masks);
             for (pixel, p) in r.virt {
                 pda.virtual_index[pixel as usize] = pda.virtual_samples.points.len() as u32;
                 pda.virtual_samples.points.push(p);
@@ -373,15 +457,19 @@ impl PixelDataArray {
             return 0;
         }
         let lights = self.light_count;
-        let (real_index, points) = (&self.real_index, &self.real.points);
-        let fresh: Vec<(usize, LightTerm, u64)> = pixels
+        let (real_index, points, terms, masks) = (&self.real_index, &self.real.points, &self.real.terms, &self.real_masks);
+        // Only what the objects block can have changed: the geometry factor
+        // and the room's blockers are taken as the full render found them.
+        let fresh: Vec<(usize, LightTerm, RealMask, u64)> = pixels
             .par_iter()
             .with_min_len(64)
             .filter_map(|&pixel| {
                 let k = real_index[pixel as usize];
                 (k != NONE).then(|| {
                     let p = points[k as usize];
+                    let at = k as usize * lights + light;
                     let seed = hash2(pixel as u64, 0x5A17);
+                    let mut mask = masks[at];
                     let (term, rays) = light_term(
                         input.tracer,
                         &input.lights[light],
@@ -390,14 +478,17 @@ impl PixelDataArray {
                         p.normal.as_dvec3(),
                         hash2(seed, light as u64),
                         input.settings,
+                        Some(terms[at].unoccluded),
+                        Some(&mut mask),
                     );
-                    (k as usize * lights + light, term, rays)
+                    (at, term, mask, rays)
                 })
             })
             .collect();
         let mut rays = 0;
-        for (at, term, r) in fresh {
+        for (at, term, mask, r) in fresh {
             self.real.terms[at] = term;
+            self.real_masks[at] = mask;
             rays += r;
         }
         rays
@@ -462,7 +553,7 @@ impl PixelDataArray {
                 let hit = hits[0];
                 let virt = hit.filter(|h| h.is_virtual).and_then(|h| input.point(&h, ray.origin, ray.direction)).map(|p| {
                     let mut terms = Vec::new();
-                    rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 1), &mut terms);
+                    rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 1), &mut terms, None);
                     (p, terms)
                 });
                 let mut edge_terms = Vec::new();
@@ -495,6 +586,7 @@ impl PixelDataArray {
         let samples = |s: &Samples| s.points.len() * std::mem::size_of::<SurfacePoint>() + s.terms.len() * std::mem::size_of::<LightTerm>();
         (self.real_index.len() + self.virtual_index.len()) * 4
             + samples(&self.real)
+            + self.real_masks.len() * std::mem::size_of::<RealMask>()
             + samples(&self.virtual_samples)
             + samples(&self.edge_samples)
             + self.edges.len() * std::mem::size_of::<EdgePixel>()
@@ -519,7 +611,7 @@ fn edge_samples(input: &PdaInput, col: u32, row: u32, seed: u64, terms: &mut Vec
     for (k, s) in subs.into_iter().enumerate() {
         // A sub-pixel that sees nothing counts as the photo's background.
         if let Some(p) = s {
-            rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 100 + k as u64), terms);
+            rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 100 + k as u64), terms, None);
             kept.push(p);
         }
     }
