@@ -298,7 +298,7 @@ mod random_tests {
     fn polygon_shafts_equal_the_general_hull() {
         let mut state = 7u64;
         let mut r = || crate::light::unit_random(&mut state);
-        let mut polygon = |r: &mut dyn FnMut() -> f64| -> Vec<DVec3> {
+        let polygon = |r: &mut dyn FnMut() -> f64| -> Vec<DVec3> {
             let origin = DVec3::new(r() * 4.0 - 2.0, r() * 3.0, r() * 4.0 - 2.0);
             let u = DVec3::new(r() - 0.5, r() - 0.5, r() - 0.5);
             let v = DVec3::new(r() - 0.5, r() - 0.5, r() - 0.5);
