@@ -40,6 +40,17 @@ fn bench(c: &mut Criterion) {
             criterion::BatchSize::LargeInput,
         )
     });
+    // The same move back and forth on one session, as a motion runs.
+    let mut session = Session::start(&p3, &photo, &settings, &mut StageTimes::default()).unwrap();
+    session.prepare_updates(&mut StageTimes::default());
+    let mut forth = false;
+    g.bench_function("box_slide_poses_3_4_alternating_on_one_session", |b| {
+        b.iter(|| {
+            forth = !forth;
+            session.update(if forth { &p4 } else { &p3 }, &mut StageTimes::default()).unwrap()
+        })
+    });
+    drop(session);
     g.bench_function("box_slide_pose_4_full_render", |b| b.iter(|| render(&p4, &photo, &settings, &mut StageTimes::default()).unwrap()));
     drop(start);
     g.finish();
@@ -65,6 +76,7 @@ fn bench(c: &mut Criterion) {
         .sum();
     let throughput = rays.len() as f64 / t0.elapsed().as_secs_f64();
     let mut session = Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+    session.prepare_updates(&mut StageTimes::default());
     for pose in 1..poses {
         let scene = base.with_motion_pose("box_slide", pose).unwrap();
         let before = session.composite.direct.clone();
