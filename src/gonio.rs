@@ -45,7 +45,7 @@ use crate::trace::{Layer, Tracer};
 
 /// Bumped whenever the reconstruction's results change, so that a cached
 /// light from an earlier arlux is not taken for a current one.
-pub const ALGORITHM_VERSION: u32 = 4;
+pub const ALGORITHM_VERSION: u32 = 5;
 
 /// Photometric zero of the reconstructed table (type C nadir) and the
 /// direction of horizontal angle 0: world down and world +x.
@@ -435,8 +435,9 @@ impl Fit {
 }
 
 /// The intensity a sample sees from the table: bilinear where its four
-/// nodes are known (angle 0), else the nearest known node's, with the
-/// angle to it.
+/// nodes are known (angle 0), else the nearest known node's carried to it
+/// along the table's slope there (to first order: at a beam's edge the
+/// nearest known direction is the brighter one), with the angle to it.
 fn nearby_intensity(grid: &Grid, s: &Sample, values: &[DVec3], known: &[bool], dist: &[f64], from: &[usize]) -> Option<(DVec3, f64)> {
     let corners = grid.corners(s.v, s.h);
     if corners.iter().all(|&(k, w)| w == 0.0 || known[k]) {
@@ -444,7 +445,30 @@ fn nearby_intensity(grid: &Grid, s: &Sample, values: &[DVec3], known: &[bool], d
     }
     let k = grid.nearest(s.v, s.h);
     let src = from[k];
-    (src != usize::MAX).then(|| (values[src], dist[k]))
+    if src == usize::MAX {
+        return None;
+    }
+    // First order from the source node: its gradient from known neighbours.
+    let (hi, vi) = (src / grid.nv, src % grid.nv);
+    let diff = |a: Option<usize>, b: Option<usize>, step: f64| -> DVec3 {
+        match (a.filter(|&j| known[j]), b.filter(|&j| known[j])) {
+            (Some(a), Some(b)) => (values[a] - values[b]) / (2.0 * step),
+            (Some(a), None) => (values[a] - values[src]) / step,
+            (None, Some(b)) => (values[src] - values[b]) / step,
+            (None, None) => DVec3::ZERO,
+        }
+    };
+    let up = (vi + 1 < grid.nv).then(|| grid.index(hi, vi + 1));
+    let down = (vi > 0).then(|| grid.index(hi, vi - 1));
+    let d_v = diff(up, down, grid.dv);
+    let d_h = diff(Some(grid.index((hi + 1) % grid.nh, vi)), Some(grid.index((hi + grid.nh - 1) % grid.nh, vi)), grid.dh);
+    let dv = s.v - vi as f64 * grid.dv;
+    let dh = (s.h - hi as f64 * grid.dh + 180.0).rem_euclid(360.0) - 180.0;
+    // Falling is followed to zero; rising is not trusted beyond the source
+    // (a peak may lie between), so the value stays the source's there.
+    let first = values[src] + d_v * dv + d_h * dh;
+    let v = first.clamp(DVec3::ZERO, values[src].max(DVec3::ZERO));
+    Some((v, dist[k]))
 }
 
 /// Samples whose median gives a surface's reflectance by EQ2: the same
