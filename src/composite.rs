@@ -47,48 +47,84 @@ pub struct CompositeInput<'a> {
     pub reflectance: &'a [DVec3],
     pub patch_vertices: &'a [[u32; 4]],
     pub mode: CompositeMode,
-    /// The irradiance of every real point that a moved object leaves alone,
-    /// kept between updates; None: computed here.
-    pub known: Option<&'a PointIrradiance>,
+    /// Every real point's composite as prepared before (see
+    /// [`RealPixels`]), kept between updates; None: prepared here.
+    pub known: Option<&'a RealPixels>,
 }
 
-/// Per real point of the PDA: E_without and H_without (nothing a moved
-/// object changes), E_with (an update refreshes the points it recomputed),
-/// and the floor under which a ratio is not trusted (a thousandth of the
-/// mean "without" irradiance).
+/// A real point's composite, affine in the indirect irradiance with the
+/// changes H: value = offset + slope·H per channel — the ratio form
+/// photo·(E_with + H)/D, or the additive photo + ρ(E_with + H − D)/π where
+/// D (the "without" irradiance) is under the floor or the mode says so —
+/// and the band of H within which the photo's pixel stands (only where the
+/// direct light is unchanged). Everything but H is fixed while objects
+/// move, and this is all a pixel reads (not the PDA's point and terms).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RealPixel {
+    offset: Vec3,
+    slope: Vec3,
+    h_without: Vec3,
+    /// Negative: the direct light changed, never the photo's pixel.
+    band: Vec3,
+    direct_with: Vec3,
+    location: PatchPoint,
+    fallback: bool,
+}
+
+/// [`RealPixel`] per real point of the PDA, and the floor under which a
+/// ratio is not trusted (a thousandth of the mean "without" irradiance).
 #[derive(Debug, Clone, PartialEq)]
-pub struct PointIrradiance {
-    pub without: Vec<(DVec3, DVec3)>,
-    pub direct_with: Vec<DVec3>,
+pub struct RealPixels {
+    pub pixels: Vec<RealPixel>,
     pub floor: DVec3,
 }
 
-impl PointIrradiance {
-    pub fn of(input: &CompositeInput) -> PointIrradiance {
+impl RealPixels {
+    pub fn of(input: &CompositeInput) -> RealPixels {
         let pda = input.pda;
         let lights = pda.light_count;
-        let (without, direct_with): (Vec<(DVec3, DVec3)>, Vec<DVec3>) = pda
+        let pixel_of: Vec<u32> = (0..pda.real_index.len() as u32).filter(|&i| pda.real_index[i as usize] != u32::MAX).collect();
+        let without: Vec<DVec3> = pda
             .real
             .points
             .par_iter()
             .enumerate()
-            .map(|(i, p)| {
-                let terms = &pda.real.terms[i * lights..(i + 1) * lights];
-                let without = (input.irradiance(terms, input.scales_without, false), input.interpolate(input.indirect_without, &p.location));
-                (without, input.irradiance(terms, input.scales_with, true))
-            })
-            .unzip();
-        let floor = without.iter().map(|(e, h)| *e + *h).sum::<DVec3>() / without.len().max(1) as f64 * 1e-3;
-        PointIrradiance { without, direct_with, floor }
+            .map(|(k, p)| input.irradiance(&pda.real.terms[k * lights..(k + 1) * lights], input.scales_without, false) + input.interpolate(input.indirect_without, &p.location))
+            .collect();
+        let floor = without.iter().sum::<DVec3>() / without.len().max(1) as f64 * 1e-3;
+        let pixels = pixel_of
+            .par_iter()
+            .enumerate()
+            .map(|(k, &i)| input.real_pixel(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], input.photo.pixels[i as usize].as_dvec3(), floor))
+            .collect();
+        RealPixels { pixels, floor }
     }
 
-    /// Recomputes E_with of real points `points` (indices into the PDA's real samples).
-    pub fn refresh_direct(&mut self, input: &CompositeInput, points: &[u32]) {
-        let lights = input.pda.light_count;
-        for &k in points {
-            let k = k as usize;
-            self.direct_with[k] = input.irradiance(&input.pda.real.terms[k * lights..(k + 1) * lights], input.scales_with, true);
+    /// Prepares again the real points of `pixels`, whose light terms changed.
+    pub fn refresh(&mut self, input: &CompositeInput, pixels: &[u32]) {
+        let pda = input.pda;
+        let lights = pda.light_count;
+        for &i in pixels {
+            let k = pda.real_index[i as usize];
+            if k != u32::MAX {
+                let k = k as usize;
+                self.pixels[k] = input.real_pixel(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], input.photo.pixels[i as usize].as_dvec3(), self.floor);
+            }
         }
+    }
+}
+
+impl RealPixel {
+    /// The pixel's shade for indirect irradiance `h`.
+    fn shade(&self, h: DVec3, photo: DVec3) -> Shade {
+        let hf = h.as_vec3();
+        if self.band.x >= 0.0 && (hf - self.h_without).abs().cmple(self.band).all() {
+            return Shade { value: photo, direct: self.direct_with.as_dvec3(), indirect: h, copied: true, fallback: false, clamped: false };
+        }
+        let value = (self.offset + self.slope * hf).as_dvec3();
+        let clamped = value.min_element() < 0.0 || !value.is_finite();
+        let value = if value.is_finite() { value.max(DVec3::ZERO) } else { DVec3::ZERO };
+        Shade { value, direct: self.direct_with.as_dvec3(), indirect: h, copied: false, fallback: self.fallback, clamped }
     }
 }
 
@@ -137,35 +173,29 @@ impl CompositeInput<'_> {
         vertices.iter().zip(at.weights).filter(|(_, w)| *w != 0.0).map(|(&v, w)| values[v as usize] * w as f64).sum()
     }
 
-    /// A real surface point under the photo pixel `photo`; `floor` is the
-    /// irradiance below which a ratio is not trusted.
-    /// `known`: E_without, H_without and E_with there, when already known.
-    fn shade_real(&self, p: &SurfacePoint, terms: &[LightTerm], photo: DVec3, floor: DVec3, known: Option<((DVec3, DVec3), DVec3)>) -> Shade {
-        let ((e_wo, h_wo), e_w) = known.unwrap_or_else(|| {
-            let without = (self.irradiance(terms, self.scales_without, false), self.interpolate(self.indirect_without, &p.location));
-            (without, self.irradiance(terms, self.scales_with, true))
-        });
-        let h_w = self.interpolate(self.indirect_with, &p.location);
-        let (without, with) = (e_wo + h_wo, e_w + h_w);
-        if e_w == e_wo && (h_w - h_wo).abs().cmple(without * UNCHANGED_INDIRECT).all() {
-            return Shade { value: photo, direct: e_w, indirect: h_w, copied: true, fallback: false, clamped: false };
-        }
+    /// A real surface point under the photo pixel `photo`, prepared for any
+    /// indirect light; `floor` is the irradiance below which a ratio is not trusted.
+    fn real_pixel(&self, p: &SurfacePoint, terms: &[LightTerm], photo: DVec3, floor: DVec3) -> RealPixel {
+        let e_wo = self.irradiance(terms, self.scales_without, false);
+        let h_wo = self.interpolate(self.indirect_without, &p.location);
+        let e_w = self.irradiance(terms, self.scales_with, true);
+        let without = e_wo + h_wo;
         let rho = self.reflectance[p.location.patch as usize];
-        let additive = photo + rho * (with - without) / std::f64::consts::PI;
-        let (mut value, mut fallback) = (DVec3::ZERO, false);
+        let pi = std::f64::consts::PI;
+        let (mut offset, mut slope, mut fallback) = (DVec3::ZERO, DVec3::ZERO, false);
         for c in 0..3 {
-            value[c] = match self.mode {
-                CompositeMode::Ratio if without[c] > floor[c] => photo[c] * with[c] / without[c],
-                CompositeMode::Ratio => {
-                    fallback = true;
-                    additive[c]
-                }
-                CompositeMode::Additive => additive[c],
-            };
+            let ratio = self.mode == CompositeMode::Ratio;
+            if ratio && without[c] > floor[c] {
+                offset[c] = photo[c] * e_w[c] / without[c];
+                slope[c] = photo[c] / without[c];
+            } else {
+                fallback |= ratio;
+                offset[c] = photo[c] + rho[c] * (e_w[c] - without[c]) / pi;
+                slope[c] = rho[c] / pi;
+            }
         }
-        let clamped = value.min_element() < 0.0 || !value.is_finite();
-        let value = if value.is_finite() { value.max(DVec3::ZERO) } else { DVec3::ZERO };
-        Shade { value, direct: e_w, indirect: h_w, copied: false, fallback, clamped }
+        let band = if e_w == e_wo { (without * UNCHANGED_INDIRECT).as_vec3() } else { Vec3::splat(-1.0) };
+        RealPixel { offset: offset.as_vec3(), slope: slope.as_vec3(), h_without: h_wo.as_vec3(), band, direct_with: e_w.as_vec3(), location: p.location, fallback }
     }
 
     fn shade_virtual(&self, p: &SurfacePoint, terms: &[LightTerm]) -> Shade {
@@ -250,7 +280,7 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
     let known = match input.known {
         Some(k) => k,
         None => {
-            computed = PointIrradiance::of(input);
+            computed = RealPixels::of(input);
             &computed
         }
     };
@@ -284,7 +314,7 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                     virtual_count += 1;
                     input.shade_virtual(p, terms)
                 } else {
-                    input.shade_real(p, terms, photo, floor, None)
+                    input.real_pixel(p, terms, photo, floor).shade(input.interpolate(input.indirect_with, &p.location), photo)
                 };
                 sum.value += s.value;
                 sum.direct += s.direct;
@@ -306,7 +336,8 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
         }
         if pda.real_index[i] != u32::MAX {
             let k = pda.real_index[i] as usize;
-            return (input.shade_real(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], photo, floor, Some((known.without[k], known.direct_with[k]))), 0.0);
+            let r = &known.pixels[k];
+            return (r.shade(input.interpolate(input.indirect_with, &r.location), photo), 0.0);
         }
         (Shade { value: photo, direct: DVec3::ZERO, indirect: DVec3::ZERO, copied: true, fallback: false, clamped: false }, 0.0)
     };

@@ -9,7 +9,7 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 
-use crate::composite::{Composite, CompositeInput, CompositeMode, PointIrradiance, composite_into};
+use crate::composite::{Composite, CompositeInput, CompositeMode, RealPixels, composite_into};
 use crate::error::Result;
 use crate::image_io::Image;
 use crate::model::{Model, ModelSettings, StageTimes, TransportMethod};
@@ -133,8 +133,8 @@ pub struct Session {
     /// Built for the first update only: a still render does not need it.
     blocks: Option<crate::blocks::BlockHierarchy>,
     pub composite: Composite,
-    /// The irradiance per real pixel point an update keeps (see [`PointIrradiance`]).
-    known: Option<PointIrradiance>,
+    /// Each real pixel's composite as prepared (see [`RealPixels`]), kept for updates.
+    known: Option<RealPixels>,
     left_out: Vec<String>,
     rays: u64,
 }
@@ -216,8 +216,8 @@ impl Session {
         Ok(session)
     }
 
-    /// Composites the image; `recomputed` lists the real points whose
-    /// light terms changed since the last composite.
+    /// Composites the image; `recomputed` lists the pixels whose real
+    /// point's light terms changed since the last composite.
     fn recomposite(&mut self, times: &mut StageTimes, recomputed: &[u32]) {
         let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| &o.0);
         let known = self.known.take();
@@ -239,10 +239,10 @@ impl Session {
             // Once, then kept for every update, which refreshes only what it recomputed.
             let known = match known {
                 Some(mut k) => {
-                    k.refresh_direct(&input, recomputed);
+                    k.refresh(&input, recomputed);
                     k
                 }
-                None => PointIrradiance::of(&input),
+                None => RealPixels::of(&input),
             };
             composite_into(&CompositeInput { known: Some(&known), ..input }, &mut out);
             known
@@ -333,8 +333,7 @@ impl Session {
             stats.pixels_recomputed = touched.iter().filter(|t| **t).count();
             touched
         });
-        let real_index = &self.pda.real_index;
-        let recomputed: Vec<u32> = (0..touched.len()).filter(|&p| touched[p] && real_index[p] != u32::MAX).map(|p| real_index[p]).collect();
+        let recomputed: Vec<u32> = (0..touched.len() as u32).filter(|&p| touched[p as usize]).collect();
         self.rays = stats.rays;
         self.recomposite(times, &recomputed);
         Ok(stats)
