@@ -309,7 +309,10 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
             let mut virtual_count = 0;
             for k in e.start..e.start + e.count {
                 let p = &pda.edge_samples.points[k as usize];
-                let terms = &pda.edge_samples.terms[k as usize * lights..(k as usize + 1) * lights];
+                let terms = match pda.real_index[i] {
+                    r if p.pixel_terms && r != u32::MAX => &pda.real.terms[r as usize * lights..(r as usize + 1) * lights],
+                    _ => &pda.edge_samples.terms[k as usize * lights..(k as usize + 1) * lights],
+                };
                 let s = if p.is_virtual {
                     virtual_count += 1;
                     input.shade_virtual(p, terms)

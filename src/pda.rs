@@ -109,6 +109,10 @@ pub struct SurfacePoint {
     pub normal: Vec3,
     pub surface: u32,
     pub is_virtual: bool,
+    /// An edge pixel's real sub-pixel on the plane of the pixel's own real
+    /// point: it takes that point's light terms (the photo's pixel is one
+    /// value for all of them; its light does not vary within it to speak of).
+    pub pixel_terms: bool,
     /// Patch and interpolation weights on its vertices.
     pub location: PatchPoint,
 }
@@ -229,7 +233,7 @@ impl PdaInput<'_> {
         let x = origin + direction * hit.t as f64;
         let at = self.patches.locate(hit.surface, hit.triangle, x)?;
         let location = PatchPoint { patch: at.patch, weights: at.weights.map(|(_, w)| w as f32) };
-        Some(SurfacePoint { position: x.as_vec3(), normal: hit.normal, surface: hit.surface, is_virtual: hit.is_virtual, location })
+        Some(SurfacePoint { position: x.as_vec3(), normal: hit.normal, surface: hit.surface, is_virtual: hit.is_virtual, pixel_terms: false, location })
     }
 }
 
@@ -387,7 +391,8 @@ impl PixelDataArray {
                     let pixel = row * w + col;
                     let seed = hash2(pixel as u64, 0x5A17);
                     let ray = cam.pixel_ray(col, row);
-                    if let Some(p) = real_hits[col as usize].as_ref().and_then(|hit| input.point(hit, ray.origin, ray.direction)) {
+                    let real = real_hits[col as usize].as_ref().and_then(|hit| input.point(hit, ray.origin, ray.direction));
+                    if let Some(p) = real {
                         r.rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), seed, &mut r.real_terms, Some(&mut r.real_masks));
                         r.real.push((pixel, p));
                     }
@@ -398,7 +403,9 @@ impl PixelDataArray {
                         r.virt.push((pixel, p));
                     }
                     if near_virtual.iter().any(|b| b.contains(col, row)) && candidate(pixel) {
-                        let (kept, rays) = edge_samples(input, col, row, seed, &mut r.edge_terms);
+                        // Only a real point the pixel's centre sees: one behind an object may be in its shadow.
+                        let seen = all_hits[col as usize].as_ref().is_some_and(|h| !h.is_virtual);
+                        let (kept, rays) = edge_samples(input, col, row, seed, real.as_ref().filter(|_| seen), &mut r.edge_terms);
                         r.rays += rays;
                         if let Some(kept) = kept {
                             r.edges.push((pixel, kept));
@@ -557,7 +564,9 @@ impl PixelDataArray {
                     (p, terms)
                 });
                 let mut edge_terms = Vec::new();
-                let (kept, r) = if candidate(pixel) { edge_samples(input, col, row, seed, &mut edge_terms) } else { (None, 0) };
+                let seen = hit.is_some_and(|h| !h.is_virtual);
+                let real = Some(self.real_index[pixel as usize]).filter(|&k| k != NONE && seen).map(|k| &self.real.points[k as usize]);
+                let (kept, r) = if candidate(pixel) { edge_samples(input, col, row, seed, real, &mut edge_terms) } else { (None, 0) };
                 rays += r;
                 let edge = kept.map(|kept| (kept, edge_terms));
                 (pixel, virt, edge, rays)
@@ -595,8 +604,10 @@ impl PixelDataArray {
 
 /// The sub-pixel samples of a pixel whose n×n sub-pixels mix real and
 /// virtual surfaces, with their light terms appended to `terms`; `None`
-/// where they do not mix. Returns rays cast.
-fn edge_samples(input: &PdaInput, col: u32, row: u32, seed: u64, terms: &mut Vec<LightTerm>) -> (Option<Vec<SurfacePoint>>, u64) {
+/// where they do not mix. `real`: the pixel's own real point when its
+/// centre sees it, whose light terms the real sub-pixels on its plane take
+/// (no rays of their own; their terms here are left empty). Returns rays cast.
+fn edge_samples(input: &PdaInput, col: u32, row: u32, seed: u64, real: Option<&SurfacePoint>, terms: &mut Vec<LightTerm>) -> (Option<Vec<SurfacePoint>>, u64) {
     let n = input.settings.supersample;
     if n <= 1 {
         return (None, 0);
@@ -610,8 +621,13 @@ fn edge_samples(input: &PdaInput, col: u32, row: u32, seed: u64, terms: &mut Vec
     let mut kept = Vec::new();
     for (k, s) in subs.into_iter().enumerate() {
         // A sub-pixel that sees nothing counts as the photo's background.
-        if let Some(p) = s {
-            rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 100 + k as u64), terms, None);
+        if let Some(mut p) = s {
+            p.pixel_terms = !p.is_virtual && real.is_some_and(|r| r.surface == p.surface && r.normal.dot(p.normal) > 0.999);
+            if p.pixel_terms {
+                terms.extend(std::iter::repeat_n(LightTerm::default(), input.lights.len()));
+            } else {
+                rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 100 + k as u64), terms, None);
+            }
             kept.push(p);
         }
     }
