@@ -27,7 +27,7 @@ fn bench(c: &mut Criterion) {
     let patches = Patches::of_scene_with(&scene, true, settings.model.patch_size, settings.virtual_patch_size);
     let bounds = VirtualBounds::of(&scene.virtual_world_surfaces());
     let active: Vec<bool> = model.lights.iter().map(|l| l.scale > 0.0 || l.photo_scale() > 0.0).collect();
-    let input = PdaInput { camera: &scene.camera, tracer: &tracer, patches: &patches, lights: &model.lights, active: &active, bounds: &bounds, settings: settings.pda };
+    let input = PdaInput { camera: &scene.camera, tracer: &tracer, patches: &patches, lights: &model.lights, active: &active, bounds: &bounds, settings: settings.pda, for_updates: false };
     let rays = PixelDataArray::build(&input).rays;
     g.throughput(Throughput::Elements(rays));
     g.bench_function("pixel_data_array", |b| b.iter(|| PixelDataArray::build(&input)));

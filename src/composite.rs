@@ -83,21 +83,29 @@ impl RealPixels {
     pub fn of(input: &CompositeInput) -> RealPixels {
         let pda = input.pda;
         let lights = pda.light_count;
+        let floor = RealPixels::floor_of(input);
         let pixel_of: Vec<u32> = (0..pda.real_index.len() as u32).filter(|&i| pda.real_index[i as usize] != u32::MAX).collect();
-        let without: Vec<DVec3> = pda
-            .real
-            .points
-            .par_iter()
-            .enumerate()
-            .map(|(k, p)| input.irradiance(&pda.real.terms[k * lights..(k + 1) * lights], input.scales_without, false) + input.interpolate(input.indirect_without, &p.location))
-            .collect();
-        let floor = without.iter().sum::<DVec3>() / without.len().max(1) as f64 * 1e-3;
         let pixels = pixel_of
             .par_iter()
             .enumerate()
             .map(|(k, &i)| input.real_pixel(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], input.photo.pixels[i as usize].as_dvec3(), floor))
             .collect();
         RealPixels { pixels, floor }
+    }
+
+    /// The floor under which a ratio is not trusted: a thousandth of the
+    /// mean "without" irradiance of the real points.
+    pub fn floor_of(input: &CompositeInput) -> DVec3 {
+        let pda = input.pda;
+        let lights = pda.light_count;
+        let sum: DVec3 = pda
+            .real
+            .points
+            .par_iter()
+            .enumerate()
+            .map(|(k, p)| input.irradiance(&pda.real.terms[k * lights..(k + 1) * lights], input.scales_without, false) + input.interpolate(input.indirect_without, &p.location))
+            .sum();
+        sum / pda.real.points.len().max(1) as f64 * 1e-3
     }
 
     /// Prepares again the real points of `pixels`, whose light terms changed.
@@ -276,15 +284,8 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
     let lights = pda.light_count;
     let (w, h) = (pda.width, pda.height);
     let n = (w * h) as usize;
-    let computed;
-    let known = match input.known {
-        Some(k) => k,
-        None => {
-            computed = RealPixels::of(input);
-            &computed
-        }
-    };
-    let floor = known.floor;
+    // Without prepared pixels (a still image) each is prepared as it is shaded.
+    let floor = input.known.map_or_else(|| RealPixels::floor_of(input), |k| k.floor);
     let mut edge_of = vec![u32::MAX; n];
     for (k, e) in pda.edges.iter().enumerate() {
         edge_of[e.pixel as usize] = k as u32;
@@ -339,7 +340,14 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
         }
         if pda.real_index[i] != u32::MAX {
             let k = pda.real_index[i] as usize;
-            let r = &known.pixels[k];
+            let prepared;
+            let r = match input.known {
+                Some(known) => &known.pixels[k],
+                None => {
+                    prepared = input.real_pixel(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], photo, floor);
+                    &prepared
+                }
+            };
             return (r.shade(input.interpolate(input.indirect_with, &r.location), photo), 0.0);
         }
         (Shade { value: photo, direct: DVec3::ZERO, indirect: DVec3::ZERO, copied: true, fallback: false, clamped: false }, 0.0)

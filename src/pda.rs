@@ -205,6 +205,9 @@ pub struct PdaInput<'a> {
     pub active: &'a [bool],
     pub bounds: &'a VirtualBounds,
     pub settings: PdaSettings,
+    /// Keep each real point's real blockers ([`RealMask`]) for updates
+    /// after objects move; a still image has no use for them.
+    pub for_updates: bool,
 }
 
 impl PdaInput<'_> {
@@ -393,7 +396,7 @@ impl PixelDataArray {
                     let ray = cam.pixel_ray(col, row);
                     let real = real_hits[col as usize].as_ref().and_then(|hit| input.point(hit, ray.origin, ray.direction));
                     if let Some(p) = real {
-                        r.rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), seed, &mut r.real_terms, Some(&mut r.real_masks));
+                        r.rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), seed, &mut r.real_terms, input.for_updates.then_some(&mut r.real_masks));
                         r.real.push((pixel, p));
                     }
                     if let Some(hit) = all_hits[col as usize].as_ref().filter(|h| h.is_virtual)
@@ -467,7 +470,7 @@ impl PixelDataArray {
         let (real_index, points, terms, masks) = (&self.real_index, &self.real.points, &self.real.terms, &self.real_masks);
         // Only what the objects block can have changed: the geometry factor
         // and the room's blockers are taken as the full render found them.
-        let fresh: Vec<(usize, LightTerm, RealMask, u64)> = pixels
+        let fresh: Vec<(usize, LightTerm, Option<RealMask>, u64)> = pixels
             .par_iter()
             .with_min_len(64)
             .filter_map(|&pixel| {
@@ -476,7 +479,7 @@ impl PixelDataArray {
                     let p = points[k as usize];
                     let at = k as usize * lights + light;
                     let seed = hash2(pixel as u64, 0x5A17);
-                    let mut mask = masks[at];
+                    let mut mask = masks.get(at).copied();
                     let (term, rays) = light_term(
                         input.tracer,
                         &input.lights[light],
@@ -486,7 +489,7 @@ impl PixelDataArray {
                         hash2(seed, light as u64),
                         input.settings,
                         Some(terms[at].unoccluded),
-                        Some(&mut mask),
+                        mask.as_mut(),
                     );
                     (at, term, mask, rays)
                 })
@@ -495,7 +498,9 @@ impl PixelDataArray {
         let mut rays = 0;
         for (at, term, mask, r) in fresh {
             self.real.terms[at] = term;
-            self.real_masks[at] = mask;
+            if let Some(mask) = mask {
+                self.real_masks[at] = mask;
+            }
             rays += r;
         }
         rays

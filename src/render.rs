@@ -101,7 +101,7 @@ pub fn render(scene: &Scene, photo: &Image, settings: &RenderSettings, times: &m
         let left_out = vec!["everything: the scene shows the photo's state (no virtual object, lights as photographed)".to_string()];
         return Ok(RenderOutput { composite, left_out, pda_bytes: 0, pda_pixels: n, rays: 0, patches: 0, links: 0, patch_size: 0.0, texture: None });
     }
-    Ok(Session::start(scene, photo, settings, times)?.into_output())
+    Ok(Session::begin(scene, photo, settings, times, false)?.into_output())
 }
 
 /// The radiosity of the augmented scene.
@@ -137,6 +137,8 @@ pub struct Session {
     known: Option<RealPixels>,
     left_out: Vec<String>,
     rays: u64,
+    /// Kept for updates (see [`Session::start`]), or a still image.
+    for_updates: bool,
 }
 
 /// What an update did.
@@ -153,8 +155,13 @@ pub struct UpdateStats {
 }
 
 impl Session {
-    /// A full render of `scene` over `photo`.
+    /// A full render of `scene` over `photo`, kept for updates.
     pub fn start(scene: &Scene, photo: &Image, settings: &RenderSettings, times: &mut StageTimes) -> Result<Session> {
+        Session::begin(scene, photo, settings, times, true)
+    }
+
+    /// A full render; `for_updates`: keep what updates need and a still does not.
+    fn begin(scene: &Scene, photo: &Image, settings: &RenderSettings, times: &mut StageTimes, for_updates: bool) -> Result<Session> {
         let mut left_out = Vec::new();
         let patch_size = match settings.patch_size {
             PatchSize::Metres(m) => m,
@@ -189,6 +196,7 @@ impl Session {
                 active: &active,
                 bounds: &bounds,
                 settings: settings.pda,
+                for_updates,
             })
         });
         let rays = pda.rays;
@@ -211,6 +219,7 @@ impl Session {
             known: None,
             left_out,
             rays,
+            for_updates,
         };
         session.recomposite(times, &[]);
         Ok(session)
@@ -236,6 +245,10 @@ impl Session {
                 mode: self.settings.mode,
                 known: None,
             };
+            if !self.for_updates {
+                composite_into(&input, &mut out);
+                return None;
+            }
             // Once, then kept for every update, which refreshes only what it recomputed.
             let known = match known {
                 Some(mut k) => {
@@ -245,10 +258,10 @@ impl Session {
                 None => RealPixels::of(&input),
             };
             composite_into(&CompositeInput { known: Some(&known), ..input }, &mut out);
-            known
+            Some(known)
         });
         self.composite = out;
-        self.known = Some(known);
+        self.known = known;
     }
 
     /// Builds the pixel-block hierarchy updates traverse (done by the first
@@ -304,6 +317,7 @@ impl Session {
             active: &self.active,
             bounds: &self.bounds,
             settings: self.settings.pda,
+            for_updates: true,
         };
         let pda = &mut self.pda;
         let blocks = self.blocks.as_ref().expect("prepared above");
