@@ -9,7 +9,7 @@ use glam::{DVec3, Vec3};
 
 use crate::geometry::{box_corners, segment_meets_box};
 
-use crate::light::{Emitter, LightSource};
+use crate::light::LightSource;
 use crate::pda::PixelDataArray;
 use crate::shaft::Shaft;
 
@@ -77,13 +77,7 @@ impl BlockHierarchy {
         if boxes.is_empty() {
             return out;
         }
-        let light_points: Vec<DVec3> = match light.emitter {
-            Emitter::Point => vec![light.position],
-            Emitter::Rect { u, v, .. } => {
-                let c = light.position;
-                vec![c - 0.5 * u - 0.5 * v, c + 0.5 * u - 0.5 * v, c + 0.5 * u + 0.5 * v, c - 0.5 * u + 0.5 * v]
-            }
-        };
+        let light_points = light.corners();
         let corners: Vec<[DVec3; 8]> = boxes.iter().map(|(lo, hi)| box_corners(*lo, *hi)).collect();
         let top = self.levels.len() - 1;
         self.visit(top, 0, 0, &light_points, &corners, &mut out);

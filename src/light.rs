@@ -140,6 +140,22 @@ pub struct DirectLight {
 }
 
 impl LightSource {
+    /// The emitting shape's corners: the point itself, or the rectangle's four.
+    pub fn corners(&self) -> Vec<DVec3> {
+        match self.emitter {
+            Emitter::Point => vec![self.position],
+            Emitter::Rect { u, v, .. } => {
+                let c = self.position;
+                vec![c - 0.5 * u - 0.5 * v, c + 0.5 * u - 0.5 * v, c + 0.5 * u + 0.5 * v, c - 0.5 * u + 0.5 * v]
+            }
+        }
+    }
+
+    /// The box around the emitting shape.
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        crate::geometry::bounds(self.corners().into_iter())
+    }
+
     /// Prepares light `index` of `scene`. A light whose position is to be
     /// estimated from shadows, or whose intensity is to be reconstructed,
     /// must be resolved first; here it is an error naming the key.
@@ -239,9 +255,7 @@ impl LightSource {
                 }
                 if let Distribution::Lambertian { rgb, .. } = self.distribution {
                     let area = u.cross(v).length();
-                    let c = self.position;
-                    let corners = [c - 0.5 * u - 0.5 * v, c + 0.5 * u - 0.5 * v, c + 0.5 * u + 0.5 * v, c - 0.5 * u + 0.5 * v];
-                    return rgb / area * std::f64::consts::PI * polygon_form_factor(x, n, &corners);
+                    return rgb / area * std::f64::consts::PI * polygon_form_factor(x, n, &self.corners());
                 }
                 let mut sum = DVec3::ZERO;
                 let k = 4;

@@ -184,9 +184,8 @@ impl VirtualBounds {
         }
         match light.emitter {
             Emitter::Point => self.boxes.iter().any(|(lo, hi)| segment_meets_box(x, light.position, *lo, *hi)),
-            Emitter::Rect { u, v, .. } => {
-                let c = light.position;
-                let shaft = Shaft::pyramid(x, &[c - 0.5 * u - 0.5 * v, c + 0.5 * u - 0.5 * v, c + 0.5 * u + 0.5 * v, c - 0.5 * u + 0.5 * v]);
+            Emitter::Rect { .. } => {
+                let shaft = Shaft::pyramid(x, &light.corners());
                 self.boxes.iter().any(|(lo, hi)| !shaft.excludes(&box_corners(*lo, *hi)))
             }
         }

@@ -508,25 +508,58 @@ fn refine(patches: &Patches, tracer: &Tracer, layer: Layer, epsilon: f64, p: u32
 pub fn direct_irradiance(patches: &Patches, lights: &[LightSource], tracer: &Tracer, layer: Layer, level: usize) -> Vec<Vec<DVec3>> {
     lights
         .iter()
-        .map(|light| {
+        .map(|light| (0..patches.patch_count()).into_par_iter().map(|k| patch_direct(patches, k, light, tracer, layer, level)).collect())
+        .collect()
+}
+
+/// [`direct_irradiance`] through real and virtual geometry, where `room`
+/// holds the room's own values (through real geometry, for the first
+/// patches): those are taken wherever the shaft from a patch to the
+/// light excludes every object box in `boxes` — no ray can meet an object
+/// there, so the numbers are the same — and only the rest are traced.
+pub fn direct_irradiance_with_objects(
+    patches: &Patches,
+    lights: &[LightSource],
+    tracer: &Tracer,
+    level: usize,
+    room: &[Vec<DVec3>],
+    boxes: &[(DVec3, DVec3)],
+) -> Vec<Vec<DVec3>> {
+    let corners: Vec<[DVec3; 8]> = boxes.iter().map(|(lo, hi)| crate::geometry::box_corners(*lo, *hi)).collect();
+    lights
+        .iter()
+        .zip(room)
+        .map(|(light, room)| {
+            let light_box = light.bounds();
             (0..patches.patch_count())
                 .into_par_iter()
                 .map(|k| {
-                    let el = patches.patch(k);
-                    el.shape
-                        .quadrature(2)
-                        .iter()
-                        .enumerate()
-                        .map(|(i, (x, w))| {
-                            let seed = crate::light::hash2(k as u64, i as u64);
-                            let d = light.direct(tracer, layer, *x, el.normal, level, seed);
-                            d.unoccluded * d.visibility * *w
-                        })
-                        .sum()
+                    if k < room.len() {
+                        let shaft = Shaft::between_boxes(patches.patch(k).shape.bounds(), light_box);
+                        if corners.iter().all(|c| shaft.excludes(c)) {
+                            return room[k];
+                        }
+                    }
+                    patch_direct(patches, k, light, tracer, Layer::All, level)
                 })
                 .collect()
         })
         .collect()
+}
+
+/// Patch k's direct irradiance from `light`: the mean over 2×2 points.
+fn patch_direct(patches: &Patches, k: usize, light: &LightSource, tracer: &Tracer, layer: Layer, level: usize) -> DVec3 {
+    let el = patches.patch(k);
+    el.shape
+        .quadrature(2)
+        .iter()
+        .enumerate()
+        .map(|(i, (x, w))| {
+            let seed = crate::light::hash2(k as u64, i as u64);
+            let d = light.direct(tracer, layer, *x, el.normal, level, seed);
+            d.unoccluded * d.visibility * *w
+        })
+        .sum()
 }
 
 /// Total direct irradiance per patch: Σ scale × per-light irradiance.

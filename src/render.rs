@@ -16,7 +16,7 @@ use crate::model::{Model, ModelSettings, StageTimes, TransportMethod};
 
 use crate::patches::Patches;
 use crate::pda::{PdaInput, PdaSettings, PixelDataArray, VirtualBounds};
-use crate::radiosity::{Transport, direct_irradiance, solve_from, total_direct};
+use crate::radiosity::{Transport, direct_irradiance_with_objects, solve_from, total_direct};
 use crate::scene::Scene;
 use crate::trace::Layer;
 
@@ -386,7 +386,10 @@ fn solve_changes(
     let has_virtual = tracer.virtual_objects.is_some();
     let own: Option<(Patches, Vec<Vec<DVec3>>, Transport)> = has_virtual.then(|| {
         let patches = times.time("virtual mesh", || Patches::of_scene_with(scene, true, settings.model.patch_size, settings.virtual_patch_size));
-        let direct = times.time("direct light with objects", || direct_irradiance(&patches, lights, tracer, Layer::All, settings.model.light_level));
+        let boxes = VirtualBounds::of(&scene.virtual_world_surfaces()).boxes;
+        let direct = times.time("direct light with objects", || {
+            direct_irradiance_with_objects(&patches, lights, tracer, settings.model.light_level, &model.direct_per_light, &boxes)
+        });
         let epsilon = match settings.model.transport {
             TransportMethod::Full => crate::radiosity::DEFAULT_LINK_EPSILON,
             TransportMethod::Hierarchical { epsilon } => epsilon,

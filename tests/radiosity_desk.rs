@@ -86,3 +86,29 @@ fn the_left_wall_reflectance_is_recovered_without_its_known_value() {
     assert!(error < 0.05);
     assert!(est.reflectance.iter().all(|r| r.is_finite() && r.min_element() >= 0.0 && r.max_element() <= 0.99));
 }
+
+#[test]
+fn direct_light_with_objects_reuses_the_room_only_where_it_is_the_same() {
+    // The room's values are taken wherever a patch's shaft to a light
+    // misses the objects: the result must equal tracing every patch.
+    for variant in ["box_floor_a", "box_table"] {
+        let scene = desk().with_variant(variant).unwrap();
+        let tracer = scene.build_tracer().unwrap();
+        let lights = LightSource::all(&scene).unwrap();
+        let room = Patches::of_scene(&scene, false, 0.5);
+        let with = Patches::of_scene_with(&scene, true, 0.5, 0.1);
+        let room_direct = direct_irradiance(&room, &lights, &tracer, Layer::Real, 4);
+        let boxes: Vec<(DVec3, DVec3)> = scene
+            .virtual_world_surfaces()
+            .iter()
+            .map(|(_, t)| arlux::geometry::bounds(t.iter().flatten().map(|p| p.as_dvec3())))
+            .collect();
+        let fast = arlux::radiosity::direct_irradiance_with_objects(&with, &lights, &tracer, 4, &room_direct, &boxes);
+        let traced = direct_irradiance(&with, &lights, &tracer, Layer::All, 4);
+        assert_eq!(fast, traced, "{variant}");
+        // And the objects do darken some room patch, so the test has teeth.
+        let darkened = (0..room.patch_count()).filter(|&k| (0..lights.len()).any(|l| traced[l][k] != room_direct[l][k])).count();
+        println!("{variant}: {darkened} of {} room patches shadowed by the object", room.patch_count());
+        assert!(darkened > 0, "{variant}: no room patch in the object's shadow");
+    }
+}
