@@ -153,7 +153,7 @@ impl LightSource {
 
     /// The box around the emitting shape.
     pub fn bounds(&self) -> (DVec3, DVec3) {
-        crate::geometry::bounds(self.corners().into_iter())
+        crate::geometry::bounds(self.corners())
     }
 
     /// Prepares light `index` of `scene`. A light whose position is to be
