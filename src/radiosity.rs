@@ -201,7 +201,7 @@ pub struct Link {
 }
 
 /// How light moves between patches.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Transport {
     /// Row-major patch × patch form factors.
     Full { n: usize, form_factors: Vec<f32> },
@@ -275,6 +275,13 @@ impl Transport {
     /// gather through (the caller supplies their light, e.g. by final
     /// gathering from the photo); they still send light and shadow the room.
     pub fn with_objects(&self, patches: &Patches, tracer: &Tracer, epsilon: f64, objects_receive: bool) -> Transport {
+        self.with_objects_using(patches, tracer, epsilon, objects_receive, None)
+    }
+
+    /// [`Transport::with_objects`], keeping in `facts` (made for this
+    /// transport by [`RoomLinkFacts::new`]) what it learns about the room's
+    /// links for the next placement of the objects: the same links result.
+    pub fn with_objects_using(&self, patches: &Patches, tracer: &Tracer, epsilon: f64, objects_receive: bool, facts: Option<&RoomLinkFacts>) -> Transport {
         let Transport::Hierarchical { links: room_links, .. } = self else {
             return Transport::full(patches, tracer, Layer::All);
         };
@@ -292,15 +299,17 @@ impl Transport {
             let (lo, hi) = (alo.min(blo), ahi.max(bhi));
             !(olo.cmpgt(hi).any() || ohi.cmplt(lo).any()) && may_be_occluded(patches, Layer::Virtual, a, b, &object_roots)
         };
-        let (blocked, mut links): (Vec<Link>, Vec<Link>) = room_links.par_iter().partition(|l| near_objects(l));
+        let near: Vec<bool> = room_links.par_iter().map(near_objects).collect();
+        let mut links: Vec<Link> = room_links.iter().zip(&near).filter(|(_, n)| !**n).map(|(l, _)| *l).collect();
+        let room_roots: Vec<u32> = all_roots.iter().copied().filter(|r| !is_virtual(r)).collect();
         // One task per room link the objects may shadow and per (object
         // root, root) pair, so that both cores share the few large ones.
         enum Task {
-            Room(Link),
+            Room(usize),
             Object(u32, u32),
         }
-        let tasks: Vec<Task> = blocked
-            .into_iter()
+        let tasks: Vec<Task> = (0..room_links.len())
+            .filter(|&i| near[i])
             .map(Task::Room)
             .chain(object_roots.iter().flat_map(|&v| all_roots.iter().filter(move |&&r| r != v).map(move |&r| Task::Object(v, r))))
             .collect();
@@ -310,7 +319,17 @@ impl Transport {
             .flat_map_iter(|task| {
                 let mut out = Vec::new();
                 match *task {
-                    Task::Room(l) => refine(patches, tracer, Layer::All, epsilon, l.receiver, l.source, all_roots, &mut out),
+                    Task::Room(i) => {
+                        let l = room_links[i];
+                        let (ep, eq) = (&patches.elements[l.receiver as usize], &patches.elements[l.source as usize]);
+                        match facts.and_then(|f| f.0.get(i)) {
+                            Some(cell) => {
+                                let known = cell.get_or_init(|| PairFacts::of(patches, ep, eq, &room_roots));
+                                refine_from(patches, tracer, Layer::All, epsilon, l.receiver, l.source, all_roots, Some((known, &object_roots)), &mut out);
+                            }
+                            None => refine(patches, tracer, Layer::All, epsilon, l.receiver, l.source, all_roots, &mut out),
+                        }
+                    }
                     Task::Object(v, r) => {
                         if objects_receive {
                             refine(patches, tracer, Layer::All, epsilon, v, r, all_roots, &mut out);
@@ -464,19 +483,76 @@ fn source_spread(p: &Element, q: &Element) -> f64 {
 /// larger of the two while they are partly hidden from each other.
 #[allow(clippy::too_many_arguments)]
 fn refine(patches: &Patches, tracer: &Tracer, layer: Layer, epsilon: f64, p: u32, q: u32, candidates: &[u32], out: &mut Vec<Link>) {
+    refine_from(patches, tracer, layer, epsilon, p, q, candidates, None, out);
+}
+
+/// What refinement learns about a pair of the room's elements before any
+/// object matters: its factors and the room's roots that may block it.
+/// Kept per room link, an update that re-refines a link its objects may
+/// shadow starts from these instead of computing them again.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PairFacts {
+    spread: f64,
+    mean: f64,
+    source_spread: f64,
+    form_factor: f64,
+    occluders: Vec<u32>,
+}
+
+impl PairFacts {
+    fn of(patches: &Patches, p: &Element, q: &Element, room_roots: &[u32]) -> PairFacts {
+        let (spread, mean) = factor_spread(p, q);
+        PairFacts {
+            spread,
+            mean,
+            source_spread: source_spread(p, q),
+            form_factor: unoccluded_form_factor(p, q),
+            occluders: occluders_between(patches, Layer::All, p, q, room_roots),
+        }
+    }
+}
+
+/// [`PairFacts`] per link of a room's transport, found when first needed.
+#[derive(Debug, Default)]
+pub struct RoomLinkFacts(Vec<std::sync::OnceLock<PairFacts>>);
+
+impl RoomLinkFacts {
+    pub fn new(transport: &Transport) -> RoomLinkFacts {
+        RoomLinkFacts((0..transport.link_count()).map(|_| std::sync::OnceLock::new()).collect())
+    }
+}
+
+/// [`refine`], with the pair's room facts already known (`known`: the
+/// facts and the other candidates, the objects' roots) at this first level.
+#[allow(clippy::too_many_arguments)]
+fn refine_from(
+    patches: &Patches,
+    tracer: &Tracer,
+    layer: Layer,
+    epsilon: f64,
+    p: u32,
+    q: u32,
+    candidates: &[u32],
+    known: Option<(&PairFacts, &[u32])>,
+    out: &mut Vec<Link>,
+) {
     let (ep, eq) = (&patches.elements[p as usize], &patches.elements[q as usize]);
     if coplanar(ep, eq) || faces_away(ep, eq) {
         return;
     }
-    let occluders = occluders_between(patches, layer, ep, eq, candidates);
-    let (spread, mean) = factor_spread(ep, eq);
+    let occluders = match known {
+        Some((facts, others)) => facts.occluders.iter().copied().chain(occluders_between(patches, layer, ep, eq, others)).collect(),
+        None => occluders_between(patches, layer, ep, eq, candidates),
+    };
+    let facts = known.map(|k| k.0);
+    let (spread, mean) = facts.map_or_else(|| factor_spread(ep, eq), |f| (f.spread, f.mean));
     let (p_leaf, q_leaf) = (ep.children.is_none(), eq.children.is_none());
     let split_receiver = if spread > epsilon && !p_leaf {
         Some(true)
-    } else if !q_leaf && mean * source_spread(ep, eq) > epsilon {
+    } else if !q_leaf && mean * facts.map_or_else(|| source_spread(ep, eq), |f| f.source_spread) > epsilon {
         Some(false)
     } else {
-        let f = unoccluded_form_factor(ep, eq);
+        let f = facts.map_or_else(|| unoccluded_form_factor(ep, eq), |f| f.form_factor);
         if f <= 0.0 {
             return;
         }

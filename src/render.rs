@@ -139,6 +139,8 @@ pub struct Session {
     rays: u64,
     /// Kept for updates (see [`Session::start`]), or a still image.
     for_updates: bool,
+    /// What re-linking the objects learns about the room's links, for the next pose.
+    link_facts: crate::radiosity::RoomLinkFacts,
 }
 
 /// What an update did.
@@ -184,7 +186,8 @@ impl Session {
             left_out.push("virtual geometry and new form factors: no virtual object (the room's transport is reused)".to_string());
             left_out.push("rays against virtual geometry and edge supersampling: no virtual object".to_string());
         }
-        let changes = solve_changes(scene, &photo, &tracer, &model, &scales_with, &settings, times);
+        let link_facts = crate::radiosity::RoomLinkFacts::new(&model.transport);
+        let changes = solve_changes(scene, &photo, &tracer, &model, &scales_with, &settings, &link_facts, times);
         let bounds = VirtualBounds::of(&scene.virtual_world_surfaces());
         let patches = changes.own.as_ref().map_or(&model.patches, |o| &o.0);
         let pda = times.time("pixel data array", || {
@@ -220,6 +223,7 @@ impl Session {
             left_out,
             rays,
             for_updates,
+            link_facts,
         };
         session.recomposite(times, &[]);
         Ok(session)
@@ -307,7 +311,7 @@ impl Session {
         // Keep the lights as rendered (a reconstructed one stays recovered).
         self.scene = Scene { lights: self.scene.lights.clone(), ..scene.clone() };
         self.bounds = VirtualBounds::of(&virt);
-        self.changes = solve_changes(&self.scene, &self.photo, &self.tracer, &self.model, &self.scales_with, &self.settings, times);
+        self.changes = solve_changes(&self.scene, &self.photo, &self.tracer, &self.model, &self.scales_with, &self.settings, &self.link_facts, times);
         let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| &o.0);
         let input = PdaInput {
             camera: &self.scene.camera,
@@ -373,6 +377,7 @@ impl Session {
 /// Radiosity with the changes: the virtual objects' patches join the room's
 /// with their own reflectance and shadow its exchanges; lights at their new
 /// scales; the objects' own indirect light gathered from the photo.
+#[allow(clippy::too_many_arguments)]
 fn solve_changes(
     scene: &Scene,
     photo: &Image,
@@ -380,6 +385,7 @@ fn solve_changes(
     model: &Model,
     scales_with: &[f64],
     settings: &RenderSettings,
+    link_facts: &crate::radiosity::RoomLinkFacts,
     times: &mut StageTimes,
 ) -> Changes {
     let lights = &model.lights;
@@ -395,7 +401,7 @@ fn solve_changes(
             TransportMethod::Hierarchical { epsilon } => epsilon,
         };
         // With final gathering the objects' light comes from the photo: they need no links to gather through.
-        let transport = times.time("form factors with objects", || model.transport.with_objects(&patches, tracer, epsilon, settings.gather_rays == 0));
+        let transport = times.time("form factors with objects", || model.transport.with_objects_using(&patches, tracer, epsilon, settings.gather_rays == 0, Some(link_facts)));
         (patches, direct, transport)
     });
     let (patches, direct_per_light, transport) = match &own {

@@ -112,3 +112,30 @@ fn direct_light_with_objects_reuses_the_room_only_where_it_is_the_same() {
         assert!(darkened > 0, "{variant}: no room patch in the object's shadow");
     }
 }
+
+#[test]
+fn re_linking_objects_with_kept_room_facts_gives_the_same_links() {
+    // What re-linking learns about the room's links at one pose of the box,
+    // kept for the next, must give the links plain refinement gives.
+    let base = desk();
+    let room_scene = base.with_variant("panel_off").unwrap();
+    let tracer = room_scene.build_tracer().unwrap();
+    // Patches fine enough that links above the leaves are split around the box.
+    let room = Patches::of_scene(&room_scene, false, 0.25);
+    let transport = Transport::hierarchical(&room, &tracer, Layer::Real, DEFAULT_LINK_EPSILON);
+    let facts = arlux::radiosity::RoomLinkFacts::new(&transport);
+    // Along the slide, back, and under the table (whose legs and top stand
+    // between the box and much of the room).
+    let under_table = DVec3::new(-0.35, 0.0, -1.4);
+    let slide = base.motion("box_slide").unwrap().translations.clone();
+    for (pose, at) in [(3, slide[3]), (4, slide[4]), (3, slide[3]), (8, under_table), (5, slide[5]), (8, under_table)] {
+        let mut scene = base.with_motion_pose("box_slide", 0).unwrap();
+        scene.objects[0].pose.translate = at;
+        let tracer = scene.build_tracer().unwrap();
+        let with = Patches::of_scene_with(&scene, true, 0.25, 0.1);
+        let fresh = transport.with_objects(&with, &tracer, DEFAULT_LINK_EPSILON, false);
+        let kept = transport.with_objects_using(&with, &tracer, DEFAULT_LINK_EPSILON, false, Some(&facts));
+        assert!(fresh.link_count() > transport.link_count(), "pose {pose}: the box added no link");
+        assert!(fresh == kept, "pose {pose}: kept facts changed the links");
+    }
+}
