@@ -59,3 +59,28 @@ fn moving_an_object_far_from_everything_recomputes_no_pixel_and_casts_no_ray() {
     assert_eq!((stats.pixels_recomputed, stats.pixels_retraced, stats.rays), (0, 0, 0), "{stats:?}");
     assert!(session.composite.image == photo, "the photo, untouched");
 }
+
+#[test]
+fn updates_equal_full_renders_at_other_ray_budgets() {
+    // One shadow ray first and 32 in penumbrae (more than the PDA keeps the
+    // room's blockers for: those are traced again), 3×3 edge sub-pixels,
+    // and the box passing under the table, where real geometry stands in
+    // front of it (every pixel of its image tested for edges).
+    let base = desk();
+    let mut settings = RenderSettings::default();
+    settings.pda.min_level = 0;
+    settings.pda.penumbra_level = 5;
+    settings.pda.supersample = 3;
+    let mut first = base.with_motion_pose("box_slide", 0).unwrap();
+    first.objects[0].pose.translate = glam::DVec3::new(-0.6, 0.0, -1.2);
+    let photo = first.load_photo().unwrap();
+    let mut session = Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+    for at in [glam::DVec3::new(-0.35, 0.0, -1.4), glam::DVec3::new(-0.1, 0.0, -0.9), glam::DVec3::new(-0.35, 0.0, -1.4)] {
+        let mut scene = first.clone();
+        scene.objects[0].pose.translate = at;
+        let stats = session.update(&scene, &mut StageTimes::default()).unwrap();
+        assert!(stats.pixels_recomputed > 0 && stats.rays > 0, "{stats:?}");
+        let full = render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap();
+        assert_eq!(differing(&session.composite.image, &full.composite.image), 0, "box at {at}: the image must match a full render");
+    }
+}
