@@ -551,17 +551,29 @@ impl PixelDataArray {
         pixels.sort_unstable();
         pixels.dedup();
         type Found = (u32, Option<(SurfacePoint, Vec<LightTerm>)>, Option<(Vec<SurfacePoint>, Vec<LightTerm>)>, u64);
+        // Centre rays in packets of 16 (the kernel `build` traces with, so
+        // the same bits), then each pixel's shading and edge test.
         let found: Vec<Found> = pixels
-            .par_iter()
-            .map(|&pixel| {
+            .par_chunks(16)
+            .flat_map_iter(|chunk| {
+                let traced: Vec<TraceRay> = chunk
+                    .iter()
+                    .map(|&pixel| {
+                        let ray = cam.pixel_ray(pixel % self.width, pixel / self.width);
+                        TraceRay::new(ray.origin.as_vec3(), ray.direction.as_vec3())
+                    })
+                    .collect();
+                let mut hits = vec![None; chunk.len()];
+                input.tracer.intersect_batch(&traced, Layer::All, &mut hits);
+                chunk.iter().copied().zip(hits).collect::<Vec<_>>()
+            })
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|(pixel, hit)| {
                 let (col, row) = (pixel % self.width, pixel / self.width);
                 let seed = hash2(pixel as u64, 0x5A17);
                 let ray = cam.pixel_ray(col, row);
                 let mut rays = 0;
-                // The packet kernel, as `build` traces: the same bits.
-                let mut hits = [None];
-                input.tracer.intersect_batch(&[TraceRay::new(ray.origin.as_vec3(), ray.direction.as_vec3())], Layer::All, &mut hits);
-                let hit = hits[0];
                 let virt = hit.filter(|h| h.is_virtual).and_then(|h| input.point(&h, ray.origin, ray.direction)).map(|p| {
                     let mut terms = Vec::new();
                     rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 1), &mut terms, None);
