@@ -142,11 +142,16 @@ pub struct DirectLight {
 impl LightSource {
     /// The emitting shape's corners: the point itself, or the rectangle's four.
     pub fn corners(&self) -> Vec<DVec3> {
+        self.rect_corners().map_or_else(|| vec![self.position], |c| c.to_vec())
+    }
+
+    /// A rect light's four corners (None for a point light).
+    pub fn rect_corners(&self) -> Option<[DVec3; 4]> {
         match self.emitter {
-            Emitter::Point => vec![self.position],
+            Emitter::Point => None,
             Emitter::Rect { u, v, .. } => {
                 let c = self.position;
-                vec![c - 0.5 * u - 0.5 * v, c + 0.5 * u - 0.5 * v, c + 0.5 * u + 0.5 * v, c - 0.5 * u + 0.5 * v]
+                Some([c - 0.5 * u - 0.5 * v, c + 0.5 * u - 0.5 * v, c + 0.5 * u + 0.5 * v, c - 0.5 * u + 0.5 * v])
             }
         }
     }

@@ -17,7 +17,7 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::geometry::{box_corners, segment_meets_box};
-use crate::light::{Emitter, LightSource, hash2, offset_origin, segment};
+use crate::light::{LightSource, hash2, offset_origin, segment};
 use crate::patches::Patches;
 use crate::shaft::Shaft;
 use crate::trace::{Hit, Layer, TraceRay, Tracer};
@@ -182,11 +182,18 @@ impl VirtualBounds {
         if self.boxes.is_empty() {
             return false;
         }
-        match light.emitter {
-            Emitter::Point => self.boxes.iter().any(|(lo, hi)| segment_meets_box(x, light.position, *lo, *hi)),
-            Emitter::Rect { .. } => {
-                let shaft = Shaft::pyramid(x, &light.corners());
-                self.boxes.iter().any(|(lo, hi)| !shaft.excludes(&box_corners(*lo, *hi)))
+        match light.rect_corners() {
+            None => self.boxes.iter().any(|(lo, hi)| segment_meets_box(x, light.position, *lo, *hi)),
+            Some(quad) => {
+                // A box apart from the one around x and the light meets no
+                // ray between them: no pyramid needed (most points, most boxes).
+                let (slo, shi) = quad.iter().fold((x, x), |(lo, hi), c| (lo.min(*c), hi.max(*c)));
+                let near = |(lo, hi): &&(DVec3, DVec3)| !(lo.cmpgt(shi).any() || hi.cmplt(slo).any());
+                if !self.boxes.iter().any(|b| near(&b)) {
+                    return false;
+                }
+                let shaft = Shaft::pyramid(x, &quad);
+                self.boxes.iter().filter(near).any(|(lo, hi)| !shaft.excludes(&box_corners(*lo, *hi)))
             }
         }
     }
