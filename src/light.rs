@@ -149,10 +149,7 @@ impl LightSource {
     pub fn rect_corners(&self) -> Option<[DVec3; 4]> {
         match self.emitter {
             Emitter::Point => None,
-            Emitter::Rect { u, v, .. } => {
-                let c = self.position;
-                Some([c - 0.5 * u - 0.5 * v, c + 0.5 * u - 0.5 * v, c + 0.5 * u + 0.5 * v, c - 0.5 * u + 0.5 * v])
-            }
+            Emitter::Rect { u, v, .. } => Some(rect_quad(self.position, u, v)),
         }
     }
 
@@ -260,7 +257,7 @@ impl LightSource {
                 }
                 if let Distribution::Lambertian { rgb, .. } = self.distribution {
                     let area = u.cross(v).length();
-                    return rgb / area * std::f64::consts::PI * polygon_form_factor(x, n, &self.corners());
+                    return rgb / area * std::f64::consts::PI * polygon_form_factor(x, n, &rect_quad(self.position, u, v));
                 }
                 let mut sum = DVec3::ZERO;
                 let k = 4;
@@ -309,6 +306,11 @@ impl LightSource {
             }
         }
     }
+}
+
+/// The corners of the rectangle centre ± u/2 ± v/2, in order around it.
+fn rect_quad(c: DVec3, u: DVec3, v: DVec3) -> [DVec3; 4] {
+    [c - 0.5 * u - 0.5 * v, c + 0.5 * u - 0.5 * v, c + 0.5 * u + 0.5 * v, c - 0.5 * u + 0.5 * v]
 }
 
 /// Irradiance at `x` (normal `n`, two-sided) from a point emitter at `p`

@@ -664,35 +664,39 @@ fn edge_samples(input: &PdaInput, col: u32, row: u32, seed: u64, real: Option<&S
 /// object's image are decided by the first step, or need only short rays.
 /// Returns the answer and the rays cast.
 fn sub_pixels_mix(input: &PdaInput, col: u32, row: u32, n: u32) -> (bool, u64) {
-    const MAX: usize = 256;
+    // A packet's worth at a time: the arrays stay small whatever n is.
+    const PACKET: usize = 16;
     let count = (n * n) as usize;
-    debug_assert!(count <= MAX);
     let cam = input.camera;
-    let mut rays = [TraceRay::new(glam::Vec3::ZERO, glam::Vec3::Z); MAX];
-    for (k, ray) in rays[..count].iter_mut().enumerate() {
-        let (i, j) = (k as u32 % n, k as u32 / n);
-        let r = cam.ray(col as f64 + (i as f64 + 0.5) / n as f64, row as f64 + (j as f64 + 0.5) / n as f64);
-        *ray = TraceRay::new(r.origin.as_vec3(), r.direction.as_vec3());
-    }
-    let mut hits = [None; MAX];
-    input.tracer.intersect_batch(&rays[..count], Layer::Virtual, &mut hits[..count]);
-    let meets = hits[..count].iter().filter(|h| h.is_some()).count();
-    if meets == 0 {
-        return (false, count as u64);
-    }
-    // Of the sub-rays meeting an object, those a real surface hides before it.
-    let mut short = [TraceRay::new(glam::Vec3::ZERO, glam::Vec3::Z); MAX];
-    let mut m = 0;
-    for (ray, hit) in rays[..count].iter().zip(&hits[..count]) {
-        if let Some(h) = hit {
-            short[m] = TraceRay { tfar: h.t, ..*ray };
-            m += 1;
+    let (mut seen, mut rays_cast) = (0, 0u64);
+    for start in (0..count).step_by(PACKET) {
+        let len = PACKET.min(count - start);
+        let mut rays = [TraceRay::new(glam::Vec3::ZERO, glam::Vec3::Z); PACKET];
+        for (k, ray) in (start..start + len).zip(rays.iter_mut()) {
+            let (i, j) = (k as u32 % n, k as u32 / n);
+            let r = cam.ray(col as f64 + (i as f64 + 0.5) / n as f64, row as f64 + (j as f64 + 0.5) / n as f64);
+            *ray = TraceRay::new(r.origin.as_vec3(), r.direction.as_vec3());
+        }
+        let mut hits = [None; PACKET];
+        input.tracer.intersect_batch(&rays[..len], Layer::Virtual, &mut hits[..len]);
+        rays_cast += len as u64;
+        // Of the sub-rays meeting an object, those a real surface hides before it.
+        let mut short = [TraceRay::new(glam::Vec3::ZERO, glam::Vec3::Z); PACKET];
+        let mut m = 0;
+        for (ray, hit) in rays[..len].iter().zip(&hits[..len]) {
+            if let Some(h) = hit {
+                short[m] = TraceRay { tfar: h.t, ..*ray };
+                m += 1;
+            }
+        }
+        if m > 0 {
+            let mut hidden = [false; PACKET];
+            input.tracer.occluded_batch(&short[..m], Layer::Real, &mut hidden[..m]);
+            rays_cast += m as u64;
+            seen += hidden[..m].iter().filter(|b| !**b).count();
         }
     }
-    let mut hidden = [false; MAX];
-    input.tracer.occluded_batch(&short[..m], Layer::Real, &mut hidden[..m]);
-    let seen = hidden[..m].iter().filter(|b| !**b).count();
-    ((seen > 0 && seen < count), (count + m) as u64)
+    (seen > 0 && seen < count, rays_cast)
 }
 
 /// The pixels whose sub-pixels may mix real and virtual surfaces, as a

@@ -187,8 +187,8 @@ impl Session {
             left_out.push("rays against virtual geometry and edge supersampling: no virtual object".to_string());
         }
         let link_facts = crate::radiosity::RoomLinkFacts::new(&model.transport);
-        let changes = solve_changes(scene, &photo, &tracer, &model, &scales_with, &settings, &link_facts, times);
         let bounds = VirtualBounds::of(&scene.virtual_world_surfaces());
+        let changes = solve_changes(scene, &photo, &tracer, &model, &scales_with, &settings, &bounds, &link_facts, times);
         let patches = changes.own.as_ref().map_or(&model.patches, |o| &o.0);
         let pda = times.time("pixel data array", || {
             PixelDataArray::build(&PdaInput {
@@ -311,7 +311,7 @@ impl Session {
         // Keep the lights as rendered (a reconstructed one stays recovered).
         self.scene = Scene { lights: self.scene.lights.clone(), ..scene.clone() };
         self.bounds = VirtualBounds::of(&virt);
-        self.changes = solve_changes(&self.scene, &self.photo, &self.tracer, &self.model, &self.scales_with, &self.settings, &self.link_facts, times);
+        self.changes = solve_changes(&self.scene, &self.photo, &self.tracer, &self.model, &self.scales_with, &self.settings, &self.bounds, &self.link_facts, times);
         let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| &o.0);
         let input = PdaInput {
             camera: &self.scene.camera,
@@ -385,6 +385,7 @@ fn solve_changes(
     model: &Model,
     scales_with: &[f64],
     settings: &RenderSettings,
+    bounds: &VirtualBounds,
     link_facts: &crate::radiosity::RoomLinkFacts,
     times: &mut StageTimes,
 ) -> Changes {
@@ -392,9 +393,8 @@ fn solve_changes(
     let has_virtual = tracer.virtual_objects.is_some();
     let own: Option<(Patches, Vec<Vec<DVec3>>, Transport)> = has_virtual.then(|| {
         let patches = times.time("virtual mesh", || Patches::of_scene_with(scene, true, settings.model.patch_size, settings.virtual_patch_size));
-        let boxes = VirtualBounds::of(&scene.virtual_world_surfaces()).boxes;
         let direct = times.time("direct light with objects", || {
-            direct_irradiance_with_objects(&patches, lights, tracer, settings.model.light_level, &model.direct_per_light, &boxes)
+            direct_irradiance_with_objects(&patches, lights, tracer, settings.model.light_level, &model.direct_per_light, &bounds.boxes)
         });
         let epsilon = match settings.model.transport {
             TransportMethod::Full => crate::radiosity::DEFAULT_LINK_EPSILON,

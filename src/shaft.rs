@@ -32,31 +32,7 @@ impl Shaft {
         for i in 0..n {
             for j in i + 1..n {
                 for k in j + 1..n {
-                    let normal = (points[j] - points[i]).cross(points[k] - points[i]);
-                    let len = normal.length();
-                    if len < 1e-12 * extent * extent {
-                        continue;
-                    }
-                    let normal = normal / len;
-                    let d = normal.dot(points[i]);
-                    let (mut above, mut below) = (false, false);
-                    for p in points {
-                        let s = normal.dot(*p) - d;
-                        above |= s > tolerance;
-                        below |= s < -tolerance;
-                        // Points on both sides: not a face, whatever the rest say.
-                        if above && below {
-                            break;
-                        }
-                    }
-                    let plane = match (above, below) {
-                        (true, true) => continue,
-                        (false, _) => (normal, d),
-                        (true, false) => (-normal, -d),
-                    };
-                    if !planes.iter().any(|(m, e)| (*m - plane.0).length() < 1e-9 && (e - plane.1).abs() <= tolerance) {
-                        planes.push(plane);
-                    }
+                    add_face(&mut planes, points, [points[i], points[j], points[k]], extent, tolerance);
                 }
             }
         }
@@ -74,38 +50,16 @@ impl Shaft {
         let extent = points.iter().map(|x| (*x - points[0]).length()).fold(0.0, f64::max).max(1e-12);
         let tolerance = 1e-9 * scale.max(extent);
         let mut planes: Vec<(DVec3, f64)> = Vec::with_capacity(16);
-        let mut try_plane = |a: DVec3, b: DVec3, c: DVec3| {
-            let normal = (b - a).cross(c - a);
-            let len = normal.length();
-            if len < 1e-12 * extent * extent {
-                return;
-            }
-            let normal = normal / len;
-            let d = normal.dot(a);
-            let (mut above, mut below) = (false, false);
-            for x in &points {
-                let s = normal.dot(*x) - d;
-                above |= s > tolerance;
-                below |= s < -tolerance;
-                if above && below {
-                    return;
-                }
-            }
-            let plane = if above { (-normal, -d) } else { (normal, d) };
-            if !planes.iter().any(|(m, e)| (*m - plane.0).length() < 1e-9 && (e - plane.1).abs() <= tolerance) {
-                planes.push(plane);
-            }
-        };
         for poly in [p, q] {
             if poly.len() >= 3 {
-                try_plane(poly[0], poly[1], poly[2]);
+                add_face(&mut planes, &points, [poly[0], poly[1], poly[2]], extent, tolerance);
             }
         }
         for (a, b) in [(p, q), (q, p)] {
             for i in 0..a.len() {
                 let (e0, e1) = (a[i], a[(i + 1) % a.len()]);
                 for &v in b {
-                    try_plane(e0, e1, v);
+                    add_face(&mut planes, &points, [e0, e1, v], extent, tolerance);
                 }
             }
         }
@@ -215,6 +169,32 @@ impl Shaft {
 
     pub fn plane_count(&self) -> usize {
         self.planes.len()
+    }
+}
+
+/// Adds the plane through `abc` to `planes` (outward, once) when every
+/// point lies on one side of it, within `tolerance`: a face of their hull.
+fn add_face(planes: &mut Vec<(DVec3, f64)>, points: &[DVec3], [a, b, c]: [DVec3; 3], extent: f64, tolerance: f64) {
+    let normal = (b - a).cross(c - a);
+    let len = normal.length();
+    if len < 1e-12 * extent * extent {
+        return;
+    }
+    let normal = normal / len;
+    let d = normal.dot(a);
+    let (mut above, mut below) = (false, false);
+    for p in points {
+        let s = normal.dot(*p) - d;
+        above |= s > tolerance;
+        below |= s < -tolerance;
+        // Points on both sides: not a face, whatever the rest say.
+        if above && below {
+            return;
+        }
+    }
+    let plane = if above { (-normal, -d) } else { (normal, d) };
+    if !planes.iter().any(|(m, e)| (*m - plane.0).length() < 1e-9 && (e - plane.1).abs() <= tolerance) {
+        planes.push(plane);
     }
 }
 
