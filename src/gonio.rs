@@ -45,7 +45,7 @@ use crate::trace::{Layer, Tracer};
 
 /// Bumped whenever the reconstruction's results change, so that a cached
 /// light from an earlier arlux is not taken for a current one.
-pub const ALGORITHM_VERSION: u32 = 5;
+pub const ALGORITHM_VERSION: u32 = 6;
 
 /// Photometric zero of the reconstructed table (type C nadir) and the
 /// direction of horizontal angle 0: world down and world +x.
@@ -647,9 +647,13 @@ fn gather_from_photo(scene: &Scene, tracer: &Tracer, patches: &Patches, photo: &
 /// separate their values.
 fn continuous(p: &Sample, q: &Sample) -> bool {
     let changes = |a: f64, b: f64| (a - b).abs() > 0.1 * a.max(b);
+    same_plane(p, q) && !changes(p.g, q.g) && !changes(p.e_known.element_sum(), q.e_known.element_sum())
+}
+
+/// Whether neighbouring pixels `p` and `q` see one plane of one surface.
+fn same_plane(p: &Sample, q: &Sample) -> bool {
     let depth = (p.x - q.x).length().max(1e-12);
-    let same_plane = q.surface == p.surface && p.n.dot(q.n) > 0.9 && (q.x - p.x).dot(p.n).abs() < 0.05 * depth;
-    same_plane && !changes(p.g, q.g) && !changes(p.e_known.element_sum(), q.e_known.element_sum())
+    q.surface == p.surface && p.n.dot(q.n) > 0.9 && (q.x - p.x).dot(p.n).abs() < 0.05 * depth
 }
 
 /// The samples whose pixel mixes what it shows: a neighbour on another
@@ -683,14 +687,16 @@ const EDGE_WALK: usize = 6;
 /// Takes each surface's texture out of the samples' radiosity (Grosch
 /// assumes one reflectance per polygon, which a textured floor breaks at
 /// every pixel): ln ρ(x) = ln ρ̄ + u(x), where u changes only across
-/// texture edges (a jump of ln radiance above `edge` between neighbouring
-/// pixels of one surface and plane, where no light's visibility changes:
+/// texture edges (a step of ln radiance between neighbouring clean pixels
+/// of one plane that exceeds the steps around it by more than `edge`:
 /// illumination varies smoothly there, a texture steps), found by a
-/// least-squares integration of those jumps (Retinex). Each surface's
+/// least-squares integration of those jumps (Retinex); `mixed` pixels, and
+/// a plane across what stands in front of it, are tied by weak links that
+/// expect no step. Each surface's
 /// texture exp(u) is scaled to area mean 1, so that ρ̄ keeps the meaning of
 /// a [[reflectance]]: the surface's area-weighted mean. Returns the number
 /// of texture edges.
-fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) -> usize {
+fn remove_texture(samples: &mut [Sample], mixed: &[bool], width: u32, height: u32, edge: f64) -> usize {
     let mut at = vec![u32::MAX; (width * height) as usize];
     for (i, s) in samples.iter().enumerate() {
         at[s.pixel as usize] = i as u32;
@@ -703,7 +709,14 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
     // 0: rightwards, 1: downwards.
     let mut directions: Vec<usize> = Vec::new();
     let mut jumps: Vec<[f64; 3]> = Vec::new();
-    let mut is_edge: Vec<bool> = Vec::new();
+    // Neighbours on one plane where either pixel is mixed (across a
+    // shadow's edge, or blending a silhouette in front): what steps there
+    // is light or another surface, so they say nothing of the texture but
+    // that it most likely does not step. Without them, a region that
+    // shadows cut off (the wall under a table) would be integrated on its
+    // own and its texture level, mean 0, would not match the rest of its
+    // surface's (where a poster moves the mean).
+    let mut links: Vec<(u32, u32)> = Vec::new();
     // The pair leaving each pixel rightwards and downwards, if any.
     let mut leaving = vec![[u32::MAX; 2]; samples.len()];
     for i in 0..samples.len() {
@@ -714,10 +727,31 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
                 continue;
             }
             let j = at[((row + dr) * width + col + dc) as usize];
-            if j == u32::MAX {
+            if j == u32::MAX || samples[j as usize].surface != p.surface {
+                // Something in front (a table's leg) or nothing at all: link
+                // to the surface where it shows again, if on the same plane
+                // within a gap, so that the region the occluder encloses
+                // (the wall between the legs) is not left on its own.
+                let max_gap = width.max(height) / 8;
+                for gap in 2..=max_gap {
+                    let (c, r) = (col + dc * gap, row + dr * gap);
+                    if c >= width || r >= height {
+                        break;
+                    }
+                    let k = at[(r * width + c) as usize];
+                    if k != u32::MAX && samples[k as usize].surface == p.surface {
+                        if same_plane(p, &samples[k as usize]) {
+                            links.push((i as u32, k));
+                        }
+                        break;
+                    }
+                }
                 continue;
             }
-            if !continuous(p, &samples[j as usize]) {
+            if mixed[i] || mixed[j as usize] {
+                if same_plane(p, &samples[j as usize]) {
+                    links.push((i as u32, j));
+                }
                 continue;
             }
             let q = &samples[j as usize];
@@ -726,19 +760,49 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
             leaving[i][dir] = pairs.len() as u32;
             pairs.push((i as u32, j));
             directions.push(dir);
-            // An edge where any channel steps; there every channel keeps its own step.
-            is_edge.push(jump.iter().any(|x| x.abs() > edge));
             jumps.push(jump);
         }
     }
     // A step across a texture edge also holds the illumination's change
-    // over one pixel; left in, it would pile up edge after edge across a
-    // lit region. Take out the mean step of the plain pairs just before and
-    // after the edge in the same direction.
+    // over one pixel, and illumination near a light or a corner changes by
+    // several percent per pixel: a step is texture only by how much it
+    // differs from the steps around it in the same direction (their median:
+    // an edge's own two or three anti-aliased steps do not move it).
     let mut arriving = vec![[u32::MAX; 2]; samples.len()];
     for (k, &(_, j)) in pairs.iter().enumerate() {
         arriving[j as usize][directions[k]] = k as u32;
     }
+    let excess: Vec<[f64; 3]> = (0..pairs.len())
+        .into_par_iter()
+        .map(|k| {
+            let ((i, j), dir) = (pairs[k], directions[k]);
+            let mut around: Vec<usize> = Vec::with_capacity(2 * EDGE_WALK);
+            let mut back = arriving[i as usize][dir];
+            let mut ahead = leaving[j as usize][dir];
+            for _ in 0..EDGE_WALK {
+                if back != u32::MAX {
+                    around.push(back as usize);
+                    back = arriving[pairs[back as usize].0 as usize][dir];
+                }
+                if ahead != u32::MAX {
+                    around.push(ahead as usize);
+                    ahead = leaving[pairs[ahead as usize].1 as usize][dir];
+                }
+            }
+            std::array::from_fn(|c| {
+                if around.is_empty() {
+                    return jumps[k][c];
+                }
+                let mut steps: Vec<f64> = around.iter().map(|&n| jumps[n][c]).collect();
+                steps.sort_by(f64::total_cmp);
+                let m = steps.len();
+                let slope = if m % 2 == 1 { steps[m / 2] } else { 0.5 * (steps[m / 2 - 1] + steps[m / 2]) };
+                jumps[k][c] - slope
+            })
+        })
+        .collect();
+    // An edge where any channel steps; there every channel keeps its own step.
+    let mut is_edge: Vec<bool> = excess.iter().map(|x| x.iter().any(|x| x.abs() > edge)).collect();
     // A texture edge the camera's filter (or the texture's own) spreads
     // over a few pixels steps less than `edge` per pixel: a pair is also an
     // edge when the three steps around it, in the same direction, add up to
@@ -754,52 +818,17 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
                 return false;
             }
             (0..3).any(|c| {
-                let span = jumps[before as usize][c] + jumps[k][c] + jumps[after as usize][c];
-                span.abs() > edge && jumps[k][c].abs() > edge / 3.0 && jumps[k][c].signum() == span.signum()
+                let span = excess[before as usize][c] + excess[k][c] + excess[after as usize][c];
+                span.abs() > edge && excess[k][c].abs() > edge / 3.0 && excess[k][c].signum() == span.signum()
             })
         })
         .collect();
     for (k, r) in ramp.into_iter().enumerate() {
         is_edge[k] |= r;
     }
-    let mut targets: [Vec<f64>; 3] = Default::default();
-    let mut edges = 0;
-    for (k, &(i, j)) in pairs.iter().enumerate() {
-        if !is_edge[k] {
-            for t in targets.iter_mut() {
-                t.push(0.0);
-            }
-            continue;
-        }
-        edges += 1;
-        let dir = directions[k];
-        // Walk past the other steps of the same edge (an anti-aliased edge
-        // spans two or three pixels) to the first plain pair on each side.
-        let first_plain = |mut k: u32, next: &dyn Fn(u32) -> u32| -> Option<usize> {
-            for _ in 0..EDGE_WALK {
-                if k == u32::MAX {
-                    return None;
-                }
-                if !is_edge[k as usize] {
-                    return Some(k as usize);
-                }
-                k = next(k);
-            }
-            None
-        };
-        let neighbours: Vec<usize> = [
-            first_plain(arriving[i as usize][dir], &|k| arriving[pairs[k as usize].0 as usize][dir]),
-            first_plain(leaving[j as usize][dir], &|k| leaving[pairs[k as usize].1 as usize][dir]),
-        ]
-        .into_iter()
-        .flatten()
-        .collect();
-        for c in 0..3 {
-            let illumination = if neighbours.is_empty() { 0.0 } else { neighbours.iter().map(|&n| jumps[n][c]).sum::<f64>() / neighbours.len() as f64 };
-            targets[c].push(jumps[k][c] - illumination);
-        }
-    }
-    let u: Vec<Vec<f64>> = targets.par_iter().map(|t| integrate_jumps(samples.len(), &pairs, t)).collect();
+    let edges = is_edge.iter().filter(|&&e| e).count();
+    let targets: [Vec<f64>; 3] = std::array::from_fn(|c| (0..pairs.len()).map(|k| if is_edge[k] { excess[k][c] } else { 0.0 }).collect());
+    let u: Vec<Vec<f64>> = targets.par_iter().map(|t| integrate_jumps(samples.len(), &pairs, t, &links)).collect();
     let mut mean: HashMap<u32, (DVec3, f64)> = HashMap::new();
     let texture_at = |k: usize| DVec3::new(u[0][k].exp(), u[1][k].exp(), u[2][k].exp());
     for (k, s) in samples.iter().enumerate() {
@@ -819,10 +848,16 @@ fn remove_texture(samples: &mut [Sample], width: u32, height: u32, edge: f64) ->
     edges
 }
 
-/// Least-squares u with u_j − u_i ≈ target over `pairs` (a graph
-/// Laplacian system, solved by conjugate gradients; each connected piece
-/// keeps mean 0, so the singular system stays consistent).
-fn integrate_jumps(n: usize, pairs: &[(u32, u32)], targets: &[f64]) -> Vec<f64> {
+/// Weight of a [`remove_texture`] link across a change of light, next to
+/// 1 for a pair: enough to tie pieces together, too little to pull a
+/// texture edge that happens to lie on a shadow's edge.
+const LINK_WEIGHT: f64 = 0.01;
+
+/// Least-squares u with u_j − u_i ≈ target over `pairs`, and u_j ≈ u_i
+/// (weighted [`LINK_WEIGHT`]) over `links` (a graph Laplacian system,
+/// solved by conjugate gradients; each connected piece keeps mean 0, so the
+/// singular system stays consistent).
+fn integrate_jumps(n: usize, pairs: &[(u32, u32)], targets: &[f64], links: &[(u32, u32)]) -> Vec<f64> {
     let mut degree = vec![0.0f64; n];
     let mut rhs = vec![0.0f64; n];
     for (&(i, j), &t) in pairs.iter().zip(targets) {
@@ -834,6 +869,10 @@ fn integrate_jumps(n: usize, pairs: &[(u32, u32)], targets: &[f64]) -> Vec<f64> 
     if rhs.iter().all(|&r| r == 0.0) {
         return vec![0.0; n];
     }
+    for &(i, j) in links {
+        degree[i as usize] += LINK_WEIGHT;
+        degree[j as usize] += LINK_WEIGHT;
+    }
     let apply = |x: &[f64], out: &mut [f64]| {
         for (o, (d, xi)) in out.iter_mut().zip(degree.iter().zip(x)) {
             *o = d * xi;
@@ -842,6 +881,11 @@ fn integrate_jumps(n: usize, pairs: &[(u32, u32)], targets: &[f64]) -> Vec<f64> 
             let (i, j) = (i as usize, j as usize);
             out[i] -= x[j];
             out[j] -= x[i];
+        }
+        for &(i, j) in links {
+            let (i, j) = (i as usize, j as usize);
+            out[i] -= LINK_WEIGHT * x[j];
+            out[j] -= LINK_WEIGHT * x[i];
         }
     };
     let precondition = |r: &[f64], z: &mut [f64]| {
@@ -984,8 +1028,8 @@ impl Evidence {
                 out
             })
             .collect();
-        let texture_edges = remove_texture(&mut samples, cam.width, cam.height, settings.texture_edge);
         let mixed = mixed_pixels(&samples, cam.width, cam.height);
+        let texture_edges = remove_texture(&mut samples, &mixed, cam.width, cam.height, settings.texture_edge);
         let mut keep = mixed.iter().map(|m| !m);
         samples.retain(|_| keep.next().unwrap_or(false));
         let unseen_hits = gather_from_photo(scene, tracer, &patches, photo, &mut samples, settings.gather_rays);
@@ -1376,7 +1420,8 @@ mod tests {
                 });
             }
         }
-        remove_texture(&mut samples, w, h, 0.1);
+        let mixed = vec![false; samples.len()];
+        remove_texture(&mut samples, &mixed, w, h, 0.1);
         let mean = (dark + light) * 0.5;
         let worst = samples
             .iter()
@@ -1385,12 +1430,63 @@ mod tests {
         assert!(worst < 0.01, "texture left over: {:.2}%", 100.0 * worst);
     }
 
+    /// A plain wall with a bright poster on its left half, under light that
+    /// grows 4% per pixel (steeper than the old ramp test allowed), and a
+    /// leg of another surface in front that cuts off a region with no
+    /// texture: the texture must come out everywhere, on both sides of the
+    /// leg at one level.
+    #[test]
+    fn a_region_an_occluder_cuts_off_keeps_its_surface_level() {
+        let (w, h) = (80u32, 40u32);
+        let wall = DVec3::new(0.7, 0.68, 0.6);
+        let poster = DVec3::new(0.9, 0.2, 0.1);
+        let is_leg = |col: u32| (50..54).contains(&col);
+        let mut samples: Vec<Sample> = Vec::new();
+        for row in 0..h {
+            for col in 0..w {
+                let in_poster = (5..35).contains(&col) && (5..30).contains(&row);
+                let rho = if is_leg(col) { DVec3::splat(0.5) } else if in_poster { poster } else { wall };
+                samples.push(Sample {
+                    surface: if is_leg(col) { 1 } else { 0 },
+                    v: 0.0,
+                    h: 0.0,
+                    g: 1.0,
+                    e_known: DVec3::ONE,
+                    b: rho * (0.04 * col as f64).exp(),
+                    h_ind: DVec3::ZERO,
+                    pixel: row * w + col,
+                    x: DVec3::new(col as f64 * 0.01, 0.0, row as f64 * 0.01) + if is_leg(col) { DVec3::Y } else { DVec3::ZERO },
+                    n: DVec3::Y,
+                    area: 1.0,
+                    gathered_photo: DVec3::ZERO,
+                    unseen: (0, 0),
+                });
+            }
+        }
+        let mixed = mixed_pixels(&samples, w, h);
+        remove_texture(&mut samples, &mixed, w, h, 0.1);
+        // What is left must be the light times the wall's mean reflectance
+        // (poster included), on both sides of the leg, poster and all.
+        let wall_pixels = samples.iter().filter(|s| s.surface == 0).count() as f64;
+        let posters = (30 * 25) as f64;
+        let mean = (poster * posters + wall * (wall_pixels - posters)) / wall_pixels;
+        let worst = |lo: u32, hi: u32| {
+            samples
+                .iter()
+                .filter(|s| s.surface == 0 && !mixed[s.pixel as usize] && (lo..hi).contains(&(s.pixel % w)))
+                .map(|s| ((s.b / ((0.04 * (s.pixel % w) as f64).exp() * mean)) - DVec3::ONE).abs().max_element())
+                .fold(0.0, f64::max)
+        };
+        let (left, right) = (worst(0, 50), worst(54, w));
+        assert!(left < 0.01 && right < 0.01, "texture left over: {:.2}% left of the leg, {:.2}% right of it", 100.0 * left, 100.0 * right);
+    }
+
     #[test]
     fn integrating_jumps_recovers_a_step_texture() {
         // A row of 10 pixels: a step of ln 2 between 4 and 5, nothing else.
         let pairs: Vec<(u32, u32)> = (0..9).map(|i| (i, i + 1)).collect();
         let targets: Vec<f64> = (0..9).map(|i| if i == 4 { 2f64.ln() } else { 0.0 }).collect();
-        let u = integrate_jumps(10, &pairs, &targets);
+        let u = integrate_jumps(10, &pairs, &targets, &[]);
         for (i, ui) in u.iter().enumerate() {
             let expect = if i <= 4 { -0.5 * 2f64.ln() } else { 0.5 * 2f64.ln() };
             assert!((ui - expect).abs() < 1e-6, "u[{i}] = {ui}");

@@ -99,12 +99,12 @@ fn the_desk_spot_is_recovered_within_ten_percent_where_the_photo_sees_it() {
 
     // Progress guard, not yet the bound (every direction within 10%):
     // over half the directions are exact (the spot sends nothing there and
-    // the table says so); as a share of the peak, 95% are within 9.8% and
-    // 99% within 17.7%. The spot's brightest directions on the textured floor
-    // come out about 7% low; the worst are at the table and the cone's edge.
+    // the table says so); as a share of the peak, 95% are within 4.7% and
+    // 99% within 9.8%. The worst (1% of the directions) are on the
+    // checkerboard floor's tile edges and the table's legs, at the cone's edge.
     assert!(errors[count / 2] < 0.02, "median direction error {:.1}%", 100.0 * errors[count / 2]);
-    assert!(of_peak[count * 95 / 100] < 0.105, "95th percentile {:.1}% of the peak", 100.0 * of_peak[count * 95 / 100]);
-    assert!(of_peak[count * 99 / 100] < 0.20, "99th percentile {:.1}% of the peak", 100.0 * of_peak[count * 99 / 100]);
+    assert!(of_peak[count * 95 / 100] < 0.06, "95th percentile {:.1}% of the peak", 100.0 * of_peak[count * 95 / 100]);
+    assert!(of_peak[count * 99 / 100] < 0.11, "99th percentile {:.1}% of the peak", 100.0 * of_peak[count * 99 / 100]);
 
     // The desk ships no reflectance ground truth. Two references: arlux's
     // patch estimator given the true spot, and EQ2 per pixel given the true
@@ -133,11 +133,12 @@ fn the_desk_spot_is_recovered_within_ten_percent_where_the_photo_sees_it() {
         worst_patch = worst_patch.max(e_patch);
     }
     // The bound is 10%. Against EQ2 with the true spot: ceiling
-    // 0.1%, floor 4.4%, legs 5.7%, table top 6.2%, back wall 11.3%; against
-    // the patch estimate: floor 0.1%, ceiling 1.3%, table top 7.3%, back wall
-    // 9.0%, legs 19%.
-    assert!(worst_rho < 0.12, "worst reflectance {:.1}% from EQ2 with the true spot", 100.0 * worst_rho);
-    assert!(worst_patch < 0.2, "worst reflectance {:.1}% from the patch estimate", 100.0 * worst_patch);
+    // 0.1%, back wall 0.6%, floor 1.1%, legs 1.3%, table top 2.9%. Against
+    // the patch estimate: within 2.5% but for the legs, 24% — that estimate
+    // is not converged on them (4 cm wide, their patches mostly silhouette:
+    // 0.25 m patches give red 0.567, 0.1 m 0.543, 0.05 m 0.520; here 0.493).
+    assert!(worst_rho < 0.05, "worst reflectance {:.1}% from EQ2 with the true spot", 100.0 * worst_rho);
+    assert!(worst_patch < 0.3, "worst reflectance {:.1}% from the patch estimate", 100.0 * worst_patch);
 
     // The box variant rendered with the recovered spot, against the true spot's render.
     let variant = |s: &Scene| s.with_variant("box_floor_a").unwrap();
@@ -148,7 +149,7 @@ fn the_desk_spot_is_recovered_within_ten_percent_where_the_photo_sees_it() {
     let with_rec = arlux::render::render(&variant(&rec.apply(&rec_scene)), &photo, &settings, &mut times).unwrap();
     let (a, b) = (arlux::compare::compare(&with_true.composite.image, &truth, None).rmse, arlux::compare::compare(&with_rec.composite.image, &truth, None).rmse);
     println!("box_floor_a: RMSE {b:.5} with the recovered spot, {a:.5} with the true one ({:+.0}%)", 100.0 * (b / a - 1.0));
-    // The bound: at most +20% (measured +14%).
+    // The bound: at most +20% (measured +1%).
     assert!(b < 1.2 * a, "recovered spot raises the error {:+.0}%", 100.0 * (b / a - 1.0));
 }
 
