@@ -681,7 +681,7 @@ fn mixed_pixels(samples: &[Sample], width: u32, height: u32) -> Vec<bool> {
         .collect()
 }
 
-/// How many steps an edge correction walks to find a plain pair.
+/// Pairs on either side whose steps give a step its surroundings in [`remove_texture`].
 const EDGE_WALK: usize = 6;
 
 /// Takes each surface's texture out of the samples' radiosity (Grosch
