@@ -745,7 +745,8 @@ fn sweep_cmd(path: &Path, variant: Option<&str>, motion: Option<&str>, dir: &Pat
         json!({
             "method": method,
             "shadow_rays": [1u32 << s.min_level, 1u32 << s.penumbra_level], "supersample": s.supersample,
-            "patch_size": s.patch_size, "epsilon": s.epsilon, "seconds": r.seconds, "rmse": r.rmse,
+            "patch_size": s.patch_size, "virtual_patch_size": matches!(s.method, arlux::sweep::SweepMethod::Pda).then_some(s.virtual_patch_size),
+            "epsilon": s.epsilon, "seconds": r.seconds, "rmse": r.rmse,
             "relative_rmse": r.relative_rmse, "pareto": r.pareto,
         })
     };
@@ -758,19 +759,24 @@ fn sweep_cmd(path: &Path, variant: Option<&str>, motion: Option<&str>, dir: &Pat
     }
     say!("{} settings of {label}; wrote {} and {}", rows.len(), csv.display(), png.display());
     say!("Pareto front (faster and closer than nothing else):");
-    say!("  {:>7} {:>11} {:>10} {:>10} {:>8} {:>9} {:>10}", "method", "shadow rays", "supersamp.", "patch", "epsilon", "seconds", "RMSE");
+    say!("  {:>7} {:>11} {:>10} {:>10} {:>8} {:>8} {:>9} {:>10}", "method", "shadow rays", "supersamp.", "patch", "objects", "epsilon", "seconds", "RMSE");
     for r in front {
         let s = &r.settings;
         let (method, rays, supersample) = match s.method {
             arlux::sweep::SweepMethod::Pda => ("pda", format!("{}-{}", 1u32 << s.min_level, 1u32 << s.penumbra_level), s.supersample.to_string()),
             arlux::sweep::SweepMethod::Texture { min_leaf_pixels } => ("texture", format!("leaf {min_leaf_pixels} px"), "-".to_string()),
         };
+        let objects = match s.method {
+            arlux::sweep::SweepMethod::Pda => format!("{} m", s.virtual_patch_size),
+            arlux::sweep::SweepMethod::Texture { .. } => "-".to_string(),
+        };
         say!(
-            "  {:>7} {:>11} {:>10} {:>10} {:>8} {:>9.3} {:>10.6}",
+            "  {:>7} {:>11} {:>10} {:>10} {:>8} {:>8} {:>9.3} {:>10.6}",
             method,
             rays,
             supersample,
             s.patch_size.map_or("auto".to_string(), |m| format!("{m} m")),
+            objects,
             s.epsilon,
             r.seconds,
             r.rmse

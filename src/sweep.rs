@@ -33,6 +33,8 @@ pub struct SweepSettings {
     pub supersample: u32,
     /// None: the automatic patch size.
     pub patch_size: Option<f64>,
+    /// The virtual objects' patch size, metres.
+    pub virtual_patch_size: f64,
     /// Hierarchical radiosity's link threshold (the solve tolerance's knob).
     pub epsilon: f64,
 }
@@ -56,6 +58,7 @@ impl SweepSettings {
         RenderSettings {
             model: crate::model::ModelSettings { transport: TransportMethod::Hierarchical { epsilon: self.epsilon }, ..d.model },
             patch_size: self.patch_size.map_or(PatchSize::Auto, PatchSize::Metres),
+            virtual_patch_size: self.virtual_patch_size,
             pda: PdaSettings { min_level: self.min_level, penumbra_level: self.penumbra_level, supersample: self.supersample },
             ..d
         }
@@ -77,6 +80,7 @@ impl SweepSettings {
                 PatchSize::Auto => None,
                 PatchSize::Metres(m) => Some(m),
             },
+            virtual_patch_size: d.virtual_patch_size,
             epsilon,
         }
     }
@@ -85,7 +89,10 @@ impl SweepSettings {
 /// The grid: `quick` is six settings from cheapest to dearest (a smoke
 /// check); otherwise shadow rays 1…256 × supersampling 1…4 × three patch
 /// sizes (auto, 0.5 m, 0.25 m: the room's fine mesh) × two radiosity
-/// thresholds (120 settings). With `texture` (a variant: the texture path
+/// thresholds (120 settings), and at the default rays and supersampling
+/// the objects' mesh twice as fine and twice as coarse as the default
+/// (8 more: it sets how finely their indirect light and the room's
+/// change near them are resolved). With `texture` (a variant: the texture path
 /// has no incremental update for motions), the texture path joins: its
 /// defaults in the quick grid, otherwise smallest leaves of 1.5, 3 and 6
 /// pixels × the automatic and 0.5 m starting mesh.
@@ -107,8 +114,15 @@ pub fn grid(quick: bool, texture: bool) -> Vec<SweepSettings> {
         for supersample in 1..=4 {
             for patch_size in [None, Some(0.5), Some(0.25)] {
                 for epsilon in [0.008, d.epsilon] {
-                    out.push(SweepSettings { method: SweepMethod::Pda, min_level, penumbra_level, supersample, patch_size, epsilon });
+                    out.push(SweepSettings { method: SweepMethod::Pda, min_level, penumbra_level, supersample, patch_size, epsilon, ..d });
                 }
+            }
+        }
+    }
+    for virtual_patch_size in [0.5 * d.virtual_patch_size, 2.0 * d.virtual_patch_size] {
+        for patch_size in [None, Some(0.5)] {
+            for epsilon in [0.008, d.epsilon] {
+                out.push(SweepSettings { virtual_patch_size, patch_size, epsilon, ..d });
             }
         }
     }
@@ -275,7 +289,7 @@ pub fn to_csv(rows: &[SweepRow], reference: &str) -> String {
             }
         }
     }
-    let mut out = String::from("method,min_level,penumbra_level,shadow_rays_min,shadow_rays_max,supersample,min_leaf_pixels,patch_size,epsilon");
+    let mut out = String::from("method,min_level,penumbra_level,shadow_rays_min,shadow_rays_max,supersample,min_leaf_pixels,patch_size,virtual_patch_size,epsilon");
     for n in &names {
         out.push_str(&format!(",s_{}", n.replace([' ', ',', '+'], "_")));
     }
@@ -285,16 +299,17 @@ pub fn to_csv(rows: &[SweepRow], reference: &str) -> String {
         let patch = s.patch_size.map_or("auto".to_string(), |m| m.to_string());
         out.push_str(&match s.method {
             SweepMethod::Pda => format!(
-                "pda,{},{},{},{},{},,{patch},{}",
+                "pda,{},{},{},{},{},,{patch},{},{}",
                 s.min_level,
                 s.penumbra_level,
                 1u32 << s.min_level,
                 1u32 << s.penumbra_level,
                 s.supersample,
+                s.virtual_patch_size,
                 s.epsilon
             ),
             // Shadow rays and supersampling do not apply: its leaves take 2^4 rays per point.
-            SweepMethod::Texture { min_leaf_pixels } => format!("texture,,,,,,{min_leaf_pixels},{patch},{}", s.epsilon),
+            SweepMethod::Texture { min_leaf_pixels } => format!("texture,,,,,,{min_leaf_pixels},{patch},,{}", s.epsilon),
         });
         for n in &names {
             let v = r.stages.iter().find(|(m, _)| m == n).map_or(0.0, |x| x.1);
@@ -401,4 +416,24 @@ pub fn plot(rows: &[SweepRow], title: &str, path: &Path) -> Result<()> {
         root.present().map_err(|e| fail(e.to_string()))?;
     }
     crate::image_io::write_png_rgb8(path, w, h, buffer)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_full_grid_varies_the_objects_mesh_at_the_default_quality() {
+        let d = SweepSettings::defaults();
+        let full = grid(false, false);
+        assert_eq!(full.len(), 128);
+        let other: Vec<&SweepSettings> = full.iter().filter(|s| s.virtual_patch_size != d.virtual_patch_size).collect();
+        assert_eq!(other.len(), 8);
+        for s in other {
+            assert_eq!((s.min_level, s.penumbra_level, s.supersample), (d.min_level, d.penumbra_level, d.supersample));
+            assert!(s.virtual_patch_size == 0.5 * d.virtual_patch_size || s.virtual_patch_size == 2.0 * d.virtual_patch_size);
+            // The setting reaches the renderer.
+            assert_eq!(s.render_settings().virtual_patch_size, s.virtual_patch_size);
+        }
+    }
 }

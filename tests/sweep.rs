@@ -54,6 +54,9 @@ fn a_quick_sweep_measures_every_row_and_its_front_falls_as_cost_rises() {
         .iter()
         .find(|r| r[col("min_level")] == "2" && r[col("penumbra_level")] == "4" && r[col("supersample")] == "4" && r[col("patch_size")] == "auto")
         .expect("the defaults are in the quick grid");
+    // The objects' mesh is a pixel-path setting: the default's there, none on the texture path.
+    assert_eq!(default_row[col("virtual_patch_size")], "0.1");
+    assert!(rows.iter().filter(|r| r[col("method")] == "texture").all(|r| r[col("virtual_patch_size")].is_empty()));
     let image = dir.path().join("default.exr");
     let render = Command::new(env!("CARGO_BIN_EXE_arlux"))
         .args(["render", &format!("{DESK}/scene.toml"), "--variant", "box_floor_a", "-o", image.to_str().unwrap(), "--json"])
