@@ -293,68 +293,74 @@ fn light_term(
         let f = |b: bool| if b { 1.0 } else { 0.0 };
         return (LightTerm::new(unoccluded, f(real_visible), f(all)), rays_cast);
     };
-    let mut level = settings.min_level;
-    let mut rays_cast = 0u64;
-    // Stack buffers: no allocation per pixel and light (it measured neutral
-    // on the desk; the cost is in shading, not here).
-    const MAX: usize = 1 << crate::light::MAX_GRID_LEVEL;
-    let mut targets = [DVec3::ZERO; MAX];
-    let mut rays = [TraceRay::new(glam::Vec3::ZERO, glam::Vec3::Z); MAX];
-    let mut real_blocked = [false; MAX];
-    let mut virt_blocked = [false; MAX];
-    loop {
-        let mut count = 0;
-        for st in grid.samples(level, seed) {
-            targets[count] = light.point_at(st);
-            rays[count] = segment(origin, targets[count]);
-            count += 1;
-        }
-        let penumbra = level != settings.min_level;
-        let keep = real.as_deref_mut().filter(|_| count <= RealMask::MAX_SAMPLES);
-        match keep.as_ref().and_then(|m| m.get(penumbra)) {
-            Some(bits) => (0..count).for_each(|k| real_blocked[k] = bits >> k & 1 == 1),
-            None => {
-                tracer.occluded_batch(&rays[..count], Layer::Real, &mut real_blocked[..count]);
+    // Buffers for the most rays one call may cast: on the stack for the
+    // usual budgets (filling 256 entries per pixel and light, whatever the
+    // budget, cost more than the shading around it), on the heap beyond.
+    let most = 1usize << settings.min_level.max(settings.penumbra_level).min(crate::light::MAX_GRID_LEVEL);
+    const SMALL: usize = 16;
+    let mut run = |targets: &mut [DVec3], rays: &mut [TraceRay], real_blocked: &mut [bool], virt_blocked: &mut [bool]| -> (LightTerm, u64) {
+        let mut level = settings.min_level;
+        let mut rays_cast = 0u64;
+        loop {
+            let mut count = 0;
+            for st in grid.samples(level, seed) {
+                targets[count] = light.point_at(st);
+                rays[count] = segment(origin, targets[count]);
+                count += 1;
+            }
+            let penumbra = level != settings.min_level;
+            let keep = real.as_deref_mut().filter(|_| count <= RealMask::MAX_SAMPLES);
+            match keep.as_ref().and_then(|m| m.get(penumbra)) {
+                Some(bits) => (0..count).for_each(|k| real_blocked[k] = bits >> k & 1 == 1),
+                None => {
+                    tracer.occluded_batch(&rays[..count], Layer::Real, &mut real_blocked[..count]);
+                    rays_cast += count as u64;
+                    if let Some(m) = keep {
+                        m.set(penumbra, (0..count).fold(0u16, |b, k| b | (real_blocked[k] as u16) << k));
+                    }
+                }
+            }
+            if check_virtual {
+                tracer.occluded_batch(&rays[..count], Layer::Virtual, &mut virt_blocked[..count]);
                 rays_cast += count as u64;
-                if let Some(m) = keep {
-                    m.set(penumbra, (0..count).fold(0u16, |b, k| b | (real_blocked[k] as u16) << k));
-                }
+            } else {
+                virt_blocked[..count].fill(false);
             }
-        }
-        if check_virtual {
-            tracer.occluded_batch(&rays[..count], Layer::Virtual, &mut virt_blocked[..count]);
-            rays_cast += count as u64;
-        } else {
-            virt_blocked[..count].fill(false);
-        }
-        let mixed = |b: &[bool]| b.iter().any(|x| *x) && b.iter().any(|x| !*x);
-        let any_all_mixed = {
-            let (mut some, mut none) = (false, false);
+            let mixed = |b: &[bool]| b.iter().any(|x| *x) && b.iter().any(|x| !*x);
+            let any_all_mixed = {
+                let (mut some, mut none) = (false, false);
+                for k in 0..count {
+                    let b = real_blocked[k] || virt_blocked[k];
+                    some |= b;
+                    none |= !b;
+                }
+                some && none
+            };
+            if level < settings.penumbra_level && (mixed(&real_blocked[..count]) || any_all_mixed) {
+                level = settings.penumbra_level;
+                continue;
+            }
+            // Each ray weighs what its sample contributes at x.
+            let (mut total, mut real, mut all) = (0.0, 0.0, 0.0);
             for k in 0..count {
-                let b = real_blocked[k] || virt_blocked[k];
-                some |= b;
-                none |= !b;
-            }
-            some && none
-        };
-        if level < settings.penumbra_level && (mixed(&real_blocked[..count]) || any_all_mixed) {
-            level = settings.penumbra_level;
-            continue;
-        }
-        // Each ray weighs what its sample contributes at x.
-        let (mut total, mut real, mut all) = (0.0, 0.0, 0.0);
-        for k in 0..count {
-            let w = crate::light::point_contribution(targets[k], x, n, |d| light.intensity(d)).max_element();
-            total += w;
-            if !real_blocked[k] {
-                real += w;
-                if !virt_blocked[k] {
-                    all += w;
+                let w = crate::light::point_contribution(targets[k], x, n, |d| light.intensity(d)).max_element();
+                total += w;
+                if !real_blocked[k] {
+                    real += w;
+                    if !virt_blocked[k] {
+                        all += w;
+                    }
                 }
             }
+            let frac = |v: f64| if total > 0.0 { v / total } else { 0.0 };
+            return (LightTerm::new(unoccluded, frac(real), frac(all)), rays_cast);
         }
-        let frac = |v: f64| if total > 0.0 { v / total } else { 0.0 };
-        return (LightTerm::new(unoccluded, frac(real), frac(all)), rays_cast);
+    };
+    let blank = TraceRay::new(glam::Vec3::ZERO, glam::Vec3::Z);
+    if most <= SMALL {
+        run(&mut [DVec3::ZERO; SMALL], &mut [blank; SMALL], &mut [false; SMALL], &mut [false; SMALL])
+    } else {
+        run(&mut vec![DVec3::ZERO; most], &mut vec![blank; most], &mut vec![false; most], &mut vec![false; most])
     }
 }
 
