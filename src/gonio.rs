@@ -719,6 +719,7 @@ fn remove_texture(samples: &mut [Sample], mixed: &[bool], width: u32, height: u3
     let mut links: Vec<(u32, u32)> = Vec::new();
     // The pair leaving each pixel rightwards and downwards, if any.
     let mut leaving = vec![[u32::MAX; 2]; samples.len()];
+    let max_gap = width.max(height) / 8;
     for i in 0..samples.len() {
         let p = &samples[i];
         let (col, row) = (p.pixel % width, p.pixel / width);
@@ -732,7 +733,6 @@ fn remove_texture(samples: &mut [Sample], mixed: &[bool], width: u32, height: u3
                 // to the surface where it shows again, if on the same plane
                 // within a gap, so that the region the occluder encloses
                 // (the wall between the legs) is not left on its own.
-                let max_gap = width.max(height) / 8;
                 for gap in 2..=max_gap {
                     let (c, r) = (col + dc * gap, row + dr * gap);
                     if c >= width || r >= height {
@@ -776,26 +776,32 @@ fn remove_texture(samples: &mut [Sample], mixed: &[bool], width: u32, height: u3
         .into_par_iter()
         .map(|k| {
             let ((i, j), dir) = (pairs[k], directions[k]);
-            let mut around: Vec<usize> = Vec::with_capacity(2 * EDGE_WALK);
+            let mut around = [0usize; 2 * EDGE_WALK];
+            let mut m = 0;
             let mut back = arriving[i as usize][dir];
             let mut ahead = leaving[j as usize][dir];
             for _ in 0..EDGE_WALK {
                 if back != u32::MAX {
-                    around.push(back as usize);
+                    around[m] = back as usize;
+                    m += 1;
                     back = arriving[pairs[back as usize].0 as usize][dir];
                 }
                 if ahead != u32::MAX {
-                    around.push(ahead as usize);
+                    around[m] = ahead as usize;
+                    m += 1;
                     ahead = leaving[pairs[ahead as usize].1 as usize][dir];
                 }
             }
             std::array::from_fn(|c| {
-                if around.is_empty() {
+                if m == 0 {
                     return jumps[k][c];
                 }
-                let mut steps: Vec<f64> = around.iter().map(|&n| jumps[n][c]).collect();
+                let mut steps = [0.0f64; 2 * EDGE_WALK];
+                for (s, &n) in steps.iter_mut().zip(&around[..m]) {
+                    *s = jumps[n][c];
+                }
+                let steps = &mut steps[..m];
                 steps.sort_by(f64::total_cmp);
-                let m = steps.len();
                 let slope = if m % 2 == 1 { steps[m / 2] } else { 0.5 * (steps[m / 2 - 1] + steps[m / 2]) };
                 jumps[k][c] - slope
             })

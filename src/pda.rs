@@ -647,24 +647,22 @@ fn edge_samples(input: &PdaInput, col: u32, row: u32, seed: u64, real: Option<&S
     }
     let subs = sub_points(input, col, row, n);
     rays += (n * n) as u64;
-    let mut kept = Vec::new();
+    let mut kept: Vec<SurfacePoint> = Vec::new();
     let lights = input.lights.len();
-    // Sub-pixels on one plane share the light of the first of them that
-    // computed it: within a pixel's footprint it differs by less than the
-    // shadow rays' own noise, and an edge pixel's other sub-pixels would
-    // otherwise cost a full set of shadow rays each.
-    let mut shaded: Vec<(u32, glam::Vec3, usize)> = Vec::new();
+    // Each kept sub-pixel holds `lights` terms from here on.
+    let base = terms.len();
     for (k, s) in subs.into_iter().enumerate() {
         // A sub-pixel that sees nothing counts as the photo's background.
         if let Some(mut p) = s {
             p.pixel_terms = !p.is_virtual && real.is_some_and(|r| r.surface == p.surface && r.normal.dot(p.normal) > 0.999);
-            if p.pixel_terms {
-                terms.extend(std::iter::repeat_n(LightTerm::default(), lights));
-            } else if let Some(&(_, _, at)) = shaded.iter().find(|(surface, normal, _)| *surface == p.surface && normal.dot(p.normal) > 0.999) {
-                terms.extend_from_within(at..at + lights);
-            } else {
-                shaded.push((p.surface, p.normal, terms.len()));
-                rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 100 + k as u64), terms, None);
+            // Sub-pixels on one plane share the light of the first of them:
+            // within a pixel's footprint it differs by less than the shadow
+            // rays' own noise, and each would cost a full set of rays.
+            let first = kept.iter().position(|q| !q.pixel_terms && q.surface == p.surface && q.normal.dot(p.normal) > 0.999);
+            match first {
+                _ if p.pixel_terms => terms.extend(std::iter::repeat_n(LightTerm::default(), lights)),
+                Some(j) => terms.extend_from_within(base + j * lights..base + (j + 1) * lights),
+                None => rays += input.terms(p.position.as_dvec3(), p.normal.as_dvec3(), hash2(seed, 100 + k as u64), terms, None),
             }
             kept.push(p);
         }
