@@ -134,6 +134,24 @@ impl RealPixel {
         let value = if value.is_finite() { value.max(DVec3::ZERO) } else { DVec3::ZERO };
         Shade { value, direct: self.direct_with.as_dvec3(), indirect: h, copied: false, fallback: self.fallback, clamped }
     }
+
+    /// [`RealPixel::shade`] in single precision, as the layers take it.
+    fn layers(&self, h: Vec3, photo: Vec3) -> PixelShade {
+        if self.band.x >= 0.0 && (h - self.h_without).abs().cmple(self.band).all() {
+            return PixelShade { value: photo, direct: self.direct_with, indirect: h, alpha: 0.0, copied: true, fallback: false, clamped: false };
+        }
+        let value = self.offset + self.slope * h;
+        let clamped = value.min_element() < 0.0 || !value.is_finite();
+        let value = if value.is_finite() { value.max(Vec3::ZERO) } else { Vec3::ZERO };
+        PixelShade { value, direct: self.direct_with, indirect: h, alpha: 0.0, copied: false, fallback: self.fallback, clamped }
+    }
+}
+
+/// Vertex values `table` interpolated at a point of the patch with vertices
+/// `vertices` (a triangle's fourth weight is zero, its fourth vertex unset).
+fn interpolate_single(table: &[Vec3], vertices: &[u32; 4], w: [f32; 4]) -> Vec3 {
+    let fourth = if w[3] != 0.0 { table[vertices[3] as usize] * w[3] } else { Vec3::ZERO };
+    table[vertices[0] as usize] * w[0] + table[vertices[1] as usize] * w[1] + table[vertices[2] as usize] * w[2] + fourth
 }
 
 /// The augmented photo and its layers.
@@ -231,23 +249,33 @@ impl Composite {
     /// Sets every pixel, in parallel, to `shade(pixel)` (the change layer
     /// is value − photo) and counts the copied, fallen-back and clamped ones.
     pub fn fill(&mut self, photo: &Image, shade: impl Fn(usize) -> PixelShade + Sync + Send) {
+        // By rows: a plain loop per row, rather than five zipped parallel
+        // iterators per pixel (whose bookkeeping cost as much as the shading).
+        let w = (self.image.width as usize).max(1);
         let (copied, fallbacks, clamped) = self
             .image
             .pixels
-            .par_iter_mut()
-            .zip(self.direct.pixels.par_iter_mut())
-            .zip(self.indirect.pixels.par_iter_mut())
-            .zip(self.change.pixels.par_iter_mut())
-            .zip(self.alpha.par_iter_mut())
+            .par_chunks_mut(w)
+            .zip(self.direct.pixels.par_chunks_mut(w))
+            .zip(self.indirect.pixels.par_chunks_mut(w))
+            .zip(self.change.pixels.par_chunks_mut(w))
+            .zip(self.alpha.par_chunks_mut(w))
             .enumerate()
-            .map(|(i, ((((image, direct), indirect), change), alpha))| {
-                let s = shade(i);
-                *image = s.value;
-                *direct = s.direct;
-                *indirect = s.indirect;
-                *change = s.value - photo.pixels[i];
-                *alpha = s.alpha;
-                (s.copied as usize, s.fallback as usize, s.clamped as usize)
+            .map(|(row, ((((image, direct), indirect), change), alpha))| {
+                let mut counts = (0, 0, 0);
+                for x in 0..image.len() {
+                    let i = row * w + x;
+                    let s = shade(i);
+                    image[x] = s.value;
+                    direct[x] = s.direct;
+                    indirect[x] = s.indirect;
+                    change[x] = s.value - photo.pixels[i];
+                    alpha[x] = s.alpha;
+                    counts.0 += s.copied as usize;
+                    counts.1 += s.fallback as usize;
+                    counts.2 += s.clamped as usize;
+                }
+                counts
             })
             .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
         self.copied = copied;
@@ -338,22 +366,33 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
             let k = pda.virtual_index[i] as usize;
             return (input.shade_virtual(&pda.virtual_samples.points[k], &pda.virtual_samples.terms[k * lights..(k + 1) * lights]), 1.0);
         }
-        if pda.real_index[i] != u32::MAX {
-            let k = pda.real_index[i] as usize;
-            let prepared;
-            let r = match input.known {
-                Some(known) => &known.pixels[k],
-                None => {
-                    prepared = input.real_pixel(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], photo, floor);
-                    &prepared
-                }
-            };
-            return (r.shade(input.interpolate(input.indirect_with, &r.location), photo), 0.0);
-        }
         (Shade { value: photo, direct: DVec3::ZERO, indirect: DVec3::ZERO, copied: true, fallback: false, clamped: false }, 0.0)
     };
     let photo = &input.photo.pixels;
+    // Most pixels show a real point alone: their indirect light is
+    // interpolated in single precision, which the layers keep anyway (in
+    // double precision, through an iterator, it took a third of the time).
+    let h_with: Vec<Vec3> = input.indirect_with.iter().map(|v| v.as_vec3()).collect();
+    let plain = |i: usize| -> Option<PixelShade> {
+        let k = pda.real_index[i];
+        if k == u32::MAX || edge_of[i] != u32::MAX || pda.virtual_index[i] != u32::MAX {
+            return None;
+        }
+        let k = k as usize;
+        let prepared;
+        let r = match input.known {
+            Some(known) => &known.pixels[k],
+            None => {
+                prepared = input.real_pixel(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], photo[i].as_dvec3(), floor);
+                &prepared
+            }
+        };
+        Some(r.layers(interpolate_single(&h_with, &input.patch_vertices[r.location.patch as usize], r.location.weights), photo[i]))
+    };
     out.fill(input.photo, |i| {
+        if let Some(p) = plain(i) {
+            return p;
+        }
         let (s, a) = shade(i);
         // Copied pixels keep the photo's exact bits.
         let value: Vec3 = if s.copied { photo[i] } else { s.value.as_vec3() };
