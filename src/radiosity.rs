@@ -37,6 +37,11 @@ pub const DEFAULT_LINK_EPSILON: f64 = 0.002;
 /// needs 387k links and twice the time.
 pub const VISIBILITY_REFINE_FRACTION: f64 = 0.1;
 
+/// Below this many links a gather runs on one thread: waking the others
+/// costs more than the few microseconds of work (a solve applies it
+/// dozens of times).
+const SERIAL_GATHER_LINKS: usize = 1 << 16;
+
 /// Receiver quadrature order of the unoccluded form factor. It is the same
 /// for every pair, so that the factors out of one receiver sum to the exact
 /// fraction of its hemisphere the sources cover (one in a closed room):
@@ -398,10 +403,8 @@ impl Transport {
                         node_b[e] = (node_b[c0 as usize] * a0 + node_b[c1 as usize] * a1) / (a0 + a1);
                     }
                 }
-                let gathered: Vec<f64> = ranges
-                    .par_iter()
-                    .map(|&(_, a, b)| links[a as usize..b as usize].iter().map(|l| l.form_factor as f64 * node_b[l.source as usize]).sum())
-                    .collect();
+                let gather_range = |&(_, a, b): &(u32, u32, u32)| -> f64 { links[a as usize..b as usize].iter().map(|l| l.form_factor as f64 * node_b[l.source as usize]).sum() };
+                let gathered: Vec<f64> = if links.len() < SERIAL_GATHER_LINKS { ranges.iter().map(gather_range).collect() } else { ranges.par_iter().map(gather_range).collect() };
                 let mut node_h = vec![0.0; elements.len()];
                 for (&(receiver, _, _), h) in ranges.iter().zip(gathered) {
                     node_h[receiver as usize] = h;
