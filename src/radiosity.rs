@@ -94,6 +94,17 @@ pub fn unoccluded_form_factor(p: &Element, q: &Element) -> f64 {
     p.shape.quadrature(FF_ORDER).into_iter().map(|(x, w)| w * point_factor(x, p, q, &polygon)).sum()
 }
 
+/// The two shafts [`ShaftTest`] tests roots against, built when first
+/// needed: Haines & Wallace's shaft between the two elements' boxes (cheap,
+/// and holding the exact hull, so what it excludes the hull excludes too),
+/// then the hull. Most pairs' roots never pass the box test and need neither.
+/// A room's pair keeps them across updates ([`RoomLinkFacts`]).
+#[derive(Debug, Default)]
+pub struct PairShafts {
+    coarse: std::sync::OnceLock<Shaft>,
+    hull: std::sync::OnceLock<Shaft>,
+}
+
 /// Tests root elements against the shaft between two elements.
 struct ShaftTest<'a> {
     patches: &'a Patches,
@@ -103,25 +114,21 @@ struct ShaftTest<'a> {
     lo: DVec3,
     hi: DVec3,
     slack: f64,
-    /// Haines & Wallace's shaft between the two elements' boxes (cheap, and
-    /// holding the exact hull, so what it excludes the hull excludes too),
-    /// then the hull: both built only once a root passes the box test,
-    /// which most pairs' roots never do.
-    shafts: Option<(Shaft, Option<Shaft>)>,
+    shafts: &'a PairShafts,
 }
 
 impl<'a> ShaftTest<'a> {
-    fn new(patches: &'a Patches, layer: Layer, p: &'a Element, q: &'a Element) -> Self {
+    fn new(patches: &'a Patches, layer: Layer, p: &'a Element, q: &'a Element, shafts: &'a PairShafts) -> Self {
         let (plo, phi) = p.shape.bounds();
         let (qlo, qhi) = q.shape.bounds();
         let (lo, hi) = (plo.min(qlo), phi.max(qhi));
         let slack = 1e-9 * (hi - lo).max_element().max(1.0);
-        ShaftTest { patches, layer, p, q, lo, hi, slack, shafts: None }
+        ShaftTest { patches, layer, p, q, lo, hi, slack, shafts }
     }
 
     /// Whether root `r` may block light between p and q: it is in the
     /// layer, coplanar with neither, and the shaft does not exclude it.
-    fn may_block(&mut self, r: u32) -> bool {
+    fn may_block(&self, r: u32) -> bool {
         let root = &self.patches.elements[r as usize];
         // Cheapest first: most roots lie outside the pair's box. Boxes that
         // only touch cannot hold an occluder between p and q.
@@ -141,15 +148,10 @@ impl<'a> ShaftTest<'a> {
         }
         let corners = root.shape.corners();
         let (p, q) = (self.p, self.q);
-        let (coarse, hull) = self.shafts.get_or_insert_with(|| (Shaft::between_boxes(p.shape.bounds(), q.shape.bounds()), None));
-        if coarse.excludes(&corners) {
+        if self.shafts.coarse.get_or_init(|| Shaft::between_boxes(p.shape.bounds(), q.shape.bounds())).excludes(&corners) {
             return false;
         }
-        !hull
-            .get_or_insert_with(|| {
-                Shaft::between_polygons(&p.shape.corners(), &q.shape.corners())
-            })
-            .excludes(&corners)
+        !self.shafts.hull.get_or_init(|| Shaft::between_polygons(&p.shape.corners(), &q.shape.corners())).excludes(&corners)
     }
 }
 
@@ -157,16 +159,26 @@ impl<'a> ShaftTest<'a> {
 /// and `q` (see `ShaftTest`). Empty means certainly visible. A child
 /// pair's shaft lies inside its parents', so their occluders are a subset.
 pub fn occluders_between(patches: &Patches, layer: Layer, p: &Element, q: &Element, candidates: &[u32]) -> Vec<u32> {
+    occluders_between_using(patches, layer, p, q, candidates, &PairShafts::default())
+}
+
+/// [`occluders_between`] with the pair's shafts kept in `shafts`.
+fn occluders_between_using(patches: &Patches, layer: Layer, p: &Element, q: &Element, candidates: &[u32], shafts: &PairShafts) -> Vec<u32> {
     if candidates.is_empty() {
         return Vec::new();
     }
-    let mut test = ShaftTest::new(patches, layer, p, q);
+    let test = ShaftTest::new(patches, layer, p, q, shafts);
     candidates.iter().copied().filter(|&r| test.may_block(r)).collect()
 }
 
 /// Whether any of `candidates` may block light between `p` and `q`.
 pub fn may_be_occluded(patches: &Patches, layer: Layer, p: &Element, q: &Element, candidates: &[u32]) -> bool {
-    let mut test = ShaftTest::new(patches, layer, p, q);
+    may_be_occluded_using(patches, layer, p, q, candidates, &PairShafts::default())
+}
+
+/// [`may_be_occluded`] with the pair's shafts kept in `shafts`.
+fn may_be_occluded_using(patches: &Patches, layer: Layer, p: &Element, q: &Element, candidates: &[u32], shafts: &PairShafts) -> bool {
+    let test = ShaftTest::new(patches, layer, p, q, shafts);
     candidates.iter().any(|&r| test.may_block(r))
 }
 
@@ -298,13 +310,18 @@ impl Transport {
             .iter()
             .map(|&r| patches.elements[r as usize].shape.bounds())
             .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), (a, b)| (lo.min(a), hi.max(b)));
-        let near_objects = |l: &Link| {
+        let near_objects = |i: usize| {
+            let l = &room_links[i];
             let (a, b) = (&patches.elements[l.receiver as usize], &patches.elements[l.source as usize]);
             let ((alo, ahi), (blo, bhi)) = (a.shape.bounds(), b.shape.bounds());
             let (lo, hi) = (alo.min(blo), ahi.max(bhi));
-            !(olo.cmpgt(hi).any() || ohi.cmplt(lo).any()) && may_be_occluded(patches, Layer::Virtual, a, b, &object_roots)
+            !(olo.cmpgt(hi).any() || ohi.cmplt(lo).any())
+                && match facts.and_then(|f| f.shafts.get(i)) {
+                    Some(shafts) => may_be_occluded_using(patches, Layer::Virtual, a, b, &object_roots, shafts),
+                    None => may_be_occluded(patches, Layer::Virtual, a, b, &object_roots),
+                }
         };
-        let near: Vec<bool> = room_links.par_iter().map(near_objects).collect();
+        let near: Vec<bool> = (0..room_links.len()).into_par_iter().map(near_objects).collect();
         let mut links: Vec<Link> = room_links.iter().zip(&near).filter(|(_, n)| !**n).map(|(l, _)| *l).collect();
         let room_roots: Vec<u32> = all_roots.iter().copied().filter(|r| !is_virtual(r)).collect();
         // One task per room link the objects may shadow and per (object
@@ -327,10 +344,10 @@ impl Transport {
                     Task::Room(i) => {
                         let l = room_links[i];
                         let (ep, eq) = (&patches.elements[l.receiver as usize], &patches.elements[l.source as usize]);
-                        match facts.and_then(|f| f.0.get(i)) {
-                            Some(cell) => {
-                                let known = cell.get_or_init(|| PairFacts::of(patches, ep, eq, &room_roots));
-                                refine_from(patches, tracer, Layer::All, epsilon, l.receiver, l.source, all_roots, Some((known, &object_roots)), &mut out);
+                        match facts.and_then(|f| Some((f.facts.get(i)?, f.shafts.get(i)?))) {
+                            Some((cell, shafts)) => {
+                                let known = cell.get_or_init(|| PairFacts::of(patches, ep, eq, &room_roots, shafts));
+                                refine_from(patches, tracer, Layer::All, epsilon, l.receiver, l.source, all_roots, Some((known, &object_roots, shafts)), &mut out);
                             }
                             None => refine(patches, tracer, Layer::All, epsilon, l.receiver, l.source, all_roots, &mut out),
                         }
@@ -503,30 +520,37 @@ pub struct PairFacts {
 }
 
 impl PairFacts {
-    fn of(patches: &Patches, p: &Element, q: &Element, room_roots: &[u32]) -> PairFacts {
+    fn of(patches: &Patches, p: &Element, q: &Element, room_roots: &[u32], shafts: &PairShafts) -> PairFacts {
         let (spread, mean) = factor_spread(p, q);
         PairFacts {
             spread,
             mean,
             source_spread: source_spread(p, q),
             form_factor: unoccluded_form_factor(p, q),
-            occluders: occluders_between(patches, Layer::All, p, q, room_roots),
+            occluders: occluders_between_using(patches, Layer::All, p, q, room_roots, shafts),
         }
     }
 }
 
-/// [`PairFacts`] per link of a room's transport, found when first needed.
+/// [`PairFacts`] and [`PairShafts`] per link of a room's transport, found
+/// when first needed (every update asks each link whether the objects may
+/// shadow it: the shafts are room geometry, the same each time).
 #[derive(Debug, Default)]
-pub struct RoomLinkFacts(Vec<std::sync::OnceLock<PairFacts>>);
+pub struct RoomLinkFacts {
+    facts: Vec<std::sync::OnceLock<PairFacts>>,
+    shafts: Vec<PairShafts>,
+}
 
 impl RoomLinkFacts {
     pub fn new(transport: &Transport) -> RoomLinkFacts {
-        RoomLinkFacts((0..transport.link_count()).map(|_| std::sync::OnceLock::new()).collect())
+        let n = transport.link_count();
+        RoomLinkFacts { facts: (0..n).map(|_| std::sync::OnceLock::new()).collect(), shafts: (0..n).map(|_| PairShafts::default()).collect() }
     }
 }
 
 /// [`refine`], with the pair's room facts already known (`known`: the
-/// facts and the other candidates, the objects' roots) at this first level.
+/// facts, the other candidates — the objects' roots — and the pair's kept
+/// shafts) at this first level.
 #[allow(clippy::too_many_arguments)]
 fn refine_from(
     patches: &Patches,
@@ -536,7 +560,7 @@ fn refine_from(
     p: u32,
     q: u32,
     candidates: &[u32],
-    known: Option<(&PairFacts, &[u32])>,
+    known: Option<(&PairFacts, &[u32], &PairShafts)>,
     out: &mut Vec<Link>,
 ) {
     let (ep, eq) = (&patches.elements[p as usize], &patches.elements[q as usize]);
@@ -544,7 +568,7 @@ fn refine_from(
         return;
     }
     let occluders = match known {
-        Some((facts, others)) => facts.occluders.iter().copied().chain(occluders_between(patches, layer, ep, eq, others)).collect(),
+        Some((facts, others, shafts)) => facts.occluders.iter().copied().chain(occluders_between_using(patches, layer, ep, eq, others, shafts)).collect(),
         None => occluders_between(patches, layer, ep, eq, candidates),
     };
     let facts = known.map(|k| k.0);
