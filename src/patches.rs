@@ -207,7 +207,9 @@ pub struct Patches {
     pub patch_vertices: Vec<[u32; 4]>,
     /// Per surface id: whether it is virtual, and its triangles' roots.
     pub surface_is_virtual: HashMap<u32, bool>,
-    root_of_triangle: HashMap<(u32, u32), u32>,
+    /// Root element of each triangle, by surface id and triangle (dense:
+    /// a lookup per ray hit, where a hashed pair cost as much as the descent).
+    root_of_triangle: Vec<Vec<u32>>,
 }
 
 impl Patches {
@@ -265,7 +267,7 @@ impl Patches {
             vertices: Vec::new(),
             patch_vertices: Vec::new(),
             surface_is_virtual: HashMap::new(),
-            root_of_triangle: HashMap::new(),
+            root_of_triangle: Vec::new(),
         };
         p.append(inputs, target_size);
         p
@@ -328,7 +330,15 @@ impl Patches {
                 }
                 self.roots.push(root);
                 for t in tris {
-                    self.root_of_triangle.insert((input.surface, t), root);
+                    let surface = input.surface as usize;
+                    if self.root_of_triangle.len() <= surface {
+                        self.root_of_triangle.resize(surface + 1, Vec::new());
+                    }
+                    let of = &mut self.root_of_triangle[surface];
+                    if of.len() <= t as usize {
+                        of.resize(t as usize + 1, u32::MAX);
+                    }
+                    of[t as usize] = root;
                 }
                 let ordinal = self.roots.len() as u32 - 1;
                 self.subdivide(root, target_size, 0, &mut weld, marks.get(&ordinal).map_or(&[][..], |m| &m[..]));
@@ -402,7 +412,7 @@ impl Patches {
     /// The patch under world point `x` of triangle `triangle` of `surface`
     /// (as the tracer reports them), with interpolation weights.
     pub fn locate(&self, surface: u32, triangle: u32, x: DVec3) -> Option<Location> {
-        let root = *self.root_of_triangle.get(&(surface, triangle))?;
+        let root = self.root_of(surface, triangle)?;
         Some(self.locate_in_root(root, x))
     }
 
@@ -413,7 +423,7 @@ impl Patches {
 
     /// The root element holding triangle `triangle` of `surface`.
     pub fn root_of(&self, surface: u32, triangle: u32) -> Option<u32> {
-        self.root_of_triangle.get(&(surface, triangle)).copied()
+        self.root_of_triangle.get(surface as usize)?.get(triangle as usize).copied().filter(|&r| r != u32::MAX)
     }
 
     /// `x`'s parameters (s, t) in root element `root`.
