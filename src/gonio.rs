@@ -45,7 +45,7 @@ use crate::trace::{Layer, Tracer};
 
 /// Bumped whenever the reconstruction's results change, so that a cached
 /// light from an earlier arlux is not taken for a current one.
-pub const ALGORITHM_VERSION: u32 = 6;
+pub const ALGORITHM_VERSION: u32 = 7;
 
 /// Photometric zero of the reconstructed table (type C nadir) and the
 /// direction of horizontal angle 0: world down and world +x.
@@ -219,6 +219,7 @@ pub fn light_to_reconstruct(scene: &Scene) -> Result<Option<usize>> {
 }
 
 /// One pixel's evidence.
+#[derive(Clone)]
 struct Sample {
     surface: u32,
     /// Vertical and horizontal angle of the direction from the light, degrees.
@@ -650,6 +651,14 @@ fn continuous(p: &Sample, q: &Sample) -> bool {
     same_plane(p, q) && !changes(p.g, q.g) && !changes(p.e_known.element_sum(), q.e_known.element_sum())
 }
 
+/// Whether neighbouring pixels `p` and `q` see one plane of one surface
+/// under the same unknown light (its direct light changes by at most 10%):
+/// across a change of the known lights alone, a model of their light can
+/// tell a texture step from the light's (see [`PenumbraModel`]).
+fn continuous_but_known(p: &Sample, q: &Sample) -> bool {
+    same_plane(p, q) && (p.g - q.g).abs() <= 0.1 * p.g.max(q.g)
+}
+
 /// Whether neighbouring pixels `p` and `q` see one plane of one surface.
 fn same_plane(p: &Sample, q: &Sample) -> bool {
     let depth = (p.x - q.x).length().max(1e-12);
@@ -661,6 +670,17 @@ fn same_plane(p: &Sample, q: &Sample) -> bool {
 /// sample point has one), or across a shadow edge (partly lit, its centre
 /// fully). EQ1 and EQ2 leave them out.
 fn mixed_pixels(samples: &[Sample], width: u32, height: u32) -> Vec<bool> {
+    pixels_with_a_neighbour(samples, width, height, |p, q| !continuous(p, q))
+}
+
+/// The samples with a neighbour on another plane or across the unknown
+/// light's change: those the known lights' model cannot mend.
+fn sharp_pixels(samples: &[Sample], width: u32, height: u32) -> Vec<bool> {
+    pixels_with_a_neighbour(samples, width, height, |p, q| !continuous_but_known(p, q))
+}
+
+/// The samples with a 4-neighbour that is missing or for which `differs`.
+fn pixels_with_a_neighbour(samples: &[Sample], width: u32, height: u32, differs: impl Fn(&Sample, &Sample) -> bool + Sync) -> Vec<bool> {
     let mut at = vec![u32::MAX; (width * height) as usize];
     for (i, s) in samples.iter().enumerate() {
         at[s.pixel as usize] = i as u32;
@@ -675,10 +695,25 @@ fn mixed_pixels(samples: &[Sample], width: u32, height: u32) -> Vec<bool> {
                     return false;
                 }
                 let j = at[(r as u32 * width + c as u32) as usize];
-                j == u32::MAX || !continuous(p, &samples[j as usize])
+                j == u32::MAX || differs(p, &samples[j as usize])
             })
         })
         .collect()
+}
+
+/// A model of every sample's light for [`remove_texture`] (from the
+/// reconstruction so far): across a soft edge of a known light's shadow
+/// (mixed pixels, but on one plane under the same unknown light) the step
+/// of ln B less the model's step of ln E is texture. Without it such a
+/// band only ties its sides by "no texture step", which a texture edge
+/// crossing the band breaks (the floor under a table, in the panel's
+/// shadow of the top, came out 10–30% off).
+struct PenumbraModel<'a> {
+    /// The unknown light's direct irradiance (I·g) per sample.
+    unknown: &'a [DVec3],
+    /// Pixels mixed for a reason the model cannot mend (a silhouette, the
+    /// unknown light's own shadow edge).
+    sharp: &'a [bool],
 }
 
 /// Pairs on either side whose steps give a step its surroundings in [`remove_texture`].
@@ -694,9 +729,12 @@ const EDGE_WALK: usize = 6;
 /// a plane across what stands in front of it, are tied by weak links that
 /// expect no step. Each surface's
 /// texture exp(u) is scaled to area mean 1, so that ρ̄ keeps the meaning of
-/// a [[reflectance]]: the surface's area-weighted mean. Returns the number
-/// of texture edges.
-fn remove_texture(samples: &mut [Sample], mixed: &[bool], width: u32, height: u32, edge: f64) -> usize {
+/// a [[reflectance]]: the surface's area-weighted mean. With a `model`,
+/// mixed neighbours across a known light's soft shadow edge give texture
+/// steps too ([`PenumbraModel`]); `start` is a texture found before (ln,
+/// per channel) to integrate from. Returns the number of texture edges and
+/// the texture found.
+fn remove_texture(samples: &mut [Sample], mixed: &[bool], model: Option<&PenumbraModel>, start: Option<&[Vec<f64>]>, width: u32, height: u32, edge: f64) -> (usize, Vec<Vec<f64>>) {
     let mut at = vec![u32::MAX; (width * height) as usize];
     for (i, s) in samples.iter().enumerate() {
         at[s.pixel as usize] = i as u32;
@@ -717,6 +755,9 @@ fn remove_texture(samples: &mut [Sample], mixed: &[bool], width: u32, height: u3
     // own and its texture level, mean 0, would not match the rest of its
     // surface's (where a poster moves the mean).
     let mut links: Vec<(u32, u32)> = Vec::new();
+    // Pairs across a known light's soft edge, with their modelled steps.
+    let mut soft: Vec<(u32, u32)> = Vec::new();
+    let mut soft_steps: Vec<[f64; 3]> = Vec::new();
     // The pair leaving each pixel rightwards and downwards, if any.
     let mut leaving = vec![[u32::MAX; 2]; samples.len()];
     let max_gap = width.max(height) / 8;
@@ -749,8 +790,23 @@ fn remove_texture(samples: &mut [Sample], mixed: &[bool], width: u32, height: u3
                 continue;
             }
             if mixed[i] || mixed[j as usize] {
-                if same_plane(p, &samples[j as usize]) {
-                    links.push((i as u32, j));
+                let q = &samples[j as usize];
+                match model {
+                    Some(m) if !m.sharp[i] && !m.sharp[j as usize] && continuous_but_known(p, q) => {
+                        // The indirect light is one for both (per pixel it is
+                        // gathered with noise larger than its change here).
+                        let h = 0.5 * (p.h_ind + q.h_ind);
+                        let (ep, eq) = (m.unknown[i] + p.e_known + h, m.unknown[j as usize] + q.e_known + h);
+                        let (lp, lq) = (log_b(p), log_b(q));
+                        let step: [f64; 3] = std::array::from_fn(|c| lq[c] - lp[c] - (eq[c].max(1e-30) / ep[c].max(1e-30)).ln());
+                        soft.push((i as u32, j));
+                        soft_steps.push(step);
+                    }
+                    _ => {
+                        if same_plane(p, q) {
+                            links.push((i as u32, j));
+                        }
+                    }
                 }
                 continue;
             }
@@ -832,9 +888,16 @@ fn remove_texture(samples: &mut [Sample], mixed: &[bool], width: u32, height: u3
     for (k, r) in ramp.into_iter().enumerate() {
         is_edge[k] |= r;
     }
-    let edges = is_edge.iter().filter(|&&e| e).count();
-    let targets: [Vec<f64>; 3] = std::array::from_fn(|c| (0..pairs.len()).map(|k| if is_edge[k] { excess[k][c] } else { 0.0 }).collect());
-    let u: Vec<Vec<f64>> = targets.par_iter().map(|t| integrate_jumps(samples.len(), &pairs, t, &links)).collect();
+    let soft_edge: Vec<bool> = soft_steps.iter().map(|x| x.iter().any(|x| x.abs() > edge)).collect();
+    let edges = is_edge.iter().chain(&soft_edge).filter(|&&e| e).count();
+    let targets: [Vec<f64>; 3] = std::array::from_fn(|c| {
+        (0..pairs.len())
+            .map(|k| if is_edge[k] { excess[k][c] } else { 0.0 })
+            .chain(soft_steps.iter().zip(&soft_edge).map(|(x, &e)| if e { x[c] } else { 0.0 }))
+            .collect()
+    });
+    pairs.extend(soft);
+    let u: Vec<Vec<f64>> = (0..3).into_par_iter().map(|c| integrate_jumps(samples.len(), &pairs, &targets[c], &links, start.map(|s| &s[c][..]))).collect();
     let mut mean: HashMap<u32, (DVec3, f64)> = HashMap::new();
     let texture_at = |k: usize| DVec3::new(u[0][k].exp(), u[1][k].exp(), u[2][k].exp());
     for (k, s) in samples.iter().enumerate() {
@@ -851,7 +914,18 @@ fn remove_texture(samples: &mut [Sample], mixed: &[bool], width: u32, height: u3
             samples[k].b /= texture;
         }
     }
-    edges
+    (edges, u)
+}
+
+/// `all` with textures removed and the mixed samples left out; the number
+/// of texture edges and the texture per channel (ln), which a later call
+/// may `start` from.
+fn textured(all: &[Sample], mixed: &[bool], model: Option<&PenumbraModel>, start: Option<&[Vec<f64>]>, width: u32, height: u32, edge: f64) -> (Vec<Sample>, usize, Vec<Vec<f64>>) {
+    let mut samples = all.to_vec();
+    let (edges, u) = remove_texture(&mut samples, mixed, model, start, width, height, edge);
+    let mut keep = mixed.iter().map(|m| !m);
+    samples.retain(|_| keep.next().unwrap_or(false));
+    (samples, edges, u)
 }
 
 /// Weight of a [`remove_texture`] link across a change of light, next to
@@ -863,7 +937,7 @@ const LINK_WEIGHT: f64 = 0.01;
 /// (weighted [`LINK_WEIGHT`]) over `links` (a graph Laplacian system,
 /// solved by conjugate gradients; each connected piece keeps mean 0, so the
 /// singular system stays consistent).
-fn integrate_jumps(n: usize, pairs: &[(u32, u32)], targets: &[f64], links: &[(u32, u32)]) -> Vec<f64> {
+fn integrate_jumps(n: usize, pairs: &[(u32, u32)], targets: &[f64], links: &[(u32, u32)], start: Option<&[f64]>) -> Vec<f64> {
     let mut degree = vec![0.0f64; n];
     let mut rhs = vec![0.0f64; n];
     for (&(i, j), &t) in pairs.iter().zip(targets) {
@@ -900,8 +974,15 @@ fn integrate_jumps(n: usize, pairs: &[(u32, u32)], targets: &[f64], links: &[(u3
         }
     };
     let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-    let mut x = vec![0.0; n];
+    let mut x = start.filter(|s| s.len() == n).map_or_else(|| vec![0.0; n], |s| s.to_vec());
     let mut r = rhs.clone();
+    if start.is_some() {
+        let mut ax = vec![0.0; n];
+        apply(&x, &mut ax);
+        for (r, a) in r.iter_mut().zip(ax) {
+            *r -= a;
+        }
+    }
     let mut z = vec![0.0; n];
     precondition(&r, &mut z);
     let mut p = z.clone();
@@ -953,6 +1034,16 @@ fn median_rgb(values: &[DVec3]) -> DVec3 {
 struct Evidence {
     index: usize,
     unit: LightSource,
+    /// Every sample as photographed (texture and all, mixed ones too), with
+    /// [`mixed_pixels`] and [`sharp_pixels`]; `samples` are those EQ1 and
+    /// EQ2 use, textures removed, mixed ones left out.
+    all: Vec<Sample>,
+    mixed: Vec<bool>,
+    sharp: Vec<bool>,
+    /// The texture (ln, per channel and sample of `all`) last found.
+    texture: Vec<Vec<f64>>,
+    width: u32,
+    height: u32,
     samples: Vec<Sample>,
     unseen_hits: Vec<u32>,
     texture_edges: usize,
@@ -1035,10 +1126,11 @@ impl Evidence {
             })
             .collect();
         let mixed = mixed_pixels(&samples, cam.width, cam.height);
-        let texture_edges = remove_texture(&mut samples, &mixed, cam.width, cam.height, settings.texture_edge);
-        let mut keep = mixed.iter().map(|m| !m);
-        samples.retain(|_| keep.next().unwrap_or(false));
+        let sharp = sharp_pixels(&samples, cam.width, cam.height);
+        // Mixed pixels too: a later texture model needs their indirect light.
         let unseen_hits = gather_from_photo(scene, tracer, &patches, photo, &mut samples, settings.gather_rays);
+        let all = samples;
+        let (samples, texture_edges, texture) = textured(&all, &mixed, None, None, cam.width, cam.height, settings.texture_edge);
         if !samples.iter().any(|s| s.g > 0.0) {
             return Err(Error::key(&scene.file, format!("light[{index}].position"), "the photo shows no surface this light can reach: nothing to reconstruct from"));
         }
@@ -1049,7 +1141,7 @@ impl Evidence {
             let per = direct_irradiance(&patches, &others, tracer, Layer::Real, settings.light_level);
             (0..patches.patch_count()).map(|k| per.iter().map(|p| p[k]).sum()).collect()
         };
-        Ok(Evidence { index, unit, samples, unseen_hits, texture_edges, patches, transport, photo_patches, known_rho, direct_known })
+        Ok(Evidence { index, unit, all, mixed, sharp, texture, width: cam.width, height: cam.height, samples, unseen_hits, texture_edges, patches, transport, photo_patches, known_rho, direct_known })
     }
 
     /// Sets each sample's indirect light: gathered from the photo, plus what
@@ -1070,10 +1162,21 @@ impl Evidence {
             .collect();
         let scale = 1.0 / settings.gather_rays as f64;
         let unseen_hits = &self.unseen_hits;
-        self.samples.par_iter_mut().for_each(|s| {
-            let unseen: DVec3 = unseen_hits[s.unseen.0 as usize..s.unseen.1 as usize].iter().map(|&k| mixed[k as usize]).sum();
-            s.h_ind = s.gathered_photo + unseen * scale;
-        });
+        for set in [&mut self.all, &mut self.samples] {
+            set.par_iter_mut().for_each(|s| {
+                let unseen: DVec3 = unseen_hits[s.unseen.0 as usize..s.unseen.1 as usize].iter().map(|&k| mixed[k as usize]).sum();
+                s.h_ind = s.gathered_photo + unseen * scale;
+            });
+        }
+    }
+
+    /// Takes the textures out again, with `distribution` as the unknown
+    /// light's model across the known lights' soft shadow edges.
+    fn retexture(&mut self, distribution: &Distribution, settings: &GonioSettings) {
+        let unknown: Vec<DVec3> = self.all.iter().map(|s| distribution.intensity(direction_at(s.v, s.h)) * s.g).collect();
+        let model = PenumbraModel { unknown: &unknown, sharp: &self.sharp };
+        // From the texture found before: most of it stays.
+        (self.samples, self.texture_edges, self.texture) = textured(&self.all, &self.mixed, Some(&model), Some(&self.texture), self.width, self.height, settings.texture_edge);
     }
 }
 
@@ -1087,6 +1190,7 @@ pub fn reflectances_given(scene: &Scene, distribution: &Distribution, photo: &Im
     let mut light = ev.unit.clone();
     light.distribution = distribution.clone();
     ev.update_indirect(Some(&light), tracer, settings);
+    ev.retexture(distribution, settings);
     let mut by_surface: HashMap<u32, Vec<DVec3>> = HashMap::new();
     for s in &ev.samples {
         let irradiance = distribution.intensity(direction_at(s.v, s.h)) * s.g + s.e_known + s.h_ind;
@@ -1115,6 +1219,11 @@ pub fn reconstruct(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &Gon
         // The indirect light: the photo's radiosity where it sees a patch,
         // the model's (with the current reconstruction) where it does not.
         ev.update_indirect(table.as_ref().map(|_| &light), tracer, settings);
+        // Once the light is roughly known, its model lets the texture
+        // steps across the known lights' soft shadow edges be read too.
+        if rounds == 2 {
+            ev.retexture(&light.distribution, settings);
+        }
         let (fit, rho) = propagate(&grid, &ev.samples, &ev.known_rho, &surfaces);
         let known = fit.known();
         let values = fit.values_above(MIN_LIGHT_SHARE);
@@ -1427,7 +1536,7 @@ mod tests {
             }
         }
         let mixed = vec![false; samples.len()];
-        remove_texture(&mut samples, &mixed, w, h, 0.1);
+        remove_texture(&mut samples, &mixed, None, None, w, h, 0.1);
         let mean = (dark + light) * 0.5;
         let worst = samples
             .iter()
@@ -1470,7 +1579,7 @@ mod tests {
             }
         }
         let mixed = mixed_pixels(&samples, w, h);
-        remove_texture(&mut samples, &mixed, w, h, 0.1);
+        remove_texture(&mut samples, &mixed, None, None, w, h, 0.1);
         // What is left must be the light times the wall's mean reflectance
         // (poster included), on both sides of the leg, poster and all.
         let wall_pixels = samples.iter().filter(|s| s.surface == 0).count() as f64;
@@ -1487,12 +1596,66 @@ mod tests {
         assert!(left < 0.01 && right < 0.01, "texture left over: {:.2}% left of the leg, {:.2}% right of it", 100.0 * left, 100.0 * right);
     }
 
+    /// A floor of two tones split by a diagonal edge, lit by the unknown
+    /// light everywhere and by a known one above a soft shadow edge 8 rows
+    /// wide (all mixed pixels: the known light changes by over 10% per
+    /// row), which the tone edge crosses. Tied across the band only by "no
+    /// step", the shadowed side's level is off; with the light's model
+    /// across the band it is not.
+    #[test]
+    fn a_texture_edge_across_a_known_lights_soft_shadow_keeps_its_level() {
+        let (w, h) = (64u32, 40u32);
+        let (dark, light) = (DVec3::new(0.3, 0.25, 0.2), DVec3::new(0.8, 0.78, 0.7));
+        let known = |row: u32| if row < 14 { 2.0 } else if row < 22 { 2.0 - 0.25 * (row - 14) as f64 } else { 0.0 };
+        let tone = |col: u32, row: u32| if (col as i64) < 24 + row as i64 { dark } else { light };
+        let mut samples: Vec<Sample> = Vec::new();
+        for row in 0..h {
+            for col in 0..w {
+                let e = DVec3::splat(known(row));
+                samples.push(Sample {
+                    surface: 0,
+                    v: 0.0,
+                    h: 0.0,
+                    g: 1.0,
+                    e_known: e,
+                    b: tone(col, row) * (DVec3::ONE + e),
+                    h_ind: DVec3::ZERO,
+                    pixel: row * w + col,
+                    x: DVec3::new(col as f64 * 0.01, 0.0, row as f64 * 0.01),
+                    n: DVec3::Y,
+                    area: 1.0,
+                    gathered_photo: DVec3::ZERO,
+                    unseen: (0, 0),
+                });
+            }
+        }
+        let mixed = mixed_pixels(&samples, w, h);
+        assert!((15..21).all(|row| mixed[(row * w + 5) as usize]), "the band is mixed");
+        let darks = samples.iter().filter(|s| tone(s.pixel % w, s.pixel / w) == dark).count() as f64;
+        let mean = (dark * darks + light * (samples.len() as f64 - darks)) / samples.len() as f64;
+        let worst = |out: &[Sample]| {
+            out.iter()
+                .filter(|s| !mixed[s.pixel as usize])
+                .map(|s| (s.b / (mean * (1.0 + known(s.pixel / w))) - DVec3::ONE).abs().max_element())
+                .fold(0.0, f64::max)
+        };
+        let mut plain = samples.clone();
+        remove_texture(&mut plain, &mixed, None, None, w, h, 0.1);
+        let unknown = vec![DVec3::ONE; samples.len()];
+        let sharp = sharp_pixels(&samples, w, h);
+        let mut modelled = samples.clone();
+        remove_texture(&mut modelled, &mixed, Some(&PenumbraModel { unknown: &unknown, sharp: &sharp }), None, w, h, 0.1);
+        let (without, with) = (worst(&plain), worst(&modelled));
+        assert!(without > 0.05, "the band alone should leave the sides apart: {:.1}%", 100.0 * without);
+        assert!(with < 0.01, "texture left over with the model: {:.2}%", 100.0 * with);
+    }
+
     #[test]
     fn integrating_jumps_recovers_a_step_texture() {
         // A row of 10 pixels: a step of ln 2 between 4 and 5, nothing else.
         let pairs: Vec<(u32, u32)> = (0..9).map(|i| (i, i + 1)).collect();
         let targets: Vec<f64> = (0..9).map(|i| if i == 4 { 2f64.ln() } else { 0.0 }).collect();
-        let u = integrate_jumps(10, &pairs, &targets, &[]);
+        let u = integrate_jumps(10, &pairs, &targets, &[], None);
         for (i, ui) in u.iter().enumerate() {
             let expect = if i <= 4 { -0.5 * 2f64.ln() } else { 0.5 * 2f64.ln() };
             assert!((ui - expect).abs() < 1e-6, "u[{i}] = {ui}");
