@@ -164,6 +164,10 @@ pub enum Region {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Element {
     pub shape: Shape,
+    /// The shape's box and size ([`Shape::bounds`], [`Shape::size`]), kept:
+    /// shaft tests ask for them for every candidate occluder.
+    pub bounds: (DVec3, DVec3),
+    pub size: f64,
     pub area: f64,
     pub centre: DVec3,
     pub normal: DVec3,
@@ -353,6 +357,8 @@ impl Patches {
             None => (shape.normal(), false),
         };
         self.elements.push(Element {
+            bounds: shape.bounds(),
+            size: shape.size(),
             area: shape.area(),
             centre: shape.centre(),
             normal,

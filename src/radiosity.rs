@@ -54,14 +54,14 @@ const FF_ORDER: usize = 3;
 /// partial occlusion shows as such and makes refinement go deeper.
 fn visibility_sampling(p: &Element, q: &Element) -> (usize, usize) {
     let d = (q.centre - p.centre).length().max(1e-12);
-    let r = if d > 3.0 * p.shape.size() && p.children.is_none() { 1 } else { 2 };
-    let m = if d > 3.0 * q.shape.size() && q.children.is_none() { 1 } else { 2 };
+    let r = if d > 3.0 * p.size && p.children.is_none() { 1 } else { 2 };
+    let m = if d > 3.0 * q.size && q.children.is_none() { 1 } else { 2 };
     (r, m)
 }
 
 /// Whether two elements lie in one plane (they exchange no light).
 fn coplanar(p: &Element, q: &Element) -> bool {
-    let scale = p.shape.size().max(q.shape.size());
+    let scale = p.size.max(q.size);
     p.normal.dot(q.normal).abs() > 1.0 - 1e-9 && (q.centre - p.centre).dot(p.normal).abs() < 1e-9 * scale.max(1e-9)
 }
 
@@ -119,8 +119,7 @@ struct ShaftTest<'a> {
 
 impl<'a> ShaftTest<'a> {
     fn new(patches: &'a Patches, layer: Layer, p: &'a Element, q: &'a Element, shafts: &'a PairShafts) -> Self {
-        let (plo, phi) = p.shape.bounds();
-        let (qlo, qhi) = q.shape.bounds();
+        let ((plo, phi), (qlo, qhi)) = (p.bounds, q.bounds);
         let (lo, hi) = (plo.min(qlo), phi.max(qhi));
         let slack = 1e-9 * (hi - lo).max_element().max(1.0);
         ShaftTest { patches, layer, p, q, lo, hi, slack, shafts }
@@ -132,7 +131,7 @@ impl<'a> ShaftTest<'a> {
         let root = &self.patches.elements[r as usize];
         // Cheapest first: most roots lie outside the pair's box. Boxes that
         // only touch cannot hold an occluder between p and q.
-        let (rlo, rhi) = root.shape.bounds();
+        let (rlo, rhi) = root.bounds;
         if (rlo - self.slack).cmpge(self.hi).any() || (rhi + self.slack).cmple(self.lo).any() {
             return false;
         }
@@ -148,7 +147,7 @@ impl<'a> ShaftTest<'a> {
         }
         let corners = root.shape.corners();
         let (p, q) = (self.p, self.q);
-        if self.shafts.coarse.get_or_init(|| Shaft::between_boxes(p.shape.bounds(), q.shape.bounds())).excludes(&corners) {
+        if self.shafts.coarse.get_or_init(|| Shaft::between_boxes(p.bounds, q.bounds)).excludes(&corners) {
             return false;
         }
         !self.shafts.hull.get_or_init(|| Shaft::between_polygons(&p.shape.corners(), &q.shape.corners())).excludes(&corners)
@@ -308,12 +307,12 @@ impl Transport {
         // The objects' joint box first: most room links' boxes miss it.
         let (olo, ohi) = object_roots
             .iter()
-            .map(|&r| patches.elements[r as usize].shape.bounds())
+            .map(|&r| patches.elements[r as usize].bounds)
             .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), (a, b)| (lo.min(a), hi.max(b)));
         let near_objects = |i: usize| {
             let l = &room_links[i];
             let (a, b) = (&patches.elements[l.receiver as usize], &patches.elements[l.source as usize]);
-            let ((alo, ahi), (blo, bhi)) = (a.shape.bounds(), b.shape.bounds());
+            let ((alo, ahi), (blo, bhi)) = (a.bounds, b.bounds);
             let (lo, hi) = (alo.min(blo), ahi.max(bhi));
             !(olo.cmpgt(hi).any() || ohi.cmplt(lo).any())
                 && match facts.and_then(|f| f.shafts.get(i)) {
@@ -638,7 +637,7 @@ pub fn direct_irradiance_with_objects(
                 .into_par_iter()
                 .map(|k| {
                     if k < room.len() {
-                        let shaft = Shaft::between_boxes(patches.patch(k).shape.bounds(), light_box);
+                        let shaft = Shaft::between_boxes(patches.patch(k).bounds, light_box);
                         if corners.iter().all(|c| shaft.excludes(c)) {
                             return room[k];
                         }

@@ -807,6 +807,8 @@ fn refine_round(
         .flat_map(|&k| {
             let el = &leaves[k];
             split(el.shape, el.region).map(|(shape, region)| Element {
+                bounds: shape.bounds(),
+                size: shape.size(),
                 area: shape.area(),
                 centre: shape.centre(),
                 shape,
