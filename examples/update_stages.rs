@@ -1,0 +1,43 @@
+//! Per-stage medians of the desk's box moving back and forth between two
+//! poses of `box_slide` on one session: for A/B comparisons of an update's
+//! stages (run the old and the new binary alternately; this machine's
+//! timings move by ±15–30% between runs).
+//!
+//! `cargo run --release --example update_stages [UPDATES]`
+
+use std::collections::BTreeMap;
+
+use arlux::model::StageTimes;
+use arlux::render::{RenderSettings, Session};
+use arlux::scene::Scene;
+
+fn main() -> anyhow::Result<()> {
+    let base = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/desk/scene.toml"))?;
+    let (p3, p4) = (base.with_motion_pose("box_slide", 3)?, base.with_motion_pose("box_slide", 4)?);
+    let photo = p3.load_photo()?;
+    let mut session = Session::start(&p3, &photo, &RenderSettings::default(), &mut StageTimes::default())?;
+    session.prepare_updates(&mut StageTimes::default());
+    let updates: usize = std::env::args().nth(1).map_or(Ok(60), |a| a.parse())?;
+    let (mut stages, mut totals): (BTreeMap<&str, Vec<f64>>, Vec<f64>) = Default::default();
+    for i in 0..updates {
+        let mut times = StageTimes::default();
+        session.update(if i % 2 == 0 { &p4 } else { &p3 }, &mut times)?;
+        totals.push(times.total().as_secs_f64() * 1e3);
+        let mut per: BTreeMap<&str, f64> = BTreeMap::new();
+        for (stage, d) in times.0 {
+            *per.entry(stage).or_default() += d.as_secs_f64() * 1e3;
+        }
+        for (stage, ms) in per {
+            stages.entry(stage).or_default().push(ms);
+        }
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    println!("{updates} updates, medians: total {:.2} ms", median(&mut totals));
+    for (stage, v) in stages.iter_mut() {
+        println!("  {stage:<28} {:>6.2} ms", median(v));
+    }
+    Ok(())
+}
