@@ -1007,7 +1007,8 @@ fn solve_jumps(n: usize, pairs: &[(u32, u32)], targets: &[f64], weights: &[f64],
         }
     };
     let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-    let mut x = start.filter(|s| s.len() == n).map_or_else(|| vec![0.0; n], |s| s.to_vec());
+    let start = start.filter(|s| s.len() == n);
+    let mut x = start.map_or_else(|| vec![0.0; n], |s| s.to_vec());
     let mut r = rhs.clone();
     if start.is_some() {
         let mut ax = vec![0.0; n];
@@ -1483,6 +1484,27 @@ fn heat(t: f64) -> [u8; 3] {
 mod tests {
     use super::*;
 
+    /// Pixel (col, row) of a `w`-wide image of the plane y = 0 (1 cm per
+    /// pixel, facing up), lit by the unknown light at g = 1 and the known
+    /// ones with `e_known`, showing radiosity `b`.
+    fn plane_sample(w: u32, col: u32, row: u32, b: DVec3, e_known: DVec3) -> Sample {
+        Sample {
+            surface: 0,
+            v: 0.0,
+            h: 0.0,
+            g: 1.0,
+            e_known,
+            b,
+            h_ind: DVec3::ZERO,
+            pixel: row * w + col,
+            x: DVec3::new(col as f64 * 0.01, 0.0, row as f64 * 0.01),
+            n: DVec3::Y,
+            area: 1.0,
+            gathered_photo: DVec3::ZERO,
+            unseen: (0, 0),
+        }
+    }
+
     fn sample_reconstruction() -> Reconstruction {
         let grid = Grid::new(&GonioSettings::default());
         let scalar: Vec<f64> = (0..grid.len()).map(|k| ((k * 7919) % 1000) as f64 / 37.0).collect();
@@ -1551,21 +1573,7 @@ mod tests {
                 let (x, y) = (col as f64 + 0.7, row as f64 + 0.7);
                 let rho = (at(x, y) + at(x + 0.5, y) + at(x, y + 0.5) + at(x + 0.5, y + 0.5)) * 0.25;
                 let illumination = (0.02 * col as f64).exp();
-                samples.push(Sample {
-                    surface: 0,
-                    v: 0.0,
-                    h: 0.0,
-                    g: 1.0,
-                    e_known: DVec3::ONE,
-                    b: rho * illumination,
-                    h_ind: DVec3::ZERO,
-                    pixel: row * w + col,
-                    x: DVec3::new(col as f64 * 0.01, 0.0, row as f64 * 0.01),
-                    n: DVec3::Y,
-                    area: 1.0,
-                    gathered_photo: DVec3::ZERO,
-                    unseen: (0, 0),
-                });
+                samples.push(plane_sample(w, col, row, rho * illumination, DVec3::ONE));
             }
         }
         let mixed = vec![false; samples.len()];
@@ -1594,21 +1602,9 @@ mod tests {
             for col in 0..w {
                 let in_poster = (5..35).contains(&col) && (5..30).contains(&row);
                 let rho = if is_leg(col) { DVec3::splat(0.5) } else if in_poster { poster } else { wall };
-                samples.push(Sample {
-                    surface: if is_leg(col) { 1 } else { 0 },
-                    v: 0.0,
-                    h: 0.0,
-                    g: 1.0,
-                    e_known: DVec3::ONE,
-                    b: rho * (0.04 * col as f64).exp(),
-                    h_ind: DVec3::ZERO,
-                    pixel: row * w + col,
-                    x: DVec3::new(col as f64 * 0.01, 0.0, row as f64 * 0.01) + if is_leg(col) { DVec3::Y } else { DVec3::ZERO },
-                    n: DVec3::Y,
-                    area: 1.0,
-                    gathered_photo: DVec3::ZERO,
-                    unseen: (0, 0),
-                });
+                let s = plane_sample(w, col, row, rho * (0.04 * col as f64).exp(), DVec3::ONE);
+                // The leg: another surface, a metre in front of the wall.
+                samples.push(if is_leg(col) { Sample { surface: 1, x: s.x + DVec3::Y, ..s } } else { s });
             }
         }
         let mixed = mixed_pixels(&samples, w, h);
@@ -1645,21 +1641,7 @@ mod tests {
         for row in 0..h {
             for col in 0..w {
                 let e = DVec3::splat(known(row));
-                samples.push(Sample {
-                    surface: 0,
-                    v: 0.0,
-                    h: 0.0,
-                    g: 1.0,
-                    e_known: e,
-                    b: tone(col, row) * (DVec3::ONE + e),
-                    h_ind: DVec3::ZERO,
-                    pixel: row * w + col,
-                    x: DVec3::new(col as f64 * 0.01, 0.0, row as f64 * 0.01),
-                    n: DVec3::Y,
-                    area: 1.0,
-                    gathered_photo: DVec3::ZERO,
-                    unseen: (0, 0),
-                });
+                samples.push(plane_sample(w, col, row, tone(col, row) * (DVec3::ONE + e), e));
             }
         }
         let mixed = mixed_pixels(&samples, w, h);
