@@ -7,11 +7,10 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::geometry::{box_corners, segment_meets_box};
 
 use crate::light::LightSource;
 use crate::pda::PixelDataArray;
-use crate::shaft::Shaft;
+use crate::shaft::{ObjectBounds, Shaft};
 
 /// One level of the hierarchy: its width and height in blocks, and each block's box.
 type Level = (u32, u32, Vec<(Vec3, Vec3)>);
@@ -70,21 +69,20 @@ impl BlockHierarchy {
         self.levels.iter().map(|(_, _, b)| b.len() * std::mem::size_of::<(Vec3, Vec3)>()).sum()
     }
 
-    /// The pixels whose shaft to `light` may meet any of the `boxes`
+    /// The pixels whose shaft to `light` may meet any of the `objects`
     /// (a moved object's old and new bounds), found top-down.
-    pub fn traverse(&self, light: &LightSource, boxes: &[(DVec3, DVec3)]) -> Traversal {
+    pub fn traverse(&self, light: &LightSource, objects: &[ObjectBounds]) -> Traversal {
         let mut out = Traversal::default();
-        if boxes.is_empty() {
+        if objects.is_empty() {
             return out;
         }
         let light_points = light.corners();
-        let corners: Vec<[DVec3; 8]> = boxes.iter().map(|(lo, hi)| box_corners(*lo, *hi)).collect();
         let top = self.levels.len() - 1;
-        self.visit(top, 0, 0, &light_points, &corners, &mut out);
+        self.visit(top, 0, 0, &light_points, objects, &mut out);
         out
     }
 
-    fn visit(&self, level: usize, x: u32, y: u32, light: &[DVec3], objects: &[[DVec3; 8]], out: &mut Traversal) {
+    fn visit(&self, level: usize, x: u32, y: u32, light: &[DVec3], objects: &[ObjectBounds], out: &mut Traversal) {
         let (lw, lh, boxes) = &self.levels[level];
         if x >= *lw || y >= *lh {
             return;
@@ -98,17 +96,17 @@ impl BlockHierarchy {
         let may_meet = if level == 0 {
             // A pixel: exactly the test the Pixel Data Array makes.
             if light.len() == 1 {
-                objects.iter().any(|c| segment_meets_box(lo, light[0], c[0], c[7]))
+                objects.iter().any(|o| o.meets_segment(lo, light[0]))
             } else {
                 let shaft = Shaft::pyramid(lo, light);
-                objects.iter().any(|c| !shaft.excludes(c))
+                objects.iter().any(|o| !o.outside(&shaft))
             }
         } else {
             // A block: Haines & Wallace's shaft from its box to the light's,
             // which holds every pixel shaft below it.
             let light_box = crate::geometry::bounds(light.iter().copied());
             let shaft = Shaft::between_boxes((lo, hi), light_box);
-            objects.iter().any(|c| !shaft.excludes(c))
+            objects.iter().any(|o| !o.outside(&shaft))
         };
         if !may_meet {
             out.skipped.push((level as u8, x, y));

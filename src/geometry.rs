@@ -194,6 +194,90 @@ pub fn segment_meets_box(a: DVec3, b: DVec3, lo: DVec3, hi: DVec3) -> bool {
     true
 }
 
+/// A box turned about the vertical axis: `lo`..`hi` in its own frame,
+/// whose x axis is (cos, 0, sin) in the world. Objects stand on floors and
+/// turn about the vertical; their world-aligned box grows with the angle
+/// (a cube turned 20° covers 1.48 times its own footprint), this one does not.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UprightBox {
+    pub lo: DVec3,
+    pub hi: DVec3,
+    cos: f64,
+    sin: f64,
+}
+
+impl UprightBox {
+    /// The box of least footprint around `points` among those turned about
+    /// the vertical: one side lies along an edge of the points' convex hull
+    /// seen from above (Freeman & Shapira's rectangle of least area).
+    pub fn around(points: &[DVec3]) -> UprightBox {
+        let hull = plan_hull(points);
+        let mut best = (f64::INFINITY, 1.0, 0.0);
+        for k in 0..hull.len() {
+            let e = hull[(k + 1) % hull.len()] - hull[k];
+            let len = e.length();
+            if len <= 0.0 {
+                continue;
+            }
+            let (c, s) = (e.x / len, e.y / len);
+            let (mut lo, mut hi) = (glam::DVec2::INFINITY, glam::DVec2::NEG_INFINITY);
+            for p in &hull {
+                let q = glam::DVec2::new(c * p.x + s * p.y, -s * p.x + c * p.y);
+                lo = lo.min(q);
+                hi = hi.max(q);
+            }
+            let area = (hi - lo).x * (hi - lo).y;
+            if area < best.0 {
+                best = (area, c, s);
+            }
+        }
+        let (_, cos, sin) = best;
+        let frame = UprightBox { lo: DVec3::ZERO, hi: DVec3::ZERO, cos, sin };
+        let (lo, hi) = bounds(points.iter().map(|p| frame.to_frame(*p)));
+        UprightBox { lo, hi, ..frame }
+    }
+
+    /// `p` in the box's frame.
+    pub fn to_frame(&self, p: DVec3) -> DVec3 {
+        DVec3::new(self.cos * p.x + self.sin * p.z, p.y, -self.sin * p.x + self.cos * p.z)
+    }
+
+    /// The eight corners, in the world.
+    pub fn corners(&self) -> [DVec3; 8] {
+        box_corners(self.lo, self.hi).map(|q| DVec3::new(self.cos * q.x - self.sin * q.z, q.y, self.sin * q.x + self.cos * q.z))
+    }
+
+    /// Whether the segment a→b meets the box ([`segment_meets_box`] in its frame).
+    pub fn meets_segment(&self, a: DVec3, b: DVec3) -> bool {
+        segment_meets_box(self.to_frame(a), self.to_frame(b), self.lo, self.hi)
+    }
+}
+
+/// The convex hull of the points seen from above, (x, z) counter-clockwise
+/// (Andrew's monotone chain); a single point or a segment when they are.
+fn plan_hull(points: &[DVec3]) -> Vec<glam::DVec2> {
+    let mut p: Vec<glam::DVec2> = points.iter().map(|q| glam::DVec2::new(q.x, q.z)).collect();
+    p.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    p.dedup();
+    if p.len() < 3 {
+        return p;
+    }
+    let cross = |o: glam::DVec2, a: glam::DVec2, b: glam::DVec2| (a - o).perp_dot(b - o);
+    let mut hull: Vec<glam::DVec2> = Vec::with_capacity(2 * p.len());
+    for pass in 0..2 {
+        let start = hull.len();
+        let ordered: Box<dyn Iterator<Item = &glam::DVec2>> = if pass == 0 { Box::new(p.iter()) } else { Box::new(p.iter().rev()) };
+        for &q in ordered {
+            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
+                hull.pop();
+            }
+            hull.push(q);
+        }
+        hull.pop();
+    }
+    hull
+}
+
 /// Loads an OBJ file. Every `o`/`g` name is one surface; repeated names
 /// (a group split by `usemtl`, or reopened later) are merged.
 pub fn load_obj(path: &Path) -> Result<Mesh> {
@@ -346,6 +430,29 @@ mod tests {
         let e = load_obj(&p).unwrap_err();
         assert_eq!(e.location, crate::error::Location::Line(5), "{e}");
         assert!(e.to_string().contains("only 3"), "{e}");
+    }
+
+    #[test]
+    fn an_upright_box_fits_a_turned_cube_exactly() {
+        let turn = |p: DVec3, a: f64| DVec3::new(a.cos() * p.x - a.sin() * p.z, p.y, a.sin() * p.x + a.cos() * p.z);
+        let a = 20f64.to_radians();
+        let cube: Vec<DVec3> = box_corners(DVec3::new(-0.15, 0.0, -0.15), DVec3::new(0.15, 0.3, 0.15)).iter().map(|p| turn(*p, a) + DVec3::new(0.4, 0.0, -0.2)).collect();
+        let b = UprightBox::around(&cube);
+        let size = b.hi - b.lo;
+        assert!((size - DVec3::splat(0.3)).abs().max_element() < 1e-12, "{size}");
+        for c in b.corners() {
+            assert!(cube.iter().any(|p| (*p - c).length() < 1e-12), "corner {c} not the cube's");
+        }
+        // Through the world box's corner beside the cube: the world box meets it, the upright one does not.
+        let (lo, hi) = bounds(cube.iter().copied());
+        let (from, to) = (DVec3::new(lo.x - 0.05, 0.15, lo.z + 0.06), DVec3::new(lo.x + 0.06, 0.15, lo.z - 0.05));
+        assert!(segment_meets_box(from, to, lo, hi) && !b.meets_segment(from, to));
+        assert!(b.meets_segment(DVec3::new(0.4, 1.0, -0.2), DVec3::new(0.4, -1.0, -0.2)));
+        // Points in a vertical plane, and a single point: boxes without thickness.
+        let flat = UprightBox::around(&[DVec3::ZERO, DVec3::new(1.0, 0.0, 1.0), DVec3::new(0.5, 1.0, 0.5)]);
+        assert!((flat.hi - flat.lo).z.abs() < 1e-12 && ((flat.hi - flat.lo).x - 2f64.sqrt()).abs() < 1e-12);
+        let one = UprightBox::around(&[DVec3::ONE]);
+        assert_eq!(one.corners(), [DVec3::ONE; 8]);
     }
 
     #[test]

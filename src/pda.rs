@@ -16,10 +16,10 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::camera::Camera;
-use crate::geometry::{box_corners, segment_meets_box};
+use crate::geometry::box_corners;
 use crate::light::{LightSource, hash2, offset_origin, segment};
 use crate::patches::Patches;
-use crate::shaft::Shaft;
+use crate::shaft::{ObjectBounds, Shaft};
 use crate::trace::{Hit, Layer, TraceRay, Tracer};
 
 /// Ray budget of the visibility oracle and the edge supersampling.
@@ -160,8 +160,9 @@ pub struct PixelDataArray {
 
 const NONE: u32 = u32::MAX;
 
-/// What the oracle needs about the virtual objects: each surface's world
-/// box and id, and, for a solid, per triangle whether the solid lies wholly
+/// What the oracle needs about the virtual objects: each surface's bounds
+/// ([`ObjectBounds`]: its world box and its box turned about the vertical)
+/// and id, and, for a solid, per triangle whether the solid lies wholly
 /// behind the triangle's plane (a box's faces; any face on a convex hull).
 /// Light reaching a point of such a face from in front of it crosses
 /// nothing of its own solid, and light from behind it is inside the solid:
@@ -169,7 +170,7 @@ const NONE: u32 = u32::MAX;
 /// an update's rays).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct VirtualBounds {
-    pub boxes: Vec<(DVec3, DVec3)>,
+    pub objects: Vec<ObjectBounds>,
     surfaces: Vec<u32>,
     /// Per surface, per triangle: the unit normal of the side of its plane
     /// clear of the solid, or zero (not a solid, or the solid is on both sides).
@@ -185,10 +186,11 @@ impl VirtualBounds {
     pub fn of(triangles: &[(u32, Vec<crate::geometry::Triangle>)]) -> VirtualBounds {
         let mut out = VirtualBounds::default();
         for (surface, t) in triangles.iter().filter(|(_, t)| !t.is_empty()) {
-            let (lo, hi) = crate::geometry::bounds(t.iter().flatten().map(|p| p.as_dvec3()));
-            out.boxes.push((lo, hi));
+            let points: Vec<DVec3> = t.iter().flatten().map(|p| p.as_dvec3()).collect();
+            let object = ObjectBounds::around(&points);
+            out.clear_side.push(clear_sides(t, (object.aabb.1 - object.aabb.0).length()));
+            out.objects.push(object);
             out.surfaces.push(*surface);
-            out.clear_side.push(clear_sides(t, (hi - lo).length()));
         }
         out
     }
@@ -205,26 +207,26 @@ impl VirtualBounds {
     }
 
     pub fn is_empty(&self) -> bool {
-        self.boxes.is_empty()
+        self.objects.is_empty()
     }
 
     /// Whether light travelling from `x` to the light's emitter may pass a
     /// virtual object, other than the surface of box `own` (clear of x).
     fn may_shadow(&self, x: DVec3, light: &LightSource, own: Option<usize>) -> bool {
-        let mut boxes = self.boxes.iter().enumerate().filter(|(k, _)| Some(*k) != own).map(|(_, b)| b);
+        let mut objects = self.objects.iter().enumerate().filter(|(k, _)| Some(*k) != own).map(|(_, o)| o);
         match light.rect_corners() {
-            None => boxes.any(|(lo, hi)| segment_meets_box(x, light.position, *lo, *hi)),
+            None => objects.any(|o| o.meets_segment(x, light.position)),
             Some(quad) => {
                 // A box apart from the one around x and the light meets no
                 // ray between them: no pyramid needed (most points, most boxes).
                 let (slo, shi) = quad.iter().fold((x, x), |(lo, hi), c| (lo.min(*c), hi.max(*c)));
-                let near = |(lo, hi): &&(DVec3, DVec3)| !(lo.cmpgt(shi).any() || hi.cmplt(slo).any());
-                let near: Vec<&(DVec3, DVec3)> = boxes.filter(near).collect();
+                let near = |o: &&ObjectBounds| !(o.aabb.0.cmpgt(shi).any() || o.aabb.1.cmplt(slo).any());
+                let near: Vec<&ObjectBounds> = objects.filter(near).collect();
                 if near.is_empty() {
                     return false;
                 }
                 let shaft = Shaft::pyramid(x, &quad);
-                near.iter().any(|(lo, hi)| !shaft.excludes(&box_corners(*lo, *hi)))
+                near.iter().any(|o| !o.outside(&shaft))
             }
         }
     }
@@ -614,9 +616,9 @@ impl PixelDataArray {
         // nearer hides every object, and needs no ray.
         let nearest = input
             .bounds
-            .boxes
+            .objects
             .iter()
-            .map(|(lo, hi)| (cam.position.clamp(*lo, *hi) - cam.position).length())
+            .map(|o| (cam.position.clamp(o.aabb.0, o.aabb.1) - cam.position).length())
             .fold(f64::INFINITY, f64::min);
         let hidden = |x: u32, y: u32| {
             let (x0, x1, y0, y1) = (x.saturating_sub(1), (x + 1).min(self.width - 1), y.saturating_sub(1), (y + 1).min(self.height - 1));
@@ -801,7 +803,7 @@ fn edge_candidates(input: &PdaInput) -> Option<Vec<bool>> {
     let cam = input.camera;
     let patches = input.patches;
     let is_virtual = |r: &u32| patches.surface_is_virtual.get(&patches.elements[*r as usize].surface).copied().unwrap_or(false);
-    for (lo, hi) in &input.bounds.boxes {
+    for (lo, hi) in input.bounds.objects.iter().map(|o| &o.aabb) {
         let mut ends = vec![cam.position];
         ends.extend(box_corners(*lo, *hi));
         let hull = Shaft::hull(&ends);
@@ -901,9 +903,10 @@ impl PixelBox {
 /// reaching behind the camera covers the whole image.
 fn screen_boxes(cam: &Camera, bounds: &VirtualBounds) -> Vec<PixelBox> {
     bounds
-        .boxes
+        .objects
         .iter()
-        .map(|(lo, hi)| {
+        .map(|o| {
+            let (lo, hi) = &o.aabb;
             let projected: Option<Vec<(f64, f64)>> = box_corners(*lo, *hi).iter().map(|c| cam.project(*c).map(|(x, y, _)| (x, y))).collect();
             let full = PixelBox { x0: 0, y0: 0, x1: cam.width - 1, y1: cam.height - 1 };
             let Some(pts) = projected else { return full };

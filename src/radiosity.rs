@@ -617,7 +617,7 @@ pub fn direct_irradiance(patches: &Patches, lights: &[LightSource], tracer: &Tra
 /// [`direct_irradiance`] through real and virtual geometry, where `room`
 /// holds the room's own values (through real geometry, for the first
 /// patches): those are taken wherever the shaft from a patch to the
-/// light excludes every object box in `boxes` — no ray can meet an object
+/// light excludes every one of `objects` — no ray can meet an object
 /// there, so the numbers are the same — and only the rest are traced.
 pub fn direct_irradiance_with_objects(
     patches: &Patches,
@@ -625,9 +625,8 @@ pub fn direct_irradiance_with_objects(
     tracer: &Tracer,
     level: usize,
     room: &[Vec<DVec3>],
-    boxes: &[(DVec3, DVec3)],
+    objects: &[crate::shaft::ObjectBounds],
 ) -> Vec<Vec<DVec3>> {
-    let corners: Vec<[DVec3; 8]> = boxes.iter().map(|(lo, hi)| crate::geometry::box_corners(*lo, *hi)).collect();
     lights
         .iter()
         .zip(room)
@@ -638,7 +637,7 @@ pub fn direct_irradiance_with_objects(
                 .map(|k| {
                     if k < room.len() {
                         let shaft = Shaft::between_boxes(patches.patch(k).bounds, light_box);
-                        if corners.iter().all(|c| shaft.excludes(c)) {
+                        if objects.iter().all(|o| o.outside(&shaft)) {
                             return room[k];
                         }
                     }

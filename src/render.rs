@@ -328,8 +328,8 @@ impl Session {
         let (rays, retraced) = times.time("re-trace objects and edges", || pda.rebuild_virtual(&input));
         stats.rays += rays;
         stats.pixels_retraced = retraced;
-        let mut boxes = old.boxes.clone();
-        boxes.extend(input.bounds.boxes.iter().copied());
+        let mut boxes = old.objects.clone();
+        boxes.extend(input.bounds.objects.iter().copied());
         let traversals: Vec<Option<crate::blocks::Traversal>> = times.time("pixel-block traversal", || {
             use rayon::prelude::*;
             input.lights.par_iter().enumerate().map(|(l, light)| input.active[l].then(|| blocks.traverse(light, &boxes))).collect()
@@ -394,7 +394,7 @@ fn solve_changes(
     let own: Option<(Patches, Vec<Vec<DVec3>>, Transport)> = has_virtual.then(|| {
         let patches = times.time("virtual mesh", || Patches::of_scene_with(scene, true, settings.model.patch_size, settings.virtual_patch_size));
         let direct = times.time("direct light with objects", || {
-            direct_irradiance_with_objects(&patches, lights, tracer, settings.model.light_level, &model.direct_per_light, &bounds.boxes)
+            direct_irradiance_with_objects(&patches, lights, tracer, settings.model.light_level, &model.direct_per_light, &bounds.objects)
         });
         let epsilon = match settings.model.transport {
             TransportMethod::Full => crate::radiosity::DEFAULT_LINK_EPSILON,

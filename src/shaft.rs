@@ -5,6 +5,8 @@
 
 use glam::DVec3;
 
+use crate::geometry::{UprightBox, bounds, segment_meets_box};
+
 /// A convex volume given by outward planes n·x ≤ d.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Shaft {
@@ -169,6 +171,35 @@ impl Shaft {
 
     pub fn plane_count(&self) -> usize {
         self.planes.len()
+    }
+}
+
+/// Where a virtual object may be: its world-aligned box and its box
+/// turned about the vertical ([`UprightBox`], the tighter for a turned
+/// object). Both hold it: a segment misses it when it misses either (the
+/// world box first, the cheaper test); shafts test the turned box.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ObjectBounds {
+    pub aabb: (DVec3, DVec3),
+    pub upright: UprightBox,
+    /// The turned box's corners.
+    corners: [DVec3; 8],
+}
+
+impl ObjectBounds {
+    pub fn around(points: &[DVec3]) -> ObjectBounds {
+        let upright = UprightBox::around(points);
+        ObjectBounds { aabb: bounds(points.iter().copied()), upright, corners: upright.corners() }
+    }
+
+    /// Whether the segment a→b may meet the object.
+    pub fn meets_segment(&self, a: DVec3, b: DVec3) -> bool {
+        segment_meets_box(a, b, self.aabb.0, self.aabb.1) && self.upright.meets_segment(a, b)
+    }
+
+    /// Whether the object certainly lies outside `shaft`.
+    pub fn outside(&self, shaft: &Shaft) -> bool {
+        shaft.excludes(&self.corners)
     }
 }
 

@@ -98,12 +98,12 @@ fn direct_light_with_objects_reuses_the_room_only_where_it_is_the_same() {
         let room = Patches::of_scene(&scene, false, 0.5);
         let with = Patches::of_scene_with(&scene, true, 0.5, 0.1);
         let room_direct = direct_irradiance(&room, &lights, &tracer, Layer::Real, 4);
-        let boxes: Vec<(DVec3, DVec3)> = scene
+        let objects: Vec<arlux::shaft::ObjectBounds> = scene
             .virtual_world_surfaces()
             .iter()
-            .map(|(_, t)| arlux::geometry::bounds(t.iter().flatten().map(|p| p.as_dvec3())))
+            .map(|(_, t)| arlux::shaft::ObjectBounds::around(&t.iter().flatten().map(|p| p.as_dvec3()).collect::<Vec<DVec3>>()))
             .collect();
-        let fast = arlux::radiosity::direct_irradiance_with_objects(&with, &lights, &tracer, 4, &room_direct, &boxes);
+        let fast = arlux::radiosity::direct_irradiance_with_objects(&with, &lights, &tracer, 4, &room_direct, &objects);
         let traced = direct_irradiance(&with, &lights, &tracer, Layer::All, 4);
         assert_eq!(fast, traced, "{variant}");
         // And the objects do darken some room patch, so the test has teeth.
