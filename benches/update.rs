@@ -34,6 +34,8 @@ fn bench(c: &mut Criterion) {
             || {
                 let mut s = Session::start(&p3, &photo, &settings, &mut StageTimes::default()).unwrap();
                 s.prepare_updates(&mut StageTimes::default());
+                // As `arlux motion` runs: each pose's image, without the other layers.
+                s.image_only();
                 s
             },
             |mut s| s.update(&p4, &mut StageTimes::default()).unwrap(),
@@ -43,6 +45,7 @@ fn bench(c: &mut Criterion) {
     // The same move back and forth on one session, as a motion runs.
     let mut session = Session::start(&p3, &photo, &settings, &mut StageTimes::default()).unwrap();
     session.prepare_updates(&mut StageTimes::default());
+    session.image_only();
     let mut forth = false;
     g.bench_function("box_slide_poses_3_4_alternating_on_one_session", |b| {
         b.iter(|| {

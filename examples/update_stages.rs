@@ -17,6 +17,7 @@ fn main() -> anyhow::Result<()> {
     let photo = p3.load_photo()?;
     let mut session = Session::start(&p3, &photo, &RenderSettings::default(), &mut StageTimes::default())?;
     session.prepare_updates(&mut StageTimes::default());
+    session.image_only();
     let updates: usize = std::env::args().nth(1).map_or(Ok(60), |a| a.parse())?;
     let (mut stages, mut totals): (BTreeMap<&str, Vec<f64>>, Vec<f64>) = Default::default();
     for i in 0..updates {

@@ -50,6 +50,10 @@ pub struct CompositeInput<'a> {
     /// Every real point's composite as prepared before (see
     /// [`RealPixels`]), kept between updates; None: prepared here.
     pub known: Option<&'a RealPixels>,
+    /// Fill the direct, indirect and change layers too; without them the
+    /// composite holds them empty (a motion writes its images only, and
+    /// they are a fifth of an update's composite).
+    pub layers: bool,
 }
 
 /// A real point's composite, affine in the indirect irradiance with the
@@ -247,37 +251,53 @@ pub struct PixelShade {
 
 impl Composite {
     /// Sets every pixel, in parallel, to `shade(pixel)` (the change layer
-    /// is value − photo) and counts the copied, fallen-back and clamped ones.
+    /// is value − photo) and counts the copied, fallen-back and clamped
+    /// ones. The direct, indirect and change layers are filled when the
+    /// composite holds them (see [`CompositeInput::layers`]).
     pub fn fill(&mut self, photo: &Image, shade: impl Fn(usize) -> PixelShade + Sync + Send) {
         // By rows: a plain loop per row, rather than five zipped parallel
         // iterators per pixel (whose bookkeeping cost as much as the shading).
         let w = (self.image.width as usize).max(1);
-        let (copied, fallbacks, clamped) = self
-            .image
-            .pixels
-            .par_chunks_mut(w)
-            .zip(self.direct.pixels.par_chunks_mut(w))
-            .zip(self.indirect.pixels.par_chunks_mut(w))
-            .zip(self.change.pixels.par_chunks_mut(w))
-            .zip(self.alpha.par_chunks_mut(w))
-            .enumerate()
-            .map(|(row, ((((image, direct), indirect), change), alpha))| {
+        let count = |counts: &mut (usize, usize, usize), s: &PixelShade| {
+            counts.0 += s.copied as usize;
+            counts.1 += s.fallback as usize;
+            counts.2 += s.clamped as usize;
+        };
+        let sum = |a: (usize, usize, usize), b: (usize, usize, usize)| (a.0 + b.0, a.1 + b.1, a.2 + b.2);
+        let layers = self.direct.pixels.len() == self.image.pixels.len();
+        let rows = self.image.pixels.par_chunks_mut(w).zip(self.alpha.par_chunks_mut(w)).enumerate();
+        let (copied, fallbacks, clamped) = if !layers {
+            rows.map(|(row, (image, alpha))| {
                 let mut counts = (0, 0, 0);
                 for x in 0..image.len() {
-                    let i = row * w + x;
-                    let s = shade(i);
+                    let s = shade(row * w + x);
                     image[x] = s.value;
-                    direct[x] = s.direct;
-                    indirect[x] = s.indirect;
-                    change[x] = s.value - photo.pixels[i];
                     alpha[x] = s.alpha;
-                    counts.0 += s.copied as usize;
-                    counts.1 += s.fallback as usize;
-                    counts.2 += s.clamped as usize;
+                    count(&mut counts, &s);
                 }
                 counts
             })
-            .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
+            .reduce(|| (0, 0, 0), sum)
+        } else {
+            rows.zip(self.direct.pixels.par_chunks_mut(w))
+                .zip(self.indirect.pixels.par_chunks_mut(w))
+                .zip(self.change.pixels.par_chunks_mut(w))
+                .map(|((((row, (image, alpha)), direct), indirect), change)| {
+                    let mut counts = (0, 0, 0);
+                    for x in 0..image.len() {
+                        let i = row * w + x;
+                        let s = shade(i);
+                        image[x] = s.value;
+                        direct[x] = s.direct;
+                        indirect[x] = s.indirect;
+                        change[x] = s.value - photo.pixels[i];
+                        alpha[x] = s.alpha;
+                        count(&mut counts, &s);
+                    }
+                    counts
+                })
+                .reduce(|| (0, 0, 0), sum)
+        };
         self.copied = copied;
         self.ratio_fallbacks = fallbacks;
         self.clamped = clamped;
@@ -319,16 +339,11 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
         edge_of[e.pixel as usize] = k as u32;
     }
     if out.image.pixels.len() != n || out.alpha.len() != n {
-        *out = Composite {
-            image: Image::new(w, h),
-            direct: Image::new(w, h),
-            indirect: Image::new(w, h),
-            change: Image::new(w, h),
-            alpha: vec![0.0; n],
-            copied: 0,
-            ratio_fallbacks: 0,
-            clamped: 0,
-        };
+        *out = Composite { image: Image::new(w, h), alpha: vec![0.0; n], ..Composite::empty() };
+    }
+    let layer = || if input.layers { Image::new(w, h) } else { Image::new(0, 0) };
+    if (out.direct.pixels.len() == n) != input.layers {
+        (out.direct, out.indirect, out.change) = (layer(), layer(), layer());
     }
     let shade = |i: usize| -> (Shade, f32) {
         let photo = input.photo.pixels[i].as_dvec3();

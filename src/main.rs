@@ -1208,6 +1208,8 @@ fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, 
     let mut times = StageTimes::default();
     let mut session = Session::start(&first, &photo, &settings, &mut times)?;
     session.prepare_updates(&mut times);
+    // Each pose writes its image only.
+    session.image_only();
     keep(&times);
     // Speed-ups compare with what re-rendering a pose costs: the photo's
     // calibration and a light's reconstruction are done once per scene.

@@ -141,6 +141,8 @@ pub struct Session {
     for_updates: bool,
     /// What re-linking the objects learns about the room's links, for the next pose.
     link_facts: crate::radiosity::RoomLinkFacts,
+    /// Whether composites keep the direct, indirect and change layers (see [`Session::image_only`]).
+    layers: bool,
 }
 
 /// What an update did.
@@ -224,6 +226,7 @@ impl Session {
             rays,
             for_updates,
             link_facts,
+            layers: true,
         };
         session.recomposite(times, &[]);
         Ok(session)
@@ -248,6 +251,7 @@ impl Session {
                 patch_vertices: &patches.patch_vertices,
                 mode: self.settings.mode,
                 known: None,
+                layers: self.layers,
             };
             if !self.for_updates {
                 composite_into(&input, &mut out);
@@ -266,6 +270,13 @@ impl Session {
         });
         self.composite = out;
         self.known = known;
+    }
+
+    /// From the next update on, composites hold the image and alpha only
+    /// (the direct, indirect and change layers are left empty): what a
+    /// motion writes, a fifth less work in each update's composite.
+    pub fn image_only(&mut self) {
+        self.layers = false;
     }
 
     /// Builds the pixel-block hierarchy updates traverse (done by the first

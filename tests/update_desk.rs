@@ -84,3 +84,20 @@ fn updates_equal_full_renders_at_other_ray_budgets() {
         assert_eq!(differing(&session.composite.image, &full.composite.image), 0, "box at {at}: the image must match a full render");
     }
 }
+
+#[test]
+fn an_image_only_session_updates_the_image_a_full_render_gives_and_drops_the_other_layers() {
+    let base = desk();
+    let settings = RenderSettings::default();
+    let first = base.with_motion_pose("box_slide", 2).unwrap();
+    let photo = first.load_photo().unwrap();
+    let mut session = Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+    session.image_only();
+    let scene = base.with_motion_pose("box_slide", 3).unwrap();
+    session.update(&scene, &mut StageTimes::default()).unwrap();
+    let full = render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap();
+    assert_eq!(differing(&session.composite.image, &full.composite.image), 0);
+    assert!(session.composite.alpha == full.composite.alpha);
+    assert_eq!((session.composite.copied, session.composite.clamped), (full.composite.copied, full.composite.clamped));
+    assert!(session.composite.direct.pixels.is_empty() && session.composite.indirect.pixels.is_empty() && session.composite.change.pixels.is_empty());
+}
