@@ -45,7 +45,7 @@ use crate::trace::{Layer, Tracer};
 
 /// Bumped whenever the reconstruction's results change, so that a cached
 /// light from an earlier arlux is not taken for a current one.
-pub const ALGORITHM_VERSION: u32 = 8;
+pub const ALGORITHM_VERSION: u32 = 9;
 
 /// Photometric zero of the reconstructed table (type C nadir) and the
 /// direction of horizontal angle 0: world down and world +x.
@@ -755,6 +755,7 @@ fn remove_texture(samples: &mut [Sample], mixed: &[bool], model: Option<&Penumbr
     // own and its texture level, mean 0, would not match the rest of its
     // surface's (where a poster moves the mean).
     let mut links: Vec<(u32, u32)> = Vec::new();
+    let mut gap_links: Vec<(u32, u32, u32)> = Vec::new();
     // Pairs across a known light's soft edge, with their modelled steps.
     let mut soft: Vec<(u32, u32)> = Vec::new();
     let mut soft_steps: Vec<[f64; 3]> = Vec::new();
@@ -782,7 +783,7 @@ fn remove_texture(samples: &mut [Sample], mixed: &[bool], model: Option<&Penumbr
                     let k = at[(r * width + c) as usize];
                     if k != u32::MAX && samples[k as usize].surface == p.surface {
                         if same_plane(p, &samples[k as usize]) {
-                            links.push((i as u32, k));
+                            gap_links.push((i as u32, k, gap));
                         }
                         break;
                     }
@@ -908,6 +909,14 @@ fn remove_texture(samples: &mut [Sample], mixed: &[bool], model: Option<&Penumbr
         let m = plain.len() / 2;
         (1.4826 * *plain.select_nth_unstable_by(m, f64::total_cmp).1).clamp(1e-4, edge)
     });
+    // A link across a gap stands for the links through the pixels it
+    // spans, in series: it weighs as much as they would together (a
+    // band of mixed pixels ties its sides by such a chain too). The
+    // texture may step anywhere behind a table's leg; at full weight
+    // these links bent the desk's floor under the table: 95th percentile
+    // of the direction error 3.7% of the peak, 3.3% weighed in series.
+    let links: Vec<(u32, u32, f64)> =
+        links.iter().map(|&(i, j)| (i, j, LINK_WEIGHT)).chain(gap_links.iter().map(|&(i, j, gap)| (i, j, LINK_WEIGHT / gap as f64))).collect();
     let u: Vec<Vec<f64>> = (0..3).into_par_iter().map(|c| integrate_jumps(samples.len(), &pairs, &targets[c], &links, start.map(|s| &s[c][..]), noise[c])).collect();
     let mut mean: HashMap<u32, (DVec3, f64)> = HashMap::new();
     let texture_at = |k: usize| DVec3::new(u[0][k].exp(), u[1][k].exp(), u[2][k].exp());
@@ -939,22 +948,23 @@ fn textured(all: &[Sample], mixed: &[bool], model: Option<&PenumbraModel>, start
     (samples, edges, u)
 }
 
-/// Weight of a [`remove_texture`] link across a change of light, next to
-/// 1 for a pair: enough to tie pieces together, too little to pull a
-/// texture edge that happens to lie on a shadow's edge.
+/// Weight of a [`remove_texture`] link between neighbours across a change
+/// of light, next to 1 for a pair: enough to tie pieces together, too
+/// little to pull a texture edge that happens to lie on a shadow's edge.
+/// A link across a gap of n pixels weighs a n-th of it.
 const LINK_WEIGHT: f64 = 0.01;
 
 /// Reweighted rounds of [`integrate_jumps`].
 const ROBUST_ROUNDS: usize = 2;
 
-/// u with u_j − u_i ≈ target over `pairs`, and u_j ≈ u_i (weighted
-/// [`LINK_WEIGHT`]) over `links`, robustly: least squares, then rounds in
+/// u with u_j − u_i ≈ target over `pairs`, and u_j ≈ u_i (with each
+/// link's weight) over `links`, robustly: least squares, then rounds in
 /// which a pair the solution misses by more than `noise` (the photo's own
 /// step-to-step noise) counts only as much as that (Huber). A texture
 /// edge's step lost at a few pixels (a checkerboard's anti-aliased corner,
 /// where four tiles blend) otherwise bends the texture around it in a blob
 /// several pixels wide; down-weighted, it stays a local defect.
-fn integrate_jumps(n: usize, pairs: &[(u32, u32)], targets: &[f64], links: &[(u32, u32)], start: Option<&[f64]>, noise: f64) -> Vec<f64> {
+fn integrate_jumps(n: usize, pairs: &[(u32, u32)], targets: &[f64], links: &[(u32, u32, f64)], start: Option<&[f64]>, noise: f64) -> Vec<f64> {
     let mut weights = vec![1.0; pairs.len()];
     let mut x = solve_jumps(n, pairs, targets, &weights, links, start);
     for _ in 0..ROBUST_ROUNDS {
@@ -970,7 +980,7 @@ fn integrate_jumps(n: usize, pairs: &[(u32, u32)], targets: &[f64], links: &[(u3
 /// Weighted least squares of [`integrate_jumps`]: a graph Laplacian
 /// system, solved by conjugate gradients from `start` (each connected
 /// piece keeps its mean, so the singular system stays consistent).
-fn solve_jumps(n: usize, pairs: &[(u32, u32)], targets: &[f64], weights: &[f64], links: &[(u32, u32)], start: Option<&[f64]>) -> Vec<f64> {
+fn solve_jumps(n: usize, pairs: &[(u32, u32)], targets: &[f64], weights: &[f64], links: &[(u32, u32, f64)], start: Option<&[f64]>) -> Vec<f64> {
     let mut degree = vec![0.0f64; n];
     let mut rhs = vec![0.0f64; n];
     for ((&(i, j), &t), &w) in pairs.iter().zip(targets).zip(weights) {
@@ -982,9 +992,9 @@ fn solve_jumps(n: usize, pairs: &[(u32, u32)], targets: &[f64], weights: &[f64],
     if rhs.iter().all(|&r| r == 0.0) {
         return vec![0.0; n];
     }
-    for &(i, j) in links {
-        degree[i as usize] += LINK_WEIGHT;
-        degree[j as usize] += LINK_WEIGHT;
+    for &(i, j, w) in links {
+        degree[i as usize] += w;
+        degree[j as usize] += w;
     }
     let apply = |x: &[f64], out: &mut [f64]| {
         for (o, (d, xi)) in out.iter_mut().zip(degree.iter().zip(x)) {
@@ -995,10 +1005,10 @@ fn solve_jumps(n: usize, pairs: &[(u32, u32)], targets: &[f64], weights: &[f64],
             out[i] -= w * x[j];
             out[j] -= w * x[i];
         }
-        for &(i, j) in links {
+        for &(i, j, w) in links {
             let (i, j) = (i as usize, j as usize);
-            out[i] -= LINK_WEIGHT * x[j];
-            out[j] -= LINK_WEIGHT * x[i];
+            out[i] -= w * x[j];
+            out[j] -= w * x[i];
         }
     };
     let precondition = |r: &[f64], z: &mut [f64]| {
