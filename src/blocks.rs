@@ -7,7 +7,6 @@
 
 use glam::{DVec3, Vec3};
 
-
 use crate::light::LightSource;
 use crate::pda::PixelDataArray;
 use crate::shaft::{ObjectBounds, Shaft};

@@ -52,7 +52,7 @@ pub struct CompositeInput<'a> {
     pub known: Option<&'a RealPixels>,
     /// Fill the direct, indirect and change layers too; without them the
     /// composite holds them empty (a motion writes its images only, and
-    /// they are a fifth of an update's composite).
+    /// filling them is a tenth to a fifth of an update's composite).
     pub layers: bool,
 }
 

@@ -197,7 +197,7 @@ pub fn segment_meets_box(a: DVec3, b: DVec3, lo: DVec3, hi: DVec3) -> bool {
 /// A box turned about the vertical axis: `lo`..`hi` in its own frame,
 /// whose x axis is (cos, 0, sin) in the world. Objects stand on floors and
 /// turn about the vertical; their world-aligned box grows with the angle
-/// (a cube turned 20° covers 1.48 times its own footprint), this one does not.
+/// (a cube turned 20° covers 1.64 times its own footprint), this one does not.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct UprightBox {
     pub lo: DVec3,

@@ -274,7 +274,7 @@ impl Session {
 
     /// From the next update on, composites hold the image and alpha only
     /// (the direct, indirect and change layers are left empty): what a
-    /// motion writes, a fifth less work in each update's composite.
+    /// motion writes, a tenth to a fifth less work in each update's composite.
     pub fn image_only(&mut self) {
         self.layers = false;
     }
