@@ -264,10 +264,11 @@ fn plan_hull(points: &[DVec3]) -> Vec<glam::DVec2> {
     }
     let cross = |o: glam::DVec2, a: glam::DVec2, b: glam::DVec2| (a - o).perp_dot(b - o);
     let mut hull: Vec<glam::DVec2> = Vec::with_capacity(2 * p.len());
+    // The lower chain left to right, then the upper one right to left.
     for pass in 0..2 {
         let start = hull.len();
-        let ordered: Box<dyn Iterator<Item = &glam::DVec2>> = if pass == 0 { Box::new(p.iter()) } else { Box::new(p.iter().rev()) };
-        for &q in ordered {
+        for k in 0..p.len() {
+            let q = if pass == 0 { p[k] } else { p[p.len() - 1 - k] };
             while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
                 hull.pop();
             }

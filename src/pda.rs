@@ -213,20 +213,19 @@ impl VirtualBounds {
     /// Whether light travelling from `x` to the light's emitter may pass a
     /// virtual object, other than the surface of box `own` (clear of x).
     fn may_shadow(&self, x: DVec3, light: &LightSource, own: Option<usize>) -> bool {
-        let mut objects = self.objects.iter().enumerate().filter(|(k, _)| Some(*k) != own).map(|(_, o)| o);
+        let others = || self.objects.iter().enumerate().filter(move |(k, _)| Some(*k) != own).map(|(_, o)| o);
         match light.rect_corners() {
-            None => objects.any(|o| o.meets_segment(x, light.position)),
+            None => others().any(|o| o.meets_segment(x, light.position)),
             Some(quad) => {
                 // A box apart from the one around x and the light meets no
                 // ray between them: no pyramid needed (most points, most boxes).
                 let (slo, shi) = quad.iter().fold((x, x), |(lo, hi), c| (lo.min(*c), hi.max(*c)));
                 let near = |o: &&ObjectBounds| !(o.aabb.0.cmpgt(shi).any() || o.aabb.1.cmplt(slo).any());
-                let near: Vec<&ObjectBounds> = objects.filter(near).collect();
-                if near.is_empty() {
+                if !others().any(|o| near(&o)) {
                     return false;
                 }
                 let shaft = Shaft::pyramid(x, &quad);
-                near.iter().any(|o| !o.outside(&shaft))
+                others().filter(near).any(|o| !o.outside(&shaft))
             }
         }
     }
@@ -237,9 +236,8 @@ impl VirtualBounds {
 /// solid's corners (within `size` × 1e-5: the corners are single
 /// precision), or zero.
 fn clear_sides(triangles: &[crate::geometry::Triangle], size: f64) -> Vec<Vec3> {
-    let none = || vec![Vec3::ZERO; triangles.len()];
     if triangles.len() * 3 * triangles.len() > CLEAR_TEST_LIMIT || !crate::geometry::is_closed(triangles) {
-        return none();
+        return vec![Vec3::ZERO; triangles.len()];
     }
     let tolerance = 1e-5 * size;
     triangles

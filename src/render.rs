@@ -339,11 +339,11 @@ impl Session {
         let (rays, retraced) = times.time("re-trace objects and edges", || pda.rebuild_virtual(&input));
         stats.rays += rays;
         stats.pixels_retraced = retraced;
-        let mut boxes = old.objects.clone();
-        boxes.extend(input.bounds.objects.iter().copied());
+        let mut moved = old.objects.clone();
+        moved.extend(input.bounds.objects.iter().copied());
         let traversals: Vec<Option<crate::blocks::Traversal>> = times.time("pixel-block traversal", || {
             use rayon::prelude::*;
-            input.lights.par_iter().enumerate().map(|(l, light)| input.active[l].then(|| blocks.traverse(light, &boxes))).collect()
+            input.lights.par_iter().enumerate().map(|(l, light)| input.active[l].then(|| blocks.traverse(light, &moved))).collect()
         });
         let touched = times.time("recompute pixels", || {
             let mut touched = vec![false; (pda.width * pda.height) as usize];
