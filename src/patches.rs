@@ -70,7 +70,9 @@ impl Shape {
         let n = n.max(1);
         match *self {
             Shape::Quad { origin, u, v } => {
+                // The table stops at order 16.
                 let (x, w) = gauss_legendre(n);
+                let n = x.len();
                 let mut out = Vec::with_capacity(n * n);
                 for i in 0..n {
                     for j in 0..n {

@@ -74,6 +74,25 @@ fn faces_away(p: &Element, q: &Element) -> bool {
     behind(p, q) || behind(q, p)
 }
 
+/// Whether receiver `p` lies partly in front of one-sided source `q` and
+/// partly behind it: its points then gather from q or not at all, a step
+/// that the few points of [`factor_spread`] and the quadrature of
+/// [`unoccluded_form_factor`] can miss (a table top beside a leg's face sees
+/// it from a strip as wide as the leg is from the table's edge).
+fn straddles(p: &Element, q: &Element) -> bool {
+    if !q.one_sided {
+        return false;
+    }
+    let slack = 1e-9 * p.size.max(q.size).max(1e-9);
+    let (mut front, mut behind) = (false, false);
+    for c in p.shape.corners().iter() {
+        let d = (*c - q.centre).dot(q.normal);
+        front |= d > slack;
+        behind |= d < -slack;
+    }
+    front && behind
+}
+
 /// The exact unoccluded form factor from point `x` of receiver `p` to the
 /// polygon of source `q`, minding one-sided elements: a solid's face
 /// receives only from outside and sends only outwards.
@@ -89,6 +108,15 @@ fn point_factor(x: DVec3, p: &Element, q: &Element, polygon: &[DVec3]) -> f64 {
 pub fn unoccluded_form_factor(p: &Element, q: &Element) -> f64 {
     if coplanar(p, q) {
         return 0.0;
+    }
+    // A receiver partly behind a one-sided source gathers from the part in
+    // front only: a step across p that its quadrature points place badly.
+    // Integrated over q instead (A_p·F_pq = A_q·F_qp), each point of q
+    // clips p to q's front exactly.
+    if straddles(p, q) && !straddles(q, p) && p.area > 0.0 {
+        let polygon = p.shape.corners();
+        let f: f64 = q.shape.quadrature(FF_ORDER).into_iter().map(|(y, w)| w * point_factor(y, q, p, &polygon)).sum();
+        return f * q.area / p.area;
     }
     let polygon = q.shape.corners();
     p.shape.quadrature(FF_ORDER).into_iter().map(|(x, w)| w * point_factor(x, p, q, &polygon)).sum()
@@ -115,6 +143,12 @@ struct ShaftTest<'a> {
     hi: DVec3,
     slack: f64,
     shafts: &'a PairShafts,
+    /// p's plane and q's, each with its normal turned to the side light
+    /// crosses it on: a one-sided element's front, or the side the other
+    /// element lies wholly on. A root wholly behind either cannot meet a
+    /// segment that carries light between the two.
+    planes: [Option<(DVec3, DVec3)>; 2],
+    plane_slack: f64,
 }
 
 impl<'a> ShaftTest<'a> {
@@ -122,11 +156,29 @@ impl<'a> ShaftTest<'a> {
         let ((plo, phi), (qlo, qhi)) = (p.bounds, q.bounds);
         let (lo, hi) = (plo.min(qlo), phi.max(qhi));
         let slack = 1e-9 * (hi - lo).max_element().max(1.0);
-        ShaftTest { patches, layer, p, q, lo, hi, slack, shafts }
+        let facing = |e: &Element, other: &Element| -> Option<(DVec3, DVec3)> {
+            if e.one_sided {
+                return Some((e.centre, e.normal));
+            }
+            let d = other.shape.corners().iter().map(|c| (*c - e.centre).dot(e.normal)).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), d| (lo.min(d), hi.max(d)));
+            if d.0 > slack {
+                Some((e.centre, e.normal))
+            } else if d.1 < -slack {
+                Some((e.centre, -e.normal))
+            } else {
+                None
+            }
+        };
+        let planes = [facing(p, q), facing(q, p)];
+        // Single-precision vertices leave a solid's corners ~1e-7 of the
+        // coordinates off its neighbouring faces' planes; rays start 1e-5 off.
+        let plane_slack = 1e-6 * (hi - lo).max_element().max(1.0);
+        ShaftTest { patches, layer, p, q, lo, hi, slack, shafts, planes, plane_slack }
     }
 
     /// Whether root `r` may block light between p and q: it is in the
-    /// layer, coplanar with neither, and the shaft does not exclude it.
+    /// layer, coplanar with neither, behind neither's plane (a solid's own
+    /// faces, for one), and the shaft does not exclude it.
     fn may_block(&self, r: u32) -> bool {
         let root = &self.patches.elements[r as usize];
         // Cheapest first: most roots lie outside the pair's box. Boxes that
@@ -146,6 +198,10 @@ impl<'a> ShaftTest<'a> {
             return false;
         }
         let corners = root.shape.corners();
+        let behind = |&(o, n): &(DVec3, DVec3)| corners.iter().all(|c| (*c - o).dot(n) <= self.plane_slack);
+        if self.planes.iter().flatten().any(behind) {
+            return false;
+        }
         let (p, q) = (self.p, self.q);
         if self.shafts.coarse.get_or_init(|| Shaft::between_boxes(p.bounds, q.bounds)).excludes(&corners) {
             return false;
@@ -496,8 +552,9 @@ fn source_spread(p: &Element, q: &Element) -> f64 {
 
 /// Links receiver `p` to source `q` where one form factor represents the
 /// exchange to within `epsilon`. The receiver is subdivided while the
-/// factor varies across it by more than epsilon (its points would gather
-/// different amounts); the source while F × its [`source_spread`] exceeds
+/// factor varies across it by more than epsilon, or while it lies across
+/// the plane of a one-sided source ([`straddles`]): its points would gather
+/// different amounts. The source while F × its [`source_spread`] exceeds
 /// epsilon (its radiosity would be averaged with the wrong weights); the
 /// larger of the two while they are partly hidden from each other.
 #[allow(clippy::too_many_arguments)]
@@ -573,7 +630,7 @@ fn refine_from(
     let facts = known.map(|k| k.0);
     let (spread, mean) = facts.map_or_else(|| factor_spread(ep, eq), |f| (f.spread, f.mean));
     let (p_leaf, q_leaf) = (ep.children.is_none(), eq.children.is_none());
-    let split_receiver = if spread > epsilon && !p_leaf {
+    let split_receiver = if (spread > epsilon || straddles(ep, eq)) && !p_leaf {
         Some(true)
     } else if !q_leaf && mean * facts.map_or_else(|| source_spread(ep, eq), |f| f.source_spread) > epsilon {
         Some(false)

@@ -607,7 +607,7 @@ pub fn reconstruct_cached(scene: &Scene, photo: &Image, tracer: &crate::trace::T
 
 /// Bumped when [`crate::model::bracket_scale`] changes what it returns, so
 /// that caches written by an older arlux are not read.
-pub const BRACKET_SCALE_VERSION: u32 = 2;
+pub const BRACKET_SCALE_VERSION: u32 = 3;
 
 /// [`crate::model::bracket_scale`] on a fine mesh (the factor rests on a
 /// few surfaces' estimates, which coarse patches bias), cached next to the

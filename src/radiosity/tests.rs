@@ -110,3 +110,62 @@ fn zero_reflectance_and_zero_emission_give_zero_not_nan() {
     assert!(s.radiosity.iter().all(|b| *b == DVec3::ZERO) && s.residual == 0.0);
 }
 
+
+/// A unit cube [−1, 0]×[0, 1]×[0, 1] (one closed surface: one-sided faces)
+/// standing on a floor from x = `floor_start` to `floor_end` (an open surface).
+fn cube_on_floor(floor_start: f32, floor_end: f32, patch_size: f64) -> (Patches, Tracer) {
+    let cube: Vec<Triangle> = box_faces(1.0).into_iter().flatten().map(|t| t.map(|v| v - Vec3::X)).collect();
+    let (a, b, c, d) = (Vec3::new(floor_start, 0.0, 0.0), Vec3::new(floor_end, 0.0, 0.0), Vec3::new(floor_end, 0.0, 1.0), Vec3::new(floor_start, 0.0, 1.0));
+    let floor: Vec<Triangle> = vec![[a, b, c], [a, c, d]];
+    let inputs = [SurfaceInput { surface: 0, triangles: &cube, is_virtual: false }, SurfaceInput { surface: 1, triangles: &floor, is_virtual: false }];
+    let sets = [SurfaceTriangles { surface: 0, triangles: &cube }, SurfaceTriangles { surface: 1, triangles: &floor }];
+    (Patches::build(&inputs, patch_size), Tracer::build(&sets, &[]).unwrap())
+}
+
+#[test]
+fn a_solid_s_own_faces_do_not_shadow_what_its_faces_exchange() {
+    let (patches, tracer) = cube_on_floor(-3.0, 2.0, 10.0);
+    // The cube's faces point out; the open floor may face either way.
+    let root_on = |surface: u32, along: fn(DVec3) -> bool| *patches.roots.iter().find(|&&r| patches.elements[r as usize].surface == surface && along(patches.elements[r as usize].normal)).unwrap();
+    let face = root_on(0, |n| n.x > 0.99);
+    let floor = root_on(1, |n| n.y.abs() > 0.99);
+    let (f, q) = (&patches.elements[floor as usize], &patches.elements[face as usize]);
+    assert!(q.one_sided && !f.one_sided);
+    // The floor runs under the cube and beyond: segments from its hidden part to the
+    // face cross the cube, but they carry no light (the face sends none
+    // backwards), and from the part in front nothing of the cube is in the way.
+    let occluders = occluders_between(&patches, Layer::All, f, q, &patches.roots);
+    assert!(occluders.is_empty(), "the cube's faces {occluders:?} taken for occluders");
+    // As tracing says: rays from the floor in front of the face to the face pass.
+    let front = element(Shape::Quad { origin: DVec3::new(0.0, 0.0, 0.0), u: DVec3::X * 2.0, v: DVec3::Z });
+    assert_eq!(visibility(&front, q, &tracer, Layer::All), 1.0);
+}
+
+#[test]
+fn a_receiver_partly_behind_a_one_sided_source_gathers_from_the_part_in_front() {
+    // The floor reaches 0.1 past the cube's +x face: only that strip sees it.
+    let (patches, tracer) = cube_on_floor(-1.0, 0.1, 0.125);
+    let transport = Transport::hierarchical(&patches, &tracer, Layer::All, DEFAULT_LINK_EPSILON);
+    let face = |k: usize| patches.patch(k).surface == 0 && patches.patch(k).normal.dot(DVec3::X) > 0.99;
+    let b: Vec<DVec3> = (0..patches.patch_count()).map(|k| if face(k) { DVec3::ONE } else { DVec3::ZERO }).collect();
+    let gathered = transport.gather_rgb(&patches, &b);
+    let face_elements: Vec<&Element> = (0..patches.patch_count()).filter(|&k| face(k)).map(|k| patches.patch(k)).collect();
+    let (mut got, mut exact, mut area) = (0.0, 0.0, 0.0);
+    for k in (0..patches.patch_count()).filter(|&k| patches.patch(k).surface == 1) {
+        let p = patches.patch(k);
+        got += gathered[k].x * p.area;
+        area += p.area;
+        // What it gathers: the part of it in front of the face, integrated finely.
+        let (lo, hi) = p.bounds;
+        if hi.x <= 0.0 {
+            continue;
+        }
+        let strip = element(Shape::Quad { origin: DVec3::new(lo.x.max(0.0), 0.0, lo.z), u: DVec3::X * (hi.x - lo.x.max(0.0)), v: DVec3::Z * (hi.z - lo.z) });
+        for (x, w) in strip.shape.quadrature(16) {
+            exact += strip.area * w * face_elements.iter().map(|q| point_factor(x, &strip, q, &q.shape.corners())).sum::<f64>();
+        }
+    }
+    let (got, exact) = (got / area, exact / area);
+    println!("floor partly behind a cube's face: gathers {got:.5}, exact {exact:.5}");
+    assert!(exact > 0.0 && (got - exact).abs() < 0.05 * exact, "gathers {got}, exact {exact}");
+}
