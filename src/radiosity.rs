@@ -4,8 +4,10 @@
 //! Form factors ([`element_form_factor`]) integrate the exact point-to-polygon
 //! form factor over the receiver with one Gauss rule for all pairs, so they
 //! stay finite for touching elements and the factors out of a receiver in a
-//! closed room sum to one; visibility is the fraction of Embree rays between
-//! the two elements that pass.
+//! closed room sum to one (a receiver lying across a one-sided source's
+//! plane is integrated over the source instead: a step across it would
+//! otherwise fall between its Gauss points); visibility is the fraction of
+//! Embree rays between the two elements that pass.
 //!
 //! [`Transport`] is either the full patch-to-patch matrix (small scenes, and
 //! the test oracle) or hierarchical radiosity (Hanrahan et al. 1991, Loscos
