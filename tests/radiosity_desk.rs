@@ -21,13 +21,19 @@ fn desk() -> Scene {
     Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/desk/scene.toml")).unwrap()
 }
 
-#[test]
-fn hierarchical_agrees_with_the_full_matrix_within_one_percent_per_patch() {
+/// The desk's room at 0.5 m patches, with the photo's direct light per patch.
+fn desk_at_half_a_metre() -> (Scene, arlux::trace::Tracer, Patches, Vec<DVec3>) {
     let scene = desk();
     let tracer = scene.build_tracer().unwrap();
     let lights = LightSource::all(&scene).unwrap();
     let patches = Patches::of_scene(&scene, false, 0.5);
     let e = total_direct(&photo_scales(&lights), &direct_irradiance(&patches, &lights, &tracer, Layer::Real, 4));
+    (scene, tracer, patches, e)
+}
+
+#[test]
+fn hierarchical_agrees_with_the_full_matrix_within_one_percent_per_patch() {
+    let (scene, tracer, patches, e) = desk_at_half_a_metre();
     let photo = scene.load_photo().unwrap();
     let measured = PhotoPatches::measure(&scene.camera, &tracer, &patches, &photo);
     let t0 = Instant::now();
@@ -148,11 +154,7 @@ fn what_each_patch_gathers_agrees_with_tracing_its_hemisphere() {
     // full matrix and the hierarchy estimate visibility with a few rays
     // between elements; on average a patch's gathered irradiance must stay
     // within 2% of the traced one (the tracing's own noise is ~0.5%).
-    let scene = desk();
-    let tracer = scene.build_tracer().unwrap();
-    let lights = LightSource::all(&scene).unwrap();
-    let patches = Patches::of_scene(&scene, false, 0.5);
-    let e = total_direct(&photo_scales(&lights), &direct_irradiance(&patches, &lights, &tracer, Layer::Real, 4));
+    let (_, tracer, patches, e) = desk_at_half_a_metre();
     let full = Transport::full(&patches, &tracer, Layer::Real);
     let hier = Transport::hierarchical(&patches, &tracer, Layer::Real, DEFAULT_LINK_EPSILON);
     let rho = vec![DVec3::splat(0.6); patches.patch_count()];
