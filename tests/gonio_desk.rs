@@ -97,15 +97,17 @@ fn the_desk_spot_is_recovered_within_ten_percent_where_the_photo_sees_it() {
         100.0 * worst
     );
 
-    // Progress guard, not yet the bound (every direction within 10%):
-    // over half the directions are exact (the spot sends nothing there and
-    // the table says so); as a share of the peak, 95% are within 3.3% and
-    // 99% within 5.0% (9.7% without the penumbra model, the robust
-    // integration and the gap links weighed in series). The worst (0.35% of
-    // the directions over 10% of the peak) are on the checkerboard floor.
+    // The bound, read as a share of the true spot's peak: every
+    // direction within 10% (worst 8.7%; 95% within 3.6%, 99% within 4.7%).
+    // Before texture steps were measured across gaps and penumbra pixels
+    // read by EQ1, 167 directions were over it, the worst at 45%. Relative
+    // to each direction's own value, where that is over a tenth of the
+    // peak, 3.0% of those directions are still over 10%, most at the
+    // beam's edge, where I falls by half within a few degrees (and the
+    // table comes out 3–6% low on average there).
     assert!(errors[count / 2] < 0.02, "median direction error {:.1}%", 100.0 * errors[count / 2]);
     assert!(of_peak[count * 95 / 100] < 0.05, "95th percentile {:.1}% of the peak", 100.0 * of_peak[count * 95 / 100]);
-    assert!(of_peak[count * 99 / 100] < 0.065, "99th percentile {:.1}% of the peak", 100.0 * of_peak[count * 99 / 100]);
+    assert!(of_peak[count - 1] < 0.1, "worst direction {:.1}% of the peak", 100.0 * of_peak[count - 1]);
 
     // The desk ships no reflectance ground truth. Two references: arlux's
     // patch estimator given the true spot, and EQ2 per pixel given the true
@@ -134,10 +136,10 @@ fn the_desk_spot_is_recovered_within_ten_percent_where_the_photo_sees_it() {
         worst_patch = worst_patch.max(e_patch);
     }
     // The bound is 10%. Against EQ2 with the true spot: ceiling
-    // 0.0%, back wall 0.4%, floor 2.1%, legs 1.0%, table top 1.6%. Against
-    // the patch estimate: within 1.6% but for the legs, 23% — that estimate
+    // 0.0%, back wall 1.0%, floor 1.8%, legs 2.0%, table top 1.9%. Against
+    // the patch estimate: within 1.5% but for the legs, 19% — that estimate
     // is not converged on them (4 cm wide, their patches mostly silhouette:
-    // 0.25 m patches give red 0.567, 0.1 m 0.543, 0.05 m 0.520; here 0.505).
+    // 0.25 m patches give red 0.567, 0.1 m 0.543, 0.05 m 0.520; here 0.511).
     assert!(worst_rho < 0.05, "worst reflectance {:.1}% from EQ2 with the true spot", 100.0 * worst_rho);
     assert!(worst_patch < 0.3, "worst reflectance {:.1}% from the patch estimate", 100.0 * worst_patch);
 
