@@ -45,9 +45,14 @@ fn stage<T>(name: &str, f: impl FnOnce() -> T) -> T {
     out
 }
 
+/// Marks a stage that ran side by side within another: listed, not summed.
+const SIDE_BY_SIDE: &str = "  | ";
+
 /// Adds a library call's stage times to this run's.
 fn keep(times: &arlux::model::StageTimes) {
-    STAGES.lock().unwrap_or_else(|e| e.into_inner()).extend(times.0.iter().map(|(n, d)| (n.to_string(), *d)));
+    let mut stages = STAGES.lock().unwrap_or_else(|e| e.into_inner());
+    stages.extend(times.0.iter().map(|(n, d)| (n.to_string(), *d)));
+    stages.extend(times.1.iter().map(|(n, d)| (format!("{SIDE_BY_SIDE}{n}"), *d)));
 }
 
 /// Peak resident memory of this process (Linux: VmHWM), bytes.
@@ -68,14 +73,14 @@ fn report_timings(wall: std::time::Duration) {
             None => merged.push((name, d.as_secs_f64())),
         }
     }
-    let sum: f64 = merged.iter().map(|m| m.1).sum();
+    let sum: f64 = merged.iter().filter(|m| !m.0.starts_with(SIDE_BY_SIDE)).map(|m| m.1).sum();
     let wall = wall.as_secs_f64();
     eprintln!("timings:");
     for (name, secs) in &merged {
-        eprintln!("  {name:<26} {:>10.1} ms", secs * 1e3);
+        eprintln!("  {name:<32} {:>10.1} ms", secs * 1e3);
     }
-    eprintln!("  {:<26} {:>10.1} ms", "(outside stages)", (wall - sum).max(0.0) * 1e3);
-    eprintln!("  {:<26} {:>10.1} ms  (stages: {:.1}% of it)", "wall", wall * 1e3, 100.0 * sum / wall.max(1e-12));
+    eprintln!("  {:<32} {:>10.1} ms", "(outside stages)", (wall - sum).max(0.0) * 1e3);
+    eprintln!("  {:<32} {:>10.1} ms  (stages: {:.1}% of it)", "wall", wall * 1e3, 100.0 * sum / wall.max(1e-12));
     match peak_memory() {
         Some(b) => eprintln!("  peak memory {:.1} MB", b as f64 / 1e6),
         None => eprintln!("  peak memory: not known on this system"),
@@ -1291,13 +1296,17 @@ fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, 
 }
 
 fn stages_json(times: &arlux::model::StageTimes) -> serde_json::Value {
-    times.0.iter().map(|(n, d)| json!({ "stage": n, "seconds": d.as_secs_f64() })).collect()
+    let side_by_side = times.1.iter().map(|(n, d)| json!({ "stage": n, "seconds": d.as_secs_f64(), "side_by_side": true }));
+    times.0.iter().map(|(n, d)| json!({ "stage": n, "seconds": d.as_secs_f64() })).chain(side_by_side).collect()
 }
 
 fn print_stages(times: &arlux::model::StageTimes) -> Result<()> {
     say!("time per stage:");
     for (name, d) in &times.0 {
         say!("  {name:<26} {:>9.1} ms", d.as_secs_f64() * 1e3);
+    }
+    for (name, d) in &times.1 {
+        say!("  {:<26} {:>9.1} ms", format!("{SIDE_BY_SIDE}{name}"), d.as_secs_f64() * 1e3);
     }
     say!("  {:<26} {:>9.1} ms", "total", times.total().as_secs_f64() * 1e3);
     Ok(())

@@ -52,9 +52,11 @@ impl Default for ModelSettings {
     }
 }
 
-/// Wall time per named stage, in order.
+/// Wall time per named stage, in order; then the stages that ran side by
+/// side within one of those (see [`StageTimes::concurrently`]), which the
+/// total leaves out.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct StageTimes(pub Vec<(&'static str, Duration)>);
+pub struct StageTimes(pub Vec<(&'static str, Duration)>, pub Vec<(&'static str, Duration)>);
 
 impl StageTimes {
     /// Runs `f` and records its time under `name`.
@@ -65,6 +67,25 @@ impl StageTimes {
         out
     }
 
+    /// Runs `a` and `b` side by side (rayon's join) as the stage `name`;
+    /// the stages each records go to the side list.
+    pub fn concurrently<A: Send, B: Send>(
+        &mut self,
+        name: &'static str,
+        a: impl FnOnce(&mut StageTimes) -> A + Send,
+        b: impl FnOnce(&mut StageTimes) -> B + Send,
+    ) -> (A, B) {
+        let (mut ta, mut tb) = (StageTimes::default(), StageTimes::default());
+        let t0 = Instant::now();
+        let out = rayon::join(|| a(&mut ta), || b(&mut tb));
+        self.0.push((name, t0.elapsed()));
+        for t in [ta, tb] {
+            self.1.extend(t.0.into_iter().chain(t.1));
+        }
+        out
+    }
+
+    /// The stages' wall time (those run side by side counted once, as the stage they ran in).
     pub fn total(&self) -> Duration {
         self.0.iter().map(|(_, d)| *d).sum()
     }

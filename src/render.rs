@@ -190,7 +190,8 @@ impl Session {
         }
         let link_facts = crate::radiosity::RoomLinkFacts::new(&model.transport);
         let bounds = VirtualBounds::of(&scene.virtual_world_surfaces());
-        let changes = solve_changes(scene, &photo, &tracer, &model, &scales_with, &settings, &bounds, &link_facts, times);
+        let objects = object_patches(scene, &tracer, &settings, times);
+        let changes = solve_changes(scene, &photo, &tracer, &model, &scales_with, &settings, &bounds, &link_facts, objects.as_ref(), times).with_patches(objects);
         let patches = changes.own.as_ref().map_or(&model.patches, |o| &o.0);
         let pda = times.time("pixel data array", || {
             PixelDataArray::build(&PdaInput {
@@ -322,46 +323,59 @@ impl Session {
         // Keep the lights as rendered (a reconstructed one stays recovered).
         self.scene = Scene { lights: self.scene.lights.clone(), ..scene.clone() };
         self.bounds = VirtualBounds::of(&virt);
-        self.changes = solve_changes(&self.scene, &self.photo, &self.tracer, &self.model, &self.scales_with, &self.settings, &self.bounds, &self.link_facts, times);
-        let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| &o.0);
-        let input = PdaInput {
-            camera: &self.scene.camera,
-            tracer: &self.tracer,
-            patches,
-            lights: &self.model.lights,
-            active: &self.active,
-            bounds: &self.bounds,
-            settings: self.settings.pda,
-            for_updates: true,
+        let objects = object_patches(&self.scene, &self.tracer, &self.settings, times);
+        // The Pixel Data Array does not depend on the radiosity solution:
+        // the two are computed side by side.
+        let (solved, (touched, pixel_rays, retraced)) = {
+            let (scene, photo, tracer, model, scales_with, settings, bounds, link_facts) =
+                (&self.scene, &self.photo, &self.tracer, &self.model, &self.scales_with, &self.settings, &self.bounds, &self.link_facts);
+            let (pda, blocks, active, stats) = (&mut self.pda, self.blocks.as_ref().expect("prepared above"), &self.active, &mut stats);
+            let objects = objects.as_ref();
+            times.concurrently(
+                "radiosity | pixels",
+                |times| solve_changes(scene, photo, tracer, model, scales_with, settings, bounds, link_facts, objects, times),
+                |times| {
+                    let input = PdaInput {
+                        camera: &scene.camera,
+                        tracer,
+                        patches: objects.unwrap_or(&model.patches),
+                        lights: &model.lights,
+                        active,
+                        bounds,
+                        settings: settings.pda,
+                        for_updates: true,
+                    };
+                    let (mut rays, retraced) = times.time("re-trace objects and edges", || pda.rebuild_virtual(&input));
+                    let mut moved = old.objects.clone();
+                    moved.extend(bounds.objects.iter().copied());
+                    let traversals: Vec<Option<crate::blocks::Traversal>> = times.time("pixel-block traversal", || {
+                        use rayon::prelude::*;
+                        input.lights.par_iter().enumerate().map(|(l, light)| input.active[l].then(|| blocks.traverse(light, &moved))).collect()
+                    });
+                    let touched = times.time("recompute pixels", || {
+                        let mut touched = vec![false; (pda.width * pda.height) as usize];
+                        for (l, t) in traversals.into_iter().enumerate() {
+                            let Some(t) = t else {
+                                stats.skipped_blocks.push(Vec::new());
+                                continue;
+                            };
+                            stats.shaft_tests += t.shaft_tests;
+                            rays += pda.recompute_real_terms(&input, &t.pixels, l);
+                            for &pixel in &t.pixels {
+                                touched[pixel as usize] = true;
+                            }
+                            stats.skipped_blocks.push(t.skipped);
+                        }
+                        stats.pixels_recomputed = touched.iter().filter(|t| **t).count();
+                        touched
+                    });
+                    (touched, rays, retraced)
+                },
+            )
         };
-        let pda = &mut self.pda;
-        let blocks = self.blocks.as_ref().expect("prepared above");
-        let (rays, retraced) = times.time("re-trace objects and edges", || pda.rebuild_virtual(&input));
-        stats.rays += rays;
+        self.changes = solved.with_patches(objects);
+        stats.rays += pixel_rays;
         stats.pixels_retraced = retraced;
-        let mut moved = old.objects.clone();
-        moved.extend(input.bounds.objects.iter().copied());
-        let traversals: Vec<Option<crate::blocks::Traversal>> = times.time("pixel-block traversal", || {
-            use rayon::prelude::*;
-            input.lights.par_iter().enumerate().map(|(l, light)| input.active[l].then(|| blocks.traverse(light, &moved))).collect()
-        });
-        let touched = times.time("recompute pixels", || {
-            let mut touched = vec![false; (pda.width * pda.height) as usize];
-            for (l, t) in traversals.into_iter().enumerate() {
-                let Some(t) = t else {
-                    stats.skipped_blocks.push(Vec::new());
-                    continue;
-                };
-                stats.shaft_tests += t.shaft_tests;
-                stats.rays += pda.recompute_real_terms(&input, &t.pixels, l);
-                for &pixel in &t.pixels {
-                    touched[pixel as usize] = true;
-                }
-                stats.skipped_blocks.push(t.skipped);
-            }
-            stats.pixels_recomputed = touched.iter().filter(|t| **t).count();
-            touched
-        });
         let recomputed: Vec<u32> = (0..touched.len() as u32).filter(|&p| touched[p as usize]).collect();
         self.rays = stats.rays;
         self.recomposite(times, &recomputed);
@@ -385,9 +399,34 @@ impl Session {
     }
 }
 
-/// Radiosity with the changes: the virtual objects' patches join the room's
-/// with their own reflectance and shadow its exchanges; lights at their new
-/// scales; the objects' own indirect light gathered from the photo.
+/// The room's patches and then the virtual objects' (None: no object).
+fn object_patches(scene: &Scene, tracer: &crate::trace::Tracer, settings: &RenderSettings, times: &mut StageTimes) -> Option<Patches> {
+    tracer
+        .virtual_objects
+        .is_some()
+        .then(|| times.time("virtual mesh", || Patches::of_scene_with(scene, true, settings.model.patch_size, settings.virtual_patch_size)))
+}
+
+/// [`Changes`] but for the objects' patches, which the caller keeps while
+/// it is solved (an update builds the Pixel Data Array's virtual part on
+/// them meanwhile).
+struct Solved {
+    own: Option<(Vec<Vec<DVec3>>, Transport)>,
+    reflectance: Vec<DVec3>,
+    indirect_with: Vec<DVec3>,
+}
+
+impl Solved {
+    fn with_patches(self, patches: Option<Patches>) -> Changes {
+        let own = patches.zip(self.own).map(|(p, (direct, transport))| (p, direct, transport));
+        Changes { own, reflectance: self.reflectance, indirect_with: self.indirect_with }
+    }
+}
+
+/// Radiosity with the changes: the virtual objects' patches (`objects`,
+/// from [`object_patches`]) join the room's with their own reflectance and
+/// shadow its exchanges; lights at their new scales; the objects' own
+/// indirect light gathered from the photo.
 #[allow(clippy::too_many_arguments)]
 fn solve_changes(
     scene: &Scene,
@@ -398,25 +437,25 @@ fn solve_changes(
     settings: &RenderSettings,
     bounds: &VirtualBounds,
     link_facts: &crate::radiosity::RoomLinkFacts,
+    objects: Option<&Patches>,
     times: &mut StageTimes,
-) -> Changes {
+) -> Solved {
     let lights = &model.lights;
-    let has_virtual = tracer.virtual_objects.is_some();
-    let own: Option<(Patches, Vec<Vec<DVec3>>, Transport)> = has_virtual.then(|| {
-        let patches = times.time("virtual mesh", || Patches::of_scene_with(scene, true, settings.model.patch_size, settings.virtual_patch_size));
+    let has_virtual = objects.is_some();
+    let own: Option<(&Patches, Vec<Vec<DVec3>>, Transport)> = objects.map(|patches| {
         let direct = times.time("direct light with objects", || {
-            direct_irradiance_with_objects(&patches, lights, tracer, settings.model.light_level, &model.direct_per_light, &bounds.objects)
+            direct_irradiance_with_objects(patches, lights, tracer, settings.model.light_level, &model.direct_per_light, &bounds.objects)
         });
         let epsilon = match settings.model.transport {
             TransportMethod::Full => crate::radiosity::DEFAULT_LINK_EPSILON,
             TransportMethod::Hierarchical { epsilon } => epsilon,
         };
         // With final gathering the objects' light comes from the photo: they need no links to gather through.
-        let transport = times.time("form factors with objects", || model.transport.with_objects_using(&patches, tracer, epsilon, settings.gather_rays == 0, Some(link_facts)));
+        let transport = times.time("form factors with objects", || model.transport.with_objects_using(patches, tracer, epsilon, settings.gather_rays == 0, Some(link_facts)));
         (patches, direct, transport)
     });
     let (patches, direct_per_light, transport) = match &own {
-        Some((p, d, t)) => (p, d, t),
+        Some((p, d, t)) => (*p, d, t),
         None => (&model.patches, &model.direct_per_light, &model.transport),
     };
     let virtual_rgb: HashMap<u32, DVec3> = scene.virtual_surface_rgb();
@@ -455,7 +494,7 @@ fn solve_changes(
         let room = patches.vertex_values(&again.indirect_irradiance);
         indirect_with[..real_vertices].copy_from_slice(&room[..real_vertices]);
     }
-    Changes { own, reflectance, indirect_with }
+    Solved { own: own.map(|(_, d, t)| (d, t)), reflectance, indirect_with }
 }
 
 /// Indirect irradiance at the virtual objects' vertices gathered from the

@@ -40,6 +40,9 @@ fn every_update_equals_a_full_render_of_its_pose() {
         for (name, d) in &times.0 {
             println!("    {name:<28} {:>7.1} ms", d.as_secs_f64() * 1e3);
         }
+        for (name, d) in &times.1 {
+            println!("      | {name:<26} {:>7.1} ms", d.as_secs_f64() * 1e3);
+        }
         assert_eq!(direct, 0, "pose {pose}: direct light must match bit for bit");
         assert_eq!(d, 0, "pose {pose}: the image must match");
     }
