@@ -1172,7 +1172,8 @@ struct Evidence {
     mixed: Vec<bool>,
     sharp: Vec<bool>,
     unreadable: Vec<bool>,
-    /// The texture (ln, per channel and sample of `all`) last found.
+    /// The texture last found (ln per channel and sample of `all`), with
+    /// its robust weights.
     texture: Texture,
     width: u32,
     height: u32,
