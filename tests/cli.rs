@@ -418,9 +418,22 @@ fn timings_add_up_to_the_wall_time_on_every_command() {
     ];
     for c in &commands {
         let args: Vec<&str> = c.iter().map(|s| s.as_str()).collect();
-        // The best of three: other tests share the machine, and time lost to
-        // them between stages is not arlux's.
-        let (share, memory) = (0..3).map(|_| timed_share(&args)).max_by(|a, b| a.0.total_cmp(&b.0)).unwrap();
+        // The best of up to six runs, stopping at the first that covers 95%:
+        // other tests share the machine, and time lost to them between
+        // stages is not arlux's (a short command like `compare`, ~50 ms,
+        // once lost over 5% of it in three runs in a row under load).
+        // Untimed work of arlux's own would show in every run.
+        let mut best = (0.0f64, 0.0f64);
+        for _ in 0..6 {
+            let run = timed_share(&args);
+            if run.0 > best.0 {
+                best = run;
+            }
+            if best.0 >= 95.0 {
+                break;
+            }
+        }
+        let (share, memory) = best;
         println!("{}: stages {share:.1}% of the wall time, peak memory {memory:.1} MB", c[0]);
         assert!((95.0..=100.0).contains(&share), "{}: stages cover {share}% of the wall time", c[0]);
         assert!(memory > 1.0, "{}: peak memory {memory} MB", c[0]);
