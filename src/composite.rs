@@ -62,7 +62,9 @@ pub struct CompositeInput<'a> {
 /// D (the "without" irradiance) is under the floor or the mode says so —
 /// and the band of H within which the photo's pixel stands (only where the
 /// direct light is unchanged). Everything but H is fixed while objects
-/// move, and this is all a pixel reads (not the PDA's point and terms).
+/// move, and this is all a pixel reads (not the PDA's point and terms):
+/// 68 bytes, read for every pixel of every update's composite, whose time
+/// is mostly memory traffic.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RealPixel {
     offset: Vec3,
@@ -70,10 +72,14 @@ pub struct RealPixel {
     h_without: Vec3,
     /// Negative: the direct light changed, never the photo's pixel.
     band: Vec3,
-    direct_with: Vec3,
-    location: PatchPoint,
-    fallback: bool,
+    /// The patch the point lies in, with [`FALLBACK`] set where the ratio
+    /// fell back to the additive form.
+    patch: u32,
+    weights: [f32; 4],
 }
+
+/// [`RealPixel::patch`]'s flag bit (patch numbers stay below it).
+const FALLBACK: u32 = 1 << 31;
 
 /// [`RealPixel`] per real point of the PDA, and the floor under which a
 /// ratio is not trusted (a thousandth of the mean "without" irradiance).
@@ -127,27 +133,36 @@ impl RealPixels {
 }
 
 impl RealPixel {
-    /// The pixel's shade for indirect irradiance `h`.
-    fn shade(&self, h: DVec3, photo: DVec3) -> Shade {
+    fn fallback(&self) -> bool {
+        self.patch & FALLBACK != 0
+    }
+
+    fn patch(&self) -> usize {
+        (self.patch & !FALLBACK) as usize
+    }
+
+    /// The pixel's shade for indirect irradiance `h`, under direct irradiance `direct`.
+    fn shade(&self, h: DVec3, photo: DVec3, direct: DVec3) -> Shade {
         let hf = h.as_vec3();
         if self.band.x >= 0.0 && (hf - self.h_without).abs().cmple(self.band).all() {
-            return Shade { value: photo, direct: self.direct_with.as_dvec3(), indirect: h, copied: true, fallback: false, clamped: false };
+            return Shade { value: photo, direct, indirect: h, copied: true, fallback: false, clamped: false };
         }
         let value = (self.offset + self.slope * hf).as_dvec3();
         let clamped = value.min_element() < 0.0 || !value.is_finite();
         let value = if value.is_finite() { value.max(DVec3::ZERO) } else { DVec3::ZERO };
-        Shade { value, direct: self.direct_with.as_dvec3(), indirect: h, copied: false, fallback: self.fallback, clamped }
+        Shade { value, direct, indirect: h, copied: false, fallback: self.fallback(), clamped }
     }
 
-    /// [`RealPixel::shade`] in single precision, as the layers take it.
-    fn layers(&self, h: Vec3, photo: Vec3) -> PixelShade {
+    /// [`RealPixel::shade`] in single precision, as the layers take it (the
+    /// direct layer left to the caller); the photo's pixel read only when kept.
+    fn layers(&self, h: Vec3, photo: &Vec3) -> PixelShade {
         if self.band.x >= 0.0 && (h - self.h_without).abs().cmple(self.band).all() {
-            return PixelShade { value: photo, direct: self.direct_with, indirect: h, alpha: 0.0, copied: true, fallback: false, clamped: false };
+            return PixelShade { value: *photo, direct: Vec3::ZERO, indirect: h, alpha: 0.0, copied: true, fallback: false, clamped: false };
         }
         let value = self.offset + self.slope * h;
         let clamped = value.min_element() < 0.0 || !value.is_finite();
         let value = if value.is_finite() { value.max(Vec3::ZERO) } else { Vec3::ZERO };
-        PixelShade { value, direct: self.direct_with, indirect: h, alpha: 0.0, copied: false, fallback: self.fallback, clamped }
+        PixelShade { value, direct: Vec3::ZERO, indirect: h, alpha: 0.0, copied: false, fallback: self.fallback(), clamped }
     }
 }
 
@@ -225,7 +240,9 @@ impl CompositeInput<'_> {
             }
         }
         let band = if e_w == e_wo { (without * UNCHANGED_INDIRECT).as_vec3() } else { Vec3::splat(-1.0) };
-        RealPixel { offset: offset.as_vec3(), slope: slope.as_vec3(), h_without: h_wo.as_vec3(), band, direct_with: e_w.as_vec3(), location: p.location, fallback }
+        debug_assert!(p.location.patch < FALLBACK);
+        let patch = p.location.patch | if fallback { FALLBACK } else { 0 };
+        RealPixel { offset: offset.as_vec3(), slope: slope.as_vec3(), h_without: h_wo.as_vec3(), band, patch, weights: p.location.weights }
     }
 
     fn shade_virtual(&self, p: &SurfacePoint, terms: &[LightTerm]) -> Shade {
@@ -361,7 +378,8 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                     virtual_count += 1;
                     input.shade_virtual(p, terms)
                 } else {
-                    input.real_pixel(p, terms, photo, floor).shade(input.interpolate(input.indirect_with, &p.location), photo)
+                    let direct = input.irradiance(terms, input.scales_with, true);
+                    input.real_pixel(p, terms, photo, floor).shade(input.interpolate(input.indirect_with, &p.location), photo, direct)
                 };
                 sum.value += s.value;
                 sum.direct += s.direct;
@@ -402,7 +420,11 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                 &prepared
             }
         };
-        Some(r.layers(interpolate_single(&h_with, &input.patch_vertices[r.location.patch as usize], r.location.weights), photo[i]))
+        let mut s = r.layers(interpolate_single(&h_with, &input.patch_vertices[r.patch()], r.weights), &photo[i]);
+        if input.layers {
+            s.direct = input.irradiance(&pda.real.terms[k * lights..(k + 1) * lights], input.scales_with, true).as_vec3();
+        }
+        Some(s)
     };
     out.fill(input.photo, |i| {
         if let Some(p) = plain(i) {

@@ -415,6 +415,26 @@ fn light_term(
                 level = settings.penumbra_level;
                 continue;
             }
+            // Where no ray or every ray is blocked the fractions are 1 or 0
+            // whatever the rays weigh: the weights (the light's intensity
+            // towards x per sample) are needed only for the rest.
+            let settled = |blocked: &mut dyn Iterator<Item = bool>| {
+                let (mut some, mut none) = (false, false);
+                for b in blocked {
+                    some |= b;
+                    none |= !b;
+                }
+                match (some, none) {
+                    (false, _) => Some(1.0),
+                    (true, false) => Some(0.0),
+                    _ => None,
+                }
+            };
+            let real_settled = settled(&mut real_blocked[..count].iter().copied());
+            let all_settled = settled(&mut (0..count).map(|k| real_blocked[k] || virt_blocked[k]));
+            if let (Some(real), Some(all)) = (real_settled, all_settled) {
+                return (LightTerm::new(unoccluded, real, all), rays_cast);
+            }
             // Each ray weighs what its sample contributes at x.
             let (mut total, mut real, mut all) = (0.0, 0.0, 0.0);
             for k in 0..count {

@@ -242,17 +242,44 @@ fn may_be_occluded_using(patches: &Patches, layer: Layer, p: &Element, q: &Eleme
 /// The fraction of rays between points of `p` and points of `q` that no
 /// geometry of `layer` blocks.
 pub fn visibility(p: &Element, q: &Element, tracer: &Tracer, layer: Layer) -> f64 {
-    let (r, m) = visibility_sampling(p, q);
-    let targets: Vec<DVec3> = q.shape.quadrature(m).into_iter().map(|(x, _)| x).collect();
-    let rays: Vec<TraceRay> = p
-        .shape
-        .quadrature(r)
-        .into_iter()
-        .flat_map(|(x, _)| targets.iter().map(move |&t| segment(offset_origin(x, p.normal, t), t)))
-        .collect();
+    let rays = visibility_rays(p, q);
     let mut blocked = vec![false; rays.len()];
     tracer.occluded_batch(&rays, layer, &mut blocked);
     blocked.iter().filter(|b| !**b).count() as f64 / rays.len() as f64
+}
+
+/// The rays [`visibility`] traces between `p` and `q`.
+fn visibility_rays(p: &Element, q: &Element) -> Vec<TraceRay> {
+    let (r, m) = visibility_sampling(p, q);
+    let targets: Vec<DVec3> = q.shape.quadrature(m).into_iter().map(|(x, _)| x).collect();
+    p.shape.quadrature(r).into_iter().flat_map(|(x, _)| targets.iter().map(move |&t| segment(offset_origin(x, p.normal, t), t))).collect()
+}
+
+/// Which of [`visibility_rays`] the room's geometry blocks, bit k for ray
+/// k (None: more rays than bits). Traced even where no room root may
+/// block the pair: [`visibility`] traces the room too once an object may,
+/// and its rays can meet what the shafts leave out (a neighbouring
+/// surface at their very start).
+fn room_blocked(p: &Element, q: &Element, tracer: &Tracer) -> Option<u64> {
+    let rays = visibility_rays(p, q);
+    if rays.len() > 64 {
+        return None;
+    }
+    let mut blocked = vec![false; rays.len()];
+    tracer.occluded_batch(&rays, Layer::Real, &mut blocked);
+    Some(blocked.iter().enumerate().fold(0, |m, (k, b)| m | (*b as u64) << k))
+}
+
+/// [`visibility`] through all geometry, `room` giving which rays the
+/// room blocks (see [`room_blocked`]): the rays are traced through the
+/// objects alone, as [`Layer::All`] traces them after the room (all of
+/// them, in the same packets: Embree may decide a grazing ray differently
+/// in a packet with fewer rays), so the same fraction results.
+fn visibility_with_room(p: &Element, q: &Element, tracer: &Tracer, room: u64) -> f64 {
+    let rays = visibility_rays(p, q);
+    let mut blocked = vec![false; rays.len()];
+    tracer.occluded_batch(&rays, Layer::Virtual, &mut blocked);
+    blocked.iter().enumerate().filter(|(k, b)| room >> k & 1 == 0 && !**b).count() as f64 / rays.len() as f64
 }
 
 /// The form factor from receiver element `p` to source element `q` (what
@@ -403,7 +430,7 @@ impl Transport {
                         let (ep, eq) = (&patches.elements[l.receiver as usize], &patches.elements[l.source as usize]);
                         match facts.and_then(|f| Some((f.facts.get(i)?, f.shafts.get(i)?))) {
                             Some((cell, shafts)) => {
-                                let known = cell.get_or_init(|| PairFacts::of(patches, ep, eq, &room_roots, shafts));
+                                let known = cell.get_or_init(|| PairFacts::of(patches, tracer, ep, eq, &room_roots, shafts));
                                 refine_from(patches, tracer, Layer::All, epsilon, l.receiver, l.source, all_roots, Some((known, &object_roots, shafts)), &mut out);
                             }
                             None => refine(patches, tracer, Layer::All, epsilon, l.receiver, l.source, all_roots, &mut out),
@@ -575,17 +602,21 @@ pub struct PairFacts {
     source_spread: f64,
     form_factor: f64,
     occluders: Vec<u32>,
+    /// Which of the pair's visibility rays the room blocks ([`room_blocked`]).
+    room_blocked: Option<u64>,
 }
 
 impl PairFacts {
-    fn of(patches: &Patches, p: &Element, q: &Element, room_roots: &[u32], shafts: &PairShafts) -> PairFacts {
+    fn of(patches: &Patches, tracer: &Tracer, p: &Element, q: &Element, room_roots: &[u32], shafts: &PairShafts) -> PairFacts {
         let (spread, mean) = factor_spread(p, q);
+        let occluders = occluders_between_using(patches, Layer::All, p, q, room_roots, shafts);
         PairFacts {
             spread,
             mean,
             source_spread: source_spread(p, q),
             form_factor: unoccluded_form_factor(p, q),
-            occluders: occluders_between_using(patches, Layer::All, p, q, room_roots, shafts),
+            room_blocked: room_blocked(p, q, tracer),
+            occluders,
         }
     }
 }
@@ -649,7 +680,12 @@ fn refine_from(
         if occluded && f > epsilon * VISIBILITY_REFINE_FRACTION && !(p_leaf && q_leaf) {
             Some(!p_leaf && (q_leaf || ep.area >= eq.area))
         } else {
-            let v = if occluded { visibility(ep, eq, tracer, layer) } else { 1.0 };
+            // A room pair's rays through the room were traced before: only the objects are left.
+            let v = match facts.and_then(|f| f.room_blocked) {
+                _ if !occluded => 1.0,
+                Some(room) if layer == Layer::All => visibility_with_room(ep, eq, tracer, room),
+                _ => visibility(ep, eq, tracer, layer),
+            };
             if v > 0.0 {
                 out.push(Link { receiver: p, source: q, form_factor: (f * v) as f32 });
             }

@@ -143,6 +143,42 @@ pub struct Session {
     link_facts: crate::radiosity::RoomLinkFacts,
     /// Whether composites keep the direct, indirect and change layers (see [`Session::image_only`]).
     layers: bool,
+    /// The objects' gather directions, for the next pose.
+    gather_directions: GatherDirections,
+}
+
+/// Final gathering's directions per virtual vertex (its number and
+/// normal): they depend on nothing else, so a moved object's vertices,
+/// numbered and facing as before, reuse them (computing them took a
+/// seventh of the gather).
+#[derive(Debug, Default)]
+struct GatherDirections {
+    side: u32,
+    of: HashMap<(u32, [u64; 3]), Vec<DVec3>>,
+}
+
+impl GatherDirections {
+    fn key(v: u32, n: DVec3) -> (u32, [u64; 3]) {
+        (v, n.to_array().map(f64::to_bits))
+    }
+
+    /// Keeps the directions of `vertices` (vertex, normal) only, making the missing ones.
+    fn keep(&mut self, vertices: &[(u32, DVec3)], side: u32) {
+        use rayon::prelude::*;
+        if side != self.side {
+            self.of.clear();
+            self.side = side;
+        }
+        let mut old = std::mem::take(&mut self.of);
+        let (kept, missing): (Vec<_>, Vec<_>) = vertices.iter().map(|&(v, n)| (GatherDirections::key(v, n), v, n)).partition(|(k, _, _)| old.contains_key(k));
+        self.of = kept.into_iter().map(|(k, _, _)| (k, old.remove(&k).expect("partitioned on it"))).collect();
+        let made: Vec<_> = missing.into_par_iter().map(|(k, v, n)| (k, crate::gather::cosine_directions(n, side, crate::light::hash2(v as u64, 0x6A7E)))).collect();
+        self.of.extend(made);
+    }
+
+    fn of(&self, v: u32, n: DVec3) -> &[DVec3] {
+        &self.of[&GatherDirections::key(v, n)]
+    }
 }
 
 /// What an update did.
@@ -191,7 +227,8 @@ impl Session {
         let link_facts = crate::radiosity::RoomLinkFacts::new(&model.transport);
         let bounds = VirtualBounds::of(&scene.virtual_world_surfaces());
         let objects = object_patches(scene, &tracer, &settings, times);
-        let changes = solve_changes(scene, &photo, &tracer, &model, &scales_with, &settings, &bounds, &link_facts, objects.as_ref(), times).with_patches(objects);
+        let mut gather_directions = GatherDirections::default();
+        let changes = solve_changes(scene, &photo, &tracer, &model, &scales_with, &settings, &bounds, &link_facts, objects.as_ref(), &mut gather_directions, times).with_patches(objects);
         let patches = changes.own.as_ref().map_or(&model.patches, |o| &o.0);
         let pda = times.time("pixel data array", || {
             PixelDataArray::build(&PdaInput {
@@ -228,6 +265,7 @@ impl Session {
             for_updates,
             link_facts,
             layers: true,
+            gather_directions,
         };
         session.recomposite(times, &[]);
         Ok(session)
@@ -327,13 +365,13 @@ impl Session {
         // The Pixel Data Array does not depend on the radiosity solution:
         // the two are computed side by side.
         let (solved, (touched, pixel_rays, retraced)) = {
-            let (scene, photo, tracer, model, scales_with, settings, bounds, link_facts) =
-                (&self.scene, &self.photo, &self.tracer, &self.model, &self.scales_with, &self.settings, &self.bounds, &self.link_facts);
+            let (scene, photo, tracer, model, scales_with, settings, bounds, link_facts, directions) =
+                (&self.scene, &self.photo, &self.tracer, &self.model, &self.scales_with, &self.settings, &self.bounds, &self.link_facts, &mut self.gather_directions);
             let (pda, blocks, active, stats) = (&mut self.pda, self.blocks.as_ref().expect("prepared above"), &self.active, &mut stats);
             let objects = objects.as_ref();
             times.concurrently(
                 "radiosity | pixels",
-                |times| solve_changes(scene, photo, tracer, model, scales_with, settings, bounds, link_facts, objects, times),
+                |times| solve_changes(scene, photo, tracer, model, scales_with, settings, bounds, link_facts, objects, directions, times),
                 |times| {
                     let input = PdaInput {
                         camera: &scene.camera,
@@ -438,6 +476,7 @@ fn solve_changes(
     bounds: &VirtualBounds,
     link_facts: &crate::radiosity::RoomLinkFacts,
     objects: Option<&Patches>,
+    directions: &mut GatherDirections,
     times: &mut StageTimes,
 ) -> Solved {
     let lights = &model.lights;
@@ -475,7 +514,7 @@ fn solve_changes(
     if has_virtual && settings.gather_rays > 0 {
         let real_vertices = model.patches.vertices.len();
         let gathered = times.time("final gather on objects", || {
-            final_gather(scene, tracer, patches, real_vertices, photo, &with.radiosity, &model.estimate.solution.radiosity, settings.gather_rays)
+            final_gather(scene, tracer, patches, real_vertices, photo, &with.radiosity, &model.estimate.solution.radiosity, settings.gather_rays, directions)
         });
         for (v, h) in gathered {
             indirect_with[v] = h;
@@ -513,8 +552,9 @@ fn final_gather(
     radiosity_with: &[DVec3],
     radiosity_without: &[DVec3],
     rays: u32,
+    directions: &mut GatherDirections,
 ) -> Vec<(usize, DVec3)> {
-    use crate::light::{hash2, offset_origin};
+    use crate::light::offset_origin;
     use crate::trace::TraceRay;
     use rayon::prelude::*;
     // Each virtual vertex with the normal of the plane it lies in.
@@ -530,13 +570,15 @@ fn final_gather(
     let cam = &scene.camera;
     let side = (rays as f64).sqrt().ceil() as u32;
     let pi = std::f64::consts::PI;
+    directions.keep(&vertices, side);
+    let directions = &*directions;
     vertices
         .par_iter()
         .map(|&(v, n)| {
             let p = patches.vertices[v as usize];
             // Faces are one-sided here (solids face out, open surfaces face the camera).
             let origin = offset_origin(p, n, p + n);
-            let dirs = crate::gather::cosine_directions(n, side, hash2(v as u64, 0x6A7E));
+            let dirs = directions.of(v, n);
             let traced: Vec<TraceRay> = dirs.iter().map(|d| TraceRay::new(origin.as_vec3(), d.as_vec3())).collect();
             let mut hits = vec![None; traced.len()];
             tracer.intersect_batch(&traced, Layer::All, &mut hits);

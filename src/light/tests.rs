@@ -123,3 +123,23 @@ fn half_a_panel_hidden_behind_a_wall_gives_half_visibility() {
     let clear = p.direct(&tracer, Layer::All, DVec3::new(-1.0, 1.5, 0.0), DVec3::Y, 4, 3);
     assert!(clear.visibility > 0.0);
 }
+
+#[test]
+fn the_polygon_factors_angle_matches_atan2_to_the_last_places() {
+    let mut worst: f64 = 0.0;
+    let mut state = 11u64;
+    for k in 0..200_000 {
+        // Wide magnitudes, both signs of x.
+        let y = unit_random(&mut state) * 10f64.powi((k % 13) as i32 - 6);
+        let x = (unit_random(&mut state) - 0.5) * 10f64.powi((k % 11) as i32 - 5);
+        let (exact, ours) = (y.atan2(x), angle_atan2(y, x));
+        worst = worst.max((ours - exact).abs() / exact.abs().max(1e-300));
+    }
+    assert!(worst < 4.0 * f64::EPSILON, "worst relative error {worst:e}");
+    // Exact edges, and where the reduction switches branches.
+    let t3 = 2.414_213_562_373_095;
+    for (y, x) in [(0.0f64, 1.0f64), (0.0, -1.0), (1.0, 0.0), (0.0, 0.0), (1e-300, 1.0), (1.0, 1e-300), (1.0, -1e-300), (1.0, 1.0), (1.0, -1.0), (0.66, 1.0), (t3, 1.0), (t3, -1.0)] {
+        let (exact, ours) = (y.atan2(x), angle_atan2(y, x));
+        assert!((ours - exact).abs() <= 4.0 * f64::EPSILON * exact.abs(), "atan2({y}, {x}): {ours} against {exact}");
+    }
+}
