@@ -201,7 +201,7 @@ pub struct Location {
 }
 
 /// The meshed scene.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Patches {
     pub elements: Vec<Element>,
     pub roots: Vec<u32>,
@@ -231,6 +231,19 @@ impl Patches {
     /// single radiosity for both sides would pass light through walls.
     pub fn of_scene_with(scene: &crate::scene::Scene, with_virtual: bool, target_size: f64, virtual_size: f64) -> Patches {
         let mut p = Self::of_scene_two_sided(scene, with_virtual, target_size, virtual_size);
+        p.face_open_surfaces_towards(scene.camera.position);
+        p
+    }
+
+    /// [`Patches::of_scene_with`] (with the virtual objects) from the
+    /// room's own mesh, `room` = `of_scene(scene, false, target_size)`:
+    /// its part is the same, so it is copied rather than meshed again (an
+    /// update meshes the moved objects alone).
+    pub fn of_scene_from_room(room: &Patches, scene: &crate::scene::Scene, virtual_size: f64) -> Patches {
+        let mut p = room.clone();
+        let virt = scene.virtual_world_surfaces();
+        let inputs: Vec<SurfaceInput> = virt.iter().map(|(id, t)| SurfaceInput { surface: *id, triangles: t, is_virtual: true }).collect();
+        p.append(&inputs, virtual_size);
         p.face_open_surfaces_towards(scene.camera.position);
         p
     }

@@ -226,7 +226,7 @@ impl Session {
         }
         let link_facts = crate::radiosity::RoomLinkFacts::new(&model.transport);
         let bounds = VirtualBounds::of(&scene.virtual_world_surfaces());
-        let objects = object_patches(scene, &tracer, &settings, times);
+        let objects = object_patches(scene, &model.patches, &tracer, &settings, times);
         let mut gather_directions = GatherDirections::default();
         let changes = solve_changes(scene, &photo, &tracer, &model, &scales_with, &settings, &bounds, &link_facts, objects.as_ref(), &mut gather_directions, times).with_patches(objects);
         let patches = changes.own.as_ref().map_or(&model.patches, |o| &o.0);
@@ -361,7 +361,7 @@ impl Session {
         // Keep the lights as rendered (a reconstructed one stays recovered).
         self.scene = Scene { lights: self.scene.lights.clone(), ..scene.clone() };
         self.bounds = VirtualBounds::of(&virt);
-        let objects = object_patches(&self.scene, &self.tracer, &self.settings, times);
+        let objects = object_patches(&self.scene, &self.model.patches, &self.tracer, &self.settings, times);
         // The Pixel Data Array does not depend on the radiosity solution:
         // the two are computed side by side.
         let (solved, (touched, pixel_rays, retraced)) = {
@@ -438,11 +438,11 @@ impl Session {
 }
 
 /// The room's patches and then the virtual objects' (None: no object).
-fn object_patches(scene: &Scene, tracer: &crate::trace::Tracer, settings: &RenderSettings, times: &mut StageTimes) -> Option<Patches> {
+fn object_patches(scene: &Scene, room: &Patches, tracer: &crate::trace::Tracer, settings: &RenderSettings, times: &mut StageTimes) -> Option<Patches> {
     tracer
         .virtual_objects
         .is_some()
-        .then(|| times.time("virtual mesh", || Patches::of_scene_with(scene, true, settings.model.patch_size, settings.virtual_patch_size)))
+        .then(|| times.time("virtual mesh", || Patches::of_scene_from_room(room, scene, settings.virtual_patch_size)))
 }
 
 /// [`Changes`] but for the objects' patches, which the caller keeps while

@@ -193,3 +193,18 @@ fn what_each_patch_gathers_agrees_with_tracing_its_hemisphere() {
     println!("gathered irradiance against tracing, mean over {count} patches: full matrix {:.2}%, hierarchical {:.2}%", 100.0 * full_error, 100.0 * hier_error);
     assert!(full_error < 0.02 && hier_error < 0.02);
 }
+
+#[test]
+fn the_objects_mesh_from_the_rooms_is_the_whole_scenes_mesh() {
+    // An update copies the room's mesh and adds the moved objects' to it:
+    // the same elements, vertices and numbering as meshing everything anew.
+    let base = desk();
+    for (variant, size) in [("box_floor_a", 1.0), ("box_table", 0.25)] {
+        let scene = base.with_variant(variant).unwrap();
+        let room = Patches::of_scene(&scene, false, size);
+        let whole = Patches::of_scene_with(&scene, true, size, 0.1);
+        let from_room = Patches::of_scene_from_room(&room, &scene, 0.1);
+        assert!(whole.patch_count() > room.patch_count(), "{variant}: the object adds patches");
+        assert!(from_room == whole, "{variant}: the meshes differ");
+    }
+}
