@@ -50,6 +50,7 @@ pub struct RenderSettings {
     /// 144 (12×12 strata): on the desk's box variants the error on the box
     /// is the same as at 256 and 1024 to within ±2.5% (the truth's own
     /// noise), at 4 ms against 7 and 27; 64 and 16 lose up to 3% and 20%.
+    /// Vertices on faces turned from the camera take a quarter of them.
     pub gather_rays: u32,
 }
 
@@ -147,37 +148,34 @@ pub struct Session {
     gather_directions: GatherDirections,
 }
 
-/// Final gathering's directions per virtual vertex (its number and
-/// normal): they depend on nothing else, so a moved object's vertices,
-/// numbered and facing as before, reuse them (computing them took a
-/// seventh of the gather).
+/// Final gathering's directions per virtual vertex (its number, normal
+/// and strata per side): they depend on nothing else, so a moved object's
+/// vertices, numbered and facing as before, reuse them (computing them
+/// took a seventh of the gather).
 #[derive(Debug, Default)]
 struct GatherDirections {
-    side: u32,
-    of: HashMap<(u32, [u64; 3]), Vec<DVec3>>,
+    of: HashMap<(u32, [u64; 3], u32), Vec<DVec3>>,
 }
 
 impl GatherDirections {
-    fn key(v: u32, n: DVec3) -> (u32, [u64; 3]) {
-        (v, n.to_array().map(f64::to_bits))
+    fn key(v: u32, n: DVec3, side: u32) -> (u32, [u64; 3], u32) {
+        (v, n.to_array().map(f64::to_bits), side)
     }
 
-    /// Keeps the directions of `vertices` (vertex, normal) only, making the missing ones.
-    fn keep(&mut self, vertices: &[(u32, DVec3)], side: u32) {
+    /// Keeps the directions of `vertices` (vertex, normal, side) only, making the missing ones.
+    fn keep(&mut self, vertices: &[(u32, DVec3, u32)]) {
         use rayon::prelude::*;
-        if side != self.side {
-            self.of.clear();
-            self.side = side;
-        }
         let mut old = std::mem::take(&mut self.of);
-        let (kept, missing): (Vec<_>, Vec<_>) = vertices.iter().map(|&(v, n)| (GatherDirections::key(v, n), v, n)).partition(|(k, _, _)| old.contains_key(k));
-        self.of = kept.into_iter().map(|(k, _, _)| (k, old.remove(&k).expect("partitioned on it"))).collect();
-        let made: Vec<_> = missing.into_par_iter().map(|(k, v, n)| (k, crate::gather::cosine_directions(n, side, crate::light::hash2(v as u64, 0x6A7E)))).collect();
+        let (kept, missing): (Vec<_>, Vec<_>) =
+            vertices.iter().map(|&(v, n, side)| (GatherDirections::key(v, n, side), v, n, side)).partition(|(k, ..)| old.contains_key(k));
+        self.of = kept.into_iter().map(|(k, ..)| (k, old.remove(&k).expect("partitioned on it"))).collect();
+        let made: Vec<_> =
+            missing.into_par_iter().map(|(k, v, n, side)| (k, crate::gather::cosine_directions(n, side, crate::light::hash2(v as u64, 0x6A7E)))).collect();
         self.of.extend(made);
     }
 
-    fn of(&self, v: u32, n: DVec3) -> &[DVec3] {
-        &self.of[&GatherDirections::key(v, n)]
+    fn of(&self, v: u32, n: DVec3, side: u32) -> &[DVec3] {
+        &self.of[&GatherDirections::key(v, n, side)]
     }
 }
 
@@ -565,20 +563,28 @@ fn final_gather(
             normal_of.entry(v).or_insert(el.normal);
         }
     }
-    let mut vertices: Vec<(u32, DVec3)> = normal_of.into_iter().collect();
-    vertices.sort_by_key(|(v, _)| *v);
     let cam = &scene.camera;
+    // A vertex on a face turned from the camera shows in no pixel: its
+    // light reaches the image only through what it sends the room, a small
+    // part of the room's own indirect light, and a quarter of the rays
+    // estimate it well enough (the box's hidden faces: half its vertices).
     let side = (rays as f64).sqrt().ceil() as u32;
+    let hidden_side = side.div_ceil(2);
+    let mut vertices: Vec<(u32, DVec3, u32)> = normal_of
+        .into_iter()
+        .map(|(v, n)| (v, n, if n.dot(cam.position - patches.vertices[v as usize]) > 0.0 { side } else { hidden_side }))
+        .collect();
+    vertices.sort_by_key(|(v, ..)| *v);
     let pi = std::f64::consts::PI;
-    directions.keep(&vertices, side);
+    directions.keep(&vertices);
     let directions = &*directions;
     vertices
         .par_iter()
-        .map(|&(v, n)| {
+        .map(|&(v, n, side)| {
             let p = patches.vertices[v as usize];
             // Faces are one-sided here (solids face out, open surfaces face the camera).
             let origin = offset_origin(p, n, p + n);
-            let dirs = directions.of(v, n);
+            let dirs = directions.of(v, n, side);
             let traced: Vec<TraceRay> = dirs.iter().map(|d| TraceRay::new(origin.as_vec3(), d.as_vec3())).collect();
             let mut hits = vec![None; traced.len()];
             tracer.intersect_batch(&traced, Layer::All, &mut hits);
