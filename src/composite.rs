@@ -426,13 +426,59 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
         }
         Some(s)
     };
-    out.fill(input.photo, |i| {
-        if let Some(p) = plain(i) {
-            return p;
-        }
+    let other = |i: usize| -> PixelShade {
         let (s, a) = shade(i);
         // Copied pixels keep the photo's exact bits.
         let value: Vec3 = if s.copied { photo[i] } else { s.value.as_vec3() };
         PixelShade { value, direct: s.direct.as_vec3(), indirect: s.indirect.as_vec3(), alpha: a, copied: s.copied, fallback: s.fallback, clamped: s.clamped }
-    });
+    };
+    match input.known {
+        // An update's image alone: a row at a time over plain slices, the
+        // prepared real pixels shaded in place (what `plain` and
+        // `RealPixel::layers` do, without a pixel's shade passed back).
+        Some(known) if !input.layers => {
+            let w = (w as usize).max(1);
+            let rows = out.image.pixels.par_chunks_mut(w).zip(out.alpha.par_chunks_mut(w)).enumerate();
+            let (copied, fallbacks, clamped) = rows
+                .map(|(row, (image, alpha))| {
+                    let at = row * w..row * w + image.len();
+                    let (real, virt, edge, photo_row) = (&pda.real_index[at.clone()], &pda.virtual_index[at.clone()], &edge_of[at.clone()], &photo[at]);
+                    let mut counts = (0, 0, 0);
+                    for x in 0..image.len() {
+                        let k = real[x];
+                        if k == u32::MAX || virt[x] != u32::MAX || edge[x] != u32::MAX {
+                            let s = other(row * w + x);
+                            image[x] = s.value;
+                            alpha[x] = s.alpha;
+                            counts.0 += s.copied as usize;
+                            counts.1 += s.fallback as usize;
+                            counts.2 += s.clamped as usize;
+                            continue;
+                        }
+                        let r = &known.pixels[k as usize];
+                        let h = interpolate_single(&h_with, &input.patch_vertices[r.patch()], r.weights);
+                        alpha[x] = 0.0;
+                        if r.band.x >= 0.0 && (h - r.h_without).abs().cmple(r.band).all() {
+                            image[x] = photo_row[x];
+                            counts.0 += 1;
+                            continue;
+                        }
+                        let value = r.offset + r.slope * h;
+                        counts.1 += r.fallback() as usize;
+                        image[x] = if value.is_finite() && value.min_element() >= 0.0 {
+                            value
+                        } else {
+                            counts.2 += 1;
+                            if value.is_finite() { value.max(Vec3::ZERO) } else { Vec3::ZERO }
+                        };
+                    }
+                    counts
+                })
+                .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
+            out.copied = copied;
+            out.ratio_fallbacks = fallbacks;
+            out.clamped = clamped;
+        }
+        _ => out.fill(input.photo, |i| plain(i).unwrap_or_else(|| other(i))),
+    }
 }
