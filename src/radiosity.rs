@@ -394,6 +394,7 @@ impl Transport {
             .iter()
             .map(|&r| patches.elements[r as usize].bounds)
             .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), (a, b)| (lo.min(a), hi.max(b)));
+        // The candidates are the objects' own roots: no layer to look up per root.
         let near_objects = |i: usize| {
             let l = &room_links[i];
             let (a, b) = (&patches.elements[l.receiver as usize], &patches.elements[l.source as usize]);
@@ -401,8 +402,8 @@ impl Transport {
             let (lo, hi) = (alo.min(blo), ahi.max(bhi));
             !(olo.cmpgt(hi).any() || ohi.cmplt(lo).any())
                 && match facts.and_then(|f| f.shafts.get(i)) {
-                    Some(shafts) => may_be_occluded_using(patches, Layer::Virtual, a, b, &object_roots, shafts),
-                    None => may_be_occluded(patches, Layer::Virtual, a, b, &object_roots),
+                    Some(shafts) => may_be_occluded_using(patches, Layer::All, a, b, &object_roots, shafts),
+                    None => may_be_occluded(patches, Layer::All, a, b, &object_roots),
                 }
         };
         let near: Vec<bool> = (0..room_links.len()).into_par_iter().map(near_objects).collect();
