@@ -389,7 +389,7 @@ impl Session {
                         input.lights.par_iter().enumerate().map(|(l, light)| input.active[l].then(|| blocks.traverse(light, &moved))).collect()
                     });
                     let touched = times.time("recompute pixels", || {
-                        let mut touched = vec![false; (pda.width * pda.height) as usize];
+                        let mut touched: Vec<u32> = Vec::new();
                         for (l, t) in traversals.into_iter().enumerate() {
                             let Some(t) = t else {
                                 stats.skipped_blocks.push(Vec::new());
@@ -397,12 +397,13 @@ impl Session {
                             };
                             stats.shaft_tests += t.shaft_tests;
                             rays += pda.recompute_real_terms(&input, &t.pixels, l);
-                            for &pixel in &t.pixels {
-                                touched[pixel as usize] = true;
-                            }
+                            touched.extend(&t.pixels);
                             stats.skipped_blocks.push(t.skipped);
                         }
-                        stats.pixels_recomputed = touched.iter().filter(|t| **t).count();
+                        // A pixel found for several lights counts once.
+                        touched.sort_unstable();
+                        touched.dedup();
+                        stats.pixels_recomputed = touched.len();
                         touched
                     });
                     (touched, rays, retraced)
@@ -412,9 +413,8 @@ impl Session {
         self.changes = solved.with_patches(objects);
         stats.rays += pixel_rays;
         stats.pixels_retraced = retraced;
-        let recomputed: Vec<u32> = (0..touched.len() as u32).filter(|&p| touched[p as usize]).collect();
         self.rays = stats.rays;
-        self.recomposite(times, &recomputed);
+        self.recomposite(times, &touched);
         Ok(stats)
     }
 
