@@ -162,15 +162,21 @@ impl GatherDirections {
         (v, n.to_array().map(f64::to_bits), side)
     }
 
-    /// Keeps the directions of `vertices` (vertex, normal, side) only, making the missing ones.
+    /// Makes the directions of `vertices` (vertex, normal, side) that are
+    /// missing. Others are kept for later poses (a face turning to or from
+    /// the camera changes its vertices' side back when it turns back), up to
+    /// four sets per vertex: an object that turns gives new normals every
+    /// pose, and those are dropped then.
     fn keep(&mut self, vertices: &[(u32, DVec3, u32)]) {
         use rayon::prelude::*;
-        let mut old = std::mem::take(&mut self.of);
-        let (kept, missing): (Vec<_>, Vec<_>) =
-            vertices.iter().map(|&(v, n, side)| (GatherDirections::key(v, n, side), v, n, side)).partition(|(k, ..)| old.contains_key(k));
-        self.of = kept.into_iter().map(|(k, ..)| (k, old.remove(&k).expect("partitioned on it"))).collect();
-        let made: Vec<_> =
-            missing.into_par_iter().map(|(k, v, n, side)| (k, crate::gather::cosine_directions(n, side, crate::light::hash2(v as u64, 0x6A7E)))).collect();
+        if self.of.len() > 4 * vertices.len() {
+            self.of.clear();
+        }
+        let missing: Vec<_> = vertices.iter().filter(|&&(v, n, side)| !self.of.contains_key(&GatherDirections::key(v, n, side))).collect();
+        let made: Vec<_> = missing
+            .into_par_iter()
+            .map(|&(v, n, side)| (GatherDirections::key(v, n, side), crate::gather::cosine_directions(n, side, crate::light::hash2(v as u64, 0x6A7E))))
+            .collect();
         self.of.extend(made);
     }
 
