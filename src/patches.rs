@@ -613,8 +613,11 @@ fn primitives(triangles: &[Triangle]) -> Vec<(Shape, Vec<u32>)> {
                 let Some(r2) = tris[j].iter().copied().find(|c| (*c - p).length() > 1e-9 && (*c - q).length() > 1e-9) else {
                     continue;
                 };
+                // Within the single-precision corners' own rounding: a
+                // solid moved away from the origin keeps its quads.
                 let scale = (p - r).length().max((q - r).length());
-                if ((p + q) - (r + r2)).length() <= 1e-7 * scale.max(1e-9) {
+                let magnitude = [p, q, r, r2].iter().map(|c| c.abs().max_element()).fold(0.0, f64::max);
+                if ((p + q) - (r + r2)).length() <= 1e-7 * scale.max(1e-9) + 8.0 * f32::EPSILON as f64 * magnitude {
                     paired = Some((j, Shape::Quad { origin: r, u: p - r, v: q - r }));
                     break 'edges;
                 }

@@ -208,3 +208,22 @@ fn the_objects_mesh_from_the_rooms_is_the_whole_scenes_mesh() {
         assert!(from_room == whole, "{variant}: the meshes differ");
     }
 }
+
+#[test]
+fn a_moved_solid_keeps_its_mesh() {
+    // Its corners are single precision: moved, a face's two triangles stop
+    // forming an exact parallelogram (the box at the slide's second pose
+    // was meshed as triangles, twice the patches). Every pose must mesh
+    // the box as the first does.
+    let base = desk();
+    let room = Patches::of_scene(&base.with_motion_pose("box_slide", 0).unwrap(), false, 1.0);
+    let poses = base.motion("box_slide").unwrap().translations.len();
+    let meshes: Vec<(usize, usize)> = (0..poses)
+        .map(|pose| {
+            let p = Patches::of_scene_from_room(&room, &base.with_motion_pose("box_slide", pose).unwrap(), 0.1);
+            (p.patch_count() - room.patch_count(), p.vertices.len() - room.vertices.len())
+        })
+        .collect();
+    assert!(meshes.iter().all(|m| *m == meshes[0]), "patches and vertices per pose: {meshes:?}");
+    assert_eq!(meshes[0].0, 96, "a 0.3 m box at 0.1 m: 6 faces of 4 × 4 patches");
+}
