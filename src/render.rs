@@ -576,10 +576,11 @@ fn final_gather(
     // estimate it well enough (the box's hidden faces: half its vertices).
     let side = (rays as f64).sqrt().ceil() as u32;
     let hidden_side = side.div_ceil(2);
-    // Normals rounded to 2^-30: a moved object's are recomputed from its
-    // moved corners and differ in their last bits from pose to pose, and
-    // the directions (kept per vertex and normal) would never be found again.
-    let steady = |n: DVec3| (n * 1073741824.0).round() / 1073741824.0;
+    // Normals rounded to 2^-16: a moved object's are recomputed from its
+    // moved single-precision corners and differ by ~1e-7 from pose to pose,
+    // and the directions (kept per vertex and normal) would never be found
+    // again. The rounding turns the hemisphere by at most ~1e-5 rad.
+    let steady = |n: DVec3| (n * 65536.0).round() / 65536.0;
     let mut vertices: Vec<(u32, DVec3, u32)> = normal_of
         .into_iter()
         .map(|(v, n)| (v, steady(n), if n.dot(cam.position - patches.vertices[v as usize]) > 0.0 { side } else { hidden_side }))
