@@ -29,7 +29,7 @@ fn bench(c: &mut Criterion) {
     let start = Session::start(&p3, &photo, &settings, &mut StageTimes::default()).unwrap();
     g.bench_function("box_slide_pose_3_to_4_update", |b| {
         // By reference: the session is dropped untimed (freeing it is not
-        // part of an update, and took as long as one).
+        // part of an update).
         b.iter_batched_ref(
             // The pixel-block hierarchy is built once with the Pixel Data
             // Array (Grosch §3.2), for every update of the motion to share.

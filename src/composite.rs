@@ -63,8 +63,7 @@ pub struct CompositeInput<'a> {
 /// and the band of H within which the photo's pixel stands (only where the
 /// direct light is unchanged). Everything but H is fixed while objects
 /// move, and this is all a pixel reads (not the PDA's point and terms):
-/// 68 bytes, read for every pixel of every update's composite, whose time
-/// is mostly memory traffic.
+/// 68 bytes, read for every pixel of every update's composite.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RealPixel {
     offset: Vec3,

@@ -392,7 +392,7 @@ pub fn polygon_form_factor_sided(x: DVec3, n: DVec3, polygon: &[DVec3], two_side
 /// atan2(y, x) for y ≥ 0: the angle in [0, π] (Cephes' `atan`, accurate
 /// to about 2 units in the last place). The polygon form factors sum four
 /// such angles each, and glibc's `atan2` saves and restores the rounding
-/// mode on every call: it took over a third of their time.
+/// mode on every call: it took about half of their time.
 fn angle_atan2(y: f64, x: f64) -> f64 {
     use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
     const P: [f64; 5] = [-8.750608600031904122785e-1, -1.615753718733365076637e1, -7.500855792314704667340e1, -1.228866684490136173410e2, -6.485021904942025371773e1];

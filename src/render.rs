@@ -151,7 +151,7 @@ pub struct Session {
 /// Final gathering's directions per virtual vertex (its number, normal
 /// and strata per side): they depend on nothing else, so a moved object's
 /// vertices, numbered and facing as before, reuse them (computing them
-/// took a seventh of the gather).
+/// took about a tenth of the gather).
 #[derive(Debug, Default)]
 struct GatherDirections {
     of: HashMap<(u32, [u64; 3], u32), Vec<DVec3>>,
@@ -580,7 +580,7 @@ fn final_gather(
     // moved single-precision corners and differ by ~1e-7 from pose to pose,
     // and the directions (kept per vertex and normal) would never be found
     // again. The rounding turns the hemisphere by at most ~1e-5 rad.
-    let steady = |n: DVec3| (n * 65536.0).round() / 65536.0;
+    let steady = |n: DVec3| ((n * 65536.0).round() / 65536.0).normalize();
     let mut vertices: Vec<(u32, DVec3, u32)> = normal_of
         .into_iter()
         .map(|(v, n)| (v, steady(n), if n.dot(cam.position - patches.vertices[v as usize]) > 0.0 { side } else { hidden_side }))
