@@ -152,16 +152,27 @@ impl RealPixel {
         Shade { value, direct, indirect: h, copied: false, fallback: self.fallback(), clamped }
     }
 
-    /// [`RealPixel::shade`] in single precision, as the layers take it (the
-    /// direct layer left to the caller); the photo's pixel read only when kept.
-    fn layers(&self, h: Vec3, photo: &Vec3) -> PixelShade {
+    /// [`RealPixel::shade`]'s value in single precision, as the image
+    /// takes it: (value, copied, clamped). The photo's pixel is read only
+    /// when kept.
+    #[inline]
+    fn value(&self, h: Vec3, photo: &Vec3) -> (Vec3, bool, bool) {
         if self.band.x >= 0.0 && (h - self.h_without).abs().cmple(self.band).all() {
-            return PixelShade { value: *photo, direct: Vec3::ZERO, indirect: h, alpha: 0.0, copied: true, fallback: false, clamped: false };
+            return (*photo, true, false);
         }
         let value = self.offset + self.slope * h;
+        // Most pixels: positive and finite, nothing to clamp.
+        if value.min_element() > 0.0 && value.is_finite() {
+            return (value, false, false);
+        }
         let clamped = value.min_element() < 0.0 || !value.is_finite();
-        let value = if value.is_finite() { value.max(Vec3::ZERO) } else { Vec3::ZERO };
-        PixelShade { value, direct: Vec3::ZERO, indirect: h, alpha: 0.0, copied: false, fallback: self.fallback(), clamped }
+        (if value.is_finite() { value.max(Vec3::ZERO) } else { Vec3::ZERO }, false, clamped)
+    }
+
+    /// [`RealPixel::value`] with the layers (the direct one left to the caller).
+    fn layers(&self, h: Vec3, photo: &Vec3) -> PixelShade {
+        let (value, copied, clamped) = self.value(h, photo);
+        PixelShade { value, direct: Vec3::ZERO, indirect: h, alpha: 0.0, copied, fallback: !copied && self.fallback(), clamped }
     }
 }
 
@@ -433,8 +444,8 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
     };
     match input.known {
         // An update's image alone: a row at a time over plain slices, the
-        // prepared real pixels shaded in place (what `plain` and
-        // `RealPixel::layers` do, without a pixel's shade passed back).
+        // prepared real pixels shaded in place (what `plain` does, without
+        // a pixel's layers passed back).
         Some(known) if !input.layers => {
             let w = (w as usize).max(1);
             let rows = out.image.pixels.par_chunks_mut(w).zip(out.alpha.par_chunks_mut(w)).enumerate();
@@ -455,21 +466,12 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                             continue;
                         }
                         let r = &known.pixels[k as usize];
-                        let h = interpolate_single(&h_with, &input.patch_vertices[r.patch()], r.weights);
+                        let (value, copied, clamped) = r.value(interpolate_single(&h_with, &input.patch_vertices[r.patch()], r.weights), &photo_row[x]);
+                        image[x] = value;
                         alpha[x] = 0.0;
-                        if r.band.x >= 0.0 && (h - r.h_without).abs().cmple(r.band).all() {
-                            image[x] = photo_row[x];
-                            counts.0 += 1;
-                            continue;
-                        }
-                        let value = r.offset + r.slope * h;
-                        counts.1 += r.fallback() as usize;
-                        image[x] = if value.is_finite() && value.min_element() >= 0.0 {
-                            value
-                        } else {
-                            counts.2 += 1;
-                            if value.is_finite() { value.max(Vec3::ZERO) } else { Vec3::ZERO }
-                        };
+                        counts.0 += copied as usize;
+                        counts.1 += (!copied && r.fallback()) as usize;
+                        counts.2 += clamped as usize;
                     }
                     counts
                 })

@@ -401,39 +401,27 @@ fn light_term(
                     virt_blocked[k] = own_blocks(targets[k]);
                 }
             }
-            let mixed = |b: &[bool]| b.iter().any(|x| *x) && b.iter().any(|x| !*x);
-            let any_all_mixed = {
-                let (mut some, mut none) = (false, false);
-                for k in 0..count {
-                    let b = real_blocked[k] || virt_blocked[k];
-                    some |= b;
-                    none |= !b;
-                }
-                some && none
-            };
-            if level < settings.penumbra_level && (mixed(&real_blocked[..count]) || any_all_mixed) {
+            // Which rays the room blocks, and which it or the objects block:
+            // some, and some not, of each.
+            let (mut real_some, mut real_none, mut all_some, mut all_none) = (false, false, false, false);
+            for k in 0..count {
+                let all = real_blocked[k] || virt_blocked[k];
+                real_some |= real_blocked[k];
+                real_none |= !real_blocked[k];
+                all_some |= all;
+                all_none |= !all;
+            }
+            let (real_mixed, all_mixed) = (real_some && real_none, all_some && all_none);
+            if level < settings.penumbra_level && (real_mixed || all_mixed) {
                 level = settings.penumbra_level;
                 continue;
             }
             // Where no ray or every ray is blocked the fractions are 1 or 0
             // whatever the rays weigh: the weights (the light's intensity
             // towards x per sample) are needed only for the rest.
-            let settled = |blocked: &mut dyn Iterator<Item = bool>| {
-                let (mut some, mut none) = (false, false);
-                for b in blocked {
-                    some |= b;
-                    none |= !b;
-                }
-                match (some, none) {
-                    (false, _) => Some(1.0),
-                    (true, false) => Some(0.0),
-                    _ => None,
-                }
-            };
-            let real_settled = settled(&mut real_blocked[..count].iter().copied());
-            let all_settled = settled(&mut (0..count).map(|k| real_blocked[k] || virt_blocked[k]));
-            if let (Some(real), Some(all)) = (real_settled, all_settled) {
-                return (LightTerm::new(unoccluded, real, all), rays_cast);
+            if !real_mixed && !all_mixed {
+                let settled = |some: bool| if some { 0.0 } else { 1.0 };
+                return (LightTerm::new(unoccluded, settled(real_some), settled(all_some)), rays_cast);
             }
             // Each ray weighs what its sample contributes at x.
             let (mut total, mut real, mut all) = (0.0, 0.0, 0.0);
