@@ -354,9 +354,10 @@ impl Transport {
             .par_iter()
             .flat_map_iter(|&p| {
                 let mut out = Vec::new();
+                let with = Refiner { patches, tracer, layer, epsilon, trace_first: false };
                 for &q in &patches.roots {
                     if p != q {
-                        refine(patches, tracer, layer, epsilon, p, q, &patches.roots, &mut out);
+                        refine(&with, p, q, &patches.roots, &mut out);
                     }
                 }
                 out
@@ -420,6 +421,7 @@ impl Transport {
             .map(Task::Room)
             .chain(object_roots.iter().flat_map(|&v| all_roots.iter().filter(move |&&r| r != v).map(move |&r| Task::Object(v, r))))
             .collect();
+        let with = Refiner { patches, tracer, layer: Layer::All, epsilon, trace_first: true };
         let new: Vec<Link> = tasks
             .par_iter()
             .with_max_len(4)
@@ -432,17 +434,17 @@ impl Transport {
                         match facts.and_then(|f| Some((f.facts.get(i)?, f.shafts.get(i)?))) {
                             Some((cell, shafts)) => {
                                 let known = cell.get_or_init(|| PairFacts::of(patches, tracer, ep, eq, &room_roots, shafts));
-                                refine_from(patches, tracer, Layer::All, epsilon, l.receiver, l.source, all_roots, Some((known, &object_roots, shafts)), &mut out);
+                                refine_from(&with, l.receiver, l.source, all_roots, Some((known, &object_roots, shafts)), &mut out);
                             }
-                            None => refine(patches, tracer, Layer::All, epsilon, l.receiver, l.source, all_roots, &mut out),
+                            None => refine(&with, l.receiver, l.source, all_roots, &mut out),
                         }
                     }
                     Task::Object(v, r) => {
                         if objects_receive {
-                            refine(patches, tracer, Layer::All, epsilon, v, r, all_roots, &mut out);
+                            refine(&with, v, r, all_roots, &mut out);
                         }
                         if !is_virtual(&r) {
-                            refine(patches, tracer, Layer::All, epsilon, r, v, all_roots, &mut out);
+                            refine(&with, r, v, all_roots, &mut out);
                         }
                     }
                 }
@@ -587,9 +589,25 @@ fn source_spread(p: &Element, q: &Element) -> f64 {
 /// different amounts. The source while F × its [`source_spread`] exceeds
 /// epsilon (its radiosity would be averaged with the wrong weights); the
 /// larger of the two while they are partly hidden from each other.
-#[allow(clippy::too_many_arguments)]
-fn refine(patches: &Patches, tracer: &Tracer, layer: Layer, epsilon: f64, p: u32, q: u32, candidates: &[u32], out: &mut Vec<Link>) {
-    refine_from(patches, tracer, layer, epsilon, p, q, candidates, None, out);
+fn refine(with: &Refiner, p: u32, q: u32, candidates: &[u32], out: &mut Vec<Link>) {
+    refine_from(with, p, q, candidates, None, out);
+}
+
+/// What [`refine`] works with: the elements, the geometry that may block
+/// them (`layer`), ε, and how a partly hidden pair above ε's fraction is
+/// settled: split at once, or (`trace_first`) traced first and split only
+/// where its rays disagree. Tracing first saves the split wherever the
+/// rays all pass or all stop — a conservative shaft holds many roots that
+/// block nothing — at the risk of missing a small occluder all of the
+/// pair's rays pass by. The room's links are built once per scene and
+/// split at once; the objects' are rebuilt at every move and traced first.
+#[derive(Clone, Copy)]
+struct Refiner<'a> {
+    patches: &'a Patches,
+    tracer: &'a Tracer,
+    layer: Layer,
+    epsilon: f64,
+    trace_first: bool,
 }
 
 /// What refinement learns about a pair of the room's elements before any
@@ -641,18 +659,8 @@ impl RoomLinkFacts {
 /// [`refine`], with the pair's room facts already known (`known`: the
 /// facts, the other candidates — the objects' roots — and the pair's kept
 /// shafts) at this first level.
-#[allow(clippy::too_many_arguments)]
-fn refine_from(
-    patches: &Patches,
-    tracer: &Tracer,
-    layer: Layer,
-    epsilon: f64,
-    p: u32,
-    q: u32,
-    candidates: &[u32],
-    known: Option<(&PairFacts, &[u32], &PairShafts)>,
-    out: &mut Vec<Link>,
-) {
+fn refine_from(with: &Refiner, p: u32, q: u32, candidates: &[u32], known: Option<(&PairFacts, &[u32], &PairShafts)>, out: &mut Vec<Link>) {
+    let Refiner { patches, tracer, layer, epsilon, trace_first } = *with;
     let (ep, eq) = (&patches.elements[p as usize], &patches.elements[q as usize]);
     if coplanar(ep, eq) || faces_away(ep, eq) {
         return;
@@ -676,26 +684,33 @@ fn refine_from(
         // Where the shaft between the two holds no possible occluder they
         // see each other whole. Otherwise rays estimate the visible part:
         // trusted where the exchange is small (its error is at most F), and
-        // refined where it is not (Hanrahan's BFV refinement, exact shafts).
+        // refined where it is not (Hanrahan's BFV refinement, exact shafts)
+        // — with `trace_first`, only where the rays disagree (see [`Refiner`]).
         let occluded = !occluders.is_empty();
-        if occluded && f > epsilon * VISIBILITY_REFINE_FRACTION && !(p_leaf && q_leaf) {
-            Some(!p_leaf && (q_leaf || ep.area >= eq.area))
-        } else {
-            // A room pair's rays through the room were traced before: only the objects are left.
-            let v = match facts.and_then(|f| f.room_blocked) {
-                _ if !occluded => 1.0,
-                Some(room) if layer == Layer::All => visibility_with_room(ep, eq, tracer, room),
-                _ => visibility(ep, eq, tracer, layer),
-            };
-            if v > 0.0 {
-                out.push(Link { receiver: p, source: q, form_factor: (f * v) as f32 });
+        let splits = occluded && f > epsilon * VISIBILITY_REFINE_FRACTION && !(p_leaf && q_leaf);
+        // A room pair's rays through the room were traced before: only the objects are left.
+        let traced = || match facts.and_then(|f| f.room_blocked) {
+            Some(room) if layer == Layer::All => visibility_with_room(ep, eq, tracer, room),
+            _ => visibility(ep, eq, tracer, layer),
+        };
+        let visible = match (occluded, splits && !trace_first) {
+            (false, _) => Some(1.0),
+            (true, true) => None,
+            (true, false) => Some(traced()),
+        };
+        match visible {
+            Some(v) if !(splits && v > 0.0 && v < 1.0) => {
+                if v > 0.0 {
+                    out.push(Link { receiver: p, source: q, form_factor: (f * v) as f32 });
+                }
+                None
             }
-            None
+            _ => Some(!p_leaf && (q_leaf || ep.area >= eq.area)),
         }
     };
     match split_receiver {
-        Some(true) => ep.children.unwrap().iter().for_each(|&c| refine(patches, tracer, layer, epsilon, c, q, &occluders, out)),
-        Some(false) => eq.children.unwrap().iter().for_each(|&c| refine(patches, tracer, layer, epsilon, p, c, &occluders, out)),
+        Some(true) => ep.children.unwrap().iter().for_each(|&c| refine(with, c, q, &occluders, out)),
+        Some(false) => eq.children.unwrap().iter().for_each(|&c| refine(with, p, c, &occluders, out)),
         None => {}
     }
 }
