@@ -12,7 +12,7 @@
 //! "without" irradiance is nearly zero (D ≈ 0) falls back to the additive
 //! form, and additive results are clamped at zero (both counted).
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::image_io::Image;
@@ -176,11 +176,19 @@ impl RealPixel {
     }
 }
 
-/// Vertex values `table` interpolated at a point of the patch with vertices
-/// `vertices` (a triangle's fourth weight is zero, its fourth vertex unset).
-fn interpolate_single(table: &[Vec3], vertices: &[u32; 4], w: [f32; 4]) -> Vec3 {
-    let fourth = if w[3] != 0.0 { table[vertices[3] as usize] * w[3] } else { Vec3::ZERO };
-    table[vertices[0] as usize] * w[0] + table[vertices[1] as usize] * w[1] + table[vertices[2] as usize] * w[2] + fourth
+/// Each patch's corner values of a vertex table, four lanes wide (a
+/// triangle's fourth is zero): a pixel's interpolation then reads one
+/// patch's row and multiplies four lanes at once, instead of looking up
+/// four vertices one channel at a time (a third of the composite's work).
+fn patch_corners(table: &[DVec3], patch_vertices: &[[u32; 4]]) -> Vec<[Vec3A; 4]> {
+    patch_vertices.iter().map(|ids| ids.map(|v| if v == u32::MAX { Vec3A::ZERO } else { Vec3A::from(table[v as usize].as_vec3()) })).collect()
+}
+
+/// Corner values interpolated with weights `w` (a triangle's fourth weight
+/// is zero). Lane by lane the same single-precision products and sums as
+/// three scalar channels.
+fn interpolate_single(corners: &[Vec3A; 4], w: [f32; 4]) -> Vec3 {
+    Vec3::from(corners[0] * w[0] + corners[1] * w[1] + corners[2] * w[2] + corners[3] * w[3])
 }
 
 /// The augmented photo and its layers.
@@ -415,7 +423,7 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
     // Most pixels show a real point alone: their indirect light is
     // interpolated in single precision, which the layers keep anyway (in
     // double precision, through an iterator, it took a third of the time).
-    let h_with: Vec<Vec3> = input.indirect_with.iter().map(|v| v.as_vec3()).collect();
+    let h_with = patch_corners(input.indirect_with, input.patch_vertices);
     let plain = |i: usize| -> Option<PixelShade> {
         let k = pda.real_index[i];
         if k == u32::MAX || edge_of[i] != u32::MAX || pda.virtual_index[i] != u32::MAX {
@@ -430,7 +438,7 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                 &prepared
             }
         };
-        let mut s = r.layers(interpolate_single(&h_with, &input.patch_vertices[r.patch()], r.weights), &photo[i]);
+        let mut s = r.layers(interpolate_single(&h_with[r.patch()], r.weights), &photo[i]);
         if input.layers {
             s.direct = input.irradiance(&pda.real.terms[k * lights..(k + 1) * lights], input.scales_with, true).as_vec3();
         }
@@ -466,7 +474,7 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                             continue;
                         }
                         let r = &known.pixels[k as usize];
-                        let (value, copied, clamped) = r.value(interpolate_single(&h_with, &input.patch_vertices[r.patch()], r.weights), &photo_row[x]);
+                        let (value, copied, clamped) = r.value(interpolate_single(&h_with[r.patch()], r.weights), &photo_row[x]);
                         image[x] = value;
                         alpha[x] = 0.0;
                         counts.0 += copied as usize;
