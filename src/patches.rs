@@ -468,7 +468,9 @@ impl Patches {
         let st = self.root_params(root, x);
         let mut e = root;
         while let Some([a, b]) = self.elements[e as usize].children {
-            e = if distance_outside(&self.elements[a as usize].region, st) <= distance_outside(&self.elements[b as usize].region, st) { a } else { b };
+            // Inside a: a, whatever b's distance (the same choice, one test fewer).
+            let da = distance_outside(&self.elements[a as usize].region, st);
+            e = if da == 0.0 || da <= distance_outside(&self.elements[b as usize].region, st) { a } else { b };
         }
         let el = &self.elements[e as usize];
         let patch = el.patch.expect("leaves are patches");

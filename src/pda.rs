@@ -145,6 +145,10 @@ pub struct PixelDataArray {
     pub supersample: u32,
     /// Per pixel, index into `real` (u32::MAX: no real surface).
     pub real_index: Vec<u32>,
+    /// Per pixel, how far along its centre ray the real hit lies, as the
+    /// tracer reported it (∞: none): an update traces that ray through the
+    /// objects alone, only as far, instead of through the room again.
+    pub real_t: Vec<f32>,
     pub real: Samples,
     /// Per real point and light (as `real.terms`), its shadow rays' real blockers.
     pub real_masks: Vec<RealMask>,
@@ -467,12 +471,13 @@ impl PixelDataArray {
             virt_terms: Vec<LightTerm>,
             edges: Vec<(u32, Vec<SurfacePoint>)>,
             edge_terms: Vec<LightTerm>,
+            real_t: Vec<f32>,
             rays: u64,
         }
         let rows: Vec<Row> = (0..h)
             .into_par_iter()
             .map(|row| {
-                let mut r = Row { real: vec![], real_terms: vec![], real_masks: vec![], virt: vec![], virt_terms: vec![], edges: vec![], edge_terms: vec![], rays: 0 };
+                let mut r = Row { real: vec![], real_terms: vec![], real_masks: vec![], virt: vec![], virt_terms: vec![], edges: vec![], edge_terms: vec![], real_t: vec![], rays: 0 };
                 let rays: Vec<TraceRay> = (0..w)
                     .map(|col| {
                         let ray = cam.pixel_ray(col, row);
@@ -481,10 +486,19 @@ impl PixelDataArray {
                     .collect();
                 let mut real_hits = vec![None; w as usize];
                 input.tracer.intersect_batch(&rays, Layer::Real, &mut real_hits);
+                let real_t: Vec<f32> = rays.iter().zip(&real_hits).map(|(r, h)| h.map_or(r.tfar, |h| h.t)).collect();
+                // What a query through both layers gives, its real half kept from above.
                 let mut all_hits = real_hits.clone();
                 if has_virtual {
-                    input.tracer.intersect_batch(&rays, Layer::All, &mut all_hits);
+                    let mut near = vec![None; w as usize];
+                    input.tracer.intersect_virtual_before(&rays, &real_t, &mut near);
+                    for (a, n) in all_hits.iter_mut().zip(near) {
+                        if n.is_some() {
+                            *a = n;
+                        }
+                    }
                 }
+                r.real_t = real_t;
                 for col in 0..w {
                     let pixel = row * w + col;
                     let seed = hash2(pixel as u64, 0x5A17);
@@ -521,6 +535,7 @@ impl PixelDataArray {
             light_count: lights,
             supersample: input.settings.supersample.max(1),
             real_index: vec![NONE; n],
+            real_t: Vec::with_capacity(n),
             real: Samples::default(),
             real_masks: Vec::new(),
             virtual_index: vec![NONE; n],
@@ -547,6 +562,7 @@ impl PixelDataArray {
                 pda.edge_samples.points.extend(subs);
             }
             pda.edge_samples.terms.extend(r.edge_terms);
+            pda.real_t.extend(r.real_t);
             pda.rays += r.rays;
         }
         pda
@@ -651,7 +667,9 @@ impl PixelDataArray {
         pixels.dedup();
         type Found = (u32, Option<(SurfacePoint, Vec<LightTerm>)>, Option<(Vec<SurfacePoint>, Vec<LightTerm>)>, u64);
         // Centre rays in packets of 16 (the kernel `build` traces with, so
-        // the same bits), then each pixel's shading and edge test.
+        // the same bits), through the objects only as far as the real hit
+        // `build` found; then each pixel's shading and edge test.
+        let real_t = &self.real_t;
         let found: Vec<Found> = pixels
             .par_chunks(16)
             .flat_map_iter(|chunk| {
@@ -662,8 +680,9 @@ impl PixelDataArray {
                         TraceRay::new(ray.origin.as_vec3(), ray.direction.as_vec3())
                     })
                     .collect();
+                let before: Vec<f32> = chunk.iter().map(|&pixel| real_t[pixel as usize]).collect();
                 let mut hits = vec![None; chunk.len()];
-                input.tracer.intersect_batch(&traced, Layer::All, &mut hits);
+                input.tracer.intersect_virtual_before(&traced, &before, &mut hits);
                 chunk.iter().copied().zip(hits).collect::<Vec<_>>()
             })
             .collect::<Vec<_>>()
@@ -679,7 +698,8 @@ impl PixelDataArray {
                     (p, terms)
                 });
                 let mut edge_terms = Vec::new();
-                let seen = hit.is_some_and(|h| !h.is_virtual);
+                // No object in front: the centre sees the real hit, if there is one.
+                let seen = hit.is_none() && real_t[pixel as usize].is_finite();
                 let real = Some(self.real_index[pixel as usize]).filter(|&k| k != NONE && seen).map(|k| &self.real.points[k as usize]);
                 let (kept, r) = if candidate(pixel) { edge_samples(input, col, row, seed, real, &mut edge_terms) } else { (None, 0) };
                 rays += r;
@@ -708,7 +728,7 @@ impl PixelDataArray {
     /// Bytes held, and per pixel.
     pub fn memory_bytes(&self) -> usize {
         let samples = |s: &Samples| s.points.len() * std::mem::size_of::<SurfacePoint>() + s.terms.len() * std::mem::size_of::<LightTerm>();
-        (self.real_index.len() + self.virtual_index.len()) * 4
+        (self.real_index.len() + self.real_t.len() + self.virtual_index.len()) * 4
             + samples(&self.real)
             + self.real_masks.len() * std::mem::size_of::<RealMask>()
             + samples(&self.virtual_samples)

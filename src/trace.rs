@@ -565,15 +565,11 @@ impl Tracer {
             (Layer::Virtual, None) => out.iter_mut().for_each(|o| *o = None),
             (Layer::Virtual, Some(v)) => v.intersect_batch(rays, out),
             (_, None) => self.real.intersect_batch(rays, out),
-            (_, Some(v)) => {
+            (_, Some(_)) => {
                 self.real.intersect_batch(rays, out);
-                let shortened: Vec<TraceRay> = rays
-                    .iter()
-                    .zip(out.iter())
-                    .map(|(r, h)| TraceRay { tfar: h.map_or(r.tfar, |h| h.t), ..*r })
-                    .collect();
+                let before: Vec<f32> = rays.iter().zip(out.iter()).map(|(r, h)| h.map_or(r.tfar, |h| h.t)).collect();
                 let mut near = vec![None; rays.len()];
-                v.intersect_batch(&shortened, &mut near);
+                self.intersect_virtual_before(rays, &before, &mut near);
                 for (o, n) in out.iter_mut().zip(near) {
                     if n.is_some() {
                         *o = n;
@@ -581,6 +577,19 @@ impl Tracer {
                 }
             }
         }
+    }
+
+    /// The closest virtual hit of each ray nearer than `before` (its real
+    /// hit's distance, or its own end): the second half of a
+    /// [`Layer::All`] query, for a caller that kept the first.
+    pub fn intersect_virtual_before(&self, rays: &[TraceRay], before: &[f32], out: &mut [Option<Hit>]) {
+        assert_eq!(rays.len(), before.len());
+        let Some(v) = &self.virtual_objects else {
+            out.iter_mut().for_each(|o| *o = None);
+            return;
+        };
+        let shortened: Vec<TraceRay> = rays.iter().zip(before).map(|(r, &t)| TraceRay { tfar: t, ..*r }).collect();
+        v.intersect_batch(&shortened, out);
     }
 
     /// Occlusion of many rays in the given layer, in packets of 16.
