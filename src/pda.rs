@@ -747,12 +747,12 @@ fn edge_samples(input: &PdaInput, col: u32, row: u32, seed: u64, real: Option<&S
     if n <= 1 {
         return (None, 0);
     }
-    let (mixed, mut rays) = sub_pixels_mix(input, col, row, n);
+    let (mixed, visible, mut rays) = sub_pixels_mix(input, col, row, n);
     if !mixed {
         return (None, rays);
     }
-    let subs = sub_points(input, col, row, n);
-    rays += (n * n) as u64;
+    let (subs, traced) = sub_points(input, col, row, n, &visible);
+    rays += traced;
     let mut kept: Vec<SurfacePoint> = Vec::new();
     let lights = input.lights.len();
     // Each kept sub-pixel holds `lights` terms from here on.
@@ -781,30 +781,32 @@ fn edge_samples(input: &PdaInput, col: u32, row: u32, seed: u64, real: Option<&S
 /// only those that hit one ask the room whether a real surface is nearer,
 /// with an occlusion query that stops at the object. Most pixels near an
 /// object's image are decided by the first step, or need only short rays.
-/// Returns the answer and the rays cast.
-fn sub_pixels_mix(input: &PdaInput, col: u32, row: u32, n: u32) -> (bool, u64) {
+/// Returns the answer, each sub-ray's object hit where no real surface
+/// hides it (what [`sub_points`] takes as found), and the rays cast.
+fn sub_pixels_mix(input: &PdaInput, col: u32, row: u32, n: u32) -> (bool, Vec<Option<Hit>>, u64) {
     // A packet's worth at a time: the arrays stay small whatever n is.
     const PACKET: usize = 16;
     let count = (n * n) as usize;
     let cam = input.camera;
     let (mut seen, mut rays_cast) = (0, 0u64);
+    let mut visible = vec![None; count];
     for start in (0..count).step_by(PACKET) {
         let len = PACKET.min(count - start);
         let mut rays = [TraceRay::new(glam::Vec3::ZERO, glam::Vec3::Z); PACKET];
         for (k, ray) in (start..start + len).zip(rays.iter_mut()) {
-            let (i, j) = (k as u32 % n, k as u32 / n);
-            let r = cam.ray(col as f64 + (i as f64 + 0.5) / n as f64, row as f64 + (j as f64 + 0.5) / n as f64);
-            *ray = TraceRay::new(r.origin.as_vec3(), r.direction.as_vec3());
+            *ray = sub_ray(cam, col, row, n, k as u32).0;
         }
         let mut hits = [None; PACKET];
         input.tracer.intersect_batch(&rays[..len], Layer::Virtual, &mut hits[..len]);
         rays_cast += len as u64;
         // Of the sub-rays meeting an object, those a real surface hides before it.
         let mut short = [TraceRay::new(glam::Vec3::ZERO, glam::Vec3::Z); PACKET];
+        let mut at = [0usize; PACKET];
         let mut m = 0;
-        for (ray, hit) in rays[..len].iter().zip(&hits[..len]) {
+        for (k, (ray, hit)) in rays[..len].iter().zip(&hits[..len]).enumerate() {
             if let Some(h) = hit {
                 short[m] = TraceRay { tfar: h.t, ..*ray };
+                at[m] = k;
                 m += 1;
             }
         }
@@ -812,10 +814,22 @@ fn sub_pixels_mix(input: &PdaInput, col: u32, row: u32, n: u32) -> (bool, u64) {
             let mut hidden = [false; PACKET];
             input.tracer.occluded_batch(&short[..m], Layer::Real, &mut hidden[..m]);
             rays_cast += m as u64;
-            seen += hidden[..m].iter().filter(|b| !**b).count();
+            for (&k, hidden) in at[..m].iter().zip(&hidden[..m]) {
+                if !hidden {
+                    visible[start + k] = hits[k];
+                    seen += 1;
+                }
+            }
         }
     }
-    (seen > 0 && seen < count, rays_cast)
+    (seen > 0 && seen < count, visible, rays_cast)
+}
+
+/// Sub-ray k of a pixel's n×n (row by row), for the tracer and in double precision.
+fn sub_ray(cam: &Camera, col: u32, row: u32, n: u32, k: u32) -> (TraceRay, DVec3, DVec3) {
+    let (i, j) = (k % n, k / n);
+    let r = cam.ray(col as f64 + (i as f64 + 0.5) / n as f64, row as f64 + (j as f64 + 0.5) / n as f64);
+    (TraceRay::new(r.origin.as_vec3(), r.direction.as_vec3()), r.origin, r.direction)
 }
 
 /// The pixels whose sub-pixels may mix real and virtual surfaces, as a
@@ -896,20 +910,23 @@ fn mark_segment(marks: &mut [bool], w: u32, h: u32, a: (f64, f64), b: (f64, f64)
     }
 }
 
-/// The n×n sub-pixel surface points of a pixel (None where a ray leaves the scene).
-fn sub_points(input: &PdaInput, col: u32, row: u32, n: u32) -> Vec<Option<SurfacePoint>> {
+/// The n×n sub-pixel surface points of a pixel (None where a ray leaves
+/// the scene), given the object each sub-ray sees ([`sub_pixels_mix`]):
+/// only the others are traced, through the room. Returns the points and
+/// the rays cast.
+fn sub_points(input: &PdaInput, col: u32, row: u32, n: u32, visible: &[Option<Hit>]) -> (Vec<Option<SurfacePoint>>, u64) {
     let cam = input.camera;
-    let rays: Vec<(TraceRay, DVec3, DVec3)> = (0..n * n)
-        .map(|k| {
-            let (i, j) = (k % n, k / n);
-            let ray = cam.ray(col as f64 + (i as f64 + 0.5) / n as f64, row as f64 + (j as f64 + 0.5) / n as f64);
-            (TraceRay::new(ray.origin.as_vec3(), ray.direction.as_vec3()), ray.origin, ray.direction)
-        })
-        .collect();
-    let traced: Vec<TraceRay> = rays.iter().map(|r| r.0).collect();
-    let mut hits = vec![None; traced.len()];
-    input.tracer.intersect_batch(&traced, Layer::All, &mut hits);
-    hits.iter().zip(&rays).map(|(h, r)| h.as_ref().and_then(|h| input.point(h, r.1, r.2))).collect()
+    let rays: Vec<(TraceRay, DVec3, DVec3)> = (0..n * n).map(|k| sub_ray(cam, col, row, n, k)).collect();
+    let rest: Vec<usize> = (0..rays.len()).filter(|&k| visible[k].is_none()).collect();
+    let traced: Vec<TraceRay> = rest.iter().map(|&k| rays[k].0).collect();
+    let mut hits = visible.to_vec();
+    let mut real = vec![None; traced.len()];
+    input.tracer.intersect_batch(&traced, Layer::Real, &mut real);
+    for (&k, h) in rest.iter().zip(real) {
+        hits[k] = h;
+    }
+    let points = hits.iter().zip(&rays).map(|(h, r)| h.as_ref().and_then(|h| input.point(h, r.1, r.2))).collect();
+    (points, traced.len() as u64)
 }
 
 /// A pixel rectangle, inclusive.
