@@ -32,6 +32,17 @@ pub fn cosine_directions(n: DVec3, side: u32, mut state: u64) -> Vec<DVec3> {
         .collect()
 }
 
+/// Whether gathering rays from `p` over the hemisphere about unit `n`,
+/// lifted off the surface as [`crate::light::offset_origin`] lifts them,
+/// cannot meet a solid with corners `corners`: every corner lies behind
+/// the plane through `p`, or in front by less than half the lift (what
+/// single-precision rounding of the rays and corners may add). A ray then
+/// starts in front of the whole solid and moves away from it.
+pub fn clear_of_solid(corners: &[DVec3], p: DVec3, n: DVec3) -> bool {
+    let slack = 0.5 * crate::light::origin_lift(p);
+    corners.iter().all(|c| (*c - p).dot(n) <= slack)
+}
+
 /// The photo's radiance at the real point `y`, when the camera sees it
 /// (inside the frame, nothing real in between).
 pub fn photo_radiance_at(camera: &Camera, tracer: &Tracer, photo: &Image, y: DVec3) -> Option<DVec3> {

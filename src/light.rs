@@ -329,7 +329,12 @@ pub fn point_contribution(p: DVec3, x: DVec3, n: DVec3, intensity: impl Fn(DVec3
 /// amount that grows with the coordinates' size (f32 tracing precision).
 pub fn offset_origin(x: DVec3, n: DVec3, towards: DVec3) -> DVec3 {
     let side = if (towards - x).dot(n) >= 0.0 { n } else { -n };
-    x + side * (1e-5 + 2e-6 * x.abs().max_element())
+    x + side * origin_lift(x)
+}
+
+/// How far [`offset_origin`] lifts a ray's origin at `x`.
+pub fn origin_lift(x: DVec3) -> f64 {
+    1e-5 + 2e-6 * x.abs().max_element()
 }
 
 /// The tracer segment from `a` to `b`, stopping a little short of `b`.

@@ -15,7 +15,7 @@ use crate::image_io::Image;
 use crate::model::{Model, ModelSettings, StageTimes, TransportMethod};
 
 use crate::patches::Patches;
-use crate::pda::{PdaInput, PdaSettings, PixelDataArray, VirtualBounds};
+use crate::pda::{CLEAR_TEST_LIMIT, PdaInput, PdaSettings, PixelDataArray, VirtualBounds};
 use crate::radiosity::{Transport, direct_irradiance_with_objects, solve_from, total_direct};
 use crate::scene::Scene;
 use crate::trace::Layer;
@@ -586,6 +586,14 @@ fn final_gather(
         .map(|(v, n)| (v, steady(n), if n.dot(cam.position - patches.vertices[v as usize]) > 0.0 { side } else { hidden_side }))
         .collect();
     vertices.sort_by_key(|(v, ..)| *v);
+    // A ray leaving a face that its whole solid lies behind cannot meet
+    // that solid (it starts in front of the plane and moves away): with no
+    // other object, such a vertex traces the room alone.
+    let object_roots: Vec<&crate::patches::Element> =
+        patches.roots.iter().map(|&r| &patches.elements[r as usize]).filter(|e| patches.surface_is_virtual.get(&e.surface).copied().unwrap_or(false)).collect();
+    let one_object = object_roots.windows(2).all(|w| w[0].surface == w[1].surface);
+    let corners: Vec<DVec3> = object_roots.iter().flat_map(|e| e.shape.corners().to_vec()).collect();
+    let clear_of_object = |p: DVec3, n: DVec3| one_object && vertices.len() * corners.len() <= CLEAR_TEST_LIMIT && crate::gather::clear_of_solid(&corners, p, n);
     let pi = std::f64::consts::PI;
     directions.keep(&vertices);
     let directions = &*directions;
@@ -598,7 +606,7 @@ fn final_gather(
             let dirs = directions.of(v, n, side);
             let traced: Vec<TraceRay> = dirs.iter().map(|d| TraceRay::new(origin.as_vec3(), d.as_vec3())).collect();
             let mut hits = vec![None; traced.len()];
-            tracer.intersect_batch(&traced, Layer::All, &mut hits);
+            tracer.intersect_batch(&traced, if clear_of_object(p, n) { Layer::Real } else { Layer::All }, &mut hits);
             // Where each ray lands and on which patch; the real points' photo radiance in one batch.
             let landed: Vec<Option<(DVec3, usize, bool)>> = dirs
                 .iter()

@@ -230,3 +230,43 @@ fn a_moved_solid_keeps_its_mesh() {
     assert!(meshes.iter().all(|m| *m == meshes[0]), "patches and vertices per pose: {meshes:?}");
     assert_eq!(meshes[0].0, 96, "a 0.3 m box at 0.1 m: 6 faces of 4 × 4 patches");
 }
+
+#[test]
+fn gathering_rays_from_a_solids_faces_meet_through_the_room_alone_what_they_meet_through_both_layers() {
+    // The final gather traces the room alone from a vertex whose whole
+    // solid lies behind its face (`gather::clear_of_solid`): it must find
+    // every ray's hit as tracing both layers does.
+    use arlux::gather::{clear_of_solid, cosine_directions};
+    use arlux::light::offset_origin;
+    for variant in ["box_floor_a", "box_table"] {
+        let scene = desk().with_variant(variant).unwrap();
+        let tracer = scene.build_tracer().unwrap();
+        let with = Patches::of_scene_with(&scene, true, 0.5, 0.1);
+        let is_virtual = |s: u32| with.surface_is_virtual.get(&s).copied().unwrap_or(false);
+        let corners: Vec<DVec3> = with.roots.iter().map(|&r| &with.elements[r as usize]).filter(|e| is_virtual(e.surface)).flat_map(|e| e.shape.corners().to_vec()).collect();
+        let trace = |p: DVec3, n: DVec3, layer: Layer| {
+            let origin = offset_origin(p, n, p + n);
+            let rays: Vec<TraceRay> = cosine_directions(n, 12, 7).iter().map(|d| TraceRay::new(origin.as_vec3(), d.as_vec3())).collect();
+            let mut hits = vec![None; rays.len()];
+            tracer.intersect_batch(&rays, layer, &mut hits);
+            hits
+        };
+        let mut vertices = 0;
+        for k in (0..with.patch_count()).filter(|&k| is_virtual(with.patch(k).surface)) {
+            let n = with.patch(k).normal;
+            for &v in with.patch_vertices[k].iter().filter(|&&v| v != u32::MAX) {
+                let p = with.vertices[v as usize];
+                // A box: every face has the whole box behind it.
+                assert!(clear_of_solid(&corners, p, n), "{variant}: vertex {v} not clear of its own box");
+                assert_eq!(trace(p, n, Layer::Real), trace(p, n, Layer::All), "{variant}: vertex {v}");
+                vertices += 1;
+            }
+        }
+        assert!(vertices > 50, "{variant}: {vertices} vertices");
+        // Facing into the box instead, the rule refuses, and rightly: the box is in the way.
+        let k = (0..with.patch_count()).find(|&k| is_virtual(with.patch(k).surface)).unwrap();
+        let (p, n) = (with.patch(k).centre, -with.patch(k).normal);
+        assert!(!clear_of_solid(&corners, p, n), "{variant}: clear facing into the box");
+        assert!(trace(p, n, Layer::All).iter().flatten().any(|h| h.is_virtual), "{variant}: no ray into the box met it");
+    }
+}
