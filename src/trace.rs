@@ -85,6 +85,23 @@ mod ffi {
         pub flags: [u32; 16],
     }
 
+    #[repr(C, align(16))]
+    #[derive(Clone, Copy)]
+    pub struct RTCRay4 {
+        pub org_x: [f32; 4],
+        pub org_y: [f32; 4],
+        pub org_z: [f32; 4],
+        pub tnear: [f32; 4],
+        pub dir_x: [f32; 4],
+        pub dir_y: [f32; 4],
+        pub dir_z: [f32; 4],
+        pub time: [f32; 4],
+        pub tfar: [f32; 4],
+        pub mask: [u32; 4],
+        pub id: [u32; 4],
+        pub flags: [u32; 4],
+    }
+
     #[repr(C, align(64))]
     #[derive(Clone, Copy)]
     pub struct RTCHit16 {
@@ -128,6 +145,7 @@ mod ffi {
     const _: () = assert!(std::mem::size_of::<RTCIntersectContext>() == 24);
     const _: () = assert!(std::mem::offset_of!(RTCIntersectContext, inst_id) == 16);
     const _: () = assert!(std::mem::size_of::<RTCRay16>() == 768);
+    const _: () = assert!(std::mem::size_of::<RTCRay4>() == 192);
     const _: () = assert!(std::mem::size_of::<RTCHit16>() == 512);
 
     #[link(name = "embree3")]
@@ -156,6 +174,7 @@ mod ffi {
         pub fn rtcOccluded1(scene: RTCScene, ctx: *mut RTCIntersectContext, ray: *mut RTCRay);
         pub fn rtcIntersect16(valid: *const i32, scene: RTCScene, ctx: *mut RTCIntersectContext, rayhit: *mut RTCRayHit16);
         pub fn rtcOccluded16(valid: *const i32, scene: RTCScene, ctx: *mut RTCIntersectContext, ray: *mut RTCRay16);
+        pub fn rtcOccluded4(valid: *const i32, scene: RTCScene, ctx: *mut RTCIntersectContext, ray: *mut RTCRay4);
     }
 }
 
@@ -424,25 +443,15 @@ impl Geometry {
         r.tfar == f32::NEG_INFINITY
     }
 
-    /// Fills a 16-wide packet from up to 16 rays; returns the valid mask.
-    fn packet(rays: &[TraceRay]) -> (ffi::RTCRay16, [i32; 16]) {
+    /// Fills the 16-wide packet `p` from up to 16 rays, in place, and
+    /// `valid` with its mask: lanes past the rays get an empty ray, as a
+    /// fresh packet would have. Built where it is used: building it
+    /// elsewhere and moving it in (1 kB per packet, tens of thousands of
+    /// packets per update) cost as much as the rest of the setup.
+    fn fill_packet(p: &mut ffi::RTCRay16, valid: &mut [i32; 16], rays: &[TraceRay]) {
         debug_assert!(rays.len() <= 16);
-        let mut p = ffi::RTCRay16 {
-            org_x: [0.0; 16],
-            org_y: [0.0; 16],
-            org_z: [0.0; 16],
-            tnear: [0.0; 16],
-            dir_x: [0.0; 16],
-            dir_y: [0.0; 16],
-            dir_z: [1.0; 16],
-            time: [0.0; 16],
-            tfar: [0.0; 16],
-            mask: [u32::MAX; 16],
-            id: [0; 16],
-            flags: [0; 16],
-        };
-        let mut valid = [0i32; 16];
-        for (i, r) in rays.iter().enumerate() {
+        for i in 0..16 {
+            let r = rays.get(i).unwrap_or(&EMPTY_LANE);
             p.org_x[i] = r.origin.x;
             p.org_y[i] = r.origin.y;
             p.org_z[i] = r.origin.z;
@@ -451,9 +460,8 @@ impl Geometry {
             p.dir_y[i] = r.direction.y;
             p.dir_z[i] = r.direction.z;
             p.tfar[i] = r.tfar;
-            valid[i] = -1;
+            valid[i] = if i < rays.len() { -1 } else { 0 };
         }
-        (p, valid)
     }
 
     /// Closest hits of many rays, traced in packets of 16 (write one result per ray).
@@ -461,21 +469,13 @@ impl Geometry {
         assert_eq!(rays.len(), out.len());
         ensure_flush_denormals();
         let mut ctx = ffi::RTCIntersectContext::new();
+        let mut rh = ffi::RTCRayHit16 { ray: EMPTY_RAY16, hit: EMPTY_HIT16 };
+        let mut valid = [0i32; 16];
         for (chunk, res) in rays.chunks(16).zip(out.chunks_mut(16)) {
-            let (ray, valid) = Self::packet(chunk);
-            let mut rh = ffi::RTCRayHit16 {
-                ray,
-                hit: ffi::RTCHit16 {
-                    ng_x: [0.0; 16],
-                    ng_y: [0.0; 16],
-                    ng_z: [0.0; 16],
-                    u: [0.0; 16],
-                    v: [0.0; 16],
-                    prim_id: [0; 16],
-                    geom_id: [ffi::RTC_INVALID_GEOMETRY_ID; 16],
-                    inst_id: [[ffi::RTC_INVALID_GEOMETRY_ID; 16]],
-                },
-            };
+            Self::fill_packet(&mut rh.ray, &mut valid, chunk);
+            // Embree writes only the lanes that hit something.
+            rh.hit.geom_id = [ffi::RTC_INVALID_GEOMETRY_ID; 16];
+            rh.hit.inst_id = [[ffi::RTC_INVALID_GEOMETRY_ID; 16]];
             // SAFETY: the packet is 64-byte aligned as Embree requires; the
             // scene is committed; inactive lanes are masked off.
             unsafe { ffi::rtcIntersect16(valid.as_ptr(), self.scene.as_ptr(), &mut ctx, &mut rh) };
@@ -487,13 +487,38 @@ impl Geometry {
         }
     }
 
-    /// Occlusion of many rays, traced in packets of 16.
+    /// Occlusion of many rays, traced in packets of 16 (four or fewer in
+    /// one packet of 4: a light term's first rays, a short visibility test).
     pub fn occluded_batch(&self, rays: &[TraceRay], out: &mut [bool]) {
         assert_eq!(rays.len(), out.len());
         ensure_flush_denormals();
         let mut ctx = ffi::RTCIntersectContext::new();
+        if rays.len() <= 4 {
+            let mut packet = EMPTY_RAY4;
+            let mut valid = [0i32; 4];
+            for (i, r) in rays.iter().enumerate() {
+                packet.org_x[i] = r.origin.x;
+                packet.org_y[i] = r.origin.y;
+                packet.org_z[i] = r.origin.z;
+                packet.tnear[i] = r.tnear;
+                packet.dir_x[i] = r.direction.x;
+                packet.dir_y[i] = r.direction.y;
+                packet.dir_z[i] = r.direction.z;
+                packet.tfar[i] = r.tfar;
+                valid[i] = -1;
+            }
+            // SAFETY: the packet is 16-byte aligned as Embree requires; the
+            // scene is committed; inactive lanes are masked off.
+            unsafe { ffi::rtcOccluded4(valid.as_ptr(), self.scene.as_ptr(), &mut ctx, &mut packet) };
+            for (i, o) in out.iter_mut().enumerate() {
+                *o = packet.tfar[i] == f32::NEG_INFINITY;
+            }
+            return;
+        }
+        let mut packet = EMPTY_RAY16;
+        let mut valid = [0i32; 16];
         for (chunk, res) in rays.chunks(16).zip(out.chunks_mut(16)) {
-            let (mut packet, valid) = Self::packet(chunk);
+            Self::fill_packet(&mut packet, &mut valid, chunk);
             // SAFETY: as in `intersect_batch`.
             unsafe { ffi::rtcOccluded16(valid.as_ptr(), self.scene.as_ptr(), &mut ctx, &mut packet) };
             for (i, o) in res.iter_mut().enumerate() {
@@ -502,6 +527,50 @@ impl Geometry {
         }
     }
 }
+
+/// An inactive lane of a packet.
+const EMPTY_LANE: TraceRay = TraceRay { origin: Vec3::ZERO, direction: Vec3::Z, tnear: 0.0, tfar: 0.0 };
+
+const EMPTY_RAY16: ffi::RTCRay16 = ffi::RTCRay16 {
+    org_x: [0.0; 16],
+    org_y: [0.0; 16],
+    org_z: [0.0; 16],
+    tnear: [0.0; 16],
+    dir_x: [0.0; 16],
+    dir_y: [0.0; 16],
+    dir_z: [1.0; 16],
+    time: [0.0; 16],
+    tfar: [0.0; 16],
+    mask: [u32::MAX; 16],
+    id: [0; 16],
+    flags: [0; 16],
+};
+
+const EMPTY_RAY4: ffi::RTCRay4 = ffi::RTCRay4 {
+    org_x: [0.0; 4],
+    org_y: [0.0; 4],
+    org_z: [0.0; 4],
+    tnear: [0.0; 4],
+    dir_x: [0.0; 4],
+    dir_y: [0.0; 4],
+    dir_z: [1.0; 4],
+    time: [0.0; 4],
+    tfar: [0.0; 4],
+    mask: [u32::MAX; 4],
+    id: [0; 4],
+    flags: [0; 4],
+};
+
+const EMPTY_HIT16: ffi::RTCHit16 = ffi::RTCHit16 {
+    ng_x: [0.0; 16],
+    ng_y: [0.0; 16],
+    ng_z: [0.0; 16],
+    u: [0.0; 16],
+    v: [0.0; 16],
+    prim_id: [0; 16],
+    geom_id: [ffi::RTC_INVALID_GEOMETRY_ID; 16],
+    inst_id: [[ffi::RTC_INVALID_GEOMETRY_ID; 16]],
+};
 
 /// Which geometry a query sees.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
