@@ -369,10 +369,21 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
     let n = (w * h) as usize;
     // Without prepared pixels (a still image) each is prepared as it is shaded.
     let floor = input.known.map_or_else(|| RealPixels::floor_of(input), |k| k.floor);
-    let mut edge_of = vec![u32::MAX; n];
-    for (k, e) in pda.edges.iter().enumerate() {
-        edge_of[e.pixel as usize] = k as u32;
+    // Per row, the columns from the first to past the last pixel showing
+    // an object or mixing real and virtual sub-pixels (none: start ≥ end).
+    // Outside them a pixel shows a real point alone, or nothing: most
+    // pixels need neither the virtual index nor the edge list.
+    let mut spans = vec![(u32::MAX, 0u32); h as usize];
+    for &p in pda.virtual_pixels.iter().chain(pda.edges.iter().map(|e| &e.pixel)) {
+        let (x, y) = (p % w, (p / w) as usize);
+        spans[y] = (spans[y].0.min(x), spans[y].1.max(x + 1));
     }
+    let in_span = |i: usize| {
+        let (x0, x1) = spans[i / w as usize];
+        (x0..x1).contains(&((i % w as usize) as u32))
+    };
+    // Edge pixels are in pixel order.
+    let edge_at = |i: usize| in_span(i).then(|| pda.edges.binary_search_by_key(&(i as u32), |e| e.pixel).ok()).flatten().map(|k| pda.edges[k]);
     if out.image.pixels.len() != n || out.alpha.len() != n {
         *out = Composite { image: Image::new(w, h), alpha: vec![0.0; n], ..Composite::empty() };
     }
@@ -382,8 +393,7 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
     }
     let shade = |i: usize| -> (Shade, f32) {
         let photo = input.photo.pixels[i].as_dvec3();
-        if edge_of[i] != u32::MAX {
-            let e = pda.edges[edge_of[i] as usize];
+        if let Some(e) = edge_at(i) {
             let mut sum = Shade { value: DVec3::ZERO, direct: DVec3::ZERO, indirect: DVec3::ZERO, copied: false, fallback: false, clamped: false };
             let mut virtual_count = 0;
             for k in e.start..e.start + e.count {
@@ -426,7 +436,7 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
     let h_with = patch_corners(input.indirect_with, input.patch_vertices);
     let plain = |i: usize| -> Option<PixelShade> {
         let k = pda.real_index[i];
-        if k == u32::MAX || edge_of[i] != u32::MAX || pda.virtual_index[i] != u32::MAX {
+        if k == u32::MAX || in_span(i) && (pda.virtual_index[i] != u32::MAX || edge_at(i).is_some()) {
             return None;
         }
         let k = k as usize;
@@ -460,11 +470,12 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
             let (copied, fallbacks, clamped) = rows
                 .map(|(row, (image, alpha))| {
                     let at = row * w..row * w + image.len();
-                    let (real, virt, edge, photo_row) = (&pda.real_index[at.clone()], &pda.virtual_index[at.clone()], &edge_of[at.clone()], &photo[at]);
+                    let (real, virt, photo_row) = (&pda.real_index[at.clone()], &pda.virtual_index[at.clone()], &photo[at]);
+                    let span = spans[row].0 as usize..spans[row].1 as usize;
                     let mut counts = (0, 0, 0);
                     for x in 0..image.len() {
                         let k = real[x];
-                        if k == u32::MAX || virt[x] != u32::MAX || edge[x] != u32::MAX {
+                        if k == u32::MAX || span.contains(&x) && (virt[x] != u32::MAX || edge_at(row * w + x).is_some()) {
                             let s = other(row * w + x);
                             image[x] = s.value;
                             alpha[x] = s.alpha;

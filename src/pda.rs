@@ -154,6 +154,8 @@ pub struct PixelDataArray {
     pub real_masks: Vec<RealMask>,
     /// Per pixel, index into `virtual_samples` (u32::MAX: no virtual surface in front).
     pub virtual_index: Vec<u32>,
+    /// The pixels `virtual_index` holds, in pixel order.
+    pub virtual_pixels: Vec<u32>,
     pub virtual_samples: Samples,
     /// Pixels whose sub-pixels mix real and virtual surfaces, in pixel order.
     pub edges: Vec<EdgePixel>,
@@ -539,6 +541,7 @@ impl PixelDataArray {
             real: Samples::default(),
             real_masks: Vec::new(),
             virtual_index: vec![NONE; n],
+            virtual_pixels: Vec::new(),
             virtual_samples: Samples::default(),
             edges: Vec::new(),
             edge_samples: Samples::default(),
@@ -553,6 +556,7 @@ impl PixelDataArray {
             pda.real_masks.extend(r.real_masks);
             for (pixel, p) in r.virt {
                 pda.virtual_index[pixel as usize] = pda.virtual_samples.points.len() as u32;
+                pda.virtual_pixels.push(pixel);
                 pda.virtual_samples.points.push(p);
             }
             pda.virtual_samples.terms.extend(r.virt_terms);
@@ -629,6 +633,7 @@ impl PixelDataArray {
         // Refilled in place: a fresh 0.8 MB each update faulted its pages in again.
         self.virtual_index.resize(n, NONE);
         self.virtual_index.fill(NONE);
+        self.virtual_pixels.clear();
         self.virtual_samples = Samples::default();
         self.edges.clear();
         self.edge_samples = Samples::default();
@@ -712,6 +717,7 @@ impl PixelDataArray {
             rays += r;
             if let Some((p, terms)) = virt {
                 self.virtual_index[pixel as usize] = self.virtual_samples.points.len() as u32;
+                self.virtual_pixels.push(pixel);
                 self.virtual_samples.points.push(p);
                 self.virtual_samples.terms.extend(terms);
             }
@@ -728,7 +734,7 @@ impl PixelDataArray {
     /// Bytes held, and per pixel.
     pub fn memory_bytes(&self) -> usize {
         let samples = |s: &Samples| s.points.len() * std::mem::size_of::<SurfacePoint>() + s.terms.len() * std::mem::size_of::<LightTerm>();
-        (self.real_index.len() + self.real_t.len() + self.virtual_index.len()) * 4
+        (self.real_index.len() + self.real_t.len() + self.virtual_index.len() + self.virtual_pixels.len()) * 4
             + samples(&self.real)
             + self.real_masks.len() * std::mem::size_of::<RealMask>()
             + samples(&self.virtual_samples)
