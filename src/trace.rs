@@ -450,7 +450,7 @@ impl Geometry {
     /// packets per update) cost as much as the rest of the setup.
     fn fill_packet(p: &mut ffi::RTCRay16, valid: &mut [i32; 16], rays: &[TraceRay]) {
         debug_assert!(rays.len() <= 16);
-        for i in 0..16 {
+        for (i, lane) in valid.iter_mut().enumerate() {
             let r = rays.get(i).unwrap_or(&EMPTY_LANE);
             p.org_x[i] = r.origin.x;
             p.org_y[i] = r.origin.y;
@@ -460,7 +460,7 @@ impl Geometry {
             p.dir_y[i] = r.direction.y;
             p.dir_z[i] = r.direction.z;
             p.tfar[i] = r.tfar;
-            valid[i] = if i < rays.len() { -1 } else { 0 };
+            *lane = if i < rays.len() { -1 } else { 0 };
         }
     }
 
