@@ -146,6 +146,9 @@ pub struct Session {
     layers: bool,
     /// The objects' gather directions, for the next pose.
     gather_directions: GatherDirections,
+    /// Per light, the pixels the last update's traversal reached against
+    /// the objects where it left them: the next update's old bounds.
+    reached: Vec<Option<Vec<u32>>>,
 }
 
 /// Final gathering's directions per virtual vertex (its number, normal
@@ -270,6 +273,7 @@ impl Session {
             link_facts,
             layers: true,
             gather_directions,
+            reached: Vec::new(),
         };
         session.recomposite(times, &[]);
         Ok(session)
@@ -371,7 +375,7 @@ impl Session {
         let (solved, (touched, pixel_rays, retraced)) = {
             let (scene, photo, tracer, model, scales_with, settings, bounds, link_facts, directions) =
                 (&self.scene, &self.photo, &self.tracer, &self.model, &self.scales_with, &self.settings, &self.bounds, &self.link_facts, &mut self.gather_directions);
-            let (pda, blocks, active, stats) = (&mut self.pda, self.blocks.as_ref().expect("prepared above"), &self.active, &mut stats);
+            let (pda, blocks, active, stats, reached) = (&mut self.pda, self.blocks.as_ref().expect("prepared above"), &self.active, &mut stats, &mut self.reached);
             let objects = objects.as_ref();
             times.concurrently(
                 "radiosity | pixels",
@@ -388,12 +392,39 @@ impl Session {
                         for_updates: true,
                     };
                     let (mut rays, retraced) = times.time("re-trace objects and edges", || pda.rebuild_virtual(&input));
-                    let mut moved = old.objects.clone();
-                    moved.extend(bounds.objects.iter().copied());
-                    let traversals: Vec<Option<crate::blocks::Traversal>> = times.time("pixel-block traversal", || {
+                    // The pixels whose shafts may meet the objects' old
+                    // bounds are those the last update reached against its
+                    // new ones: only the new bounds are traversed (both,
+                    // one at a time, the first time).
+                    let traversals: Vec<Option<(crate::blocks::Traversal, Vec<u32>)>> = times.time("pixel-block traversal", || {
                         use rayon::prelude::*;
-                        input.lights.par_iter().enumerate().map(|(l, light)| input.active[l].then(|| blocks.traverse(light, &moved))).collect()
+                        let mut last = std::mem::take(reached);
+                        last.resize(input.lights.len(), None);
+                        input
+                            .lights
+                            .par_iter()
+                            .zip(last)
+                            .enumerate()
+                            .map(|(l, (light, last))| {
+                                input.active[l].then(|| {
+                                    let mut t = blocks.traverse(light, &bounds.objects);
+                                    let now = t.pixels.clone();
+                                    let before = last.unwrap_or_else(|| {
+                                        let o = blocks.traverse(light, &old.objects);
+                                        t.shaft_tests += o.shaft_tests;
+                                        o.pixels
+                                    });
+                                    t.pixels.extend(before);
+                                    t.pixels.sort_unstable();
+                                    t.pixels.dedup();
+                                    (t, now)
+                                })
+                            })
+                            .collect()
                     });
+                    let (traversals, now): (Vec<Option<crate::blocks::Traversal>>, Vec<Option<Vec<u32>>>) =
+                        traversals.into_iter().map(|t| t.map_or((None, None), |(t, now)| (Some(t), Some(now)))).unzip();
+                    *reached = now;
                     let touched = times.time("recompute pixels", || {
                         let mut touched: Vec<u32> = Vec::new();
                         for (l, t) in traversals.into_iter().enumerate() {
