@@ -326,12 +326,21 @@ impl Session {
         self.layers = false;
     }
 
-    /// Builds the pixel-block hierarchy updates traverse (done by the first
-    /// update when not asked for before).
+    /// Builds the pixel-block hierarchy updates traverse, and traverses it
+    /// against the objects where they stand (done by the first update when
+    /// not asked for before).
     pub fn prepare_updates(&mut self, times: &mut StageTimes) {
         if self.blocks.is_none() {
-            let pda = &self.pda;
-            self.blocks = Some(times.time("pixel blocks", || crate::blocks::BlockHierarchy::build(pda)));
+            let (pda, lights, active, objects) = (&self.pda, &self.model.lights, &self.active, &self.bounds.objects);
+            let (blocks, reached) = times.time("pixel blocks", || {
+                use rayon::prelude::*;
+                let blocks = crate::blocks::BlockHierarchy::build(pda);
+                // The pixels the objects reach where they stand: the first update's old bounds.
+                let reached = lights.par_iter().zip(active).map(|(light, &on)| on.then(|| blocks.traverse(light, objects).pixels)).collect();
+                (blocks, reached)
+            });
+            self.blocks = Some(blocks);
+            self.reached = reached;
         }
     }
 
@@ -393,9 +402,9 @@ impl Session {
                     };
                     let (mut rays, retraced) = times.time("re-trace objects and edges", || pda.rebuild_virtual(&input));
                     // The pixels whose shafts may meet the objects' old
-                    // bounds are those the last update reached against its
-                    // new ones: only the new bounds are traversed (both,
-                    // one at a time, the first time).
+                    // bounds are those the last update (or the hierarchy's
+                    // building) reached against them: only the new bounds
+                    // are traversed.
                     let traversals: Vec<Option<(crate::blocks::Traversal, Vec<u32>)>> = times.time("pixel-block traversal", || {
                         use rayon::prelude::*;
                         let mut last = std::mem::take(reached);
