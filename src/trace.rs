@@ -68,38 +68,42 @@ mod ffi {
         pub hit: RTCHit,
     }
 
+    /// `RTCRay4`, `RTCRay16` (N = 4, 16): the rays of a packet, field by
+    /// field. Embree asks 16-byte alignment of the first and 64 of the
+    /// second; both get 64.
     #[repr(C, align(64))]
     #[derive(Clone, Copy)]
-    pub struct RTCRay16 {
-        pub org_x: [f32; 16],
-        pub org_y: [f32; 16],
-        pub org_z: [f32; 16],
-        pub tnear: [f32; 16],
-        pub dir_x: [f32; 16],
-        pub dir_y: [f32; 16],
-        pub dir_z: [f32; 16],
-        pub time: [f32; 16],
-        pub tfar: [f32; 16],
-        pub mask: [u32; 16],
-        pub id: [u32; 16],
-        pub flags: [u32; 16],
+    pub struct RTCRayN<const N: usize> {
+        pub org_x: [f32; N],
+        pub org_y: [f32; N],
+        pub org_z: [f32; N],
+        pub tnear: [f32; N],
+        pub dir_x: [f32; N],
+        pub dir_y: [f32; N],
+        pub dir_z: [f32; N],
+        pub time: [f32; N],
+        pub tfar: [f32; N],
+        pub mask: [u32; N],
+        pub id: [u32; N],
+        pub flags: [u32; N],
     }
 
-    #[repr(C, align(16))]
-    #[derive(Clone, Copy)]
-    pub struct RTCRay4 {
-        pub org_x: [f32; 4],
-        pub org_y: [f32; 4],
-        pub org_z: [f32; 4],
-        pub tnear: [f32; 4],
-        pub dir_x: [f32; 4],
-        pub dir_y: [f32; 4],
-        pub dir_z: [f32; 4],
-        pub time: [f32; 4],
-        pub tfar: [f32; 4],
-        pub mask: [u32; 4],
-        pub id: [u32; 4],
-        pub flags: [u32; 4],
+    impl<const N: usize> RTCRayN<N> {
+        /// Every lane an inactive ray.
+        pub const EMPTY: Self = RTCRayN {
+            org_x: [0.0; N],
+            org_y: [0.0; N],
+            org_z: [0.0; N],
+            tnear: [0.0; N],
+            dir_x: [0.0; N],
+            dir_y: [0.0; N],
+            dir_z: [1.0; N],
+            time: [0.0; N],
+            tfar: [0.0; N],
+            mask: [u32::MAX; N],
+            id: [0; N],
+            flags: [0; N],
+        };
     }
 
     #[repr(C, align(64))]
@@ -118,7 +122,7 @@ mod ffi {
     #[repr(C)]
     #[derive(Clone, Copy)]
     pub struct RTCRayHit16 {
-        pub ray: RTCRay16,
+        pub ray: RTCRayN<16>,
         pub hit: RTCHit16,
     }
 
@@ -144,8 +148,8 @@ mod ffi {
     const _: () = assert!(std::mem::offset_of!(RTCRayHit, hit) == 48);
     const _: () = assert!(std::mem::size_of::<RTCIntersectContext>() == 24);
     const _: () = assert!(std::mem::offset_of!(RTCIntersectContext, inst_id) == 16);
-    const _: () = assert!(std::mem::size_of::<RTCRay16>() == 768);
-    const _: () = assert!(std::mem::size_of::<RTCRay4>() == 192);
+    const _: () = assert!(std::mem::size_of::<RTCRayN<16>>() == 768);
+    const _: () = assert!(std::mem::size_of::<RTCRayN<4>>() == 192);
     const _: () = assert!(std::mem::size_of::<RTCHit16>() == 512);
 
     #[link(name = "embree3")]
@@ -173,8 +177,8 @@ mod ffi {
         pub fn rtcIntersect1(scene: RTCScene, ctx: *mut RTCIntersectContext, rayhit: *mut RTCRayHit);
         pub fn rtcOccluded1(scene: RTCScene, ctx: *mut RTCIntersectContext, ray: *mut RTCRay);
         pub fn rtcIntersect16(valid: *const i32, scene: RTCScene, ctx: *mut RTCIntersectContext, rayhit: *mut RTCRayHit16);
-        pub fn rtcOccluded16(valid: *const i32, scene: RTCScene, ctx: *mut RTCIntersectContext, ray: *mut RTCRay16);
-        pub fn rtcOccluded4(valid: *const i32, scene: RTCScene, ctx: *mut RTCIntersectContext, ray: *mut RTCRay4);
+        pub fn rtcOccluded16(valid: *const i32, scene: RTCScene, ctx: *mut RTCIntersectContext, ray: *mut RTCRayN<16>);
+        pub fn rtcOccluded4(valid: *const i32, scene: RTCScene, ctx: *mut RTCIntersectContext, ray: *mut RTCRayN<4>);
     }
 }
 
@@ -443,13 +447,13 @@ impl Geometry {
         r.tfar == f32::NEG_INFINITY
     }
 
-    /// Fills the 16-wide packet `p` from up to 16 rays, in place, and
+    /// Fills the N-wide packet `p` from up to N rays, in place, and
     /// `valid` with its mask: lanes past the rays get an empty ray, as a
     /// fresh packet would have. Built where it is used: building it
     /// elsewhere and moving it in (1 kB per packet, tens of thousands of
     /// packets per update) cost as much as the rest of the setup.
-    fn fill_packet(p: &mut ffi::RTCRay16, valid: &mut [i32; 16], rays: &[TraceRay]) {
-        debug_assert!(rays.len() <= 16);
+    fn fill_packet<const N: usize>(p: &mut ffi::RTCRayN<N>, valid: &mut [i32; N], rays: &[TraceRay]) {
+        debug_assert!(rays.len() <= N);
         for (i, lane) in valid.iter_mut().enumerate() {
             let r = rays.get(i).unwrap_or(&EMPTY_LANE);
             p.org_x[i] = r.origin.x;
@@ -469,7 +473,7 @@ impl Geometry {
         assert_eq!(rays.len(), out.len());
         ensure_flush_denormals();
         let mut ctx = ffi::RTCIntersectContext::new();
-        let mut rh = ffi::RTCRayHit16 { ray: EMPTY_RAY16, hit: EMPTY_HIT16 };
+        let mut rh = ffi::RTCRayHit16 { ray: ffi::RTCRayN::EMPTY, hit: EMPTY_HIT16 };
         let mut valid = [0i32; 16];
         for (chunk, res) in rays.chunks(16).zip(out.chunks_mut(16)) {
             Self::fill_packet(&mut rh.ray, &mut valid, chunk);
@@ -494,28 +498,18 @@ impl Geometry {
         ensure_flush_denormals();
         let mut ctx = ffi::RTCIntersectContext::new();
         if rays.len() <= 4 {
-            let mut packet = EMPTY_RAY4;
+            let mut packet = ffi::RTCRayN::<4>::EMPTY;
             let mut valid = [0i32; 4];
-            for (i, r) in rays.iter().enumerate() {
-                packet.org_x[i] = r.origin.x;
-                packet.org_y[i] = r.origin.y;
-                packet.org_z[i] = r.origin.z;
-                packet.tnear[i] = r.tnear;
-                packet.dir_x[i] = r.direction.x;
-                packet.dir_y[i] = r.direction.y;
-                packet.dir_z[i] = r.direction.z;
-                packet.tfar[i] = r.tfar;
-                valid[i] = -1;
-            }
-            // SAFETY: the packet is 16-byte aligned as Embree requires; the
-            // scene is committed; inactive lanes are masked off.
+            Self::fill_packet(&mut packet, &mut valid, rays);
+            // SAFETY: the packet is aligned as Embree requires; the scene
+            // is committed; inactive lanes are masked off.
             unsafe { ffi::rtcOccluded4(valid.as_ptr(), self.scene.as_ptr(), &mut ctx, &mut packet) };
             for (i, o) in out.iter_mut().enumerate() {
                 *o = packet.tfar[i] == f32::NEG_INFINITY;
             }
             return;
         }
-        let mut packet = EMPTY_RAY16;
+        let mut packet = ffi::RTCRayN::<16>::EMPTY;
         let mut valid = [0i32; 16];
         for (chunk, res) in rays.chunks(16).zip(out.chunks_mut(16)) {
             Self::fill_packet(&mut packet, &mut valid, chunk);
@@ -530,36 +524,6 @@ impl Geometry {
 
 /// An inactive lane of a packet.
 const EMPTY_LANE: TraceRay = TraceRay { origin: Vec3::ZERO, direction: Vec3::Z, tnear: 0.0, tfar: 0.0 };
-
-const EMPTY_RAY16: ffi::RTCRay16 = ffi::RTCRay16 {
-    org_x: [0.0; 16],
-    org_y: [0.0; 16],
-    org_z: [0.0; 16],
-    tnear: [0.0; 16],
-    dir_x: [0.0; 16],
-    dir_y: [0.0; 16],
-    dir_z: [1.0; 16],
-    time: [0.0; 16],
-    tfar: [0.0; 16],
-    mask: [u32::MAX; 16],
-    id: [0; 16],
-    flags: [0; 16],
-};
-
-const EMPTY_RAY4: ffi::RTCRay4 = ffi::RTCRay4 {
-    org_x: [0.0; 4],
-    org_y: [0.0; 4],
-    org_z: [0.0; 4],
-    tnear: [0.0; 4],
-    dir_x: [0.0; 4],
-    dir_y: [0.0; 4],
-    dir_z: [1.0; 4],
-    time: [0.0; 4],
-    tfar: [0.0; 4],
-    mask: [u32::MAX; 4],
-    id: [0; 4],
-    flags: [0; 4],
-};
 
 const EMPTY_HIT16: ffi::RTCHit16 = ffi::RTCHit16 {
     ng_x: [0.0; 16],
