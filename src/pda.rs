@@ -630,9 +630,13 @@ impl PixelDataArray {
     pub fn rebuild_virtual(&mut self, input: &PdaInput) -> (u64, u64) {
         let cam = input.camera;
         let n = (self.width * self.height) as usize;
-        // Refilled in place: a fresh 0.8 MB each update faulted its pages in again.
+        // Reset in place, where the last placement set it: a fresh 0.8 MB
+        // each update faulted its pages in again, and filling it all
+        // wrote 0.8 MB to clear a few thousand entries.
         self.virtual_index.resize(n, NONE);
-        self.virtual_index.fill(NONE);
+        for &pixel in &self.virtual_pixels {
+            self.virtual_index[pixel as usize] = NONE;
+        }
         self.virtual_pixels.clear();
         self.virtual_samples = Samples::default();
         self.edges.clear();
