@@ -492,13 +492,7 @@ impl PixelDataArray {
                 // What a query through both layers gives, its real half kept from above.
                 let mut all_hits = real_hits.clone();
                 if has_virtual {
-                    let mut near = vec![None; w as usize];
-                    input.tracer.intersect_virtual_before(&rays, &real_t, &mut near);
-                    for (a, n) in all_hits.iter_mut().zip(near) {
-                        if n.is_some() {
-                            *a = n;
-                        }
-                    }
+                    input.tracer.put_virtual_in_front(&rays, &real_t, &mut all_hits);
                 }
                 r.real_t = real_t;
                 for col in 0..w {

@@ -146,9 +146,10 @@ pub struct Session {
     layers: bool,
     /// The objects' gather directions, for the next pose.
     gather_directions: GatherDirections,
-    /// Per light, the pixels the last update's traversal reached against
-    /// the objects where it left them: the next update's old bounds.
-    reached: Vec<Option<Vec<u32>>>,
+    /// Per light, the pixels the last traversal (an update's, or the
+    /// preparation's) reached against the objects where it left them: the
+    /// next update's old bounds (empty for a light switched off).
+    reached: Vec<Vec<u32>>,
 }
 
 /// Final gathering's directions per virtual vertex (its number, normal
@@ -336,7 +337,7 @@ impl Session {
                 use rayon::prelude::*;
                 let blocks = crate::blocks::BlockHierarchy::build(pda);
                 // The pixels the objects reach where they stand: the first update's old bounds.
-                let reached = lights.par_iter().zip(active).map(|(light, &on)| on.then(|| blocks.traverse(light, objects).pixels)).collect();
+                let reached = lights.par_iter().zip(active).map(|(light, &on)| if on { blocks.traverse(light, objects).pixels } else { Vec::new() }).collect();
                 (blocks, reached)
             });
             self.blocks = Some(blocks);
@@ -370,7 +371,6 @@ impl Session {
         }
         self.prepare_updates(times);
         let mut stats = UpdateStats::default();
-        let old = self.bounds.clone();
         let virt = scene.virtual_world_surfaces();
         let sets: Vec<crate::trace::SurfaceTriangles> =
             virt.iter().map(|(id, t)| crate::trace::SurfaceTriangles { surface: *id, triangles: t }).collect();
@@ -407,22 +407,15 @@ impl Session {
                     // are traversed.
                     let traversals: Vec<Option<(crate::blocks::Traversal, Vec<u32>)>> = times.time("pixel-block traversal", || {
                         use rayon::prelude::*;
-                        let mut last = std::mem::take(reached);
-                        last.resize(input.lights.len(), None);
                         input
                             .lights
                             .par_iter()
-                            .zip(last)
+                            .zip(std::mem::take(reached))
                             .enumerate()
-                            .map(|(l, (light, last))| {
+                            .map(|(l, (light, before))| {
                                 input.active[l].then(|| {
                                     let mut t = blocks.traverse(light, &bounds.objects);
                                     let now = t.pixels.clone();
-                                    let before = last.unwrap_or_else(|| {
-                                        let o = blocks.traverse(light, &old.objects);
-                                        t.shaft_tests += o.shaft_tests;
-                                        o.pixels
-                                    });
                                     t.pixels.extend(before);
                                     t.pixels.sort_unstable();
                                     t.pixels.dedup();
@@ -431,8 +424,8 @@ impl Session {
                             })
                             .collect()
                     });
-                    let (traversals, now): (Vec<Option<crate::blocks::Traversal>>, Vec<Option<Vec<u32>>>) =
-                        traversals.into_iter().map(|t| t.map_or((None, None), |(t, now)| (Some(t), Some(now)))).unzip();
+                    let (traversals, now): (Vec<Option<crate::blocks::Traversal>>, Vec<Vec<u32>>) =
+                        traversals.into_iter().map(|t| t.map_or((None, Vec::new()), |(t, now)| (Some(t), now))).unzip();
                     *reached = now;
                     let touched = times.time("recompute pixels", || {
                         let mut touched: Vec<u32> = Vec::new();

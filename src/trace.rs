@@ -601,13 +601,21 @@ impl Tracer {
             (_, Some(_)) => {
                 self.real.intersect_batch(rays, out);
                 let before: Vec<f32> = rays.iter().zip(out.iter()).map(|(r, h)| h.map_or(r.tfar, |h| h.t)).collect();
-                let mut near = vec![None; rays.len()];
-                self.intersect_virtual_before(rays, &before, &mut near);
-                for (o, n) in out.iter_mut().zip(near) {
-                    if n.is_some() {
-                        *o = n;
-                    }
-                }
+                self.put_virtual_in_front(rays, &before, out);
+            }
+        }
+    }
+
+    /// Replaces each of `hits` (a [`Layer::Real`] query's) by the closest
+    /// virtual hit nearer than `before` (that hit's distance, or the ray's
+    /// end), where there is one: the second half of a [`Layer::All`] query,
+    /// for a caller that kept the first.
+    pub fn put_virtual_in_front(&self, rays: &[TraceRay], before: &[f32], hits: &mut [Option<Hit>]) {
+        let mut near = vec![None; rays.len()];
+        self.intersect_virtual_before(rays, before, &mut near);
+        for (h, n) in hits.iter_mut().zip(near) {
+            if n.is_some() {
+                *h = n;
             }
         }
     }
