@@ -62,29 +62,53 @@ pub struct CompositeInput<'a> {
 /// D (the "without" irradiance) is under the floor or the mode says so —
 /// and the band of H within which the photo's pixel stands (only where the
 /// direct light is unchanged). Everything but H is fixed while objects
-/// move, and this is all a pixel reads (not the PDA's point and terms):
-/// 68 bytes, read for every pixel of every update's composite.
+/// move, and this is all a pixel reads (not the PDA's point and terms).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RealPixel {
+    affine: AffinePixel,
+    keep: PhotoBand,
+}
+
+/// A [`RealPixel`]'s affine part: 44 bytes, read for every pixel of every
+/// update's composite.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct AffinePixel {
     offset: Vec3,
     slope: Vec3,
-    h_without: Vec3,
-    /// Negative: the direct light changed, never the photo's pixel.
-    band: Vec3,
     /// The patch the point lies in, with [`FALLBACK`] set where the ratio
     /// fell back to the additive form.
     patch: u32,
     weights: [f32; 4],
 }
 
+/// A [`RealPixel`]'s band: read by an update only where its patch's
+/// corners say the photo's pixel may be kept ([`RealPixels::may_keep`];
+/// with an object in the room, nearly nowhere: its indirect light moves
+/// everything).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct PhotoBand {
+    h_without: Vec3,
+    /// Negative: the direct light changed, never the photo's pixel.
+    band: Vec3,
+}
+
 /// [`RealPixel::patch`]'s flag bit (patch numbers stay below it).
 const FALLBACK: u32 = 1 << 31;
 
-/// [`RealPixel`] per real point of the PDA, and the floor under which a
-/// ratio is not trusted (a thousandth of the mean "without" irradiance).
+/// [`RealPixel`] per real point of the PDA, kept by a session with its
+/// affine parts and bands apart (an update's composite reads 44 bytes a
+/// pixel instead of 68), what [`RealPixels::may_keep`] asks per patch, and
+/// the floor under which a ratio is not trusted (a thousandth of the mean
+/// "without" irradiance).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RealPixels {
-    pub pixels: Vec<RealPixel>,
+    affine: Vec<AffinePixel>,
+    keep: Vec<PhotoBand>,
+    /// Per patch, the widest band of its pixels per channel (negative
+    /// where none has one).
+    widest_band: Vec<Vec3>,
+    /// Per patch, the corners of the indirect light without the changes.
+    without: Vec<[Vec3A; 4]>,
     pub floor: DVec3,
 }
 
@@ -94,12 +118,22 @@ impl RealPixels {
         let lights = pda.light_count;
         let floor = RealPixels::floor_of(input);
         let pixel_of: Vec<u32> = (0..pda.real_index.len() as u32).filter(|&i| pda.real_index[i as usize] != u32::MAX).collect();
-        let pixels = pixel_of
+        let pixels: Vec<RealPixel> = pixel_of
             .par_iter()
             .enumerate()
             .map(|(k, &i)| input.real_pixel(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], input.photo.pixels[i as usize].as_dvec3(), floor))
             .collect();
-        RealPixels { pixels, floor }
+        let mut known = RealPixels {
+            affine: pixels.iter().map(|r| r.affine).collect(),
+            keep: pixels.iter().map(|r| r.keep).collect(),
+            widest_band: vec![Vec3::splat(-1.0); input.patch_vertices.len()],
+            without: patch_corners(input.indirect_without, input.patch_vertices),
+            floor,
+        };
+        for r in &pixels {
+            known.widen(r);
+        }
+        known
     }
 
     /// The floor under which a ratio is not trusted: a thousandth of the
@@ -125,13 +159,67 @@ impl RealPixels {
             let k = pda.real_index[i as usize];
             if k != u32::MAX {
                 let k = k as usize;
-                self.pixels[k] = input.real_pixel(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], input.photo.pixels[i as usize].as_dvec3(), self.floor);
+                let r = input.real_pixel(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], input.photo.pixels[i as usize].as_dvec3(), self.floor);
+                (self.affine[k], self.keep[k]) = (r.affine, r.keep);
+                self.widen(&r);
             }
         }
     }
+
+    /// Widens the widest band of `r`'s patch to hold its band. It only
+    /// grows: a band an earlier placement had costs at most a band read
+    /// where it could not keep the photo.
+    fn widen(&mut self, r: &RealPixel) {
+        if let Some(b) = self.widest_band.get_mut(r.affine.patch()).filter(|_| r.keep.band.x >= 0.0) {
+            *b = b.max(r.keep.band);
+        }
+    }
+
+    /// Per patch, whether a pixel of it may keep the photo under the
+    /// indirect light `with` (its corners, as [`patch_corners`] gives
+    /// them). A pixel's indirect light moved by the weighted mean of its
+    /// corners' moves (weights ≥ 0, summing to 1): where, in a channel,
+    /// every corner moved the same way by more than the patch's widest band
+    /// (and single precision's rounding), none of its pixels is within its
+    /// band, and their bands need not be read.
+    fn may_keep(&self, with: &[[Vec3A; 4]], vertices: &[[u32; 4]]) -> Vec<bool> {
+        with.iter()
+            .zip(&self.without)
+            .zip(&self.widest_band)
+            .zip(vertices)
+            .map(|(((with, without), band), ids)| {
+                if band.x < 0.0 {
+                    return false;
+                }
+                let corners = if ids[3] == u32::MAX { 3 } else { 4 };
+                let (mut above, mut below, mut size) = (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY), Vec3A::ZERO);
+                for (w, wo) in with[..corners].iter().zip(&without[..corners]) {
+                    let moved = *w - *wo;
+                    above = above.min(moved);
+                    below = below.max(moved);
+                    size = size.max(w.abs() + wo.abs());
+                }
+                let beyond = Vec3A::from(*band) + size * 1e-5 + Vec3A::splat(f32::MIN_POSITIVE);
+                // NaN compares false: such a patch reads its bands.
+                !(above.cmpgt(beyond).any() || below.cmplt(-beyond).any())
+            })
+            .collect()
+    }
+
+    fn get(&self, k: usize) -> RealPixel {
+        RealPixel { affine: self.affine[k], keep: self.keep[k] }
+    }
 }
 
-impl RealPixel {
+impl PhotoBand {
+    /// Whether the photo's pixel stands at indirect irradiance `h`.
+    #[inline]
+    fn holds(&self, h: Vec3) -> bool {
+        self.band.x >= 0.0 && (h - self.h_without).abs().cmple(self.band).all()
+    }
+}
+
+impl AffinePixel {
     fn fallback(&self) -> bool {
         self.patch & FALLBACK != 0
     }
@@ -140,24 +228,12 @@ impl RealPixel {
         (self.patch & !FALLBACK) as usize
     }
 
-    /// The pixel's shade for indirect irradiance `h`, under direct irradiance `direct`.
-    fn shade(&self, h: DVec3, photo: DVec3, direct: DVec3) -> Shade {
-        let hf = h.as_vec3();
-        if self.band.x >= 0.0 && (hf - self.h_without).abs().cmple(self.band).all() {
-            return Shade { value: photo, direct, indirect: h, copied: true, fallback: false, clamped: false };
-        }
-        let value = (self.offset + self.slope * hf).as_dvec3();
-        let clamped = value.min_element() < 0.0 || !value.is_finite();
-        let value = if value.is_finite() { value.max(DVec3::ZERO) } else { DVec3::ZERO };
-        Shade { value, direct, indirect: h, copied: false, fallback: self.fallback(), clamped }
-    }
-
-    /// [`RealPixel::shade`]'s value in single precision, as the image
-    /// takes it: (value, copied, clamped). The photo's pixel is read only
-    /// when kept.
+    /// The value in single precision, as the image takes it: (value,
+    /// copied, clamped), where `keep` is the pixel's band when it may hold
+    /// h. The photo's pixel is read only when kept.
     #[inline]
-    fn value(&self, h: Vec3, photo: &Vec3) -> (Vec3, bool, bool) {
-        if self.band.x >= 0.0 && (h - self.h_without).abs().cmple(self.band).all() {
+    fn value(&self, h: Vec3, keep: Option<&PhotoBand>, photo: &Vec3) -> (Vec3, bool, bool) {
+        if keep.is_some_and(|k| k.holds(h)) {
             return (*photo, true, false);
         }
         let value = self.offset + self.slope * h;
@@ -168,11 +244,29 @@ impl RealPixel {
         let clamped = value.min_element() < 0.0 || !value.is_finite();
         (if value.is_finite() { value.max(Vec3::ZERO) } else { Vec3::ZERO }, false, clamped)
     }
+}
 
-    /// [`RealPixel::value`] with the layers (the direct one left to the caller).
+impl RealPixel {
+    fn patch(&self) -> usize {
+        self.affine.patch()
+    }
+
+    /// The pixel's shade for indirect irradiance `h`, under direct irradiance `direct`.
+    fn shade(&self, h: DVec3, photo: DVec3, direct: DVec3) -> Shade {
+        let hf = h.as_vec3();
+        if self.keep.holds(hf) {
+            return Shade { value: photo, direct, indirect: h, copied: true, fallback: false, clamped: false };
+        }
+        let value = (self.affine.offset + self.affine.slope * hf).as_dvec3();
+        let clamped = value.min_element() < 0.0 || !value.is_finite();
+        let value = if value.is_finite() { value.max(DVec3::ZERO) } else { DVec3::ZERO };
+        Shade { value, direct, indirect: h, copied: false, fallback: self.affine.fallback(), clamped }
+    }
+
+    /// [`AffinePixel::value`] with the layers (the direct one left to the caller).
     fn layers(&self, h: Vec3, photo: &Vec3) -> PixelShade {
-        let (value, copied, clamped) = self.value(h, photo);
-        PixelShade { value, direct: Vec3::ZERO, indirect: h, alpha: 0.0, copied, fallback: !copied && self.fallback(), clamped }
+        let (value, copied, clamped) = self.affine.value(h, Some(&self.keep), photo);
+        PixelShade { value, direct: Vec3::ZERO, indirect: h, alpha: 0.0, copied, fallback: !copied && self.affine.fallback(), clamped }
     }
 }
 
@@ -180,8 +274,9 @@ impl RealPixel {
 /// triangle's fourth is zero): a pixel's interpolation then reads one
 /// patch's row and multiplies four lanes at once, instead of looking up
 /// four vertices one channel at a time (a third of the composite's work).
+/// Zero beyond the table: the photo's model has no objects' vertices.
 fn patch_corners(table: &[DVec3], patch_vertices: &[[u32; 4]]) -> Vec<[Vec3A; 4]> {
-    patch_vertices.iter().map(|ids| ids.map(|v| if v == u32::MAX { Vec3A::ZERO } else { Vec3A::from(table[v as usize].as_vec3()) })).collect()
+    patch_vertices.iter().map(|ids| ids.map(|v| table.get(v as usize).map_or(Vec3A::ZERO, |c| Vec3A::from(c.as_vec3())))).collect()
 }
 
 /// Corner values interpolated with weights `w` (a triangle's fourth weight
@@ -260,7 +355,10 @@ impl CompositeInput<'_> {
         let band = if e_w == e_wo { (without * UNCHANGED_INDIRECT).as_vec3() } else { Vec3::splat(-1.0) };
         debug_assert!(p.location.patch < FALLBACK);
         let patch = p.location.patch | if fallback { FALLBACK } else { 0 };
-        RealPixel { offset: offset.as_vec3(), slope: slope.as_vec3(), h_without: h_wo.as_vec3(), band, patch, weights: p.location.weights }
+        RealPixel {
+            affine: AffinePixel { offset: offset.as_vec3(), slope: slope.as_vec3(), patch, weights: p.location.weights },
+            keep: PhotoBand { h_without: h_wo.as_vec3(), band },
+        }
     }
 
     fn shade_virtual(&self, p: &SurfacePoint, terms: &[LightTerm]) -> Shade {
@@ -440,15 +538,11 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
             return None;
         }
         let k = k as usize;
-        let prepared;
         let r = match input.known {
-            Some(known) => &known.pixels[k],
-            None => {
-                prepared = input.real_pixel(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], photo[i].as_dvec3(), floor);
-                &prepared
-            }
+            Some(known) => known.get(k),
+            None => input.real_pixel(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], photo[i].as_dvec3(), floor),
         };
-        let mut s = r.layers(interpolate_single(&h_with[r.patch()], r.weights), &photo[i]);
+        let mut s = r.layers(interpolate_single(&h_with[r.patch()], r.affine.weights), &photo[i]);
         if input.layers {
             s.direct = input.irradiance(&pda.real.terms[k * lights..(k + 1) * lights], input.scales_with, true).as_vec3();
         }
@@ -465,6 +559,7 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
         // prepared real pixels shaded in place (what `plain` does, without
         // a pixel's layers passed back).
         Some(known) if !input.layers => {
+            let may_keep = known.may_keep(&h_with, input.patch_vertices);
             let w = (w as usize).max(1);
             let rows = out.image.pixels.par_chunks_mut(w).zip(out.alpha.par_chunks_mut(w)).enumerate();
             let (copied, fallbacks, clamped) = rows
@@ -484,10 +579,17 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                             counts.2 += s.clamped as usize;
                             continue;
                         }
-                        let r = &known.pixels[k as usize];
-                        let (value, copied, clamped) = r.value(interpolate_single(&h_with[r.patch()], r.weights), &photo_row[x]);
+                        let k = k as usize;
+                        let r = &known.affine[k];
+                        let patch = r.patch();
+                        let keep = may_keep[patch].then(|| &known.keep[k]);
+                        let (value, copied, clamped) = r.value(interpolate_single(&h_with[patch], r.weights), keep, &photo_row[x]);
                         image[x] = value;
-                        alpha[x] = 0.0;
+                        // Most pixels showed no object the last time either:
+                        // a read instead of a write (and its line's fetch).
+                        if alpha[x] != 0.0 {
+                            alpha[x] = 0.0;
+                        }
                         counts.0 += copied as usize;
                         counts.1 += (!copied && r.fallback()) as usize;
                         counts.2 += clamped as usize;
@@ -500,5 +602,72 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
             out.clamped = clamped;
         }
         _ => out.fill(input.photo, |i| plain(i).unwrap_or_else(|| other(i))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+
+    /// Where [`RealPixels::may_keep`] says no pixel of a patch can keep the
+    /// photo, none is within its band: random corners (quads and
+    /// triangles) moved by up to three bands either way, pixels at random
+    /// weights with bands as [`CompositeInput::real_pixel`] makes them, h
+    /// interpolated as the composite does.
+    #[test]
+    fn a_patch_said_to_keep_nothing_has_no_pixel_within_its_band() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+        let (mut refused, mut kept) = (0, 0);
+        for _ in 0..3000 {
+            let ids = if rng.random_bool(0.3) { [0, 1, 2, u32::MAX] } else { [0, 1, 2, 3] };
+            let scale = 10f64.powf(rng.random_range(-6.0..3.0));
+            let without: Vec<DVec3> = (0..4).map(|_| DVec3::new(rng.random_range(0.5..2.0), rng.random_range(0.5..2.0), rng.random_range(0.5..2.0)) * scale).collect();
+            let direct = rng.random_range(0.0..3.0) * scale;
+            let band_size = (direct + scale) * UNCHANGED_INDIRECT;
+            // Sometimes every corner moves one way, sometimes either way.
+            let one_way = rng.random_bool(0.5);
+            let with: Vec<DVec3> = without
+                .iter()
+                .map(|w| {
+                    let m = rng.random_range(if one_way { 0.5..3.0 } else { -3.0..3.0 });
+                    *w + DVec3::new(m, rng.random_range(-3.0..3.0), m) * band_size
+                })
+                .collect();
+            let pixels: Vec<(RealPixel, [f32; 4])> = (0..50)
+                .map(|_| {
+                    let mut w = [rng.random_range(0.0..1.0f64), rng.random_range(0.0..1.0), rng.random_range(0.0..1.0), rng.random_range(0.0..1.0)];
+                    if ids[3] == u32::MAX {
+                        w[3] = 0.0;
+                    }
+                    let sum: f64 = w.iter().sum();
+                    let w = w.map(|x| (x / sum) as f32);
+                    let h_wo: DVec3 = (0..4).filter(|&i| w[i] != 0.0).map(|i| without[i] * w[i] as f64).sum();
+                    let band = ((h_wo + DVec3::splat(direct)) * UNCHANGED_INDIRECT).as_vec3();
+                    let affine = AffinePixel { offset: Vec3::ZERO, slope: Vec3::ONE, patch: 0, weights: w };
+                    (RealPixel { affine, keep: PhotoBand { h_without: h_wo.as_vec3(), band } }, w)
+                })
+                .collect();
+            let mut known = RealPixels {
+                affine: pixels.iter().map(|p| p.0.affine).collect(),
+                keep: pixels.iter().map(|p| p.0.keep).collect(),
+                widest_band: vec![Vec3::splat(-1.0)],
+                without: patch_corners(&without, &[ids]),
+                floor: DVec3::ZERO,
+            };
+            for (r, _) in &pixels {
+                known.widen(r);
+            }
+            let corners = patch_corners(&with, &[ids]);
+            let may = known.may_keep(&corners, &[ids])[0];
+            refused += !may as usize;
+            for (r, w) in &pixels {
+                let holds = r.keep.holds(interpolate_single(&corners[0], *w));
+                assert!(may || !holds, "a pixel within its band on a patch said to keep nothing");
+                kept += holds as usize;
+            }
+        }
+        // Neither answer is vacuous.
+        assert!(refused > 500 && kept > 500, "refused {refused} patches, {kept} pixels kept");
     }
 }

@@ -242,6 +242,11 @@ impl UprightBox {
         DVec3::new(self.cos * p.x + self.sin * p.z, p.y, -self.sin * p.x + self.cos * p.z)
     }
 
+    /// This box grown by `pad` on every side.
+    pub fn padded(&self, pad: f64) -> UprightBox {
+        UprightBox { lo: self.lo - pad, hi: self.hi + pad, ..*self }
+    }
+
     /// The eight corners, in the world.
     pub fn corners(&self) -> [DVec3; 8] {
         box_corners(self.lo, self.hi).map(|q| DVec3::new(self.cos * q.x - self.sin * q.z, q.y, self.sin * q.x + self.cos * q.z))

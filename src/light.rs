@@ -276,6 +276,16 @@ impl LightSource {
     /// the visibility from `2^level` shadow rays to the grid (one for a point
     /// light), blocked by geometry of `layer`. `seed` picks the grid points.
     pub fn direct(&self, tracer: &Tracer, layer: Layer, x: DVec3, n: DVec3, level: usize, seed: u64) -> DirectLight {
+        self.direct_by(x, n, level, seed, |_, rays, blocked| match rays {
+            [one] if self.grid.is_none() => blocked[0] = tracer.occluded(one, layer),
+            _ => tracer.occluded_batch(rays, layer, blocked),
+        })
+    }
+
+    /// [`LightSource::direct`], with `occluded(targets, rays, blocked)`
+    /// saying which rays (to those points of the light) are blocked; the
+    /// rays are counted as cast all the same.
+    pub fn direct_by(&self, x: DVec3, n: DVec3, level: usize, seed: u64, occluded: impl FnOnce(&[DVec3], &[TraceRay], &mut [bool])) -> DirectLight {
         let unoccluded = self.unoccluded_irradiance(x, n);
         if unoccluded == DVec3::ZERO {
             return DirectLight { unoccluded, visibility: 0.0, rays: 0 };
@@ -283,14 +293,15 @@ impl LightSource {
         let origin = offset_origin(x, n, self.position);
         match &self.grid {
             None => {
-                let blocked = tracer.occluded(&segment(origin, self.position), layer);
-                DirectLight { unoccluded, visibility: if blocked { 0.0 } else { 1.0 }, rays: 1 }
+                let mut blocked = [false];
+                occluded(&[self.position], &[segment(origin, self.position)], &mut blocked);
+                DirectLight { unoccluded, visibility: if blocked[0] { 0.0 } else { 1.0 }, rays: 1 }
             }
             Some(grid) => {
                 let targets: Vec<DVec3> = grid.samples(level, seed).map(|st| self.point_at(st)).collect();
                 let rays: Vec<TraceRay> = targets.iter().map(|&t| segment(origin, t)).collect();
                 let mut blocked = vec![false; rays.len()];
-                tracer.occluded_batch(&rays, layer, &mut blocked);
+                occluded(&targets, &rays, &mut blocked);
                 // Weight each ray by its sample's contribution, so that a
                 // point near the light is not dominated by far samples.
                 let (mut seen, mut total) = (0.0, 0.0);

@@ -219,6 +219,12 @@ pub struct Patches {
 }
 
 impl Patches {
+    /// The polygon of every root element of a real surface.
+    pub fn real_root_polygons(&self) -> Vec<Vec<DVec3>> {
+        let real = |r: &&u32| !self.surface_is_virtual.get(&self.elements[**r as usize].surface).copied().unwrap_or(false);
+        self.roots.iter().filter(real).map(|&r| self.elements[r as usize].shape.corners().to_vec()).collect()
+    }
+
     /// Meshes a scene's real surfaces, and with `with_virtual` its enabled
     /// virtual objects after them (real patches come first and are the same
     /// either way).

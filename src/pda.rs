@@ -77,6 +77,9 @@ pub struct RealMask {
 impl RealMask {
     /// At most this many samples per level are kept.
     const MAX_SAMPLES: usize = 16;
+    /// No sample blocked at either level: what a point whose light the
+    /// room cannot block knows without a ray.
+    const CLEAR: RealMask = RealMask { first: 0, penumbra: 0, known: 3 };
 
     fn get(&self, penumbra: bool) -> Option<u16> {
         let (bit, v) = if penumbra { (2, self.penumbra) } else { (1, self.first) };
@@ -181,6 +184,12 @@ pub struct VirtualBounds {
     /// Per surface, per triangle: the unit normal of the side of its plane
     /// clear of the solid, or zero (not a solid, or the solid is on both sides).
     clear_side: Vec<Vec<Vec3>>,
+    /// Per surface, the mean of its corners when every face is clear of
+    /// the solid (a convex solid, which holds that point inside).
+    convex_centre: Vec<Option<DVec3>>,
+    /// Per surface, per light: whether no real surface can block light
+    /// between them ([`VirtualBounds::with_room`]; empty until asked).
+    room_clear: Vec<Vec<bool>>,
 }
 
 /// Triangles × corners above which a solid's faces are not tested for
@@ -194,11 +203,61 @@ impl VirtualBounds {
         for (surface, t) in triangles.iter().filter(|(_, t)| !t.is_empty()) {
             let points: Vec<DVec3> = t.iter().flatten().map(|p| p.as_dvec3()).collect();
             let object = ObjectBounds::around(&points);
-            out.clear_side.push(clear_sides(t, (object.aabb.1 - object.aabb.0).length()));
+            let sides = clear_sides(t, (object.aabb.1 - object.aabb.0).length());
+            let convex = sides.iter().all(|c| *c != Vec3::ZERO);
+            out.convex_centre.push(convex.then(|| points.iter().sum::<DVec3>() / points.len() as f64));
+            out.clear_side.push(sides);
             out.objects.push(object);
             out.surfaces.push(*surface);
         }
         out
+    }
+
+    /// These bounds knowing, per object and light, whether no real surface
+    /// (`room`: the polygons of the real roots) can block light travelling
+    /// between them; then the object's points trace no ray through the
+    /// room (the desk's box, at most poses: every one of its pixels is
+    /// lit through the room). A polygon cannot when the object and the
+    /// light lie on one side of its plane (the floor the object stands on,
+    /// which a ray may touch only where it starts), or when the convex hull
+    /// of the two excludes it, the object's box grown by twice the most a
+    /// ray's origin is lifted off its surface ([`crate::light::origin_lift`]):
+    /// rays start inside it. (A ray from a point within the lift of the
+    /// floor, on a face tilted down, may start under it and, traced, meet
+    /// it; this takes such a point as lit.)
+    pub fn with_room(mut self, room: &[Vec<DVec3>], lights: &[LightSource]) -> VirtualBounds {
+        self.room_clear = self
+            .objects
+            .iter()
+            .map(|o| {
+                let corners = o.upright.corners();
+                let pad = 2.0 * crate::light::origin_lift(DVec3::splat(corners.iter().map(|c| c.abs().max_element()).fold(0.0, f64::max)));
+                let grown = o.upright.padded(pad).corners();
+                lights.iter().map(|light| clear_of_room(&corners, &grown, light, room)).collect()
+            })
+            .collect();
+        self
+    }
+
+    /// Whether light `l` (`light`) reaches point `x` of `surface`, whose
+    /// unit normal `n` faces out of its solid, blocked by nothing but that
+    /// solid, so that which of its rays are blocked is known without
+    /// tracing ([`own_blocks`]): the solid is convex (every face clear of
+    /// it; then n faces out where the solid's centre lies behind x), the
+    /// room cannot block it ([`VirtualBounds::with_room`]), and no other
+    /// object's box meets the box around it and the light.
+    pub fn only_own_blocks(&self, surface: u32, x: DVec3, n: DVec3, l: usize, light: &LightSource) -> bool {
+        let Some(k) = self.surfaces.iter().position(|&s| s == surface) else { return false };
+        let Some(centre) = self.convex_centre[k] else { return false };
+        let (llo, lhi) = light.bounds();
+        let (lo, hi) = (self.objects[k].aabb.0.min(llo), self.objects[k].aabb.1.max(lhi));
+        let apart = |(j, o): (usize, &ObjectBounds)| j == k || o.aabb.0.cmpgt(hi).any() || o.aabb.1.cmplt(lo).any();
+        (x - centre).dot(n) > 0.0 && self.room_clear.get(k).and_then(|c| c.get(l)).copied().unwrap_or(false) && self.objects.iter().enumerate().all(apart)
+    }
+
+    /// Whether the room cannot block light between `p` (on an object) and light `l`.
+    fn room_clear(&self, p: &SurfacePoint, l: usize) -> bool {
+        p.is_virtual && self.surfaces.iter().position(|&s| s == p.surface).is_some_and(|k| self.room_clear.get(k).and_then(|c| c.get(l)).copied().unwrap_or(false))
     }
 
     /// The index of the solid `p` lies on, when `p`'s face is clear of it.
@@ -235,6 +294,44 @@ impl VirtualBounds {
             }
         }
     }
+}
+
+/// Whether the solid that a point x (normal n, facing out) lies on blocks
+/// its ray to point y of a light centred at `centre`, for a face clear of
+/// the solid: where y lies behind the face — and everywhere when the
+/// centre does, as the rays then leave from the solid's side of the face
+/// ([`offset_origin`]).
+pub fn own_blocks(x: DVec3, n: DVec3, centre: DVec3, y: DVec3) -> bool {
+    (centre - x).dot(n) < 0.0 || (y - x).dot(n) < 0.0
+}
+
+/// Whether no polygon of `room` can block a segment from a point of the
+/// box with corners `object` (`grown`: grown by the rays' lift) to a point
+/// of the light (see [`VirtualBounds::with_room`]).
+fn clear_of_room(object: &[DVec3; 8], grown: &[DVec3; 8], light: &LightSource, room: &[Vec<DVec3>]) -> bool {
+    let emitter = match light.rect_corners() {
+        Some(quad) => quad.to_vec(),
+        None => vec![light.position],
+    };
+    let ends: Vec<DVec3> = object.iter().chain(&emitter).copied().collect();
+    let (lo, hi) = crate::geometry::bounds(grown.iter().chain(&emitter).copied());
+    let slack = 1e-9 * lo.abs().max(hi.abs()).max_element().max(1.0);
+    let mut hull: Option<Shaft> = None;
+    room.iter().all(|polygon| {
+        let (plo, phi) = crate::geometry::bounds(polygon.iter().copied());
+        if plo.cmpgt(hi).any() || phi.cmplt(lo).any() {
+            return true;
+        }
+        // Newell's normal: any polygon the mesh keeps as a root.
+        let n = polygon.iter().zip(polygon.iter().cycle().skip(1)).fold(DVec3::ZERO, |n, (a, b)| n + a.cross(*b));
+        if n != DVec3::ZERO {
+            let d = |e: &DVec3| (*e - polygon[0]).dot(n) / n.length();
+            if ends.iter().all(|e| d(e) >= -slack) || ends.iter().all(|e| d(e) <= slack) {
+                return true;
+            }
+        }
+        hull.get_or_insert_with(|| Shaft::hull(&grown.iter().chain(&emitter).copied().collect::<Vec<_>>())).excludes(polygon)
+    })
 }
 
 /// Per triangle of one surface, when it is a solid (closed), the unit
@@ -294,7 +391,12 @@ impl PdaInput<'_> {
         for (l, light) in self.lights.iter().enumerate() {
             let mut mask = RealMask::default();
             if self.active[l] {
-                let keep = masks.is_some().then_some(&mut mask);
+                let mut clear = RealMask::CLEAR;
+                let keep = if masks.is_some() {
+                    Some(&mut mask)
+                } else {
+                    self.bounds.room_clear(p, l).then_some(&mut clear)
+                };
                 let (term, r) = light_term(self.tracer, light, self.bounds, own, x, n, hash2(seed, l as u64), self.settings, None, keep);
                 out.push(term);
                 rays += r;
@@ -318,7 +420,10 @@ impl PdaInput<'_> {
 }
 
 /// Visibility of one light from x through the two worlds, by the oracle.
-/// `unoccluded`: the term's geometry factor when already known (positive);
+/// `before`: for a term computed before, its geometry factor (when
+/// positive) and whether the objects may shadow x now (the pixel-block
+/// traversal's answer; where it differs from [`VirtualBounds::may_shadow`],
+/// one of the two excludes the objects and their rays meet nothing);
 /// `real`: the real blockers already known for these samples, where rays
 /// traced through the room are kept (a real point's; samples beyond
 /// [`RealMask::MAX_SAMPLES`] are always traced).
@@ -332,11 +437,11 @@ fn light_term(
     n: DVec3,
     seed: u64,
     settings: PdaSettings,
-    unoccluded: Option<f32>,
+    before: Option<(f32, bool)>,
     mut real: Option<&mut RealMask>,
 ) -> (LightTerm, u64) {
-    let unoccluded = match unoccluded {
-        Some(u) if u > 0.0 => u,
+    let unoccluded = match before {
+        Some((u, _)) if u > 0.0 => u,
         _ => {
             let g = light.unoccluded_irradiance(x, n);
             let colour = light.colour().max_element();
@@ -346,14 +451,13 @@ fn light_term(
             (g.max_element() / colour) as f32
         }
     };
-    let check_virtual = bounds.may_shadow(x, light, own);
+    let check_virtual = before.map_or_else(|| bounds.may_shadow(x, light, own), |(_, may)| may);
     // On a face clear of its own solid (and no other object near), what
     // the solid blocks is known without tracing: whatever lies behind the
     // face, which a ray reaches only through the solid — and everything
     // when the light's centre is behind it, as the rays then leave from
     // the solid's side of the face ([`offset_origin`]).
-    let centre_behind = (light.position - x).dot(n) < 0.0;
-    let own_blocks = |y: DVec3| own.is_some() && (centre_behind || (y - x).dot(n) < 0.0);
+    let own_blocks = |y: DVec3| own.is_some() && own_blocks(x, n, light.position, y);
     let origin = offset_origin(x, n, light.position);
     let Some(grid) = &light.grid else {
         let ray = segment(origin, light.position);
@@ -568,10 +672,12 @@ impl PixelDataArray {
 
     /// Recomputes the light terms of the real points at `pixels` for
     /// `light` (after the virtual objects moved), exactly as [`build`]
-    /// computes them; returns rays cast.
+    /// computes them; returns rays cast. `now` (sorted): those of them
+    /// whose shafts to the light may meet the objects where they are now,
+    /// as the pixel-block traversal found them.
     ///
     /// [`build`]: PixelDataArray::build
-    pub fn recompute_real_terms(&mut self, input: &PdaInput, pixels: &[u32], light: usize) -> u64 {
+    pub fn recompute_real_terms(&mut self, input: &PdaInput, pixels: &[u32], now: &[u32], light: usize) -> u64 {
         if !input.active[light] {
             return 0;
         }
@@ -598,7 +704,7 @@ impl PixelDataArray {
                         p.normal.as_dvec3(),
                         hash2(seed, light as u64),
                         input.settings,
-                        Some(terms[at].unoccluded),
+                        Some((terms[at].unoccluded, now.binary_search(&pixel).is_ok())),
                         mask.as_mut(),
                     );
                     (at, term, mask, rays)
@@ -696,7 +802,7 @@ impl PixelDataArray {
                 let ray = cam.pixel_ray(col, row);
                 let mut rays = 0;
                 let virt = hit.filter(|h| h.is_virtual).and_then(|h| input.point(&h, ray.origin, ray.direction)).map(|p| {
-                    let mut terms = Vec::new();
+                    let mut terms = Vec::with_capacity(input.lights.len());
                     rays += input.terms(&p, hash2(seed, 1), &mut terms, None);
                     (p, terms)
                 });
@@ -1047,6 +1153,55 @@ mod tests {
                     assert_eq!(known, traced, "face {k}, point {i}, light {l}");
                     compared += 1;
                     saved += all_rays - fewer;
+                }
+            }
+        }
+        assert!(compared == 144 && saved > 0, "{compared} terms, {saved} rays saved");
+    }
+
+    #[test]
+    fn an_object_the_room_cannot_shadow_gets_the_light_tracing_the_room_gives() {
+        let boxed = cube(Vec3::new(-0.15, 0.0, -0.15), Vec3::new(0.15, 0.3, 0.15));
+        // The floor the box stands on, and a table top above it.
+        let (f0, f1, f2, f3) = (Vec3::new(-2.0, 0.0, -2.0), Vec3::new(-2.0, 0.0, 2.0), Vec3::new(2.0, 0.0, 2.0), Vec3::new(2.0, 0.0, -2.0));
+        let floor = vec![[f0, f1, f2], [f0, f2, f3]];
+        let top = cube(Vec3::new(-0.5, 0.7, -0.5), Vec3::new(0.5, 0.75, 0.5));
+        let polygons = |t: &[crate::geometry::Triangle]| -> Vec<Vec<DVec3>> {
+            t.chunks(2).map(|q| [q[0][0], q[0][1], q[0][2], q[1][2]].iter().map(|p| p.as_dvec3()).collect()).collect()
+        };
+        let (u, v) = (DVec3::new(0.6, 0.0, 0.0), DVec3::new(0.0, 0.0, 0.6));
+        let panel = LightSource {
+            name: "panel".into(),
+            real: false,
+            scale: 1.0,
+            position: DVec3::new(0.0, 1.2, 0.0),
+            emitter: Emitter::Rect { u, v, normal: u.cross(v).normalize() },
+            distribution: Distribution::Lambertian { normal: DVec3::NEG_Y, rgb: DVec3::splat(4.0) },
+            grid: Some(JitteredGrid::new(0.6, 0.6, 1)),
+        };
+        // Beside the box, below the table top.
+        let spot = LightSource { emitter: Emitter::Point, grid: None, position: DVec3::new(1.5, 0.5, 0.3), ..panel.clone() };
+        let lights = [panel, spot];
+        let settings = PdaSettings::default();
+        let (mut compared, mut saved) = (0, 0);
+        for (room, expected) in [(floor.clone(), [true, true]), ([floor.clone(), top.clone()].concat(), [false, true])] {
+            let tracer = Tracer::build(&[SurfaceTriangles { surface: 1, triangles: &room }], &[SurfaceTriangles { surface: 7, triangles: &boxed }]).unwrap();
+            let bounds = VirtualBounds::of(&[(7, boxed.clone())]).with_room(&polygons(&room), &lights);
+            assert_eq!(bounds.room_clear, vec![expected.to_vec()]);
+            for (k, t) in boxed.iter().enumerate() {
+                let [a, b, c] = t.map(|p| p.as_dvec3());
+                let n = (b - a).cross(c - a).normalize();
+                for (i, (s, r)) in [(0.2, 0.3), (0.6, 0.2), (0.01, 0.01)].into_iter().enumerate() {
+                    let x = a + (b - a) * s + (c - a) * r;
+                    for (l, light) in lights.iter().enumerate() {
+                        let seed = (k * 16 + i * 4 + l) as u64;
+                        let (traced, all_rays) = light_term(&tracer, light, &bounds, Some(0), x, n, seed, settings, None, None);
+                        let mut clear = RealMask::CLEAR;
+                        let (known, fewer) = light_term(&tracer, light, &bounds, Some(0), x, n, seed, settings, None, expected[l].then_some(&mut clear));
+                        assert_eq!(known, traced, "face {k}, point {i}, light {l}");
+                        compared += 1;
+                        saved += all_rays - fewer;
+                    }
                 }
             }
         }

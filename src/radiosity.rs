@@ -23,6 +23,7 @@ use rayon::prelude::*;
 use crate::light::{LightSource, offset_origin, segment};
 use crate::patches::{Element, Patches};
 use crate::shaft::Shaft;
+use crate::pda::VirtualBounds;
 use crate::trace::{Layer, TraceRay, Tracer};
 
 /// Default refinement threshold of hierarchical radiosity: on the desk at
@@ -225,7 +226,10 @@ fn occluders_between_using(patches: &Patches, layer: Layer, p: &Element, q: &Ele
         return Vec::new();
     }
     let test = ShaftTest::new(patches, layer, p, q, shafts);
-    candidates.iter().copied().filter(|&r| test.may_block(r)).collect()
+    // Sized at once: grown from empty, a list of a few dozen moved twice.
+    let mut found = Vec::with_capacity(candidates.len());
+    found.extend(candidates.iter().copied().filter(|&r| test.may_block(r)));
+    found
 }
 
 /// Whether any of `candidates` may block light between `p` and `q`.
@@ -252,7 +256,10 @@ pub fn visibility(p: &Element, q: &Element, tracer: &Tracer, layer: Layer) -> f6
 fn visibility_rays(p: &Element, q: &Element) -> Vec<TraceRay> {
     let (r, m) = visibility_sampling(p, q);
     let targets: Vec<DVec3> = q.shape.quadrature(m).into_iter().map(|(x, _)| x).collect();
-    p.shape.quadrature(r).into_iter().flat_map(|(x, _)| targets.iter().map(move |&t| segment(offset_origin(x, p.normal, t), t))).collect()
+    let origins = p.shape.quadrature(r);
+    let mut rays = Vec::with_capacity(origins.len() * targets.len());
+    rays.extend(origins.into_iter().flat_map(|(x, _)| targets.iter().map(move |&t| segment(offset_origin(x, p.normal, t), t))));
+    rays
 }
 
 /// Which of [`visibility_rays`] the room's geometry blocks, bit k for ray
@@ -728,29 +735,32 @@ pub fn direct_irradiance(patches: &Patches, lights: &[LightSource], tracer: &Tra
 /// [`direct_irradiance`] through real and virtual geometry, where `room`
 /// holds the room's own values (through real geometry, for the first
 /// patches): those are taken wherever the shaft from a patch to the
-/// light excludes every one of `objects` — no ray can meet an object
+/// light excludes every one of the objects — no ray can meet an object
 /// there, so the numbers are the same — and only the rest are traced.
-pub fn direct_irradiance_with_objects(
-    patches: &Patches,
-    lights: &[LightSource],
-    tracer: &Tracer,
-    level: usize,
-    room: &[Vec<DVec3>],
-    objects: &[crate::shaft::ObjectBounds],
-) -> Vec<Vec<DVec3>> {
+/// An object's patch whose light only its own solid can block
+/// ([`VirtualBounds::only_own_blocks`]) knows its rays without tracing.
+pub fn direct_irradiance_with_objects(patches: &Patches, lights: &[LightSource], tracer: &Tracer, level: usize, room: &[Vec<DVec3>], objects: &VirtualBounds) -> Vec<Vec<DVec3>> {
     lights
         .iter()
         .zip(room)
-        .map(|(light, room)| {
+        .enumerate()
+        .map(|(l, (light, room))| {
             let light_box = light.bounds();
             (0..patches.patch_count())
                 .into_par_iter()
                 .map(|k| {
+                    let el = patches.patch(k);
                     if k < room.len() {
-                        let shaft = Shaft::between_boxes(patches.patch(k).bounds, light_box);
-                        if objects.iter().all(|o| o.outside(&shaft)) {
+                        let shaft = Shaft::between_boxes(el.bounds, light_box);
+                        if objects.objects.iter().all(|o| o.outside(&shaft)) {
                             return room[k];
                         }
+                    } else if objects.only_own_blocks(el.surface, el.centre, el.normal, l, light) {
+                        return patch_direct_by(patches, k, light, level, |x, targets, _, blocked| {
+                            for (b, t) in blocked.iter_mut().zip(targets) {
+                                *b = crate::pda::own_blocks(x, el.normal, light.position, *t);
+                            }
+                        });
                     }
                     patch_direct(patches, k, light, tracer, Layer::All, level)
                 })
@@ -761,6 +771,15 @@ pub fn direct_irradiance_with_objects(
 
 /// Patch k's direct irradiance from `light`: the mean over 2×2 points.
 fn patch_direct(patches: &Patches, k: usize, light: &LightSource, tracer: &Tracer, layer: Layer, level: usize) -> DVec3 {
+    patch_direct_by(patches, k, light, level, |_, _, rays, blocked| match rays {
+        [one] if light.grid.is_none() => blocked[0] = tracer.occluded(one, layer),
+        _ => tracer.occluded_batch(rays, layer, blocked),
+    })
+}
+
+/// [`patch_direct`], with `occluded(point, targets, rays, blocked)` saying
+/// which of a point's rays are blocked (see [`LightSource::direct_by`]).
+fn patch_direct_by(patches: &Patches, k: usize, light: &LightSource, level: usize, occluded: impl Fn(DVec3, &[DVec3], &[TraceRay], &mut [bool])) -> DVec3 {
     let el = patches.patch(k);
     el.shape
         .quadrature(2)
@@ -768,7 +787,7 @@ fn patch_direct(patches: &Patches, k: usize, light: &LightSource, tracer: &Trace
         .enumerate()
         .map(|(i, (x, w))| {
             let seed = crate::light::hash2(k as u64, i as u64);
-            let d = light.direct(tracer, layer, *x, el.normal, level, seed);
+            let d = light.direct_by(*x, el.normal, level, seed, |targets, rays, blocked| occluded(*x, targets, rays, blocked));
             d.unoccluded * d.visibility * *w
         })
         .sum()

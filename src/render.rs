@@ -233,7 +233,7 @@ impl Session {
             left_out.push("rays against virtual geometry and edge supersampling: no virtual object".to_string());
         }
         let link_facts = crate::radiosity::RoomLinkFacts::new(&model.transport);
-        let bounds = VirtualBounds::of(&scene.virtual_world_surfaces());
+        let bounds = VirtualBounds::of(&scene.virtual_world_surfaces()).with_room(&model.patches.real_root_polygons(), &model.lights);
         let objects = object_patches(scene, &model.patches, &tracer, &settings, times);
         let mut gather_directions = GatherDirections::default();
         let changes = solve_changes(scene, &photo, &tracer, &model, &scales_with, &settings, &bounds, &link_facts, objects.as_ref(), &mut gather_directions, times).with_patches(objects);
@@ -377,7 +377,7 @@ impl Session {
         times.time("move objects", || self.tracer.rebuild_virtual(&sets)).map_err(|e| crate::error::Error::file(&scene.file, e.to_string()))?;
         // Keep the lights as rendered (a reconstructed one stays recovered).
         self.scene = Scene { lights: self.scene.lights.clone(), ..scene.clone() };
-        self.bounds = VirtualBounds::of(&virt);
+        self.bounds = VirtualBounds::of(&virt).with_room(&self.model.patches.real_root_polygons(), &self.model.lights);
         let objects = object_patches(&self.scene, &self.model.patches, &self.tracer, &self.settings, times);
         // The Pixel Data Array does not depend on the radiosity solution:
         // the two are computed side by side.
@@ -415,7 +415,8 @@ impl Session {
                             .map(|(l, (light, before))| {
                                 input.active[l].then(|| {
                                     let mut t = blocks.traverse(light, &bounds.objects);
-                                    let now = t.pixels.clone();
+                                    let mut now = t.pixels.clone();
+                                    now.sort_unstable();
                                     t.pixels.extend(before);
                                     t.pixels.sort_unstable();
                                     t.pixels.dedup();
@@ -426,7 +427,6 @@ impl Session {
                     });
                     let (traversals, now): (Vec<Option<crate::blocks::Traversal>>, Vec<Vec<u32>>) =
                         traversals.into_iter().map(|t| t.map_or((None, Vec::new()), |(t, now)| (Some(t), now))).unzip();
-                    *reached = now;
                     let touched = times.time("recompute pixels", || {
                         let mut touched: Vec<u32> = Vec::new();
                         for (l, t) in traversals.into_iter().enumerate() {
@@ -435,7 +435,7 @@ impl Session {
                                 continue;
                             };
                             stats.shaft_tests += t.shaft_tests;
-                            rays += pda.recompute_real_terms(&input, &t.pixels, l);
+                            rays += pda.recompute_real_terms(&input, &t.pixels, &now[l], l);
                             touched.extend(&t.pixels);
                             stats.skipped_blocks.push(t.skipped);
                         }
@@ -445,6 +445,7 @@ impl Session {
                         stats.pixels_recomputed = touched.len();
                         touched
                     });
+                    *reached = now;
                     (touched, rays, retraced)
                 },
             )
@@ -520,7 +521,7 @@ fn solve_changes(
     let has_virtual = objects.is_some();
     let own: Option<(&Patches, Vec<Vec<DVec3>>, Transport)> = objects.map(|patches| {
         let direct = times.time("direct light with objects", || {
-            direct_irradiance_with_objects(patches, lights, tracer, settings.model.light_level, &model.direct_per_light, &bounds.objects)
+            direct_irradiance_with_objects(patches, lights, tracer, settings.model.light_level, &model.direct_per_light, bounds)
         });
         let epsilon = match settings.model.transport {
             TransportMethod::Full => crate::radiosity::DEFAULT_LINK_EPSILON,

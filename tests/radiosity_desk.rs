@@ -96,7 +96,8 @@ fn the_left_wall_reflectance_is_recovered_without_its_known_value() {
 #[test]
 fn direct_light_with_objects_reuses_the_room_only_where_it_is_the_same() {
     // The room's values are taken wherever a patch's shaft to a light
-    // misses the objects: the result must equal tracing every patch.
+    // misses the objects, and an object's patch that only its own solid
+    // can shadow traces no ray: the result must equal tracing every patch.
     for variant in ["box_floor_a", "box_table"] {
         let scene = desk().with_variant(variant).unwrap();
         let tracer = scene.build_tracer().unwrap();
@@ -104,12 +105,13 @@ fn direct_light_with_objects_reuses_the_room_only_where_it_is_the_same() {
         let room = Patches::of_scene(&scene, false, 0.5);
         let with = Patches::of_scene_with(&scene, true, 0.5, 0.1);
         let room_direct = direct_irradiance(&room, &lights, &tracer, Layer::Real, 4);
-        let objects: Vec<arlux::shaft::ObjectBounds> = scene
-            .virtual_world_surfaces()
-            .iter()
-            .map(|(_, t)| arlux::shaft::ObjectBounds::around(&t.iter().flatten().map(|p| p.as_dvec3()).collect::<Vec<DVec3>>()))
-            .collect();
+        let objects = arlux::pda::VirtualBounds::of(&scene.virtual_world_surfaces()).with_room(&room.real_root_polygons(), &lights);
         let fast = arlux::radiosity::direct_irradiance_with_objects(&with, &lights, &tracer, 4, &room_direct, &objects);
+        let known = (room.patch_count()..with.patch_count())
+            .filter(|&k| (0..lights.len()).any(|l| objects.only_own_blocks(with.patch(k).surface, with.patch(k).centre, with.patch(k).normal, l, &lights[l])))
+            .count();
+        println!("{variant}: {known} of the object's {} patches know their rays", with.patch_count() - room.patch_count());
+        assert!(known > 0, "{variant}: every object patch traced");
         let traced = direct_irradiance(&with, &lights, &tracer, Layer::All, 4);
         assert_eq!(fast, traced, "{variant}");
         // And the objects do darken some room patch, so the test has teeth.

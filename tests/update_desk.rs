@@ -57,10 +57,18 @@ fn moving_an_object_far_from_everything_recomputes_no_pixel_and_casts_no_ray() {
     let mut there = here.clone();
     there.objects[0].pose.translate = glam::DVec3::new(0.5, 0.0, -4.0);
     let photo = here.load_photo().unwrap();
-    let mut session = Session::start(&here, &photo, &RenderSettings::default(), &mut StageTimes::default()).unwrap();
-    let stats = session.update(&there, &mut StageTimes::default()).unwrap();
-    assert_eq!((stats.pixels_recomputed, stats.pixels_retraced, stats.rays), (0, 0, 0), "{stats:?}");
-    assert!(session.composite.image == photo, "the photo, untouched");
+    // With the layers, and the image alone (whose composite reads a
+    // pixel's band only where its patch's corners say it may keep the photo).
+    for image_only in [false, true] {
+        let mut session = Session::start(&here, &photo, &RenderSettings::default(), &mut StageTimes::default()).unwrap();
+        if image_only {
+            session.image_only();
+        }
+        let stats = session.update(&there, &mut StageTimes::default()).unwrap();
+        assert_eq!((stats.pixels_recomputed, stats.pixels_retraced, stats.rays), (0, 0, 0), "{stats:?}");
+        assert!(session.composite.image == photo, "the photo, untouched");
+        assert_eq!(session.composite.copied, photo.pixels.len());
+    }
 }
 
 #[test]
