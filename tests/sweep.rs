@@ -39,7 +39,13 @@ fn a_quick_sweep_measures_every_row_and_its_front_falls_as_cost_rises() {
     }
     let mut front: Vec<(f64, f64)> = rows.iter().filter(|r| r[col("pareto")] == "1").map(|r| (num(r, "total_seconds"), num(r, "rmse"))).collect();
     front.sort_by(|a, b| a.0.total_cmp(&b.0));
-    assert!(front.len() >= 2, "a front of {} settings", front.len());
+    // The front's length depends on measured times, which on a loaded machine
+    // can make the most accurate row also the fastest. What holds whatever the
+    // timing: the fastest row and the most accurate row are both on it.
+    let fastest = rows.iter().map(|r| num(r, "total_seconds")).fold(f64::INFINITY, f64::min);
+    let best = rows.iter().map(|r| num(r, "rmse")).fold(f64::INFINITY, f64::min);
+    assert!(front.iter().any(|(t, _)| *t == fastest), "the fastest row ({fastest} s) is off the front {front:?}");
+    assert!(front.iter().any(|(_, e)| *e == best), "the most accurate row ({best}) is off the front {front:?}");
     for w in front.windows(2) {
         assert!(w[1].1 < w[0].1, "the front's error rises with cost: {front:?}");
     }
@@ -54,6 +60,9 @@ fn a_quick_sweep_measures_every_row_and_its_front_falls_as_cost_rises() {
         .iter()
         .find(|r| r[col("min_level")] == "2" && r[col("penumbra_level")] == "4" && r[col("supersample")] == "4" && r[col("patch_size")] == "auto")
         .expect("the defaults are in the quick grid");
+    // Errors are deterministic: the coarsest pixel-path row is worse than the defaults.
+    let coarsest = rows.iter().find(|r| r[col("method")] == "pda" && r[col("min_level")] == "0" && r[col("penumbra_level")] == "0").expect("the coarsest row");
+    assert!(num(coarsest, "rmse") > 1.05 * num(default_row, "rmse"), "coarsest {} vs defaults {}", num(coarsest, "rmse"), num(default_row, "rmse"));
     // The objects' mesh is a pixel-path setting: the default's there, none on the texture path.
     assert_eq!(default_row[col("virtual_patch_size")], "0.1");
     assert!(rows.iter().filter(|r| r[col("method")] == "texture").all(|r| r[col("virtual_patch_size")].is_empty()));
