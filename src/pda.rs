@@ -12,6 +12,8 @@
 //! light can meet a virtual object's bounds; elsewhere both visibilities are
 //! the same numbers, so untouched pixels cost nothing more than the photo's.
 
+use std::collections::{HashMap, HashSet};
+
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
@@ -974,16 +976,51 @@ fn edge_candidates(input: &PdaInput) -> Option<Vec<bool>> {
     // Within this many pixels of an edge a sub-ray may fall either side
     // once the tracer's single precision has rounded it.
     const MARGIN: f64 = 0.01;
-    for &r in patches.roots.iter().filter(|r| is_virtual(r)) {
-        let corners = patches.elements[r as usize].shape.corners();
+    let roots: Vec<&crate::patches::Element> = patches.roots.iter().filter(|r| is_virtual(r)).map(|&r| &patches.elements[r as usize]).collect();
+    let edges = interior_edges(cam.position, &roots);
+    for root in &roots {
+        let corners = root.shape.corners();
         let projected: Option<Vec<(f64, f64)>> = corners.iter().map(|c| cam.project(*c).map(|(x, y, _)| (x, y))).collect();
         let projected = projected?;
         for (k, a) in projected.iter().enumerate() {
-            let b = projected[(k + 1) % projected.len()];
-            mark_segment(&mut marks, w, h, *a, b, MARGIN);
+            if !edges.contains(&edge_key(corners[k], corners[(k + 1) % corners.len()])) {
+                mark_segment(&mut marks, w, h, *a, projected[(k + 1) % projected.len()], MARGIN);
+            }
         }
     }
     Some(marks)
+}
+
+/// An edge by its two ends' bits, in either order.
+type EdgeKey = [[u64; 3]; 2];
+
+fn edge_key(a: DVec3, b: DVec3) -> EdgeKey {
+    let bits = |v: DVec3| v.to_array().map(f64::to_bits);
+    let (a, b) = (bits(a), bits(b));
+    if a <= b { [a, b] } else { [b, a] }
+}
+
+/// The objects' polygon edges that are no silhouette from `eye`: whole
+/// edges (the same ends, bit for bit) of exactly two polygons turned the
+/// same way to it. A sub-pixel on either side of one sees one of the two
+/// polygons, so no pixel along it mixes objects and room but where it meets
+/// a silhouette, which marks those. A polygon seen edge-on counts as turned
+/// both ways; edges matched only in part count as silhouettes.
+fn interior_edges(eye: DVec3, roots: &[&crate::patches::Element]) -> HashSet<EdgeKey> {
+    let mut sides: HashMap<EdgeKey, (f64, u32)> = HashMap::new();
+    for e in roots {
+        let d = (eye - e.centre).dot(e.normal);
+        let facing = if d.abs() <= 1e-9 * e.size.max(1e-9) { 0.0 } else { d.signum() };
+        let corners = e.shape.corners();
+        for k in 0..corners.len() {
+            let side = sides.entry(edge_key(corners[k], corners[(k + 1) % corners.len()])).or_insert((facing, 0));
+            if side.0 != facing {
+                side.0 = 0.0;
+            }
+            side.1 += 1;
+        }
+    }
+    sides.into_iter().filter(|(_, (facing, count))| *facing != 0.0 && *count == 2).map(|(edge, _)| edge).collect()
 }
 
 /// Marks every pixel whose square comes within `margin` of segment a–b.
@@ -1157,6 +1194,31 @@ mod tests {
             }
         }
         assert!(compared == 144 && saved > 0, "{compared} terms, {saved} rays saved");
+    }
+
+    #[test]
+    fn only_edges_between_faces_turned_the_same_way_are_no_silhouettes() {
+        let boxed = cube(Vec3::ZERO, Vec3::ONE);
+        let patches = Patches::build(&[crate::patches::SurfaceInput { surface: 7, triangles: &boxed, is_virtual: true }], 0.5);
+        let roots: Vec<&crate::patches::Element> = patches.roots.iter().map(|&r| &patches.elements[r as usize]).collect();
+        assert_eq!(roots.len(), 6);
+        // The edges meeting at (1,1,1), and those meeting at (0,0,0), along x, y, z.
+        let near: Vec<EdgeKey> = [DVec3::X, DVec3::Y, DVec3::Z].iter().map(|a| edge_key(DVec3::ONE, DVec3::ONE - *a)).collect();
+        let far: Vec<EdgeKey> = [DVec3::X, DVec3::Y, DVec3::Z].iter().map(|a| edge_key(DVec3::ZERO, *a)).collect();
+        let set = |keys: &[EdgeKey]| keys.iter().copied().collect::<HashSet<_>>();
+        // Seeing the faces x = 1, y = 1 and z = 1: the three edges between two
+        // of them and the three between two unseen faces; the six others are
+        // the outline.
+        assert_eq!(interior_edges(DVec3::new(3.0, 2.0, 2.5), &roots), set(&[near.clone(), far.clone()].concat()));
+        // The face y = 1 seen edge-on: its edges are outline, as are those
+        // between a seen face and an unseen one.
+        assert_eq!(interior_edges(DVec3::new(3.0, 1.0, 2.5), &roots), set(&[near[1], far[0], far[1], far[2]]));
+        // An edge whose ends differ in the last bit is taken for outline.
+        let mut moved = boxed.clone();
+        moved.iter_mut().flatten().filter(|p| **p == Vec3::ONE).for_each(|p| p.x = f32::from_bits(p.x.to_bits() - 1));
+        let patches = Patches::build(&[crate::patches::SurfaceInput { surface: 7, triangles: &moved, is_virtual: true }], 0.5);
+        let roots: Vec<&crate::patches::Element> = patches.roots.iter().map(|&r| &patches.elements[r as usize]).collect();
+        assert!(interior_edges(DVec3::new(3.0, 2.0, 2.5), &roots).is_disjoint(&set(&near)));
     }
 
     #[test]
