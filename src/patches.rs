@@ -473,9 +473,18 @@ impl Patches {
     pub fn locate_in_root(&self, root: u32, x: DVec3) -> Location {
         let st = self.root_params(root, x);
         let mut e = root;
+        // Within a quad root (nearly every point), a halved quad's point lies
+        // in the half on its side of the cut: the same choice the distances
+        // below make, as the distance across the cut is then exactly zero.
+        let in_quad = matches!(self.elements[root as usize].region, Region::Quad { .. }) && st.cmpge(DVec2::ZERO).all() && st.cmple(DVec2::ONE).all();
         while let Some([a, b]) = self.elements[e as usize].children {
+            let (ra, rp) = (&self.elements[a as usize].region, &self.elements[e as usize].region);
+            if let (true, Region::Quad { s1, t1, .. }, Region::Quad { s1: ps1, .. }) = (in_quad, ra, rp) {
+                e = if if *s1 != *ps1 { st.x <= *s1 } else { st.y <= *t1 } { a } else { b };
+                continue;
+            }
             // Inside a: a, whatever b's distance (the same choice, one test fewer).
-            let da = distance_outside(&self.elements[a as usize].region, st);
+            let da = distance_outside(ra, st);
             e = if da == 0.0 || da <= distance_outside(&self.elements[b as usize].region, st) { a } else { b };
         }
         let el = &self.elements[e as usize];

@@ -112,3 +112,40 @@ fn virtual_objects_are_meshed_after_the_real_surfaces_the_same_way() {
     let area: f64 = (n..both.patch_count()).map(|k| both.patch(k).area).sum();
     assert!((area - 6.0 * 0.09).abs() < 1e-6, "the 0.3 m box has 0.54 m² of faces: {area}");
 }
+
+/// The leaf [`Patches::locate_in_root`] finds by distances alone, at every level.
+fn leaf_by_distances(patches: &Patches, root: u32, x: DVec3) -> u32 {
+    let st = patches.root_params(root, x);
+    let mut e = root;
+    while let Some([a, b]) = patches.elements[e as usize].children {
+        let da = distance_outside(&patches.elements[a as usize].region, st);
+        e = if da == 0.0 || da <= distance_outside(&patches.elements[b as usize].region, st) { a } else { b };
+    }
+    e
+}
+
+#[test]
+fn a_quads_cut_sends_a_point_to_the_leaf_the_distances_choose() {
+    use rand::{RngExt, SeedableRng};
+    let scene = desk();
+    let patches = desk_patches(&scene, 0.1);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+    let mut quads = 0;
+    for &root in &patches.roots {
+        let quad = matches!(patches.elements[root as usize].region, Region::Quad { .. });
+        quads += quad as usize;
+        for k in 0..400 {
+            // Inside, beyond the edges, and exactly on the cuts' lines (a
+            // grid of 64ths holds every cut the subdivision makes here).
+            let st = match k % 3 {
+                0 => DVec2::new(rng.random_range(0.0..=1.0), rng.random_range(0.0..=1.0)),
+                1 => DVec2::new(rng.random_range(-0.2..1.2), rng.random_range(-0.2..1.2)),
+                _ => DVec2::new(rng.random_range(0..=64) as f64 / 64.0, rng.random_range(0..=64) as f64 / 64.0),
+            };
+            let x = patches.root_point(root, st);
+            let found = patches.locate_in_root(root, x);
+            assert_eq!(patches.patches[found.patch as usize], leaf_by_distances(&patches, root, x), "root {root} at {st}");
+        }
+    }
+    assert!(quads > 10, "{quads} quad roots");
+}
