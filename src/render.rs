@@ -374,11 +374,22 @@ impl Session {
         let virt = scene.virtual_world_surfaces();
         let sets: Vec<crate::trace::SurfaceTriangles> =
             virt.iter().map(|(id, t)| crate::trace::SurfaceTriangles { surface: *id, triangles: t }).collect();
-        times.time("move objects", || self.tracer.rebuild_virtual(&sets)).map_err(|e| crate::error::Error::file(&scene.file, e.to_string()))?;
-        // Keep the lights as rendered (a reconstructed one stays recovered).
-        self.scene = Scene { lights: self.scene.lights.clone(), ..scene.clone() };
-        self.bounds = VirtualBounds::of(&virt).with_room(&self.model.patches.real_root_polygons(), &self.model.lights);
-        let objects = object_patches(&self.scene, &self.model.patches, &self.tracer, &self.settings, times);
+        // Only the objects move (checked above): the room's surfaces, and the
+        // lights as rendered (a reconstructed one stays recovered), are kept.
+        self.scene.objects.clone_from(&scene.objects);
+        // The tracer's objects, their bounds and their mesh, side by side.
+        let (tracer, scene_now, model, settings) = (&mut self.tracer, &self.scene, &self.model, &self.settings);
+        let (moved, (bounds, objects)) = times.concurrently(
+            "place objects",
+            |times| times.time("move objects", || tracer.rebuild_virtual(&sets)),
+            |times| {
+                let bounds = VirtualBounds::of(&virt).with_room(&model.patches.real_root_polygons(), &model.lights);
+                let objects = sets.iter().any(|s| !s.triangles.is_empty()).then(|| times.time("virtual mesh", || Patches::of_scene_from_room(&model.patches, scene_now, settings.virtual_patch_size)));
+                (bounds, objects)
+            },
+        );
+        moved.map_err(|e| crate::error::Error::file(&scene.file, e.to_string()))?;
+        self.bounds = bounds;
         // The Pixel Data Array does not depend on the radiosity solution:
         // the two are computed side by side.
         let (solved, (touched, pixel_rays, retraced)) = {
