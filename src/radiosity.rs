@@ -402,6 +402,7 @@ impl Transport {
             .iter()
             .map(|&r| patches.elements[r as usize].bounds)
             .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), (a, b)| (lo.min(a), hi.max(b)));
+        let object_box = crate::geometry::box_corners(olo, ohi);
         // The candidates are the objects' own roots: no layer to look up per root.
         let near_objects = |i: usize| {
             let l = &room_links[i];
@@ -409,6 +410,8 @@ impl Transport {
             let ((alo, ahi), (blo, bhi)) = (a.bounds, b.bounds);
             let (lo, hi) = (alo.min(blo), ahi.max(bhi));
             !(olo.cmpgt(hi).any() || ohi.cmplt(lo).any())
+                // A shaft that leaves out the objects' whole box leaves out each of their roots.
+                && !facts.and_then(|f| f.shafts.get(i)).is_some_and(|s| s.coarse.get_or_init(|| Shaft::between_boxes(a.bounds, b.bounds)).excludes(&object_box))
                 && match facts.and_then(|f| f.shafts.get(i)) {
                     Some(shafts) => may_be_occluded_using(patches, Layer::All, a, b, &object_roots, shafts),
                     None => may_be_occluded(patches, Layer::All, a, b, &object_roots),
