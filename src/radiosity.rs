@@ -409,13 +409,17 @@ impl Transport {
             let (a, b) = (&patches.elements[l.receiver as usize], &patches.elements[l.source as usize]);
             let ((alo, ahi), (blo, bhi)) = (a.bounds, b.bounds);
             let (lo, hi) = (alo.min(blo), ahi.max(bhi));
-            !(olo.cmpgt(hi).any() || ohi.cmplt(lo).any())
+            if olo.cmpgt(hi).any() || ohi.cmplt(lo).any() {
+                return false;
+            }
+            match facts.and_then(|f| f.shafts.get(i)) {
                 // A shaft that leaves out the objects' whole box leaves out each of their roots.
-                && !facts.and_then(|f| f.shafts.get(i)).is_some_and(|s| s.coarse.get_or_init(|| Shaft::between_boxes(a.bounds, b.bounds)).excludes(&object_box))
-                && match facts.and_then(|f| f.shafts.get(i)) {
-                    Some(shafts) => may_be_occluded_using(patches, Layer::All, a, b, &object_roots, shafts),
-                    None => may_be_occluded(patches, Layer::All, a, b, &object_roots),
+                Some(shafts) => {
+                    !shafts.coarse.get_or_init(|| Shaft::between_boxes(a.bounds, b.bounds)).excludes(&object_box)
+                        && may_be_occluded_using(patches, Layer::All, a, b, &object_roots, shafts)
                 }
+                None => may_be_occluded(patches, Layer::All, a, b, &object_roots),
+            }
         };
         let near: Vec<bool> = (0..room_links.len()).into_par_iter().map(near_objects).collect();
         let mut links: Vec<Link> = room_links.iter().zip(&near).filter(|(_, n)| !**n).map(|(l, _)| *l).collect();
