@@ -148,7 +148,7 @@ pub struct Session {
     gather_directions: GatherDirections,
     /// Per light, the pixels the last traversal (an update's, or the
     /// preparation's) reached against the objects where it left them: the
-    /// next update's old bounds (empty for a light switched off).
+    /// next update's old bounds (empty for a light switched off), sorted.
     reached: Vec<Vec<u32>>,
 }
 
@@ -337,7 +337,15 @@ impl Session {
                 use rayon::prelude::*;
                 let blocks = crate::blocks::BlockHierarchy::build(pda);
                 // The pixels the objects reach where they stand: the first update's old bounds.
-                let reached = lights.par_iter().zip(active).map(|(light, &on)| if on { blocks.traverse(light, objects).pixels } else { Vec::new() }).collect();
+                let reached = lights
+                    .par_iter()
+                    .zip(active)
+                    .map(|(light, &on)| {
+                        let mut pixels = if on { blocks.traverse(light, objects).pixels } else { Vec::new() };
+                        pixels.sort_unstable();
+                        pixels
+                    })
+                    .collect();
                 (blocks, reached)
             });
             self.blocks = Some(blocks);
@@ -426,11 +434,10 @@ impl Session {
                             .map(|(l, (light, before))| {
                                 input.active[l].then(|| {
                                     let mut t = blocks.traverse(light, &bounds.objects);
-                                    let mut now = t.pixels.clone();
+                                    let mut now = std::mem::take(&mut t.pixels);
                                     now.sort_unstable();
-                                    t.pixels.extend(before);
-                                    t.pixels.sort_unstable();
-                                    t.pixels.dedup();
+                                    // Both lists sorted: merged, not sorted again.
+                                    t.pixels = merge_sorted(&now, &before);
                                     (t, now)
                                 })
                             })
@@ -447,12 +454,10 @@ impl Session {
                             };
                             stats.shaft_tests += t.shaft_tests;
                             rays += pda.recompute_real_terms(&input, &t.pixels, &now[l], l);
-                            touched.extend(&t.pixels);
+                            // A pixel found for several lights counts once.
+                            touched = merge_sorted(&touched, &t.pixels);
                             stats.skipped_blocks.push(t.skipped);
                         }
-                        // A pixel found for several lights counts once.
-                        touched.sort_unstable();
-                        touched.dedup();
                         stats.pixels_recomputed = touched.len();
                         touched
                     });
@@ -484,6 +489,26 @@ impl Session {
             texture: None,
         }
     }
+}
+
+/// The union of two sorted lists, sorted, each value once.
+fn merge_sorted(a: &[u32], b: &[u32]) -> Vec<u32> {
+    let mut out = Vec::with_capacity(a.len() + b.len());
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() && j < b.len() {
+        let v = a[i].min(b[j]);
+        i += (a[i] == v) as usize;
+        j += (b[j] == v) as usize;
+        if out.last() != Some(&v) {
+            out.push(v);
+        }
+    }
+    for &v in a[i..].iter().chain(&b[j..]) {
+        if out.last() != Some(&v) {
+            out.push(v);
+        }
+    }
+    out
 }
 
 /// The room's patches and then the virtual objects' (None: no object).
@@ -788,4 +813,17 @@ pub fn bracket_scale_cached(scene: &Scene, photo: &Image, tracer: &crate::trace:
         let _ = crate::image_io::write_atomic(&cache, format!("{scale}\n").as_bytes());
     }
     Some(scale)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::merge_sorted;
+
+    #[test]
+    fn merging_sorted_lists_gives_their_union_sorted_once() {
+        assert_eq!(merge_sorted(&[1, 4, 9], &[2, 4, 10, 11]), vec![1, 2, 4, 9, 10, 11]);
+        assert_eq!(merge_sorted(&[], &[3, 3, 5]), vec![3, 5]);
+        assert_eq!(merge_sorted(&[7], &[]), vec![7]);
+        assert!(merge_sorted(&[], &[]).is_empty());
+    }
 }
