@@ -740,9 +740,12 @@ impl PixelDataArray {
             self.virtual_index[pixel as usize] = NONE;
         }
         self.virtual_pixels.clear();
-        self.virtual_samples = Samples::default();
+        // Emptied, their room kept: the next placement fills about as many.
+        for samples in [&mut self.virtual_samples, &mut self.edge_samples] {
+            samples.points.clear();
+            samples.terms.clear();
+        }
         self.edges.clear();
-        self.edge_samples = Samples::default();
         let boxes = screen_boxes(cam, input.bounds);
         let candidates = if boxes.is_empty() { None } else { edge_candidates(input) };
         let candidate = |pixel: u32| candidates.as_ref().is_none_or(|m| m[pixel as usize]);
