@@ -155,21 +155,14 @@ impl RealPixels {
     pub fn refresh(&mut self, input: &CompositeInput, pixels: &[u32]) {
         let pda = input.pda;
         let lights = pda.light_count;
-        // Prepared side by side (the composite waits on it), stored in order.
-        let prepared: Vec<(usize, RealPixel)> = pixels
-            .par_iter()
-            .with_min_len(256)
-            .filter_map(|&i| {
-                let k = pda.real_index[i as usize];
-                (k != u32::MAX).then(|| {
-                    let k = k as usize;
-                    (k, input.real_pixel(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], input.photo.pixels[i as usize].as_dvec3(), self.floor))
-                })
-            })
-            .collect();
-        for (k, r) in prepared {
-            (self.affine[k], self.keep[k]) = (r.affine, r.keep);
-            self.widen(&r);
+        for &i in pixels {
+            let k = pda.real_index[i as usize];
+            if k != u32::MAX {
+                let k = k as usize;
+                let r = input.real_pixel(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], input.photo.pixels[i as usize].as_dvec3(), self.floor);
+                (self.affine[k], self.keep[k]) = (r.affine, r.keep);
+                self.widen(&r);
+            }
         }
     }
 
