@@ -980,7 +980,7 @@ fn edge_candidates(input: &PdaInput) -> Option<Vec<bool>> {
     // once the tracer's single precision has rounded it.
     const MARGIN: f64 = 0.01;
     let roots: Vec<&crate::patches::Element> = patches.roots.iter().filter(|r| is_virtual(r)).map(|&r| &patches.elements[r as usize]).collect();
-    let edges = interior_edges(cam.position, &roots);
+    let edges = interior_edges(cam, &roots);
     for root in &roots {
         let corners = root.shape.corners();
         let projected: Option<Vec<(f64, f64)>> = corners.iter().map(|c| cam.project(*c).map(|(x, y, _)| (x, y))).collect();
@@ -1003,27 +1003,43 @@ fn edge_key(a: DVec3, b: DVec3) -> EdgeKey {
     if a <= b { [a, b] } else { [b, a] }
 }
 
-/// The objects' polygon edges that are no silhouette from `eye`: whole
-/// edges (the same ends, bit for bit) of exactly two polygons turned the
-/// same way to it. A sub-pixel on either side of one sees one of the two
-/// polygons, so no pixel along it mixes objects and room but where it meets
-/// a silhouette, which marks those. A polygon seen edge-on counts as turned
-/// both ways; edges matched only in part count as silhouettes.
-fn interior_edges(eye: DVec3, roots: &[&crate::patches::Element]) -> HashSet<EdgeKey> {
-    let mut sides: HashMap<EdgeKey, (f64, u32)> = HashMap::new();
+/// The objects' polygon edges that are no silhouette for `cam`: whole
+/// edges (the same ends, bit for bit) of exactly two polygons that lie on
+/// either side of the edge in the image. A convex polygon lies wholly on
+/// one side of each of its edges, so a sub-pixel on either side of such an
+/// edge sees one of the two (or something nearer), and no pixel along it
+/// mixes objects and room but where it meets an outline edge, which marks
+/// those. Decided in the image, not by the polygons' normals: a fold of an
+/// open surface can hide one side behind the other whichever way its
+/// normals turn. A polygon seen edge-on, or behind the camera, is on
+/// neither side; edges matched only in part count as outline.
+fn interior_edges(cam: &Camera, roots: &[&crate::patches::Element]) -> HashSet<EdgeKey> {
+    // Per edge: how many polygons hold it, and which sides of it they lie on.
+    let mut sides: HashMap<EdgeKey, (u32, bool, bool)> = HashMap::new();
+    let flat = |p: Option<(f64, f64, f64)>| p.map(|(x, y, _)| glam::DVec2::new(x, y));
     for e in roots {
-        let d = (eye - e.centre).dot(e.normal);
-        let facing = if d.abs() <= 1e-9 * e.size.max(1e-9) { 0.0 } else { d.signum() };
+        let centre = flat(cam.project(e.centre));
         let corners = e.shape.corners();
         for k in 0..corners.len() {
-            let side = sides.entry(edge_key(corners[k], corners[(k + 1) % corners.len()])).or_insert((facing, 0));
-            if side.0 != facing {
-                side.0 = 0.0;
-            }
-            side.1 += 1;
+            let key = edge_key(corners[k], corners[(k + 1) % corners.len()]);
+            let [a, b] = key.map(|v| flat(cam.project(DVec3::from_array(v.map(f64::from_bits)))));
+            let side = match (a, b, centre) {
+                (Some(a), Some(b), Some(c)) => {
+                    let cross = (b - a).perp_dot(c - a);
+                    // Within rounding of the line: edge-on.
+                    let size = (b - a).length() * (c - a).length();
+                    if cross.abs() <= 1e-9 * size { 0 } else { cross.signum() as i32 }
+                }
+                _ => 0,
+            };
+            let entry = sides.entry(key).or_insert((0, false, false));
+            entry.0 += 1;
+            entry.1 |= side < 0;
+            entry.2 |= side > 0;
         }
     }
-    sides.into_iter().filter(|(_, (facing, count))| *facing != 0.0 && *count == 2).map(|(edge, _)| edge).collect()
+    // Two polygons, one strictly on each side.
+    sides.into_iter().filter(|(_, (count, left, right))| *count == 2 && *left && *right).map(|(edge, _)| edge).collect()
 }
 
 /// Marks every pixel whose square comes within `margin` of segment a–b.
@@ -1200,10 +1216,16 @@ mod tests {
     }
 
     #[test]
-    fn only_edges_between_faces_turned_the_same_way_are_no_silhouettes() {
+    fn only_edges_with_a_polygon_on_either_side_in_the_image_are_no_outline() {
+        let eye = |at: DVec3| Camera::new(64, 64, at, DVec3::splat(0.5), DVec3::Y, crate::camera::Projection::FovY { degrees: 60.0 }).unwrap();
+        let roots_of = |triangles: &[crate::geometry::Triangle]| {
+            let patches = Patches::build(&[crate::patches::SurfaceInput { surface: 7, triangles, is_virtual: true }], 0.5);
+            let roots: Vec<crate::patches::Element> = patches.roots.iter().map(|&r| patches.elements[r as usize].clone()).collect();
+            roots
+        };
         let boxed = cube(Vec3::ZERO, Vec3::ONE);
-        let patches = Patches::build(&[crate::patches::SurfaceInput { surface: 7, triangles: &boxed, is_virtual: true }], 0.5);
-        let roots: Vec<&crate::patches::Element> = patches.roots.iter().map(|&r| &patches.elements[r as usize]).collect();
+        let roots = roots_of(&boxed);
+        let roots: Vec<&crate::patches::Element> = roots.iter().collect();
         assert_eq!(roots.len(), 6);
         // The edges meeting at (1,1,1), and those meeting at (0,0,0), along x, y, z.
         let near: Vec<EdgeKey> = [DVec3::X, DVec3::Y, DVec3::Z].iter().map(|a| edge_key(DVec3::ONE, DVec3::ONE - *a)).collect();
@@ -1212,16 +1234,36 @@ mod tests {
         // Seeing the faces x = 1, y = 1 and z = 1: the three edges between two
         // of them and the three between two unseen faces; the six others are
         // the outline.
-        assert_eq!(interior_edges(DVec3::new(3.0, 2.0, 2.5), &roots), set(&[near.clone(), far.clone()].concat()));
+        assert_eq!(interior_edges(&eye(DVec3::new(3.0, 2.0, 2.5)), &roots), set(&[near.clone(), far.clone()].concat()));
         // The face y = 1 seen edge-on: its edges are outline, as are those
         // between a seen face and an unseen one.
-        assert_eq!(interior_edges(DVec3::new(3.0, 1.0, 2.5), &roots), set(&[near[1], far[0], far[1], far[2]]));
+        assert_eq!(interior_edges(&eye(DVec3::new(3.0, 1.0, 2.5)), &roots), set(&[near[1], far[0], far[1], far[2]]));
         // An edge whose ends differ in the last bit is taken for outline.
         let mut moved = boxed.clone();
         moved.iter_mut().flatten().filter(|p| **p == Vec3::ONE).for_each(|p| p.x = f32::from_bits(p.x.to_bits() - 1));
-        let patches = Patches::build(&[crate::patches::SurfaceInput { surface: 7, triangles: &moved, is_virtual: true }], 0.5);
-        let roots: Vec<&crate::patches::Element> = patches.roots.iter().map(|&r| &patches.elements[r as usize]).collect();
-        assert!(interior_edges(DVec3::new(3.0, 2.0, 2.5), &roots).is_disjoint(&set(&near)));
+        let roots = roots_of(&moved);
+        let roots: Vec<&crate::patches::Element> = roots.iter().collect();
+        assert!(interior_edges(&eye(DVec3::new(3.0, 2.0, 2.5)), &roots).is_disjoint(&set(&near)));
+        // An open surface folded along x = 1, z: a floor panel and a wall
+        // panel. From outside the wall the floor lies behind it, and the
+        // fold is outline; from the floor's side the two meet in the image.
+        let v = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+        let folded = vec![
+            [v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(1.0, 0.0, 1.0)],
+            [v(0.0, 0.0, 0.0), v(1.0, 0.0, 1.0), v(0.0, 0.0, 1.0)],
+            [v(1.0, 0.0, 0.0), v(1.0, 1.0, 0.0), v(1.0, 1.0, 1.0)],
+            [v(1.0, 0.0, 0.0), v(1.0, 1.0, 1.0), v(1.0, 0.0, 1.0)],
+        ];
+        // As a render meshes it: both panels turned to the camera, so their
+        // normals alone would call the fold seen from outside no outline.
+        let fold = edge_key(DVec3::new(1.0, 0.0, 0.0), DVec3::new(1.0, 0.0, 1.0));
+        for (at, expected) in [(DVec3::new(3.0, 2.0, 2.5), set(&[])), (DVec3::new(-2.0, 2.0, 2.5), set(&[fold]))] {
+            let mut patches = Patches::build(&[crate::patches::SurfaceInput { surface: 7, triangles: &folded, is_virtual: true }], 0.5);
+            patches.face_open_surfaces_towards(at);
+            let roots: Vec<&crate::patches::Element> = patches.roots.iter().map(|&r| &patches.elements[r as usize]).collect();
+            assert!(roots.len() == 2 && roots.iter().all(|e| (at - e.centre).dot(e.normal) > 0.0));
+            assert_eq!(interior_edges(&eye(at), &roots), expected, "seen from {at}");
+        }
     }
 
     #[test]
