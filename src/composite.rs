@@ -92,7 +92,7 @@ struct PhotoBand {
     band: Vec3,
 }
 
-/// [`RealPixel::patch`]'s flag bit (patch numbers stay below it).
+/// [`AffinePixel::patch`]'s flag bit (patch numbers stay below it).
 const FALLBACK: u32 = 1 << 31;
 
 /// [`RealPixel`] per real point of the PDA, kept by a session with its
@@ -118,20 +118,24 @@ impl RealPixels {
         let lights = pda.light_count;
         let floor = RealPixels::floor_of(input);
         let pixel_of: Vec<u32> = (0..pda.real_index.len() as u32).filter(|&i| pda.real_index[i as usize] != u32::MAX).collect();
-        let pixels: Vec<RealPixel> = pixel_of
+        // Straight into the two halves: no image-sized list of whole pixels.
+        let (affine, keep): (Vec<AffinePixel>, Vec<PhotoBand>) = pixel_of
             .par_iter()
             .enumerate()
-            .map(|(k, &i)| input.real_pixel(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], input.photo.pixels[i as usize].as_dvec3(), floor))
-            .collect();
+            .map(|(k, &i)| {
+                let r = input.real_pixel(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], input.photo.pixels[i as usize].as_dvec3(), floor);
+                (r.affine, r.keep)
+            })
+            .unzip();
         let mut known = RealPixels {
-            affine: pixels.iter().map(|r| r.affine).collect(),
-            keep: pixels.iter().map(|r| r.keep).collect(),
+            affine,
+            keep,
             widest_band: vec![Vec3::splat(-1.0); input.patch_vertices.len()],
             without: patch_corners(input.indirect_without, input.patch_vertices),
             floor,
         };
-        for r in &pixels {
-            known.widen(r);
+        for k in 0..known.affine.len() {
+            known.widen(&known.get(k));
         }
         known
     }

@@ -254,12 +254,18 @@ impl VirtualBounds {
         let (llo, lhi) = light.bounds();
         let (lo, hi) = (self.objects[k].aabb.0.min(llo), self.objects[k].aabb.1.max(lhi));
         let apart = |(j, o): (usize, &ObjectBounds)| j == k || o.aabb.0.cmpgt(hi).any() || o.aabb.1.cmplt(lo).any();
-        (x - centre).dot(n) > 0.0 && self.room_clear.get(k).and_then(|c| c.get(l)).copied().unwrap_or(false) && self.objects.iter().enumerate().all(apart)
+        (x - centre).dot(n) > 0.0 && self.room_clear_of(k, l) && self.objects.iter().enumerate().all(apart)
     }
 
     /// Whether the room cannot block light between `p` (on an object) and light `l`.
     fn room_clear(&self, p: &SurfacePoint, l: usize) -> bool {
-        p.is_virtual && self.surfaces.iter().position(|&s| s == p.surface).is_some_and(|k| self.room_clear.get(k).and_then(|c| c.get(l)).copied().unwrap_or(false))
+        p.is_virtual && self.surfaces.iter().position(|&s| s == p.surface).is_some_and(|k| self.room_clear_of(k, l))
+    }
+
+    /// Whether the room cannot block light between object `k` and light `l`
+    /// (no when not asked: [`VirtualBounds::with_room`]).
+    fn room_clear_of(&self, k: usize, l: usize) -> bool {
+        self.room_clear.get(k).and_then(|c| c.get(l)).copied().unwrap_or(false)
     }
 
     /// The index of the solid `p` lies on, when `p`'s face is clear of it.
@@ -1220,8 +1226,7 @@ mod tests {
         let eye = |at: DVec3| Camera::new(64, 64, at, DVec3::splat(0.5), DVec3::Y, crate::camera::Projection::FovY { degrees: 60.0 }).unwrap();
         let roots_of = |triangles: &[crate::geometry::Triangle]| {
             let patches = Patches::build(&[crate::patches::SurfaceInput { surface: 7, triangles, is_virtual: true }], 0.5);
-            let roots: Vec<crate::patches::Element> = patches.roots.iter().map(|&r| patches.elements[r as usize].clone()).collect();
-            roots
+            patches.roots.iter().map(|&r| patches.elements[r as usize].clone()).collect::<Vec<_>>()
         };
         let boxed = cube(Vec3::ZERO, Vec3::ONE);
         let roots = roots_of(&boxed);

@@ -22,8 +22,8 @@ use rayon::prelude::*;
 
 use crate::light::{LightSource, offset_origin, segment};
 use crate::patches::{Element, Patches};
-use crate::shaft::Shaft;
 use crate::pda::VirtualBounds;
+use crate::shaft::Shaft;
 use crate::trace::{Layer, TraceRay, Tracer};
 
 /// Default refinement threshold of hierarchical radiosity: on the desk at
@@ -763,10 +763,12 @@ pub fn direct_irradiance_with_objects(patches: &Patches, lights: &[LightSource],
                             return room[k];
                         }
                     } else if objects.only_own_blocks(el.surface, el.centre, el.normal, l, light) {
-                        return patch_direct_by(patches, k, light, level, |x, targets, _, blocked| {
-                            for (b, t) in blocked.iter_mut().zip(targets) {
-                                *b = crate::pda::own_blocks(x, el.normal, light.position, *t);
-                            }
+                        return patch_direct_by(patches, k, |x, n, seed| {
+                            light.direct_by(x, n, level, seed, |targets, _, blocked| {
+                                for (b, t) in blocked.iter_mut().zip(targets) {
+                                    *b = crate::pda::own_blocks(x, n, light.position, *t);
+                                }
+                            })
                         });
                     }
                     patch_direct(patches, k, light, tracer, Layer::All, level)
@@ -778,15 +780,12 @@ pub fn direct_irradiance_with_objects(patches: &Patches, lights: &[LightSource],
 
 /// Patch k's direct irradiance from `light`: the mean over 2×2 points.
 fn patch_direct(patches: &Patches, k: usize, light: &LightSource, tracer: &Tracer, layer: Layer, level: usize) -> DVec3 {
-    patch_direct_by(patches, k, light, level, |_, _, rays, blocked| match rays {
-        [one] if light.grid.is_none() => blocked[0] = tracer.occluded(one, layer),
-        _ => tracer.occluded_batch(rays, layer, blocked),
-    })
+    patch_direct_by(patches, k, |x, n, seed| light.direct(tracer, layer, x, n, level, seed))
 }
 
-/// [`patch_direct`], with `occluded(point, targets, rays, blocked)` saying
-/// which of a point's rays are blocked (see [`LightSource::direct_by`]).
-fn patch_direct_by(patches: &Patches, k: usize, light: &LightSource, level: usize, occluded: impl Fn(DVec3, &[DVec3], &[TraceRay], &mut [bool])) -> DVec3 {
+/// [`patch_direct`], with `direct(point, normal, seed)` giving each point's
+/// direct light (see [`LightSource::direct_by`]).
+fn patch_direct_by(patches: &Patches, k: usize, direct: impl Fn(DVec3, DVec3, u64) -> crate::light::DirectLight) -> DVec3 {
     let el = patches.patch(k);
     el.shape
         .quadrature(2)
@@ -794,7 +793,7 @@ fn patch_direct_by(patches: &Patches, k: usize, light: &LightSource, level: usiz
         .enumerate()
         .map(|(i, (x, w))| {
             let seed = crate::light::hash2(k as u64, i as u64);
-            let d = light.direct_by(*x, el.normal, level, seed, |targets, rays, blocked| occluded(*x, targets, rays, blocked));
+            let d = direct(*x, el.normal, seed);
             d.unoccluded * d.visibility * *w
         })
         .sum()

@@ -234,7 +234,7 @@ impl Session {
         }
         let link_facts = crate::radiosity::RoomLinkFacts::new(&model.transport);
         let bounds = VirtualBounds::of(&scene.virtual_world_surfaces()).with_room(&model.patches.real_root_polygons(), &model.lights);
-        let objects = object_patches(scene, &model.patches, &tracer, &settings, times);
+        let objects = object_patches(scene, &model.patches, tracer.virtual_objects.is_some(), &settings, times);
         let mut gather_directions = GatherDirections::default();
         let changes = solve_changes(scene, &photo, &tracer, &model, &scales_with, &settings, &bounds, &link_facts, objects.as_ref(), &mut gather_directions, times).with_patches(objects);
         let patches = changes.own.as_ref().map_or(&model.patches, |o| &o.0);
@@ -382,21 +382,21 @@ impl Session {
         let virt = scene.virtual_world_surfaces();
         let sets: Vec<crate::trace::SurfaceTriangles> =
             virt.iter().map(|(id, t)| crate::trace::SurfaceTriangles { surface: *id, triangles: t }).collect();
-        // Only the objects move (checked above): the room's surfaces, and the
-        // lights as rendered (a reconstructed one stays recovered), are kept.
-        self.scene.objects.clone_from(&scene.objects);
         // The tracer's objects, their bounds and their mesh, side by side.
-        let (tracer, scene_now, model, settings) = (&mut self.tracer, &self.scene, &self.model, &self.settings);
+        let has_objects = sets.iter().any(|s| !s.triangles.is_empty());
+        let (tracer, model, settings) = (&mut self.tracer, &self.model, &self.settings);
         let (moved, (bounds, objects)) = times.concurrently(
             "place objects",
             |times| times.time("move objects", || tracer.rebuild_virtual(&sets)),
             |times| {
                 let bounds = VirtualBounds::of(&virt).with_room(&model.patches.real_root_polygons(), &model.lights);
-                let objects = sets.iter().any(|s| !s.triangles.is_empty()).then(|| times.time("virtual mesh", || Patches::of_scene_from_room(&model.patches, scene_now, settings.virtual_patch_size)));
-                (bounds, objects)
+                (bounds, object_patches(scene, &model.patches, has_objects, settings, times))
             },
         );
         moved.map_err(|e| crate::error::Error::file(&scene.file, e.to_string()))?;
+        // Only the objects move (checked above): the room's surfaces, and the
+        // lights as rendered (a reconstructed one stays recovered), are kept.
+        self.scene.objects.clone_from(&scene.objects);
         self.bounds = bounds;
         // The Pixel Data Array does not depend on the radiosity solution:
         // the two are computed side by side.
@@ -512,11 +512,8 @@ fn merge_sorted(a: &[u32], b: &[u32]) -> Vec<u32> {
 }
 
 /// The room's patches and then the virtual objects' (None: no object).
-fn object_patches(scene: &Scene, room: &Patches, tracer: &crate::trace::Tracer, settings: &RenderSettings, times: &mut StageTimes) -> Option<Patches> {
-    tracer
-        .virtual_objects
-        .is_some()
-        .then(|| times.time("virtual mesh", || Patches::of_scene_from_room(room, scene, settings.virtual_patch_size)))
+fn object_patches(scene: &Scene, room: &Patches, has_objects: bool, settings: &RenderSettings, times: &mut StageTimes) -> Option<Patches> {
+    has_objects.then(|| times.time("virtual mesh", || Patches::of_scene_from_room(room, scene, settings.virtual_patch_size)))
 }
 
 /// [`Changes`] but for the objects' patches, which the caller keeps while
