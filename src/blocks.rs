@@ -21,6 +21,46 @@ pub struct BlockHierarchy {
     pub height: u32,
     /// (width, height, boxes) per level.
     levels: Vec<Level>,
+    /// Per level, the number of blocks on the levels below it (a block's
+    /// place in [`BlockShafts`]).
+    first: Vec<u32>,
+}
+
+/// Shafts of a hierarchy's blocks to one light, built when a traversal
+/// first tests them and kept: they depend on the room's points and the
+/// light alone, and an object moving through a motion meets the same
+/// blocks pose after pose (building them was most of a traversal's work).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct BlockShafts {
+    /// Per block (level by level), its shaft's place in `shafts`, or [`NO_SHAFT`].
+    slot: Vec<u32>,
+    shafts: Vec<Shaft>,
+}
+
+const NO_SHAFT: u32 = u32::MAX;
+
+/// What a traversal tests blocks against: the light's corners and box, and the objects' bounds.
+#[derive(Clone, Copy)]
+struct Against<'a> {
+    corners: &'a [DVec3],
+    light_box: (DVec3, DVec3),
+    objects: &'a [ObjectBounds],
+}
+
+impl BlockShafts {
+    /// The shaft of block `index`, built by `build` the first time.
+    fn get_or_build(&mut self, index: u32, build: impl FnOnce() -> Shaft) -> &Shaft {
+        let at = &mut self.slot[index as usize];
+        if *at == NO_SHAFT {
+            *at = self.shafts.len() as u32;
+            self.shafts.push(build());
+        }
+        &self.shafts[*at as usize]
+    }
+
+    pub fn memory_bytes(&self) -> usize {
+        self.slot.len() * 4 + self.shafts.iter().map(|s| std::mem::size_of::<Shaft>() + s.plane_count() * std::mem::size_of::<(DVec3, f64)>()).sum::<usize>()
+    }
 }
 
 /// What a traversal did.
@@ -61,27 +101,38 @@ impl BlockHierarchy {
             }
             levels.push((nw, nh, next));
         }
-        BlockHierarchy { width: w, height: h, levels }
+        let first = levels.iter().scan(0, |below, (_, _, b)| Some(std::mem::replace(below, *below + b.len() as u32))).collect();
+        BlockHierarchy { width: w, height: h, levels, first }
     }
 
     pub fn memory_bytes(&self) -> usize {
         self.levels.iter().map(|(_, _, b)| b.len() * std::mem::size_of::<(Vec3, Vec3)>()).sum()
     }
 
+    /// An empty store of shafts to one light, for [`BlockHierarchy::traverse`].
+    pub fn no_shafts(&self) -> BlockShafts {
+        let blocks = self.levels.iter().map(|(_, _, b)| b.len()).sum();
+        BlockShafts { slot: vec![NO_SHAFT; blocks], shafts: Vec::new() }
+    }
+
     /// The pixels whose shaft to `light` may meet any of the `objects`
-    /// (a moved object's old and new bounds), found top-down.
-    pub fn traverse(&self, light: &LightSource, objects: &[ObjectBounds]) -> Traversal {
+    /// (a moved object's old and new bounds), found top-down; the blocks'
+    /// shafts are taken from `shafts` (this light's, from
+    /// [`BlockHierarchy::no_shafts`]), those missing built and kept there.
+    pub fn traverse(&self, light: &LightSource, objects: &[ObjectBounds], shafts: &mut BlockShafts) -> Traversal {
         let mut out = Traversal::default();
         if objects.is_empty() {
             return out;
         }
         let light_points = light.corners();
+        let light_box = crate::geometry::bounds(light_points.iter().copied());
         let top = self.levels.len() - 1;
-        self.visit(top, 0, 0, &light_points, objects, &mut out);
+        let against = Against { corners: &light_points, light_box, objects };
+        self.visit(top, 0, 0, &against, shafts, &mut out);
         out
     }
 
-    fn visit(&self, level: usize, x: u32, y: u32, light: &[DVec3], objects: &[ObjectBounds], out: &mut Traversal) {
+    fn visit(&self, level: usize, x: u32, y: u32, against: &Against, shafts: &mut BlockShafts, out: &mut Traversal) {
         let (lw, lh, boxes) = &self.levels[level];
         if x >= *lw || y >= *lh {
             return;
@@ -92,20 +143,18 @@ impl BlockHierarchy {
         }
         out.shaft_tests += 1;
         let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
-        let may_meet = if level == 0 {
+        let Against { corners, light_box, objects } = *against;
+        let index = self.first[level] + y * lw + x;
+        let may_meet = if level == 0 && corners.len() == 1 {
             // A pixel: exactly the test the Pixel Data Array makes.
-            if light.len() == 1 {
-                objects.iter().any(|o| o.meets_segment(lo, light[0]))
-            } else {
-                let shaft = Shaft::pyramid(lo, light);
-                objects.iter().any(|o| !o.outside(&shaft))
-            }
+            objects.iter().any(|o| o.meets_segment(lo, corners[0]))
         } else {
-            // A block: Haines & Wallace's shaft from its box to the light's,
-            // which holds every pixel shaft below it.
-            let light_box = crate::geometry::bounds(light.iter().copied());
-            let shaft = Shaft::between_boxes((lo, hi), light_box);
-            objects.iter().any(|o| !o.outside(&shaft))
+            // A pixel's pyramid to the light's shape, as the Pixel Data
+            // Array tests it; a block's Haines & Wallace shaft from its box
+            // to the light's, which holds every pixel shaft below it.
+            let build = || if level == 0 { Shaft::pyramid(lo, corners) } else { Shaft::between_boxes((lo, hi), light_box) };
+            let shaft = shafts.get_or_build(index, build);
+            objects.iter().any(|o| !o.outside(shaft))
         };
         if !may_meet {
             out.skipped.push((level as u8, x, y));
@@ -116,7 +165,7 @@ impl BlockHierarchy {
             return;
         }
         for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-            self.visit(level - 1, 2 * x + dx, 2 * y + dy, light, objects, out);
+            self.visit(level - 1, 2 * x + dx, 2 * y + dy, against, shafts, out);
         }
     }
 

@@ -150,6 +150,8 @@ pub struct Session {
     /// preparation's) reached against the objects where it left them: the
     /// next update's old bounds (empty for a light switched off), sorted.
     reached: Vec<Vec<u32>>,
+    /// Per light, the blocks' shafts the traversals built so far.
+    block_shafts: Vec<crate::blocks::BlockShafts>,
 }
 
 /// Final gathering's directions per virtual vertex (its number, normal
@@ -275,6 +277,7 @@ impl Session {
             layers: true,
             gather_directions,
             reached: Vec::new(),
+            block_shafts: Vec::new(),
         };
         session.recomposite(times, &[]);
         Ok(session)
@@ -333,7 +336,7 @@ impl Session {
     pub fn prepare_updates(&mut self, times: &mut StageTimes) {
         if self.blocks.is_none() {
             let (pda, lights, active, objects) = (&self.pda, &self.model.lights, &self.active, &self.bounds.objects);
-            let (blocks, reached) = times.time("pixel blocks", || {
+            let (blocks, (reached, shafts)) = times.time("pixel blocks", || {
                 use rayon::prelude::*;
                 let blocks = crate::blocks::BlockHierarchy::build(pda);
                 // The pixels the objects reach where they stand: the first update's old bounds.
@@ -341,21 +344,25 @@ impl Session {
                     .par_iter()
                     .zip(active)
                     .map(|(light, &on)| {
-                        let mut pixels = if on { blocks.traverse(light, objects).pixels } else { Vec::new() };
+                        let mut shafts = if on { blocks.no_shafts() } else { Default::default() };
+                        let mut pixels = if on { blocks.traverse(light, objects, &mut shafts).pixels } else { Vec::new() };
                         pixels.sort_unstable();
-                        pixels
+                        (pixels, shafts)
                     })
-                    .collect();
+                    .unzip();
                 (blocks, reached)
             });
             self.blocks = Some(blocks);
             self.reached = reached;
+            self.block_shafts = shafts;
         }
     }
 
-    /// Bytes held by the Pixel Data Array and the pixel-block hierarchy (0 until built).
+    /// Bytes held by the Pixel Data Array and the pixel-block hierarchy
+    /// with the shafts kept so far (0 until built).
     pub fn memory_bytes(&self) -> (usize, usize) {
-        (self.pda.memory_bytes(), self.blocks.as_ref().map_or(0, |b| b.memory_bytes()))
+        let shafts: usize = self.block_shafts.iter().map(|s| s.memory_bytes()).sum();
+        (self.pda.memory_bytes(), self.blocks.as_ref().map_or(0, |b| b.memory_bytes() + shafts))
     }
 
     pub fn pda(&self) -> &PixelDataArray {
@@ -404,6 +411,7 @@ impl Session {
             let (scene, photo, tracer, model, scales_with, settings, bounds, link_facts, directions) =
                 (&self.scene, &self.photo, &self.tracer, &self.model, &self.scales_with, &self.settings, &self.bounds, &self.link_facts, &mut self.gather_directions);
             let (pda, blocks, active, stats, reached) = (&mut self.pda, self.blocks.as_ref().expect("prepared above"), &self.active, &mut stats, &mut self.reached);
+            let block_shafts = &mut self.block_shafts;
             let objects = objects.as_ref();
             times.concurrently(
                 "radiosity | pixels",
@@ -430,10 +438,11 @@ impl Session {
                             .lights
                             .par_iter()
                             .zip(std::mem::take(reached))
+                            .zip(block_shafts.par_iter_mut())
                             .enumerate()
-                            .map(|(l, (light, before))| {
+                            .map(|(l, ((light, before), shafts))| {
                                 input.active[l].then(|| {
-                                    let mut t = blocks.traverse(light, &bounds.objects);
+                                    let mut t = blocks.traverse(light, &bounds.objects, shafts);
                                     let mut now = std::mem::take(&mut t.pixels);
                                     now.sort_unstable();
                                     // Both lists sorted: merged, not sorted again.
