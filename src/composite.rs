@@ -241,8 +241,8 @@ impl AffinePixel {
             return (*photo, true, false);
         }
         let value = self.offset + self.slope * h;
-        // Most pixels: positive and finite, nothing to clamp.
-        if value.min_element() > 0.0 && value.is_finite() {
+        // Most pixels: positive and finite, nothing to clamp (NaN fails both).
+        if value.cmpgt(Vec3::ZERO).all() && value.cmplt(Vec3::INFINITY).all() {
             return (value, false, false);
         }
         let clamped = value.min_element() < 0.0 || !value.is_finite();
@@ -572,12 +572,11 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                     let (real, virt, photo_row) = (&pda.real_index[at.clone()], &pda.virtual_index[at.clone()], &photo[at]);
                     let span = spans[row].0 as usize..spans[row].1 as usize;
                     let mut counts = (0, 0, 0);
-                    for x in 0..image.len() {
-                        let k = real[x];
+                    for (x, (((pixel, a), &k), photo)) in image.iter_mut().zip(alpha.iter_mut()).zip(real).zip(photo_row).enumerate() {
                         if k == u32::MAX || span.contains(&x) && (virt[x] != u32::MAX || edge_at(row * w + x).is_some()) {
                             let s = other(row * w + x);
-                            image[x] = s.value;
-                            alpha[x] = s.alpha;
+                            *pixel = s.value;
+                            *a = s.alpha;
                             counts.0 += s.copied as usize;
                             counts.1 += s.fallback as usize;
                             counts.2 += s.clamped as usize;
@@ -587,12 +586,12 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                         let r = &known.affine[k];
                         let patch = r.patch();
                         let keep = may_keep[patch].then(|| &known.keep[k]);
-                        let (value, copied, clamped) = r.value(interpolate_single(&h_with[patch], r.weights), keep, &photo_row[x]);
-                        image[x] = value;
+                        let (value, copied, clamped) = r.value(interpolate_single(&h_with[patch], r.weights), keep, photo);
+                        *pixel = value;
                         // Most pixels showed no object the last time either:
                         // a read instead of a write (and its line's fetch).
-                        if alpha[x] != 0.0 {
-                            alpha[x] = 0.0;
+                        if *a != 0.0 {
+                            *a = 0.0;
                         }
                         counts.0 += copied as usize;
                         counts.1 += (!copied && r.fallback()) as usize;
