@@ -236,15 +236,17 @@ impl AffinePixel {
     /// copied, clamped), where `keep` is the pixel's band when it may hold
     /// h. The photo's pixel is read only when kept.
     #[inline]
-    fn value(&self, h: Vec3, keep: Option<&PhotoBand>, photo: &Vec3) -> (Vec3, bool, bool) {
-        if keep.is_some_and(|k| k.holds(h)) {
+    fn value(&self, h: Vec3A, keep: Option<&PhotoBand>, photo: &Vec3) -> (Vec3, bool, bool) {
+        if keep.is_some_and(|k| k.holds(h.into())) {
             return (*photo, true, false);
         }
-        let value = self.offset + self.slope * h;
+        // Four lanes at once: lane by lane the same products and sums.
+        let value = Vec3A::from(self.offset) + Vec3A::from(self.slope) * h;
         // Most pixels: positive and finite, nothing to clamp (NaN fails both).
-        if value.cmpgt(Vec3::ZERO).all() && value.cmplt(Vec3::INFINITY).all() {
-            return (value, false, false);
+        if (value.cmpgt(Vec3A::ZERO) & value.cmplt(Vec3A::INFINITY)).all() {
+            return (value.into(), false, false);
         }
+        let value = Vec3::from(value);
         let clamped = value.min_element() < 0.0 || !value.is_finite();
         (if value.is_finite() { value.max(Vec3::ZERO) } else { Vec3::ZERO }, false, clamped)
     }
@@ -268,9 +270,9 @@ impl RealPixel {
     }
 
     /// [`AffinePixel::value`] with the layers (the direct one left to the caller).
-    fn layers(&self, h: Vec3, photo: &Vec3) -> PixelShade {
+    fn layers(&self, h: Vec3A, photo: &Vec3) -> PixelShade {
         let (value, copied, clamped) = self.affine.value(h, Some(&self.keep), photo);
-        PixelShade { value, direct: Vec3::ZERO, indirect: h, alpha: 0.0, copied, fallback: !copied && self.affine.fallback(), clamped }
+        PixelShade { value, direct: Vec3::ZERO, indirect: h.into(), alpha: 0.0, copied, fallback: !copied && self.affine.fallback(), clamped }
     }
 }
 
@@ -286,8 +288,8 @@ fn patch_corners(table: &[DVec3], patch_vertices: &[[u32; 4]]) -> Vec<[Vec3A; 4]
 /// Corner values interpolated with weights `w` (a triangle's fourth weight
 /// is zero). Lane by lane the same single-precision products and sums as
 /// three scalar channels.
-fn interpolate_single(corners: &[Vec3A; 4], w: [f32; 4]) -> Vec3 {
-    Vec3::from(corners[0] * w[0] + corners[1] * w[1] + corners[2] * w[2] + corners[3] * w[3])
+fn interpolate_single(corners: &[Vec3A; 4], w: [f32; 4]) -> Vec3A {
+    corners[0] * w[0] + corners[1] * w[1] + corners[2] * w[2] + corners[3] * w[3]
 }
 
 /// The augmented photo and its layers.
@@ -665,7 +667,7 @@ mod tests {
             let may = known.may_keep(&corners, &[ids])[0];
             refused += !may as usize;
             for (r, w) in &pixels {
-                let holds = r.keep.holds(interpolate_single(&corners[0], *w));
+                let holds = r.keep.holds(interpolate_single(&corners[0], *w).into());
                 assert!(may || !holds, "a pixel within its band on a patch said to keep nothing");
                 kept += holds as usize;
             }
