@@ -566,6 +566,11 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
         // a pixel's layers passed back).
         Some(known) if !input.layers => {
             let may_keep = known.may_keep(&h_with, input.patch_vertices);
+            // With an object in the room nearly no patch may keep the photo:
+            // then no pixel looks its patch up.
+            let any_keep = may_keep.iter().any(|k| *k);
+            // Plain slices, so that the loop keeps them in registers.
+            let (affine, keep_bands, h_with, may_keep) = (&known.affine[..], &known.keep[..], &h_with[..], &may_keep[..]);
             let w = (w as usize).max(1);
             let rows = out.image.pixels.par_chunks_mut(w).zip(out.alpha.par_chunks_mut(w)).enumerate();
             let (copied, fallbacks, clamped) = rows
@@ -585,9 +590,9 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                             continue;
                         }
                         let k = k as usize;
-                        let r = &known.affine[k];
+                        let r = &affine[k];
                         let patch = r.patch();
-                        let keep = may_keep[patch].then(|| &known.keep[k]);
+                        let keep = (any_keep && may_keep[patch]).then(|| &keep_bands[k]);
                         let (value, copied, clamped) = r.value(interpolate_single(&h_with[patch], r.weights), keep, photo);
                         *pixel = value;
                         // Most pixels showed no object the last time either:

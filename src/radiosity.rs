@@ -684,8 +684,9 @@ fn refine_from(with: &Refiner, p: u32, q: u32, candidates: &[u32], known: Option
         None => occluders_between(patches, layer, ep, eq, candidates),
     };
     let facts = known.map(|k| k.0);
-    let (spread, mean) = facts.map_or_else(|| factor_spread(ep, eq), |f| (f.spread, f.mean));
     let (p_leaf, q_leaf) = (ep.children.is_none(), eq.children.is_none());
+    // Two leaves split neither way: their factors' spread decides nothing.
+    let (spread, mean) = if p_leaf && q_leaf { (0.0, 0.0) } else { facts.map_or_else(|| factor_spread(ep, eq), |f| (f.spread, f.mean)) };
     let split_receiver = if (spread > epsilon || straddles(ep, eq)) && !p_leaf {
         Some(true)
     } else if !q_leaf && mean * facts.map_or_else(|| source_spread(ep, eq), |f| f.source_spread) > epsilon {
