@@ -292,6 +292,64 @@ fn interpolate_single(corners: &[Vec3A; 4], w: [f32; 4]) -> Vec3A {
     corners[0] * w[0] + corners[1] * w[1] + corners[2] * w[2] + corners[3] * w[3]
 }
 
+/// What an update's image-only composite reads for its plain pixels
+/// (a real point alone, prepared in [`RealPixels`]).
+struct PlainTables<'a> {
+    affine: &'a [AffinePixel],
+    bands: &'a [PhotoBand],
+    h_with: &'a [[Vec3A; 4]],
+    may_keep: &'a [bool],
+    any_keep: bool,
+}
+
+/// Pixels copied from the photo, ratios fallen back, values clamped.
+#[derive(Default)]
+struct Counts {
+    copied: usize,
+    fallbacks: usize,
+    clamped: usize,
+}
+
+impl Counts {
+    fn add(&mut self, copied: bool, fallback: bool, clamped: bool) {
+        self.copied += copied as usize;
+        self.fallbacks += fallback as usize;
+        self.clamped += clamped as usize;
+    }
+}
+
+impl PlainTables<'_> {
+    /// The pixel of prepared real point `k`.
+    #[inline(always)]
+    fn pixel(&self, k: usize, photo: &Vec3, pixel: &mut Vec3, alpha: &mut f32, counts: &mut Counts) {
+        let r = &self.affine[k];
+        let patch = r.patch();
+        let keep = (self.any_keep && self.may_keep[patch]).then(|| &self.bands[k]);
+        let (value, copied, clamped) = r.value(interpolate_single(&self.h_with[patch], r.weights), keep, photo);
+        *pixel = value;
+        // Most pixels showed no object the last time either: a read
+        // instead of a write (and its line's fetch).
+        if *alpha != 0.0 {
+            *alpha = 0.0;
+        }
+        counts.add(copied, !copied && r.fallback(), clamped);
+    }
+
+    /// A run of pixels where no object shows: each a prepared real point,
+    /// or nothing (the photo's pixel, as it is).
+    fn run(&self, image: &mut [Vec3], alpha: &mut [f32], real: &[u32], photo: &[Vec3], counts: &mut Counts) {
+        for (((pixel, a), &k), photo) in image.iter_mut().zip(alpha.iter_mut()).zip(real).zip(photo) {
+            if k == u32::MAX {
+                *pixel = *photo;
+                *a = 0.0;
+                counts.copied += 1;
+                continue;
+            }
+            self.pixel(k as usize, photo, pixel, a, counts);
+        }
+    }
+}
+
 /// The augmented photo and its layers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Composite {
@@ -566,50 +624,45 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
         // a pixel's layers passed back).
         Some(known) if !input.layers => {
             let may_keep = known.may_keep(&h_with, input.patch_vertices);
-            // With an object in the room nearly no patch may keep the photo:
-            // then no pixel looks its patch up.
-            let any_keep = may_keep.iter().any(|k| *k);
-            // Plain slices, so that the loop keeps them in registers.
-            let (affine, keep_bands, h_with, may_keep) = (&known.affine[..], &known.keep[..], &h_with[..], &may_keep[..]);
+            let tables = PlainTables {
+                affine: &known.affine,
+                bands: &known.keep,
+                h_with: &h_with,
+                may_keep: &may_keep,
+                // With an object in the room nearly no patch may keep the
+                // photo: then no pixel looks its patch up.
+                any_keep: may_keep.iter().any(|k| *k),
+            };
             let w = (w as usize).max(1);
             let rows = out.image.pixels.par_chunks_mut(w).zip(out.alpha.par_chunks_mut(w)).enumerate();
-            let (copied, fallbacks, clamped) = rows
+            let counts = rows
                 .map(|(row, (image, alpha))| {
                     let at = row * w..row * w + image.len();
                     let (real, virt, photo_row) = (&pda.real_index[at.clone()], &pda.virtual_index[at.clone()], &photo[at]);
-                    let span = spans[row].0 as usize..spans[row].1 as usize;
-                    let mut counts = (0, 0, 0);
-                    for (x, (((pixel, a), &k), photo)) in image.iter_mut().zip(alpha.iter_mut()).zip(real).zip(photo_row).enumerate() {
-                        if k == u32::MAX || span.contains(&x) && (virt[x] != u32::MAX || edge_at(row * w + x).is_some()) {
+                    // Outside the columns where objects or edges may show,
+                    // every pixel is plain: a loop that asks nothing else.
+                    let (x0, x1) = match spans[row] {
+                        (a, b) if a < b => (a as usize, b as usize),
+                        _ => (image.len(), image.len()),
+                    };
+                    let mut counts = Counts::default();
+                    tables.run(&mut image[..x0], &mut alpha[..x0], &real[..x0], &photo_row[..x0], &mut counts);
+                    tables.run(&mut image[x1..], &mut alpha[x1..], &real[x1..], &photo_row[x1..], &mut counts);
+                    for x in x0..x1 {
+                        let k = real[x];
+                        if k == u32::MAX || virt[x] != u32::MAX || edge_at(row * w + x).is_some() {
                             let s = other(row * w + x);
-                            *pixel = s.value;
-                            *a = s.alpha;
-                            counts.0 += s.copied as usize;
-                            counts.1 += s.fallback as usize;
-                            counts.2 += s.clamped as usize;
+                            image[x] = s.value;
+                            alpha[x] = s.alpha;
+                            counts.add(s.copied, s.fallback, s.clamped);
                             continue;
                         }
-                        let k = k as usize;
-                        let r = &affine[k];
-                        let patch = r.patch();
-                        let keep = (any_keep && may_keep[patch]).then(|| &keep_bands[k]);
-                        let (value, copied, clamped) = r.value(interpolate_single(&h_with[patch], r.weights), keep, photo);
-                        *pixel = value;
-                        // Most pixels showed no object the last time either:
-                        // a read instead of a write (and its line's fetch).
-                        if *a != 0.0 {
-                            *a = 0.0;
-                        }
-                        counts.0 += copied as usize;
-                        counts.1 += (!copied && r.fallback()) as usize;
-                        counts.2 += clamped as usize;
+                        tables.pixel(k as usize, &photo_row[x], &mut image[x], &mut alpha[x], &mut counts);
                     }
                     counts
                 })
-                .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
-            out.copied = copied;
-            out.ratio_fallbacks = fallbacks;
-            out.clamped = clamped;
+                .reduce(Counts::default, |a, b| Counts { copied: a.copied + b.copied, fallbacks: a.fallbacks + b.fallbacks, clamped: a.clamped + b.clamped });
+            (out.copied, out.ratio_fallbacks, out.clamped) = (counts.copied, counts.fallbacks, counts.clamped);
         }
         _ => out.fill(input.photo, |i| plain(i).unwrap_or_else(|| other(i))),
     }
