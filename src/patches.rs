@@ -221,8 +221,12 @@ pub struct Patches {
 impl Patches {
     /// The polygon of every root element of a real surface.
     pub fn real_root_polygons(&self) -> Vec<Vec<DVec3>> {
-        let real = |r: &&u32| !self.surface_is_virtual.get(&self.elements[**r as usize].surface).copied().unwrap_or(false);
-        self.roots.iter().filter(real).map(|&r| self.elements[r as usize].shape.corners().to_vec()).collect()
+        self.roots.iter().filter(|&&r| !self.is_virtual_element(r)).map(|&r| self.elements[r as usize].shape.corners().to_vec()).collect()
+    }
+
+    /// Whether element `e` lies on a virtual object.
+    pub fn is_virtual_element(&self, e: u32) -> bool {
+        self.surface_is_virtual.get(&self.elements[e as usize].surface).copied().unwrap_or(false)
     }
 
     /// Meshes a scene's real surfaces, and with `with_virtual` its enabled

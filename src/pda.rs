@@ -965,7 +965,7 @@ fn sub_ray(cam: &Camera, col: u32, row: u32, n: u32, k: u32) -> (TraceRay, DVec3
 fn edge_candidates(input: &PdaInput) -> Option<Vec<bool>> {
     let cam = input.camera;
     let patches = input.patches;
-    let is_virtual = |r: &u32| patches.surface_is_virtual.get(&patches.elements[*r as usize].surface).copied().unwrap_or(false);
+    let is_virtual = |r: &u32| patches.is_virtual_element(*r);
     for (lo, hi) in input.bounds.objects.iter().map(|o| &o.aabb) {
         let mut ends = vec![cam.position];
         ends.extend(box_corners(*lo, *hi));

@@ -192,10 +192,7 @@ impl<'a> ShaftTest<'a> {
         }
         let in_layer = match self.layer {
             Layer::All => true,
-            layer => {
-                let is_virtual = self.patches.surface_is_virtual.get(&root.surface).copied().unwrap_or(false);
-                is_virtual == (layer == Layer::Virtual)
-            }
+            layer => self.patches.is_virtual_element(r) == (layer == Layer::Virtual),
         };
         if !in_layer || coplanar(root, self.p) || coplanar(root, self.q) {
             return false;
@@ -394,7 +391,7 @@ impl Transport {
         let Transport::Hierarchical { links: room_links, .. } = self else {
             return Transport::full(patches, tracer, Layer::All);
         };
-        let is_virtual = |r: &u32| patches.surface_is_virtual.get(&patches.elements[*r as usize].surface).copied().unwrap_or(false);
+        let is_virtual = |r: &u32| patches.is_virtual_element(*r);
         let object_roots: Vec<u32> = patches.roots.iter().copied().filter(is_virtual).collect();
         let all_roots = &patches.roots;
         // The objects' joint box first: most room links' boxes miss it.
@@ -704,8 +701,11 @@ fn refine_from(with: &Refiner, p: u32, q: u32, candidates: &[u32], known: Option
         let occluded = !occluders.is_empty();
         let splits = occluded && f > epsilon * VISIBILITY_REFINE_FRACTION && !(p_leaf && q_leaf);
         // A room pair's rays through the room were traced before: only the objects are left.
+        // Where no object may block, the objects are not traced: what the
+        // shafts leave out of an object no ray between the two can meet.
         let traced = || match facts.and_then(|f| f.room_blocked) {
             Some(room) if layer == Layer::All => visibility_with_room(ep, eq, tracer, room),
+            _ if layer == Layer::All && !occluders.iter().any(|&r| patches.is_virtual_element(r)) => visibility(ep, eq, tracer, Layer::Real),
             _ => visibility(ep, eq, tracer, layer),
         };
         let visible = match (occluded, splits && !trace_first) {

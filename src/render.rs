@@ -666,7 +666,7 @@ fn final_gather(
     // that solid (it starts in front of the plane and moves away): with no
     // other object, such a vertex traces the room alone.
     let object_roots: Vec<&crate::patches::Element> =
-        patches.roots.iter().map(|&r| &patches.elements[r as usize]).filter(|e| patches.surface_is_virtual.get(&e.surface).copied().unwrap_or(false)).collect();
+        patches.roots.iter().filter(|&&r| patches.is_virtual_element(r)).map(|&r| &patches.elements[r as usize]).collect();
     let one_object = object_roots.windows(2).all(|w| w[0].surface == w[1].surface);
     let corners: Vec<DVec3> = object_roots.iter().flat_map(|e| e.shape.corners().to_vec()).collect();
     let clear_of_object = |p: DVec3, n: DVec3| one_object && vertices.len() * corners.len() <= CLEAR_TEST_LIMIT && crate::gather::clear_of_solid(&corners, p, n);
