@@ -259,30 +259,28 @@ fn visibility_rays(p: &Element, q: &Element) -> Vec<TraceRay> {
     rays
 }
 
-/// Which of [`visibility_rays`] the room's geometry blocks, bit k for ray
-/// k (None: more rays than bits). Traced even where no room root may
+/// Which of a pair's `rays` ([`visibility_rays`]) the room's geometry
+/// blocks, bit k for ray k (None: more rays than bits). Traced even where no room root may
 /// block the pair: [`visibility`] traces the room too once an object may,
 /// and its rays can meet what the shafts leave out (a neighbouring
 /// surface at their very start).
-fn room_blocked(p: &Element, q: &Element, tracer: &Tracer) -> Option<u64> {
-    let rays = visibility_rays(p, q);
+fn room_blocked(rays: &[TraceRay], tracer: &Tracer) -> Option<u64> {
     if rays.len() > 64 {
         return None;
     }
     let mut blocked = vec![false; rays.len()];
-    tracer.occluded_batch(&rays, Layer::Real, &mut blocked);
+    tracer.occluded_batch(rays, Layer::Real, &mut blocked);
     Some(blocked.iter().enumerate().fold(0, |m, (k, b)| m | (*b as u64) << k))
 }
 
-/// [`visibility`] through all geometry, `room` giving which rays the
-/// room blocks (see [`room_blocked`]): the rays are traced through the
+/// [`visibility`] through all geometry of a pair's `rays`, `room` giving
+/// which the room blocks (see [`room_blocked`]): they are traced through the
 /// objects alone, as [`Layer::All`] traces them after the room (all of
 /// them, in the same packets: Embree may decide a grazing ray differently
 /// in a packet with fewer rays), so the same fraction results.
-fn visibility_with_room(p: &Element, q: &Element, tracer: &Tracer, room: u64) -> f64 {
-    let rays = visibility_rays(p, q);
+fn visibility_with_room(rays: &[TraceRay], tracer: &Tracer, room: u64) -> f64 {
     let mut blocked = vec![false; rays.len()];
-    tracer.occluded_batch(&rays, Layer::Virtual, &mut blocked);
+    tracer.occluded_batch(rays, Layer::Virtual, &mut blocked);
     blocked.iter().enumerate().filter(|(k, b)| room >> k & 1 == 0 && !**b).count() as f64 / rays.len() as f64
 }
 
@@ -634,18 +632,23 @@ pub struct PairFacts {
     occluders: Vec<u32>,
     /// Which of the pair's visibility rays the room blocks ([`room_blocked`]).
     room_blocked: Option<u64>,
+    /// The pair's visibility rays ([`visibility_rays`]), kept with what
+    /// the room does to them (an update traces them again through the objects).
+    rays: Vec<TraceRay>,
 }
 
 impl PairFacts {
     fn of(patches: &Patches, tracer: &Tracer, p: &Element, q: &Element, room_roots: &[u32], shafts: &PairShafts) -> PairFacts {
         let (spread, mean) = factor_spread(p, q);
         let occluders = occluders_between_using(patches, Layer::All, p, q, room_roots, shafts);
+        let rays = visibility_rays(p, q);
         PairFacts {
             spread,
             mean,
             source_spread: source_spread(p, q),
             form_factor: unoccluded_form_factor(p, q),
-            room_blocked: room_blocked(p, q, tracer),
+            room_blocked: room_blocked(&rays, tracer),
+            rays,
             occluders,
         }
     }
@@ -703,8 +706,8 @@ fn refine_from(with: &Refiner, p: u32, q: u32, candidates: &[u32], known: Option
         // A room pair's rays through the room were traced before: only the objects are left.
         // Where no object may block, the objects are not traced: what the
         // shafts leave out of an object no ray between the two can meet.
-        let traced = || match facts.and_then(|f| f.room_blocked) {
-            Some(room) if layer == Layer::All => visibility_with_room(ep, eq, tracer, room),
+        let traced = || match facts.and_then(|f| Some((f.room_blocked?, &f.rays))) {
+            Some((room, rays)) if layer == Layer::All => visibility_with_room(rays, tracer, room),
             _ if layer == Layer::All && !occluders.iter().any(|&r| patches.is_virtual_element(r)) => visibility(ep, eq, tracer, Layer::Real),
             _ => visibility(ep, eq, tracer, layer),
         };
