@@ -35,9 +35,16 @@ pub struct BlockShafts {
     /// Per block (level by level), its shaft's place in `shafts`, or [`NO_SHAFT`].
     slot: Vec<u32>,
     shafts: Vec<Shaft>,
+    /// Shafts kept at most ([`MOST_KEPT`]).
+    most: usize,
 }
 
 const NO_SHAFT: u32 = u32::MAX;
+
+/// Shafts kept per light at most (about 8 MB of planes): a motion over
+/// the whole image would otherwise keep one per block; beyond it, a
+/// block's shaft is built for each test again.
+const MOST_KEPT: usize = 1 << 14;
 
 /// What a traversal tests blocks against: the light's corners and box, and the objects' bounds.
 #[derive(Clone, Copy)]
@@ -48,14 +55,20 @@ struct Against<'a> {
 }
 
 impl BlockShafts {
-    /// The shaft of block `index`, built by `build` the first time.
-    fn get_or_build(&mut self, index: u32, build: impl FnOnce() -> Shaft) -> &Shaft {
-        let at = &mut self.slot[index as usize];
-        if *at == NO_SHAFT {
-            *at = self.shafts.len() as u32;
-            self.shafts.push(build());
+    /// `test` of the shaft of block `index`, the kept one or one `build`
+    /// makes (kept while there is room).
+    fn test(&mut self, index: u32, build: impl FnOnce() -> Shaft, test: impl FnOnce(&Shaft) -> bool) -> bool {
+        let at = self.slot[index as usize];
+        if at != NO_SHAFT {
+            return test(&self.shafts[at as usize]);
         }
-        &self.shafts[*at as usize]
+        let shaft = build();
+        let answer = test(&shaft);
+        if self.shafts.len() < self.most {
+            self.slot[index as usize] = self.shafts.len() as u32;
+            self.shafts.push(shaft);
+        }
+        answer
     }
 
     pub fn memory_bytes(&self) -> usize {
@@ -78,12 +91,13 @@ const EMPTY: (Vec3, Vec3) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
 impl BlockHierarchy {
     /// Built over the real surface points of the Pixel Data Array.
     pub fn build(pda: &PixelDataArray) -> BlockHierarchy {
-        let (w, h) = (pda.width, pda.height);
-        let base: Vec<(Vec3, Vec3)> = pda
-            .real_index
-            .iter()
-            .map(|&k| if k == u32::MAX { EMPTY } else { (pda.real.points[k as usize].position, pda.real.points[k as usize].position) })
-            .collect();
+        let points = pda.real_index.iter().map(|&k| (k != u32::MAX).then(|| pda.real.points[k as usize].position));
+        BlockHierarchy::of_points(pda.width, pda.height, points)
+    }
+
+    /// Over a `w` × `h` image's surface points, row by row (None: no point).
+    fn of_points(w: u32, h: u32, points: impl Iterator<Item = Option<Vec3>>) -> BlockHierarchy {
+        let base: Vec<(Vec3, Vec3)> = points.map(|p| p.map_or(EMPTY, |p| (p, p))).collect();
         let mut levels = vec![(w, h, base)];
         while {
             let (lw, lh, _) = levels.last().unwrap();
@@ -112,7 +126,7 @@ impl BlockHierarchy {
     /// An empty store of shafts to one light, for [`BlockHierarchy::traverse`].
     pub fn no_shafts(&self) -> BlockShafts {
         let blocks = self.levels.iter().map(|(_, _, b)| b.len()).sum();
-        BlockShafts { slot: vec![NO_SHAFT; blocks], shafts: Vec::new() }
+        BlockShafts { slot: vec![NO_SHAFT; blocks], shafts: Vec::new(), most: MOST_KEPT }
     }
 
     /// The pixels whose shaft to `light` may meet any of the `objects`
@@ -153,8 +167,7 @@ impl BlockHierarchy {
             // Array tests it; a block's Haines & Wallace shaft from its box
             // to the light's, which holds every pixel shaft below it.
             let build = || if level == 0 { Shaft::pyramid(lo, corners) } else { Shaft::between_boxes((lo, hi), light_box) };
-            let shaft = shafts.get_or_build(index, build);
-            objects.iter().any(|o| !o.outside(shaft))
+            shafts.test(index, build, |shaft| objects.iter().any(|o| !o.outside(shaft)))
         };
         if !may_meet {
             out.skipped.push((level as u8, x, y));
@@ -173,5 +186,47 @@ impl BlockHierarchy {
     pub fn block_pixels(&self, level: u8, x: u32, y: u32) -> (u32, u32, u32, u32) {
         let s = 1u32 << level;
         (x * s, y * s, ((x + 1) * s).min(self.width), ((y + 1) * s).min(self.height))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::light::{Distribution, Emitter, JitteredGrid};
+
+    /// Over a floor of points (with gaps) under a panel and a spot, moving
+    /// a box about: a traversal reaches the same pixels whether each
+    /// block's shaft is built for the test, kept from the traversals
+    /// before, or kept up to a cap with the rest built again.
+    #[test]
+    fn kept_shafts_reach_the_pixels_fresh_ones_reach() {
+        let (w, h) = (37u32, 23u32);
+        let points = (0..w * h).map(|i| (i % 11 != 3).then(|| Vec3::new((i % w) as f32 * 0.05, 0.0, (i / w) as f32 * 0.05)));
+        let blocks = BlockHierarchy::of_points(w, h, points);
+        let (u, v) = (DVec3::new(0.6, 0.0, 0.0), DVec3::new(0.0, 0.0, 0.6));
+        let panel = LightSource {
+            name: "panel".into(),
+            real: false,
+            scale: 1.0,
+            position: DVec3::new(0.9, 2.0, 0.5),
+            emitter: Emitter::Rect { u, v, normal: u.cross(v).normalize() },
+            distribution: Distribution::Lambertian { normal: DVec3::NEG_Y, rgb: DVec3::splat(4.0) },
+            grid: Some(JitteredGrid::new(0.6, 0.6, 1)),
+        };
+        let spot = LightSource { emitter: Emitter::Point, grid: None, position: DVec3::new(0.2, 1.5, 1.0), ..panel.clone() };
+        for light in [&panel, &spot] {
+            let (mut kept, mut capped) = (blocks.no_shafts(), blocks.no_shafts());
+            capped.most = 5;
+            let mut reached = 0;
+            for step in 0..6 {
+                let lo = DVec3::new(0.2 + 0.25 * step as f64, 0.0, 0.3);
+                let object = ObjectBounds::around(&[lo, lo + DVec3::new(0.2, 0.3, 0.2)]);
+                let fresh = blocks.traverse(light, &[object], &mut blocks.no_shafts());
+                assert_eq!(blocks.traverse(light, &[object], &mut kept).pixels, fresh.pixels, "{} at step {step}", light.name);
+                assert_eq!(blocks.traverse(light, &[object], &mut capped).pixels, fresh.pixels, "{} at step {step}, capped", light.name);
+                reached += fresh.pixels.len();
+            }
+            assert!(reached > 0 && capped.shafts.len() == 5 && kept.shafts.len() > 5, "{}: {reached} pixels, {} kept", light.name, kept.shafts.len());
+        }
     }
 }

@@ -1289,8 +1289,15 @@ fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, 
         }
         image_io::write_png_rgb8(png, w, h, bytes)?;
     }
+    // The hierarchy keeps the shafts its traversals built: what it holds at the end.
+    let block_bytes_end = session.memory_bytes().1;
     if as_json {
-        say!("{}", serde_json::to_string_pretty(&json!({ "motion": name, "poses": rows, "pda_bytes": pda_bytes, "block_bytes": block_bytes }))?);
+        say!(
+            "{}",
+            serde_json::to_string_pretty(&json!({ "motion": name, "poses": rows, "pda_bytes": pda_bytes, "block_bytes": block_bytes, "block_bytes_end": block_bytes_end }))?
+        );
+    } else {
+        say!("pixel blocks at the end: {:.1} MB", block_bytes_end as f64 / 1e6);
     }
     Ok(())
 }
