@@ -260,10 +260,10 @@ fn visibility_rays(p: &Element, q: &Element) -> Vec<TraceRay> {
 }
 
 /// Which of a pair's `rays` ([`visibility_rays`]) the room's geometry
-/// blocks, bit k for ray k (None: more rays than bits). Traced even where no room root may
-/// block the pair: [`visibility`] traces the room too once an object may,
-/// and its rays can meet what the shafts leave out (a neighbouring
-/// surface at their very start).
+/// blocks, bit k for ray k (None: more rays than bits). Traced even where
+/// no room root may block the pair: [`visibility`] traces the room too
+/// once an object may, and its rays can meet what the shafts leave out (a
+/// neighbouring surface at their very start).
 fn room_blocked(rays: &[TraceRay], tracer: &Tracer) -> Option<u64> {
     if rays.len() > 64 {
         return None;
@@ -704,8 +704,10 @@ fn refine_from(with: &Refiner, p: u32, q: u32, candidates: &[u32], known: Option
         let occluded = !occluders.is_empty();
         let splits = occluded && f > epsilon * VISIBILITY_REFINE_FRACTION && !(p_leaf && q_leaf);
         // A room pair's rays through the room were traced before: only the objects are left.
-        // Where no object may block, the objects are not traced: what the
-        // shafts leave out of an object no ray between the two can meet.
+        // Where no object may block, the rays skip the objects: one could
+        // meet them only from the part of the receiver behind a one-sided
+        // source's plane, light the form factor already leaves out (lost
+        // twice, were it counted here).
         let traced = || match facts.and_then(|f| Some((f.room_blocked?, &f.rays))) {
             Some((room, rays)) if layer == Layer::All => visibility_with_room(rays, tracer, room),
             _ if layer == Layer::All && !occluders.iter().any(|&r| patches.is_virtual_element(r)) => visibility(ep, eq, tracer, Layer::Real),

@@ -344,8 +344,11 @@ impl Session {
                     .par_iter()
                     .zip(active)
                     .map(|(light, &on)| {
-                        let mut shafts = if on { blocks.no_shafts() } else { Default::default() };
-                        let mut pixels = if on { blocks.traverse(light, objects, &mut shafts).pixels } else { Vec::new() };
+                        if !on {
+                            return Default::default();
+                        }
+                        let mut shafts = blocks.no_shafts();
+                        let mut pixels = blocks.traverse(light, objects, &mut shafts).pixels;
                         pixels.sort_unstable();
                         (pixels, shafts)
                     })
