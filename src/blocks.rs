@@ -192,7 +192,7 @@ impl BlockHierarchy {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::light::{Distribution, Emitter, JitteredGrid};
+    use crate::light::{test_panel, test_spot};
 
     /// Over a floor of points (with gaps) under a panel and a spot, moving
     /// a box about: a traversal reaches the same pixels whether each
@@ -203,17 +203,7 @@ mod tests {
         let (w, h) = (37u32, 23u32);
         let points = (0..w * h).map(|i| (i % 11 != 3).then(|| Vec3::new((i % w) as f32 * 0.05, 0.0, (i / w) as f32 * 0.05)));
         let blocks = BlockHierarchy::of_points(w, h, points);
-        let (u, v) = (DVec3::new(0.6, 0.0, 0.0), DVec3::new(0.0, 0.0, 0.6));
-        let panel = LightSource {
-            name: "panel".into(),
-            real: false,
-            scale: 1.0,
-            position: DVec3::new(0.9, 2.0, 0.5),
-            emitter: Emitter::Rect { u, v, normal: u.cross(v).normalize() },
-            distribution: Distribution::Lambertian { normal: DVec3::NEG_Y, rgb: DVec3::splat(4.0) },
-            grid: Some(JitteredGrid::new(0.6, 0.6, 1)),
-        };
-        let spot = LightSource { emitter: Emitter::Point, grid: None, position: DVec3::new(0.2, 1.5, 1.0), ..panel.clone() };
+        let (panel, spot) = (test_panel(DVec3::new(0.9, 2.0, 0.5)), test_spot(DVec3::new(0.2, 1.5, 1.0)));
         for light in [&panel, &spot] {
             let (mut kept, mut capped) = (blocks.no_shafts(), blocks.no_shafts());
             capped.most = 5;

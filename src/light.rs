@@ -139,6 +139,27 @@ pub struct DirectLight {
     pub rays: u32,
 }
 
+/// For tests: a 0.6 m square Lambertian panel at `position`, facing down.
+#[cfg(test)]
+pub(crate) fn test_panel(position: DVec3) -> LightSource {
+    let (u, v) = (DVec3::new(0.6, 0.0, 0.0), DVec3::new(0.0, 0.0, 0.6));
+    LightSource {
+        name: "panel".into(),
+        real: false,
+        scale: 1.0,
+        position,
+        emitter: Emitter::Rect { u, v, normal: u.cross(v).normalize() },
+        distribution: Distribution::Lambertian { normal: DVec3::NEG_Y, rgb: DVec3::splat(4.0) },
+        grid: Some(JitteredGrid::new(0.6, 0.6, 1)),
+    }
+}
+
+/// For tests: [`test_panel`]'s light from a point at `position`.
+#[cfg(test)]
+pub(crate) fn test_spot(position: DVec3) -> LightSource {
+    LightSource { emitter: Emitter::Point, grid: None, ..test_panel(position) }
+}
+
 impl LightSource {
     /// The emitting shape's corners: the point itself, or the rectangle's four.
     pub fn corners(&self) -> Vec<DVec3> {

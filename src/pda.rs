@@ -1148,7 +1148,7 @@ fn screen_boxes(cam: &Camera, bounds: &VirtualBounds) -> Vec<PixelBox> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::light::{Distribution, Emitter, JitteredGrid};
+    use crate::light::{test_panel, test_spot};
     use crate::trace::SurfaceTriangles;
     use glam::Vec3;
 
@@ -1185,19 +1185,9 @@ mod tests {
         let boxed = cube(Vec3::new(-0.15, 0.0, -0.15), Vec3::new(0.15, 0.3, 0.15));
         let tracer = Tracer::build(&[], &[SurfaceTriangles { surface: 7, triangles: &boxed }]).unwrap();
         let bounds = VirtualBounds::of(&[(7, boxed.clone())]);
-        let (u, v) = (DVec3::new(0.6, 0.0, 0.0), DVec3::new(0.0, 0.0, 0.6));
         // Panels whose planes cut the box's side faces' planes: part of each
         // light lies behind a side face, where only the solid blocks it.
-        let panel = |position: DVec3| LightSource {
-            name: "panel".into(),
-            real: false,
-            scale: 1.0,
-            position,
-            emitter: Emitter::Rect { u, v, normal: u.cross(v).normalize() },
-            distribution: Distribution::Lambertian { normal: DVec3::NEG_Y, rgb: DVec3::splat(4.0) },
-            grid: Some(JitteredGrid::new(0.6, 0.6, 1)),
-        };
-        let spot = |position: DVec3| LightSource { emitter: Emitter::Point, grid: None, ..panel(position) };
+        let (panel, spot) = (test_panel, test_spot);
         let lights = [panel(DVec3::new(0.0, 1.0, 0.0)), panel(DVec3::new(0.2, 0.6, -0.1)), spot(DVec3::new(0.5, 0.8, 0.3)), spot(DVec3::new(0.1, 0.2, 0.9))];
         let settings = PdaSettings::default();
         let (mut compared, mut saved) = (0, 0);
@@ -1281,19 +1271,8 @@ mod tests {
         let polygons = |t: &[crate::geometry::Triangle]| -> Vec<Vec<DVec3>> {
             t.chunks(2).map(|q| [q[0][0], q[0][1], q[0][2], q[1][2]].iter().map(|p| p.as_dvec3()).collect()).collect()
         };
-        let (u, v) = (DVec3::new(0.6, 0.0, 0.0), DVec3::new(0.0, 0.0, 0.6));
-        let panel = LightSource {
-            name: "panel".into(),
-            real: false,
-            scale: 1.0,
-            position: DVec3::new(0.0, 1.2, 0.0),
-            emitter: Emitter::Rect { u, v, normal: u.cross(v).normalize() },
-            distribution: Distribution::Lambertian { normal: DVec3::NEG_Y, rgb: DVec3::splat(4.0) },
-            grid: Some(JitteredGrid::new(0.6, 0.6, 1)),
-        };
-        // Beside the box, below the table top.
-        let spot = LightSource { emitter: Emitter::Point, grid: None, position: DVec3::new(1.5, 0.5, 0.3), ..panel.clone() };
-        let lights = [panel, spot];
+        // The spot beside the box, below the table top.
+        let lights = [test_panel(DVec3::new(0.0, 1.2, 0.0)), test_spot(DVec3::new(1.5, 0.5, 0.3))];
         let settings = PdaSettings::default();
         let (mut compared, mut saved) = (0, 0);
         for (room, expected) in [(floor.clone(), [true, true]), ([floor.clone(), top.clone()].concat(), [false, true])] {
