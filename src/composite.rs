@@ -316,6 +316,10 @@ impl Counts {
         self.fallbacks += fallback as usize;
         self.clamped += clamped as usize;
     }
+
+    fn sum(self, other: Counts) -> Counts {
+        Counts { copied: self.copied + other.copied, fallbacks: self.fallbacks + other.fallbacks, clamped: self.clamped + other.clamped }
+    }
 }
 
 impl PlainTables<'_> {
@@ -661,7 +665,7 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                     }
                     counts
                 })
-                .reduce(Counts::default, |a, b| Counts { copied: a.copied + b.copied, fallbacks: a.fallbacks + b.fallbacks, clamped: a.clamped + b.clamped });
+                .reduce(Counts::default, Counts::sum);
             (out.copied, out.ratio_fallbacks, out.clamped) = (counts.copied, counts.fallbacks, counts.clamped);
         }
         _ => out.fill(input.photo, |i| plain(i).unwrap_or_else(|| other(i))),

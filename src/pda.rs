@@ -1187,8 +1187,7 @@ mod tests {
         let bounds = VirtualBounds::of(&[(7, boxed.clone())]);
         // Panels whose planes cut the box's side faces' planes: part of each
         // light lies behind a side face, where only the solid blocks it.
-        let (panel, spot) = (test_panel, test_spot);
-        let lights = [panel(DVec3::new(0.0, 1.0, 0.0)), panel(DVec3::new(0.2, 0.6, -0.1)), spot(DVec3::new(0.5, 0.8, 0.3)), spot(DVec3::new(0.1, 0.2, 0.9))];
+        let lights = [test_panel(DVec3::new(0.0, 1.0, 0.0)), test_panel(DVec3::new(0.2, 0.6, -0.1)), test_spot(DVec3::new(0.5, 0.8, 0.3)), test_spot(DVec3::new(0.1, 0.2, 0.9))];
         let settings = PdaSettings::default();
         let (mut compared, mut saved) = (0, 0);
         for (k, t) in boxed.iter().enumerate() {
