@@ -61,9 +61,9 @@ fn bench(c: &mut Criterion) {
     drop(start);
     g.finish();
 
-    // The lower bound per pose: pixels whose light terms really changed
-    // between poses × the rays a full render spent on such a pixel, at the
-    // occlusion throughput of this machine.
+    // The lower bound per pose: pixels whose direct light really changed
+    // between poses × the rays the update cast per pixel it recomputed, at
+    // the occlusion throughput of this machine.
     let tracer = first.build_tracer().unwrap();
     let rays: Vec<TraceRay> = (0..200_000)
         .map(|i| {
@@ -102,5 +102,78 @@ fn bench(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, bench);
+/// The update's work by part, next to the lower bound, all on one thread:
+/// on more, the parts run side by side and share the cores, so their
+/// times cannot be told apart. The bound counts the shadow rays of pixels
+/// whose direct light changed; the update must also carry the objects'
+/// indirect light (re-link, solve, gather) and composite every pixel.
+fn parts_on_one_thread(base: &Scene, photo: &arlux::image_io::Image, settings: &RenderSettings) {
+    let (p3, p4) = (base.with_motion_pose("box_slide", 3).unwrap(), base.with_motion_pose("box_slide", 4).unwrap());
+    let tracer = p3.build_tracer().unwrap();
+    let rays: Vec<TraceRay> = (0..100_000)
+        .map(|i| {
+            let x = (i % 512) as f32 / 512.0 * 3.0 - 1.5;
+            TraceRay::segment(glam::Vec3::new(x, 0.01, -1.0), glam::Vec3::new(-0.3, 2.58, -0.6), 1e-4)
+        })
+        .collect();
+    // Timed between the updates below, as this machine's speed drifts.
+    let mut out = vec![false; rays.len()];
+    let mut probe = || {
+        let t0 = Instant::now();
+        for (r, o) in rays.chunks(4096).zip(out.chunks_mut(4096)) {
+            tracer.occluded_batch(r, Layer::All, o);
+        }
+        rays.len() as f64 / t0.elapsed().as_secs_f64()
+    };
+    // The pixels whose direct light changes from pose 3 to pose 4.
+    let mut layered = Session::start(&p3, photo, settings, &mut StageTimes::default()).unwrap();
+    layered.prepare_updates(&mut StageTimes::default());
+    let before = layered.composite.direct.clone();
+    let stats = layered.update(&p4, &mut StageTimes::default()).unwrap();
+    let changed = before.pixels.iter().zip(&layered.composite.direct.pixels).filter(|(a, b)| a != b).count();
+    let rays_per_pixel = stats.rays as f64 / stats.pixels_recomputed.max(1) as f64;
+    drop(layered);
+    let mut session = Session::start(&p3, photo, settings, &mut StageTimes::default()).unwrap();
+    session.prepare_updates(&mut StageTimes::default());
+    session.image_only();
+    const INDIRECT: [&str; 5] = ["virtual mesh", "direct light with objects", "form factors with objects", "solve with changes", "final gather on objects"];
+    const PIXELS: [&str; 3] = ["pixel-block traversal", "recompute pixels", "re-trace objects and edges"];
+    let (mut parts, mut throughputs): ([Vec<f64>; 5], Vec<f64>) = Default::default();
+    for i in 0..30 {
+        throughputs.push(probe());
+        let mut times = StageTimes::default();
+        let t0 = Instant::now();
+        session.update(if i % 2 == 0 { &p4 } else { &p3 }, &mut times).unwrap();
+        let total = t0.elapsed().as_secs_f64() * 1e3;
+        let sum = |names: &[&str], list: &[(&str, std::time::Duration)]| list.iter().filter(|(n, _)| names.contains(n)).map(|(_, d)| d.as_secs_f64() * 1e3).sum::<f64>();
+        let (indirect, pixels, composite) = (sum(&INDIRECT, &times.1), sum(&PIXELS, &times.1), sum(&["composite"], &times.0));
+        for (part, ms) in parts.iter_mut().zip([total, indirect, pixels, composite, total - indirect - pixels - composite]) {
+            part.push(ms);
+        }
+    }
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let [total, indirect, pixels, composite, rest] = parts.map(median);
+    let throughput = median(throughputs);
+    let bound = changed as f64 * rays_per_pixel / throughput * 1e3;
+    println!(
+        "one thread, poses 3 <-> 4, medians of 30 updates and of 30 probes between them: update {total:.2} ms, {:.1}x the lower bound {bound:.2} ms ({changed} pixels changed direct light, {rays_per_pixel:.1} rays each, {:.1} M rays/s); \
+         objects' indirect light {indirect:.2} ms ({:.1}x the bound), pixels' direct light and the objects' own pixels {pixels:.2} ms ({:.1}x), composite {composite:.2} ms ({:.1}x), the rest {rest:.2} ms",
+        total / bound,
+        throughput / 1e6,
+        indirect / bound,
+        pixels / bound,
+        composite / bound
+    );
+}
+
+fn parts(_: &mut Criterion) {
+    let base = Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/scene.toml")).unwrap();
+    let photo = base.with_motion_pose("box_slide", 0).unwrap().load_photo().unwrap();
+    rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(|| parts_on_one_thread(&base, &photo, &RenderSettings::default()));
+}
+
+criterion_group!(benches, bench, parts);
 criterion_main!(benches);

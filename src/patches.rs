@@ -226,7 +226,12 @@ impl Patches {
 
     /// Whether element `e` lies on a virtual object.
     pub fn is_virtual_element(&self, e: u32) -> bool {
-        self.surface_is_virtual.get(&self.elements[e as usize].surface).copied().unwrap_or(false)
+        self.is_virtual_surface(self.elements[e as usize].surface)
+    }
+
+    /// Whether surface `s` is a virtual object's (a surface not meshed here is not).
+    pub fn is_virtual_surface(&self, s: u32) -> bool {
+        self.surface_is_virtual.get(&s).copied().unwrap_or(false)
     }
 
     /// Meshes a scene's real surfaces, and with `with_virtual` its enabled

@@ -797,7 +797,7 @@ fn refine_round(
     let eligible: Vec<usize> = (0..n)
         .filter(|&k| {
             seen(k)
-                && !patches.surface_is_virtual.get(&leaves[k].surface).copied().unwrap_or(false)
+                && !patches.is_virtual_surface(leaves[k].surface)
                 && leaves[k].shape.size() >= settings.min_leaf_pixels * lp.footprint[k]
         })
         .collect();

@@ -244,7 +244,7 @@ fn gathering_rays_from_a_solids_faces_meet_through_the_room_alone_what_they_meet
         let scene = desk().with_variant(variant).unwrap();
         let tracer = scene.build_tracer().unwrap();
         let with = Patches::of_scene_with(&scene, true, 0.5, 0.1);
-        let is_virtual = |s: u32| with.surface_is_virtual.get(&s).copied().unwrap_or(false);
+        let is_virtual = |s: u32| with.is_virtual_surface(s);
         let corners: Vec<DVec3> = with.roots.iter().map(|&r| &with.elements[r as usize]).filter(|e| is_virtual(e.surface)).flat_map(|e| e.shape.corners().to_vec()).collect();
         let trace = |p: DVec3, n: DVec3, layer: Layer| {
             let origin = offset_origin(p, n, p + n);
