@@ -65,12 +65,7 @@ fn bench(c: &mut Criterion) {
     // between poses × the rays the update cast per pixel it recomputed, at
     // the occlusion throughput of this machine.
     let tracer = first.build_tracer().unwrap();
-    let rays: Vec<TraceRay> = (0..200_000)
-        .map(|i| {
-            let x = (i % 512) as f32 / 512.0 * 3.0 - 1.5;
-            TraceRay::segment(glam::Vec3::new(x, 0.01, -1.0), glam::Vec3::new(-0.3, 2.58, -0.6), 1e-4)
-        })
-        .collect();
+    let rays = probe_rays(200_000);
     let t0 = Instant::now();
     let blocked: usize = rays
         .par_chunks(4096)
@@ -102,6 +97,17 @@ fn bench(c: &mut Criterion) {
     }
 }
 
+/// The occlusion probe's rays: from a line along the desk's floor to a
+/// point below its light; none is blocked, so each is traced to its end.
+fn probe_rays(count: usize) -> Vec<TraceRay> {
+    (0..count)
+        .map(|i| {
+            let x = (i % 512) as f32 / 512.0 * 3.0 - 1.5;
+            TraceRay::segment(glam::Vec3::new(x, 0.01, -1.0), glam::Vec3::new(-0.3, 2.58, -0.6), 1e-4)
+        })
+        .collect()
+}
+
 /// The update's work by part, next to the lower bound, all on one thread:
 /// on more, the parts run side by side and share the cores, so their
 /// times cannot be told apart. The bound counts the shadow rays of pixels
@@ -110,12 +116,7 @@ fn bench(c: &mut Criterion) {
 fn parts_on_one_thread(base: &Scene, photo: &arlux::image_io::Image, settings: &RenderSettings) {
     let (p3, p4) = (base.with_motion_pose("box_slide", 3).unwrap(), base.with_motion_pose("box_slide", 4).unwrap());
     let tracer = p3.build_tracer().unwrap();
-    let rays: Vec<TraceRay> = (0..100_000)
-        .map(|i| {
-            let x = (i % 512) as f32 / 512.0 * 3.0 - 1.5;
-            TraceRay::segment(glam::Vec3::new(x, 0.01, -1.0), glam::Vec3::new(-0.3, 2.58, -0.6), 1e-4)
-        })
-        .collect();
+    let rays = probe_rays(100_000);
     // Timed between the updates below, as this machine's speed drifts.
     let mut out = vec![false; rays.len()];
     let mut probe = || {
