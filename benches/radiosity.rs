@@ -18,7 +18,8 @@ use arlux::scene::Scene;
 use arlux::trace::Layer;
 
 fn bench(c: &mut Criterion) {
-    let scene = Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/scene.toml")).unwrap();
+    let scene =
+        Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/scene.toml")).unwrap();
     let tracer = scene.build_tracer().unwrap();
     let lights = LightSource::all(&scene).unwrap();
     let mut g = c.benchmark_group("radiosity");
@@ -27,19 +28,31 @@ fn bench(c: &mut Criterion) {
         let patches = Patches::of_scene(&scene, false, size);
         let n = patches.patch_count();
         let id = format!("{size}m_{n}patches");
-        g.bench_with_input(BenchmarkId::new("transport_hierarchical", &id), &patches, |b, p| {
-            b.iter(|| Transport::hierarchical(p, &tracer, Layer::Real, DEFAULT_LINK_EPSILON))
-        });
+        g.bench_with_input(
+            BenchmarkId::new("transport_hierarchical", &id),
+            &patches,
+            |b, p| {
+                b.iter(|| Transport::hierarchical(p, &tracer, Layer::Real, DEFAULT_LINK_EPSILON))
+            },
+        );
         if size >= 0.5 {
-            g.bench_with_input(BenchmarkId::new("transport_full", &id), &patches, |b, p| b.iter(|| Transport::full(p, &tracer, Layer::Real)));
+            g.bench_with_input(BenchmarkId::new("transport_full", &id), &patches, |b, p| {
+                b.iter(|| Transport::full(p, &tracer, Layer::Real))
+            });
         }
-        let transport = Transport::hierarchical(&patches, &tracer, Layer::Real, DEFAULT_LINK_EPSILON);
-        let e = total_direct(&photo_scales(&lights), &direct_irradiance(&patches, &lights, &tracer, Layer::Real, 4));
+        let transport =
+            Transport::hierarchical(&patches, &tracer, Layer::Real, DEFAULT_LINK_EPSILON);
+        let e = total_direct(
+            &photo_scales(&lights),
+            &direct_irradiance(&patches, &lights, &tracer, Layer::Real, 4),
+        );
         let rho = vec![DVec3::splat(0.6); n];
         let emission: Vec<DVec3> = rho.iter().zip(&e).map(|(r, e)| *r * *e).collect();
-        g.bench_with_input(BenchmarkId::new("solve_hierarchical", &id), &patches, |b, p| {
-            b.iter(|| solve(p, &transport, &rho, &emission, 1e-7, 500))
-        });
+        g.bench_with_input(
+            BenchmarkId::new("solve_hierarchical", &id),
+            &patches,
+            |b, p| b.iter(|| solve(p, &transport, &rho, &emission, 1e-7, 500)),
+        );
     }
     g.finish();
 }

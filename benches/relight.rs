@@ -12,7 +12,8 @@ use arlux::relight::{TexturePath, TextureSettings};
 use arlux::scene::Scene;
 
 fn bench(c: &mut Criterion) {
-    let base = Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/scene.toml")).unwrap();
+    let base =
+        Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/scene.toml")).unwrap();
     // The bulb inserted (its forced refinement done), the box hidden: every light variant is a light change from here.
     let scene = base.with_variant("virtual_light_only").unwrap();
     let photo = scene.load_photo().unwrap();
@@ -20,11 +21,37 @@ fn bench(c: &mut Criterion) {
     let settings = TextureSettings::default();
     let mut g = c.benchmark_group("relight");
     g.sample_size(10);
-    g.bench_function("preprocess", |b| b.iter(|| TexturePath::prepare(&scene, &photo, &tracer, &settings, &mut StageTimes::default()).unwrap()));
-    let path = TexturePath::prepare(&scene, &photo, &tracer, &settings, &mut StageTimes::default()).unwrap();
+    g.bench_function("preprocess", |b| {
+        b.iter(|| {
+            TexturePath::prepare(
+                &scene,
+                &photo,
+                &tracer,
+                &settings,
+                &mut StageTimes::default(),
+            )
+            .unwrap()
+        })
+    });
+    let path = TexturePath::prepare(
+        &scene,
+        &photo,
+        &tracer,
+        &settings,
+        &mut StageTimes::default(),
+    )
+    .unwrap();
     for variant in ["panel_off", "spot_x2", "virtual_light_only"] {
-        let scales: Vec<f64> = base.with_variant(variant).unwrap().lights.iter().map(|l| l.scale).collect();
-        g.bench_function(format!("light_change_{variant}"), |b| b.iter(|| path.relight(&scales, &mut StageTimes::default())));
+        let scales: Vec<f64> = base
+            .with_variant(variant)
+            .unwrap()
+            .lights
+            .iter()
+            .map(|l| l.scale)
+            .collect();
+        g.bench_function(format!("light_change_{variant}"), |b| {
+            b.iter(|| path.relight(&scales, &mut StageTimes::default()))
+        });
     }
     g.finish();
 }

@@ -14,23 +14,53 @@ use arlux::render::{RenderSettings, render};
 use arlux::scene::Scene;
 
 fn bench(c: &mut Criterion) {
-    let base = Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/scene.toml")).unwrap();
+    let base =
+        Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/scene.toml")).unwrap();
     let scene = base.with_variant("box_floor_a").unwrap();
     let photo = scene.load_photo().unwrap();
     let settings = RenderSettings::default();
     let mut g = c.benchmark_group("render");
     g.sample_size(10);
-    g.bench_function("box_floor_a_full_render", |b| b.iter(|| render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap()));
+    g.bench_function("box_floor_a_full_render", |b| {
+        b.iter(|| render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap())
+    });
 
     let tracer = scene.build_tracer().unwrap();
-    let model = Model::build(&scene, &photo, &tracer, &settings.model, &mut StageTimes::default()).unwrap();
-    let patches = Patches::of_scene_with(&scene, true, settings.model.patch_size, settings.virtual_patch_size);
+    let model = Model::build(
+        &scene,
+        &photo,
+        &tracer,
+        &settings.model,
+        &mut StageTimes::default(),
+    )
+    .unwrap();
+    let patches = Patches::of_scene_with(
+        &scene,
+        true,
+        settings.model.patch_size,
+        settings.virtual_patch_size,
+    );
     let bounds = VirtualBounds::of(&scene.virtual_world_surfaces());
-    let active: Vec<bool> = model.lights.iter().map(|l| l.scale > 0.0 || l.photo_scale() > 0.0).collect();
-    let input = PdaInput { camera: &scene.camera, tracer: &tracer, patches: &patches, lights: &model.lights, active: &active, bounds: &bounds, settings: settings.pda, for_updates: false };
+    let active: Vec<bool> = model
+        .lights
+        .iter()
+        .map(|l| l.scale > 0.0 || l.photo_scale() > 0.0)
+        .collect();
+    let input = PdaInput {
+        camera: &scene.camera,
+        tracer: &tracer,
+        patches: &patches,
+        lights: &model.lights,
+        active: &active,
+        bounds: &bounds,
+        settings: settings.pda,
+        for_updates: false,
+    };
     let rays = PixelDataArray::build(&input).rays;
     g.throughput(Throughput::Elements(rays));
-    g.bench_function("pixel_data_array", |b| b.iter(|| PixelDataArray::build(&input)));
+    g.bench_function("pixel_data_array", |b| {
+        b.iter(|| PixelDataArray::build(&input))
+    });
     g.finish();
 }
 

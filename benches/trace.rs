@@ -19,7 +19,8 @@ struct Setup {
 }
 
 fn setup() -> Setup {
-    let scene = Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/scene.toml")).unwrap();
+    let scene =
+        Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/scene.toml")).unwrap();
     let tracer = scene.build_tracer().unwrap();
     let cam = &scene.camera;
     let primary: Vec<TraceRay> = (0..cam.height)
@@ -33,7 +34,9 @@ fn setup() -> Setup {
     tracer.intersect_batch(&primary, Layer::All, &mut hits);
 
     let panel = &scene.lights[0];
-    let (centre, LightShape::Rect { u, v }) = (panel.known_position().unwrap().as_vec3(), panel.shape) else {
+    let (centre, LightShape::Rect { u, v }) =
+        (panel.known_position().unwrap().as_vec3(), panel.shape)
+    else {
         panic!("the desk's panel is a rect light")
     };
     let (u, v) = (u.as_vec3(), v.as_vec3());
@@ -52,7 +55,11 @@ fn setup() -> Setup {
             shadow.extend(targets.iter().map(|&t| TraceRay::segment(p, t, 1e-4)));
         }
     }
-    Setup { tracer, primary, shadow }
+    Setup {
+        tracer,
+        primary,
+        shadow,
+    }
 }
 
 fn bench(c: &mut Criterion) {
@@ -62,7 +69,16 @@ fn bench(c: &mut Criterion) {
 
     g.throughput(Throughput::Elements(s.primary.len() as u64));
     g.bench_function("primary_single", |b| {
-        b.iter(|| s.primary.par_chunks(512).map(|rs| rs.iter().filter(|r| s.tracer.intersect(r, Layer::All).is_some()).count()).sum::<usize>())
+        b.iter(|| {
+            s.primary
+                .par_chunks(512)
+                .map(|rs| {
+                    rs.iter()
+                        .filter(|r| s.tracer.intersect(r, Layer::All).is_some())
+                        .count()
+                })
+                .sum::<usize>()
+        })
     });
     g.bench_function("primary_packet16", |b| {
         b.iter(|| {
@@ -79,7 +95,16 @@ fn bench(c: &mut Criterion) {
 
     g.throughput(Throughput::Elements(s.shadow.len() as u64));
     g.bench_function("occlusion_single", |b| {
-        b.iter(|| s.shadow.par_chunks(4096).map(|rs| rs.iter().filter(|r| s.tracer.occluded(r, Layer::All)).count()).sum::<usize>())
+        b.iter(|| {
+            s.shadow
+                .par_chunks(4096)
+                .map(|rs| {
+                    rs.iter()
+                        .filter(|r| s.tracer.occluded(r, Layer::All))
+                        .count()
+                })
+                .sum::<usize>()
+        })
     });
     g.bench_function("occlusion_packet16", |b| {
         b.iter(|| {

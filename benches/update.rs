@@ -16,7 +16,8 @@ use arlux::scene::Scene;
 use arlux::trace::{Layer, TraceRay};
 
 fn bench(c: &mut Criterion) {
-    let base = Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/scene.toml")).unwrap();
+    let base =
+        Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/scene.toml")).unwrap();
     let settings = RenderSettings::default();
     let first = base.with_motion_pose("box_slide", 0).unwrap();
     let photo = first.load_photo().unwrap();
@@ -34,7 +35,8 @@ fn bench(c: &mut Criterion) {
             // The pixel-block hierarchy is built once with the Pixel Data
             // Array (Grosch §3.2), for every update of the motion to share.
             || {
-                let mut s = Session::start(&p3, &photo, &settings, &mut StageTimes::default()).unwrap();
+                let mut s =
+                    Session::start(&p3, &photo, &settings, &mut StageTimes::default()).unwrap();
                 s.prepare_updates(&mut StageTimes::default());
                 // As `arlux motion` runs: each pose's image, without the other layers.
                 s.image_only();
@@ -52,12 +54,18 @@ fn bench(c: &mut Criterion) {
     g.bench_function("box_slide_poses_3_4_alternating_on_one_session", |b| {
         b.iter(|| {
             forth = !forth;
-            session.update(if forth { &p4 } else { &p3 }, &mut StageTimes::default()).unwrap()
+            session
+                .update(if forth { &p4 } else { &p3 }, &mut StageTimes::default())
+                .unwrap()
         })
     });
     drop(session);
     // The rendered images are likewise dropped untimed.
-    g.bench_function("box_slide_pose_4_full_render", |b| b.iter_with_large_drop(|| render(&p4, &photo, &settings, &mut StageTimes::default()).unwrap()));
+    g.bench_function("box_slide_pose_4_full_render", |b| {
+        b.iter_with_large_drop(|| {
+            render(&p4, &photo, &settings, &mut StageTimes::default()).unwrap()
+        })
+    });
     drop(start);
     g.finish();
 
@@ -76,14 +84,20 @@ fn bench(c: &mut Criterion) {
         })
         .sum();
     let throughput = rays.len() as f64 / t0.elapsed().as_secs_f64();
-    let mut session = Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+    let mut session =
+        Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
     session.prepare_updates(&mut StageTimes::default());
     for pose in 1..poses {
         let scene = base.with_motion_pose("box_slide", pose).unwrap();
         let before = session.composite.direct.clone();
         let mut times = StageTimes::default();
         let stats = session.update(&scene, &mut times).unwrap();
-        let changed = before.pixels.iter().zip(&session.composite.direct.pixels).filter(|(a, b)| a != b).count();
+        let changed = before
+            .pixels
+            .iter()
+            .zip(&session.composite.direct.pixels)
+            .filter(|(a, b)| a != b)
+            .count();
         let per_pixel = stats.rays as f64 / stats.pixels_recomputed.max(1) as f64;
         let bound = changed as f64 * per_pixel / throughput;
         println!(
@@ -103,7 +117,11 @@ fn probe_rays(count: usize) -> Vec<TraceRay> {
     (0..count)
         .map(|i| {
             let x = (i % 512) as f32 / 512.0 * 3.0 - 1.5;
-            TraceRay::segment(glam::Vec3::new(x, 0.01, -1.0), glam::Vec3::new(-0.3, 2.58, -0.6), 1e-4)
+            TraceRay::segment(
+                glam::Vec3::new(x, 0.01, -1.0),
+                glam::Vec3::new(-0.3, 2.58, -0.6),
+                1e-4,
+            )
         })
         .collect()
 }
@@ -114,7 +132,10 @@ fn probe_rays(count: usize) -> Vec<TraceRay> {
 /// whose direct light changed; the update must also carry the objects'
 /// indirect light (re-link, solve, gather) and composite every pixel.
 fn parts_on_one_thread(base: &Scene, photo: &arlux::image_io::Image, settings: &RenderSettings) {
-    let (p3, p4) = (base.with_motion_pose("box_slide", 3).unwrap(), base.with_motion_pose("box_slide", 4).unwrap());
+    let (p3, p4) = (
+        base.with_motion_pose("box_slide", 3).unwrap(),
+        base.with_motion_pose("box_slide", 4).unwrap(),
+    );
     let tracer = p3.build_tracer().unwrap();
     let rays = probe_rays(100_000);
     // Timed between the updates below, as this machine's speed drifts.
@@ -131,24 +152,56 @@ fn parts_on_one_thread(base: &Scene, photo: &arlux::image_io::Image, settings: &
     layered.prepare_updates(&mut StageTimes::default());
     let before = layered.composite.direct.clone();
     let stats = layered.update(&p4, &mut StageTimes::default()).unwrap();
-    let changed = before.pixels.iter().zip(&layered.composite.direct.pixels).filter(|(a, b)| a != b).count();
+    let changed = before
+        .pixels
+        .iter()
+        .zip(&layered.composite.direct.pixels)
+        .filter(|(a, b)| a != b)
+        .count();
     let rays_per_pixel = stats.rays as f64 / stats.pixels_recomputed.max(1) as f64;
     drop(layered);
     let mut session = Session::start(&p3, photo, settings, &mut StageTimes::default()).unwrap();
     session.prepare_updates(&mut StageTimes::default());
     session.image_only();
-    const INDIRECT: [&str; 5] = ["virtual mesh", "direct light with objects", "form factors with objects", "solve with changes", "final gather on objects"];
-    const PIXELS: [&str; 3] = ["pixel-block traversal", "recompute pixels", "re-trace objects and edges"];
+    const INDIRECT: [&str; 5] = [
+        "virtual mesh",
+        "direct light with objects",
+        "form factors with objects",
+        "solve with changes",
+        "final gather on objects",
+    ];
+    const PIXELS: [&str; 3] = [
+        "pixel-block traversal",
+        "recompute pixels",
+        "re-trace objects and edges",
+    ];
     let (mut parts, mut throughputs): ([Vec<f64>; 5], Vec<f64>) = Default::default();
     for i in 0..30 {
         throughputs.push(probe());
         let mut times = StageTimes::default();
         let t0 = Instant::now();
-        session.update(if i % 2 == 0 { &p4 } else { &p3 }, &mut times).unwrap();
+        session
+            .update(if i % 2 == 0 { &p4 } else { &p3 }, &mut times)
+            .unwrap();
         let total = t0.elapsed().as_secs_f64() * 1e3;
-        let sum = |names: &[&str], list: &[(&str, std::time::Duration)]| list.iter().filter(|(n, _)| names.contains(n)).map(|(_, d)| d.as_secs_f64() * 1e3).sum::<f64>();
-        let (indirect, pixels, composite) = (sum(&INDIRECT, &times.1), sum(&PIXELS, &times.1), sum(&["composite"], &times.0));
-        for (part, ms) in parts.iter_mut().zip([total, indirect, pixels, composite, total - indirect - pixels - composite]) {
+        let sum = |names: &[&str], list: &[(&str, std::time::Duration)]| {
+            list.iter()
+                .filter(|(n, _)| names.contains(n))
+                .map(|(_, d)| d.as_secs_f64() * 1e3)
+                .sum::<f64>()
+        };
+        let (indirect, pixels, composite) = (
+            sum(&INDIRECT, &times.1),
+            sum(&PIXELS, &times.1),
+            sum(&["composite"], &times.0),
+        );
+        for (part, ms) in parts.iter_mut().zip([
+            total,
+            indirect,
+            pixels,
+            composite,
+            total - indirect - pixels - composite,
+        ]) {
             part.push(ms);
         }
     }
@@ -171,9 +224,18 @@ fn parts_on_one_thread(base: &Scene, photo: &arlux::image_io::Image, settings: &
 }
 
 fn parts(_: &mut Criterion) {
-    let base = Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/scene.toml")).unwrap();
-    let photo = base.with_motion_pose("box_slide", 0).unwrap().load_photo().unwrap();
-    rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(|| parts_on_one_thread(&base, &photo, &RenderSettings::default()));
+    let base =
+        Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/scene.toml")).unwrap();
+    let photo = base
+        .with_motion_pose("box_slide", 0)
+        .unwrap()
+        .load_photo()
+        .unwrap();
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(|| parts_on_one_thread(&base, &photo, &RenderSettings::default()));
 }
 
 criterion_group!(benches, bench, parts);

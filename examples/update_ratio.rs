@@ -13,8 +13,14 @@ use arlux::render::{RenderSettings, Session, render};
 use arlux::scene::Scene;
 
 fn main() -> anyhow::Result<()> {
-    let base = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/desk/scene.toml"))?;
-    let (p3, p4) = (base.with_motion_pose("box_slide", 3)?, base.with_motion_pose("box_slide", 4)?);
+    let base = Scene::load(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/desk/scene.toml"
+    ))?;
+    let (p3, p4) = (
+        base.with_motion_pose("box_slide", 3)?,
+        base.with_motion_pose("box_slide", 4)?,
+    );
     let photo = p3.load_photo()?;
     let settings = RenderSettings::default();
     let mut args = std::env::args().skip(1).map(|a| a.parse::<usize>());
@@ -27,7 +33,14 @@ fn main() -> anyhow::Result<()> {
     for round in 0..rounds {
         for i in 0..updates {
             let t0 = Instant::now();
-            session.update(if (round * updates + i) % 2 == 0 { &p4 } else { &p3 }, &mut StageTimes::default())?;
+            session.update(
+                if (round * updates + i) % 2 == 0 {
+                    &p4
+                } else {
+                    &p3
+                },
+                &mut StageTimes::default(),
+            )?;
             update_ms.push(t0.elapsed().as_secs_f64() * 1e3);
         }
         let t0 = Instant::now();
@@ -40,6 +53,9 @@ fn main() -> anyhow::Result<()> {
         v[v.len() / 2]
     };
     let (u, f) = (median(&mut update_ms), median(&mut full_ms));
-    println!("{rounds} rounds of {updates} updates and a full render: update {u:.2} ms, full render {f:.1} ms, {:.1}x", f / u);
+    println!(
+        "{rounds} rounds of {updates} updates and a full render: update {u:.2} ms, full render {f:.1} ms, {:.1}x",
+        f / u
+    );
     Ok(())
 }

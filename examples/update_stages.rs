@@ -12,10 +12,21 @@ use arlux::render::{RenderSettings, Session};
 use arlux::scene::Scene;
 
 fn main() -> anyhow::Result<()> {
-    let base = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/desk/scene.toml"))?;
-    let (p3, p4) = (base.with_motion_pose("box_slide", 3)?, base.with_motion_pose("box_slide", 4)?);
+    let base = Scene::load(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/desk/scene.toml"
+    ))?;
+    let (p3, p4) = (
+        base.with_motion_pose("box_slide", 3)?,
+        base.with_motion_pose("box_slide", 4)?,
+    );
     let photo = p3.load_photo()?;
-    let mut session = Session::start(&p3, &photo, &RenderSettings::default(), &mut StageTimes::default())?;
+    let mut session = Session::start(
+        &p3,
+        &photo,
+        &RenderSettings::default(),
+        &mut StageTimes::default(),
+    )?;
     session.prepare_updates(&mut StageTimes::default());
     session.image_only();
     let updates: usize = std::env::args().nth(1).map_or(Ok(60), |a| a.parse())?;
@@ -41,7 +52,10 @@ fn main() -> anyhow::Result<()> {
         v.sort_by(f64::total_cmp);
         v[v.len() / 2]
     };
-    println!("{updates} updates, medians: wall {:.2} ms", median(&mut totals));
+    println!(
+        "{updates} updates, medians: wall {:.2} ms",
+        median(&mut totals)
+    );
     for (stage, v) in stages.iter_mut() {
         println!("  {stage:<28} {:>6.2} ms", median(v));
     }

@@ -57,7 +57,12 @@ struct Against<'a> {
 impl BlockShafts {
     /// `test` of the shaft of block `index`, the kept one or one `build`
     /// makes (kept while there is room).
-    fn test(&mut self, index: u32, build: impl FnOnce() -> Shaft, test: impl FnOnce(&Shaft) -> bool) -> bool {
+    fn test(
+        &mut self,
+        index: u32,
+        build: impl FnOnce() -> Shaft,
+        test: impl FnOnce(&Shaft) -> bool,
+    ) -> bool {
         let at = self.slot[index as usize];
         if at != NO_SHAFT {
             return test(&self.shafts[at as usize]);
@@ -72,7 +77,15 @@ impl BlockShafts {
     }
 
     pub fn memory_bytes(&self) -> usize {
-        self.slot.len() * 4 + self.shafts.iter().map(|s| std::mem::size_of::<Shaft>() + s.plane_count() * std::mem::size_of::<(DVec3, f64)>()).sum::<usize>()
+        self.slot.len() * 4
+            + self
+                .shafts
+                .iter()
+                .map(|s| {
+                    std::mem::size_of::<Shaft>()
+                        + s.plane_count() * std::mem::size_of::<(DVec3, f64)>()
+                })
+                .sum::<usize>()
     }
 }
 
@@ -91,7 +104,10 @@ const EMPTY: (Vec3, Vec3) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
 impl BlockHierarchy {
     /// Built over the real surface points of the Pixel Data Array.
     pub fn build(pda: &PixelDataArray) -> BlockHierarchy {
-        let points = pda.real_index.iter().map(|&k| (k != u32::MAX).then(|| pda.real.points[k as usize].position));
+        let points = pda
+            .real_index
+            .iter()
+            .map(|&k| (k != u32::MAX).then(|| pda.real.points[k as usize].position));
         BlockHierarchy::of_points(pda.width, pda.height, points)
     }
 
@@ -115,25 +131,47 @@ impl BlockHierarchy {
             }
             levels.push((nw, nh, next));
         }
-        let first = levels.iter().scan(0, |below, (_, _, b)| Some(std::mem::replace(below, *below + b.len() as u32))).collect();
-        BlockHierarchy { width: w, height: h, levels, first }
+        let first = levels
+            .iter()
+            .scan(0, |below, (_, _, b)| {
+                Some(std::mem::replace(below, *below + b.len() as u32))
+            })
+            .collect();
+        BlockHierarchy {
+            width: w,
+            height: h,
+            levels,
+            first,
+        }
     }
 
     pub fn memory_bytes(&self) -> usize {
-        self.levels.iter().map(|(_, _, b)| b.len() * std::mem::size_of::<(Vec3, Vec3)>()).sum()
+        self.levels
+            .iter()
+            .map(|(_, _, b)| b.len() * std::mem::size_of::<(Vec3, Vec3)>())
+            .sum()
     }
 
     /// An empty store of shafts to one light, for [`BlockHierarchy::traverse`].
     pub fn no_shafts(&self) -> BlockShafts {
         let blocks = self.levels.iter().map(|(_, _, b)| b.len()).sum();
-        BlockShafts { slot: vec![NO_SHAFT; blocks], shafts: Vec::new(), most: MOST_KEPT }
+        BlockShafts {
+            slot: vec![NO_SHAFT; blocks],
+            shafts: Vec::new(),
+            most: MOST_KEPT,
+        }
     }
 
     /// The pixels whose shaft to `light` may meet any of the `objects`
     /// (a moved object's old and new bounds), found top-down; the blocks'
     /// shafts are taken from `shafts` (this light's, from
     /// [`BlockHierarchy::no_shafts`]), those missing built and kept there.
-    pub fn traverse(&self, light: &LightSource, objects: &[ObjectBounds], shafts: &mut BlockShafts) -> Traversal {
+    pub fn traverse(
+        &self,
+        light: &LightSource,
+        objects: &[ObjectBounds],
+        shafts: &mut BlockShafts,
+    ) -> Traversal {
         let mut out = Traversal::default();
         if objects.is_empty() {
             return out;
@@ -141,12 +179,24 @@ impl BlockHierarchy {
         let light_points = light.corners();
         let light_box = crate::geometry::bounds(light_points.iter().copied());
         let top = self.levels.len() - 1;
-        let against = Against { corners: &light_points, light_box, objects };
+        let against = Against {
+            corners: &light_points,
+            light_box,
+            objects,
+        };
         self.visit(top, 0, 0, &against, shafts, &mut out);
         out
     }
 
-    fn visit(&self, level: usize, x: u32, y: u32, against: &Against, shafts: &mut BlockShafts, out: &mut Traversal) {
+    fn visit(
+        &self,
+        level: usize,
+        x: u32,
+        y: u32,
+        against: &Against,
+        shafts: &mut BlockShafts,
+        out: &mut Traversal,
+    ) {
         let (lw, lh, boxes) = &self.levels[level];
         if x >= *lw || y >= *lh {
             return;
@@ -157,7 +207,11 @@ impl BlockHierarchy {
         }
         out.shaft_tests += 1;
         let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
-        let Against { corners, light_box, objects } = *against;
+        let Against {
+            corners,
+            light_box,
+            objects,
+        } = *against;
         let index = self.first[level] + y * lw + x;
         let may_meet = if level == 0 && corners.len() == 1 {
             // A pixel: exactly the test the Pixel Data Array makes.
@@ -166,8 +220,16 @@ impl BlockHierarchy {
             // A pixel's pyramid to the light's shape, as the Pixel Data
             // Array tests it; a block's Haines & Wallace shaft from its box
             // to the light's, which holds every pixel shaft below it.
-            let build = || if level == 0 { Shaft::pyramid(lo, corners) } else { Shaft::between_boxes((lo, hi), light_box) };
-            shafts.test(index, build, |shaft| objects.iter().any(|o| !o.outside(shaft)))
+            let build = || {
+                if level == 0 {
+                    Shaft::pyramid(lo, corners)
+                } else {
+                    Shaft::between_boxes((lo, hi), light_box)
+                }
+            };
+            shafts.test(index, build, |shaft| {
+                objects.iter().any(|o| !o.outside(shaft))
+            })
         };
         if !may_meet {
             out.skipped.push((level as u8, x, y));
@@ -185,7 +247,12 @@ impl BlockHierarchy {
     /// The image rectangle a block of `level` at (x, y) covers.
     pub fn block_pixels(&self, level: u8, x: u32, y: u32) -> (u32, u32, u32, u32) {
         let s = 1u32 << level;
-        (x * s, y * s, ((x + 1) * s).min(self.width), ((y + 1) * s).min(self.height))
+        (
+            x * s,
+            y * s,
+            ((x + 1) * s).min(self.width),
+            ((y + 1) * s).min(self.height),
+        )
     }
 }
 
@@ -201,9 +268,14 @@ mod tests {
     #[test]
     fn kept_shafts_reach_the_pixels_fresh_ones_reach() {
         let (w, h) = (37u32, 23u32);
-        let points = (0..w * h).map(|i| (i % 11 != 3).then(|| Vec3::new((i % w) as f32 * 0.05, 0.0, (i / w) as f32 * 0.05)));
+        let points = (0..w * h).map(|i| {
+            (i % 11 != 3).then(|| Vec3::new((i % w) as f32 * 0.05, 0.0, (i / w) as f32 * 0.05))
+        });
         let blocks = BlockHierarchy::of_points(w, h, points);
-        let (panel, spot) = (test_panel(DVec3::new(0.9, 2.0, 0.5)), test_spot(DVec3::new(0.2, 1.5, 1.0)));
+        let (panel, spot) = (
+            test_panel(DVec3::new(0.9, 2.0, 0.5)),
+            test_spot(DVec3::new(0.2, 1.5, 1.0)),
+        );
         for light in [&panel, &spot] {
             let (mut kept, mut capped) = (blocks.no_shafts(), blocks.no_shafts());
             capped.most = 5;
@@ -212,11 +284,26 @@ mod tests {
                 let lo = DVec3::new(0.2 + 0.25 * step as f64, 0.0, 0.3);
                 let object = ObjectBounds::around(&[lo, lo + DVec3::new(0.2, 0.3, 0.2)]);
                 let fresh = blocks.traverse(light, &[object], &mut blocks.no_shafts());
-                assert_eq!(blocks.traverse(light, &[object], &mut kept).pixels, fresh.pixels, "{} at step {step}", light.name);
-                assert_eq!(blocks.traverse(light, &[object], &mut capped).pixels, fresh.pixels, "{} at step {step}, capped", light.name);
+                assert_eq!(
+                    blocks.traverse(light, &[object], &mut kept).pixels,
+                    fresh.pixels,
+                    "{} at step {step}",
+                    light.name
+                );
+                assert_eq!(
+                    blocks.traverse(light, &[object], &mut capped).pixels,
+                    fresh.pixels,
+                    "{} at step {step}, capped",
+                    light.name
+                );
                 reached += fresh.pixels.len();
             }
-            assert!(reached > 0 && capped.shafts.len() == 5 && kept.shafts.len() > 5, "{}: {reached} pixels, {} kept", light.name, kept.shafts.len());
+            assert!(
+                reached > 0 && capped.shafts.len() == 5 && kept.shafts.len() > 5,
+                "{}: {reached} pixels, {} kept",
+                light.name,
+                kept.shafts.len()
+            );
         }
     }
 }

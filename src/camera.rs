@@ -67,19 +67,36 @@ impl Camera {
         let (fx, fy, cx, cy) = match projection {
             Projection::FovY { degrees } => {
                 if !(degrees > 0.0 && degrees < 180.0) {
-                    return Err(("fov_y_deg", format!("must lie strictly between 0 and 180, found {degrees}")));
+                    return Err((
+                        "fov_y_deg",
+                        format!("must lie strictly between 0 and 180, found {degrees}"),
+                    ));
                 }
                 let f = 0.5 * height as f64 / (0.5 * degrees.to_radians()).tan();
                 (f, f, 0.5 * width as f64, 0.5 * height as f64)
             }
             Projection::Intrinsics { fx, fy, cx, cy } => {
                 if !(fx > 0.0 && fy > 0.0) {
-                    return Err(("intrinsics", format!("fx and fy must be positive, found fx={fx}, fy={fy}")));
+                    return Err((
+                        "intrinsics",
+                        format!("fx and fy must be positive, found fx={fx}, fy={fy}"),
+                    ));
                 }
                 (fx, fy, cx, cy)
             }
         };
-        Ok(Camera { width, height, position, forward, right, up, fx, fy, cx, cy })
+        Ok(Camera {
+            width,
+            height,
+            position,
+            forward,
+            right,
+            up,
+            fx,
+            fy,
+            cx,
+            cy,
+        })
     }
 
     pub fn pixel_count(&self) -> usize {
@@ -88,8 +105,12 @@ impl Camera {
 
     /// The ray through image point (x, y) in continuous pixel coordinates.
     pub fn ray(&self, x: f64, y: f64) -> Ray {
-        let d = self.forward + self.right * ((x - self.cx) / self.fx) - self.up * ((y - self.cy) / self.fy);
-        Ray { origin: self.position, direction: d.normalize() }
+        let d = self.forward + self.right * ((x - self.cx) / self.fx)
+            - self.up * ((y - self.cy) / self.fy);
+        Ray {
+            origin: self.position,
+            direction: d.normalize(),
+        }
     }
 
     /// The ray through the centre of pixel (col, row).
@@ -133,15 +154,26 @@ mod tests {
         let mut rng = rand::rngs::StdRng::seed_from_u64(7);
         for cam in [
             desk_like(Projection::FovY { degrees: 55.0 }),
-            desk_like(Projection::Intrinsics { fx: 610.0, fy: 590.0, cx: 250.3, cy: 199.7 }),
+            desk_like(Projection::Intrinsics {
+                fx: 610.0,
+                fy: 590.0,
+                cx: 250.3,
+                cy: 199.7,
+            }),
         ] {
             for _ in 0..1000 {
-                let (x, y) = (rng.random_range(-50.0..562.0), rng.random_range(-50.0..434.0));
+                let (x, y) = (
+                    rng.random_range(-50.0..562.0),
+                    rng.random_range(-50.0..434.0),
+                );
                 let depth = rng.random_range(0.01..100.0);
                 let ray = cam.ray(x, y);
                 let p = ray.origin + ray.direction * depth;
                 let (px, py, _) = cam.project(p).unwrap();
-                assert!((px - x).abs() < 1e-4 && (py - y).abs() < 1e-4, "({x},{y}) -> ({px},{py})");
+                assert!(
+                    (px - x).abs() < 1e-4 && (py - y).abs() < 1e-4,
+                    "({x},{y}) -> ({px},{py})"
+                );
             }
         }
     }
@@ -169,8 +201,26 @@ mod tests {
     fn degenerate_cameras_are_refused() {
         let p = DVec3::ZERO;
         let fov = Projection::FovY { degrees: 50.0 };
-        assert_eq!(Camera::new(8, 8, p, p, DVec3::Y, fov).unwrap_err().0, "look_at");
-        assert_eq!(Camera::new(8, 8, p, DVec3::Y, DVec3::Y, fov).unwrap_err().0, "up");
-        assert_eq!(Camera::new(8, 8, p, DVec3::X, DVec3::Y, Projection::FovY { degrees: 180.0 }).unwrap_err().0, "fov_y_deg");
+        assert_eq!(
+            Camera::new(8, 8, p, p, DVec3::Y, fov).unwrap_err().0,
+            "look_at"
+        );
+        assert_eq!(
+            Camera::new(8, 8, p, DVec3::Y, DVec3::Y, fov).unwrap_err().0,
+            "up"
+        );
+        assert_eq!(
+            Camera::new(
+                8,
+                8,
+                p,
+                DVec3::X,
+                DVec3::Y,
+                Projection::FovY { degrees: 180.0 }
+            )
+            .unwrap_err()
+            .0,
+            "fov_y_deg"
+        );
     }
 }

@@ -30,8 +30,12 @@ pub struct Comparison {
 /// Compares `image` with `reference` (same size) over the pixels where
 /// `mask` is true (all pixels when there is no mask).
 pub fn compare(image: &Image, reference: &Image, mask: Option<&[bool]>) -> Comparison {
-    assert_eq!((image.width, image.height), (reference.width, reference.height));
-    let (mut n, mut se, mut se_srgb, mut sum_a, mut sum_b) = (0usize, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    assert_eq!(
+        (image.width, image.height),
+        (reference.width, reference.height)
+    );
+    let (mut n, mut se, mut se_srgb, mut sum_a, mut sum_b) =
+        (0usize, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
     for (i, (a, b)) in image.pixels.iter().zip(&reference.pixels).enumerate() {
         if mask.is_some_and(|m| !m[i]) {
             continue;
@@ -63,12 +67,17 @@ pub fn compare(image: &Image, reference: &Image, mask: Option<&[bool]>) -> Compa
 /// Reads a mask image: a pixel is inside where its grey value is above one half.
 pub fn read_mask(path: &Path, width: u32, height: u32) -> Result<Vec<bool>> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
-    let img = image::load_from_memory(&bytes).map_err(|e| Error::file(path, format!("malformed image: {e}")))?;
+    let img = image::load_from_memory(&bytes)
+        .map_err(|e| Error::file(path, format!("malformed image: {e}")))?;
     let grey = img.to_luma8();
     if grey.dimensions() != (width, height) {
         return Err(Error::file(
             path,
-            format!("mask is {}x{}, the images are {width}x{height}", grey.width(), grey.height()),
+            format!(
+                "mask is {}x{}, the images are {width}x{height}",
+                grey.width(),
+                grey.height()
+            ),
         ));
     }
     Ok(grey.pixels().map(|p| p.0[0] > 127).collect())
@@ -93,6 +102,9 @@ mod tests {
         let ds = linear_to_srgb(0.5) as f64 - linear_to_srgb(0.4) as f64;
         assert!((c.psnr_srgb_db.unwrap() - (-10.0 * (ds * ds / 2.0).log10())).abs() < 1e-4);
         let masked = compare(&a, &b, Some(&[false, true]));
-        assert_eq!((masked.pixels, masked.rmse, masked.psnr_srgb_db), (1, 0.0, None));
+        assert_eq!(
+            (masked.pixels, masked.rmse, masked.psnr_srgb_db),
+            (1, 0.0, None)
+        );
     }
 }

@@ -97,7 +97,7 @@ const FALLBACK: u32 = 1 << 31;
 
 /// [`RealPixel`] per real point of the PDA, kept by a session with its
 /// affine parts and bands apart (an update's composite reads 44 bytes a
-/// pixel instead of 68), what [`RealPixels::may_keep`] asks per patch, and
+/// pixel instead of 68), what `RealPixels::may_keep` asks per patch, and
 /// the floor under which a ratio is not trusted (a thousandth of the mean
 /// "without" irradiance).
 #[derive(Debug, Clone, PartialEq)]
@@ -117,13 +117,20 @@ impl RealPixels {
         let pda = input.pda;
         let lights = pda.light_count;
         let floor = RealPixels::floor_of(input);
-        let pixel_of: Vec<u32> = (0..pda.real_index.len() as u32).filter(|&i| pda.real_index[i as usize] != u32::MAX).collect();
+        let pixel_of: Vec<u32> = (0..pda.real_index.len() as u32)
+            .filter(|&i| pda.real_index[i as usize] != u32::MAX)
+            .collect();
         // Straight into the two halves: no image-sized list of whole pixels.
         let (affine, keep): (Vec<AffinePixel>, Vec<PhotoBand>) = pixel_of
             .par_iter()
             .enumerate()
             .map(|(k, &i)| {
-                let r = input.real_pixel(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], input.photo.pixels[i as usize].as_dvec3(), floor);
+                let r = input.real_pixel(
+                    &pda.real.points[k],
+                    &pda.real.terms[k * lights..(k + 1) * lights],
+                    input.photo.pixels[i as usize].as_dvec3(),
+                    floor,
+                );
                 (r.affine, r.keep)
             })
             .unzip();
@@ -150,7 +157,13 @@ impl RealPixels {
             .points
             .par_iter()
             .enumerate()
-            .map(|(k, p)| input.irradiance(&pda.real.terms[k * lights..(k + 1) * lights], input.scales_without, false) + input.interpolate(input.indirect_without, &p.location))
+            .map(|(k, p)| {
+                input.irradiance(
+                    &pda.real.terms[k * lights..(k + 1) * lights],
+                    input.scales_without,
+                    false,
+                ) + input.interpolate(input.indirect_without, &p.location)
+            })
             .sum();
         sum / pda.real.points.len().max(1) as f64 * 1e-3
     }
@@ -163,7 +176,12 @@ impl RealPixels {
             let k = pda.real_index[i as usize];
             if k != u32::MAX {
                 let k = k as usize;
-                let r = input.real_pixel(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], input.photo.pixels[i as usize].as_dvec3(), self.floor);
+                let r = input.real_pixel(
+                    &pda.real.points[k],
+                    &pda.real.terms[k * lights..(k + 1) * lights],
+                    input.photo.pixels[i as usize].as_dvec3(),
+                    self.floor,
+                );
                 (self.affine[k], self.keep[k]) = (r.affine, r.keep);
                 self.widen(&r);
             }
@@ -174,7 +192,11 @@ impl RealPixels {
     /// grows: a band an earlier placement had costs at most a band read
     /// where it could not keep the photo.
     fn widen(&mut self, r: &RealPixel) {
-        if let Some(b) = self.widest_band.get_mut(r.affine.patch()).filter(|_| r.keep.band.x >= 0.0) {
+        if let Some(b) = self
+            .widest_band
+            .get_mut(r.affine.patch())
+            .filter(|_| r.keep.band.x >= 0.0)
+        {
             *b = b.max(r.keep.band);
         }
     }
@@ -196,7 +218,11 @@ impl RealPixels {
                     return false;
                 }
                 let corners = if ids[3] == u32::MAX { 3 } else { 4 };
-                let (mut above, mut below, mut size) = (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY), Vec3A::ZERO);
+                let (mut above, mut below, mut size) = (
+                    Vec3A::splat(f32::INFINITY),
+                    Vec3A::splat(f32::NEG_INFINITY),
+                    Vec3A::ZERO,
+                );
                 for (w, wo) in with[..corners].iter().zip(&without[..corners]) {
                     let moved = *w - *wo;
                     above = above.min(moved);
@@ -211,7 +237,10 @@ impl RealPixels {
     }
 
     fn get(&self, k: usize) -> RealPixel {
-        RealPixel { affine: self.affine[k], keep: self.keep[k] }
+        RealPixel {
+            affine: self.affine[k],
+            keep: self.keep[k],
+        }
     }
 }
 
@@ -248,7 +277,15 @@ impl AffinePixel {
         }
         let value = Vec3::from(value);
         let clamped = value.min_element() < 0.0 || !value.is_finite();
-        (if value.is_finite() { value.max(Vec3::ZERO) } else { Vec3::ZERO }, false, clamped)
+        (
+            if value.is_finite() {
+                value.max(Vec3::ZERO)
+            } else {
+                Vec3::ZERO
+            },
+            false,
+            clamped,
+        )
     }
 }
 
@@ -261,18 +298,44 @@ impl RealPixel {
     fn shade(&self, h: DVec3, photo: DVec3, direct: DVec3) -> Shade {
         let hf = h.as_vec3();
         if self.keep.holds(hf) {
-            return Shade { value: photo, direct, indirect: h, copied: true, fallback: false, clamped: false };
+            return Shade {
+                value: photo,
+                direct,
+                indirect: h,
+                copied: true,
+                fallback: false,
+                clamped: false,
+            };
         }
         let value = (self.affine.offset + self.affine.slope * hf).as_dvec3();
         let clamped = value.min_element() < 0.0 || !value.is_finite();
-        let value = if value.is_finite() { value.max(DVec3::ZERO) } else { DVec3::ZERO };
-        Shade { value, direct, indirect: h, copied: false, fallback: self.affine.fallback(), clamped }
+        let value = if value.is_finite() {
+            value.max(DVec3::ZERO)
+        } else {
+            DVec3::ZERO
+        };
+        Shade {
+            value,
+            direct,
+            indirect: h,
+            copied: false,
+            fallback: self.affine.fallback(),
+            clamped,
+        }
     }
 
     /// [`AffinePixel::value`] with the layers (the direct one left to the caller).
     fn layers(&self, h: Vec3A, photo: &Vec3) -> PixelShade {
         let (value, copied, clamped) = self.affine.value(h, Some(&self.keep), photo);
-        PixelShade { value, direct: Vec3::ZERO, indirect: h.into(), alpha: 0.0, copied, fallback: !copied && self.affine.fallback(), clamped }
+        PixelShade {
+            value,
+            direct: Vec3::ZERO,
+            indirect: h.into(),
+            alpha: 0.0,
+            copied,
+            fallback: !copied && self.affine.fallback(),
+            clamped,
+        }
     }
 }
 
@@ -282,7 +345,16 @@ impl RealPixel {
 /// four vertices one channel at a time (a third of the composite's work).
 /// Zero beyond the table: the photo's model has no objects' vertices.
 fn patch_corners(table: &[DVec3], patch_vertices: &[[u32; 4]]) -> Vec<[Vec3A; 4]> {
-    patch_vertices.iter().map(|ids| ids.map(|v| table.get(v as usize).map_or(Vec3A::ZERO, |c| Vec3A::from(c.as_vec3())))).collect()
+    patch_vertices
+        .iter()
+        .map(|ids| {
+            ids.map(|v| {
+                table
+                    .get(v as usize)
+                    .map_or(Vec3A::ZERO, |c| Vec3A::from(c.as_vec3()))
+            })
+        })
+        .collect()
 }
 
 /// Corner values interpolated with weights `w` (a triangle's fourth weight
@@ -318,18 +390,33 @@ impl Counts {
     }
 
     fn sum(self, other: Counts) -> Counts {
-        Counts { copied: self.copied + other.copied, fallbacks: self.fallbacks + other.fallbacks, clamped: self.clamped + other.clamped }
+        Counts {
+            copied: self.copied + other.copied,
+            fallbacks: self.fallbacks + other.fallbacks,
+            clamped: self.clamped + other.clamped,
+        }
     }
 }
 
 impl PlainTables<'_> {
     /// The pixel of prepared real point `k`.
     #[inline(always)]
-    fn pixel(&self, k: usize, photo: &Vec3, pixel: &mut Vec3, alpha: &mut f32, counts: &mut Counts) {
+    fn pixel(
+        &self,
+        k: usize,
+        photo: &Vec3,
+        pixel: &mut Vec3,
+        alpha: &mut f32,
+        counts: &mut Counts,
+    ) {
         let r = &self.affine[k];
         let patch = r.patch();
         let keep = (self.any_keep && self.may_keep[patch]).then(|| &self.bands[k]);
-        let (value, copied, clamped) = r.value(interpolate_single(&self.h_with[patch], r.weights), keep, photo);
+        let (value, copied, clamped) = r.value(
+            interpolate_single(&self.h_with[patch], r.weights),
+            keep,
+            photo,
+        );
         *pixel = value;
         // Most pixels showed no object the last time either: a read
         // instead of a write (and its line's fetch).
@@ -341,8 +428,16 @@ impl PlainTables<'_> {
 
     /// A run of pixels where no object shows: each a prepared real point,
     /// or nothing (the photo's pixel, as it is).
-    fn run(&self, image: &mut [Vec3], alpha: &mut [f32], real: &[u32], photo: &[Vec3], counts: &mut Counts) {
-        for (((pixel, a), &k), photo) in image.iter_mut().zip(alpha.iter_mut()).zip(real).zip(photo) {
+    fn run(
+        &self,
+        image: &mut [Vec3],
+        alpha: &mut [f32],
+        real: &[u32],
+        photo: &[Vec3],
+        counts: &mut Counts,
+    ) {
+        for (((pixel, a), &k), photo) in image.iter_mut().zip(alpha.iter_mut()).zip(real).zip(photo)
+        {
             if k == u32::MAX {
                 *pixel = *photo;
                 *a = 0.0;
@@ -396,12 +491,23 @@ impl CompositeInput<'_> {
 
     fn interpolate(&self, values: &[DVec3], at: &PatchPoint) -> DVec3 {
         let vertices = &self.patch_vertices[at.patch as usize];
-        vertices.iter().zip(at.weights).filter(|(_, w)| *w != 0.0).map(|(&v, w)| values[v as usize] * w as f64).sum()
+        vertices
+            .iter()
+            .zip(at.weights)
+            .filter(|(_, w)| *w != 0.0)
+            .map(|(&v, w)| values[v as usize] * w as f64)
+            .sum()
     }
 
     /// A real surface point under the photo pixel `photo`, prepared for any
     /// indirect light; `floor` is the irradiance below which a ratio is not trusted.
-    fn real_pixel(&self, p: &SurfacePoint, terms: &[LightTerm], photo: DVec3, floor: DVec3) -> RealPixel {
+    fn real_pixel(
+        &self,
+        p: &SurfacePoint,
+        terms: &[LightTerm],
+        photo: DVec3,
+        floor: DVec3,
+    ) -> RealPixel {
         let e_wo = self.irradiance(terms, self.scales_without, false);
         let h_wo = self.interpolate(self.indirect_without, &p.location);
         let e_w = self.irradiance(terms, self.scales_with, true);
@@ -420,12 +526,24 @@ impl CompositeInput<'_> {
                 slope[c] = rho[c] / pi;
             }
         }
-        let band = if e_w == e_wo { (without * UNCHANGED_INDIRECT).as_vec3() } else { Vec3::splat(-1.0) };
+        let band = if e_w == e_wo {
+            (without * UNCHANGED_INDIRECT).as_vec3()
+        } else {
+            Vec3::splat(-1.0)
+        };
         debug_assert!(p.location.patch < FALLBACK);
         let patch = p.location.patch | if fallback { FALLBACK } else { 0 };
         RealPixel {
-            affine: AffinePixel { offset: offset.as_vec3(), slope: slope.as_vec3(), patch, weights: p.location.weights },
-            keep: PhotoBand { h_without: h_wo.as_vec3(), band },
+            affine: AffinePixel {
+                offset: offset.as_vec3(),
+                slope: slope.as_vec3(),
+                patch,
+                weights: p.location.weights,
+            },
+            keep: PhotoBand {
+                h_without: h_wo.as_vec3(),
+                band,
+            },
         }
     }
 
@@ -434,7 +552,14 @@ impl CompositeInput<'_> {
         let h_w = self.interpolate(self.indirect_with, &p.location);
         let rho = self.reflectance[p.location.patch as usize];
         let value = rho * (e_w + h_w) / std::f64::consts::PI;
-        Shade { value, direct: e_w, indirect: h_w, copied: false, fallback: false, clamped: false }
+        Shade {
+            value,
+            direct: e_w,
+            indirect: h_w,
+            copied: false,
+            fallback: false,
+            clamped: false,
+        }
     }
 }
 
@@ -464,9 +589,15 @@ impl Composite {
             counts.1 += s.fallback as usize;
             counts.2 += s.clamped as usize;
         };
-        let sum = |a: (usize, usize, usize), b: (usize, usize, usize)| (a.0 + b.0, a.1 + b.1, a.2 + b.2);
+        let sum =
+            |a: (usize, usize, usize), b: (usize, usize, usize)| (a.0 + b.0, a.1 + b.1, a.2 + b.2);
         let layers = self.direct.pixels.len() == self.image.pixels.len();
-        let rows = self.image.pixels.par_chunks_mut(w).zip(self.alpha.par_chunks_mut(w)).enumerate();
+        let rows = self
+            .image
+            .pixels
+            .par_chunks_mut(w)
+            .zip(self.alpha.par_chunks_mut(w))
+            .enumerate();
         let (copied, fallbacks, clamped) = if !layers {
             rows.map(|(row, (image, alpha))| {
                 let mut counts = (0, 0, 0);
@@ -534,13 +665,19 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
     let (w, h) = (pda.width, pda.height);
     let n = (w * h) as usize;
     // Without prepared pixels (a still image) each is prepared as it is shaded.
-    let floor = input.known.map_or_else(|| RealPixels::floor_of(input), |k| k.floor);
+    let floor = input
+        .known
+        .map_or_else(|| RealPixels::floor_of(input), |k| k.floor);
     // Per row, the columns from the first to past the last pixel showing
     // an object or mixing real and virtual sub-pixels (none: start ≥ end).
     // Outside them a pixel shows a real point alone, or nothing: most
     // pixels need neither the virtual index nor the edge list.
     let mut spans = vec![(u32::MAX, 0u32); h as usize];
-    for &p in pda.virtual_pixels.iter().chain(pda.edges.iter().map(|e| &e.pixel)) {
+    for &p in pda
+        .virtual_pixels
+        .iter()
+        .chain(pda.edges.iter().map(|e| &e.pixel))
+    {
         let (x, y) = (p % w, (p / w) as usize);
         spans[y] = (spans[y].0.min(x), spans[y].1.max(x + 1));
     }
@@ -549,23 +686,51 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
         (x0..x1).contains(&((i % w as usize) as u32))
     };
     // Edge pixels are in pixel order.
-    let edge_at = |i: usize| in_span(i).then(|| pda.edges.binary_search_by_key(&(i as u32), |e| e.pixel).ok()).flatten().map(|k| pda.edges[k]);
+    let edge_at = |i: usize| {
+        in_span(i)
+            .then(|| {
+                pda.edges
+                    .binary_search_by_key(&(i as u32), |e| e.pixel)
+                    .ok()
+            })
+            .flatten()
+            .map(|k| pda.edges[k])
+    };
     if out.image.pixels.len() != n || out.alpha.len() != n {
-        *out = Composite { image: Image::new(w, h), alpha: vec![0.0; n], ..Composite::empty() };
+        *out = Composite {
+            image: Image::new(w, h),
+            alpha: vec![0.0; n],
+            ..Composite::empty()
+        };
     }
-    let layer = || if input.layers { Image::new(w, h) } else { Image::new(0, 0) };
+    let layer = || {
+        if input.layers {
+            Image::new(w, h)
+        } else {
+            Image::new(0, 0)
+        }
+    };
     if (out.direct.pixels.len() == n) != input.layers {
         (out.direct, out.indirect, out.change) = (layer(), layer(), layer());
     }
     let shade = |i: usize| -> (Shade, f32) {
         let photo = input.photo.pixels[i].as_dvec3();
         if let Some(e) = edge_at(i) {
-            let mut sum = Shade { value: DVec3::ZERO, direct: DVec3::ZERO, indirect: DVec3::ZERO, copied: false, fallback: false, clamped: false };
+            let mut sum = Shade {
+                value: DVec3::ZERO,
+                direct: DVec3::ZERO,
+                indirect: DVec3::ZERO,
+                copied: false,
+                fallback: false,
+                clamped: false,
+            };
             let mut virtual_count = 0;
             for k in e.start..e.start + e.count {
                 let p = &pda.edge_samples.points[k as usize];
                 let terms = match pda.real_index[i] {
-                    r if p.pixel_terms && r != u32::MAX => &pda.real.terms[r as usize * lights..(r as usize + 1) * lights],
+                    r if p.pixel_terms && r != u32::MAX => {
+                        &pda.real.terms[r as usize * lights..(r as usize + 1) * lights]
+                    }
                     _ => &pda.edge_samples.terms[k as usize * lights..(k as usize + 1) * lights],
                 };
                 let s = if p.is_virtual {
@@ -573,7 +738,11 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                     input.shade_virtual(p, terms)
                 } else {
                     let direct = input.irradiance(terms, input.scales_with, true);
-                    input.real_pixel(p, terms, photo, floor).shade(input.interpolate(input.indirect_with, &p.location), photo, direct)
+                    input.real_pixel(p, terms, photo, floor).shade(
+                        input.interpolate(input.indirect_with, &p.location),
+                        photo,
+                        direct,
+                    )
                 };
                 sum.value += s.value;
                 sum.direct += s.direct;
@@ -585,15 +754,36 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
             let total = (pda.supersample * pda.supersample) as f64;
             sum.value += photo * (total - e.count as f64);
             return (
-                Shade { value: sum.value / total, direct: sum.direct / total, indirect: sum.indirect / total, ..sum },
+                Shade {
+                    value: sum.value / total,
+                    direct: sum.direct / total,
+                    indirect: sum.indirect / total,
+                    ..sum
+                },
                 virtual_count as f32 / total as f32,
             );
         }
         if pda.virtual_index[i] != u32::MAX {
             let k = pda.virtual_index[i] as usize;
-            return (input.shade_virtual(&pda.virtual_samples.points[k], &pda.virtual_samples.terms[k * lights..(k + 1) * lights]), 1.0);
+            return (
+                input.shade_virtual(
+                    &pda.virtual_samples.points[k],
+                    &pda.virtual_samples.terms[k * lights..(k + 1) * lights],
+                ),
+                1.0,
+            );
         }
-        (Shade { value: photo, direct: DVec3::ZERO, indirect: DVec3::ZERO, copied: true, fallback: false, clamped: false }, 0.0)
+        (
+            Shade {
+                value: photo,
+                direct: DVec3::ZERO,
+                indirect: DVec3::ZERO,
+                copied: true,
+                fallback: false,
+                clamped: false,
+            },
+            0.0,
+        )
     };
     let photo = &input.photo.pixels;
     // Most pixels show a real point alone: their indirect light is
@@ -602,25 +792,52 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
     let h_with = patch_corners(input.indirect_with, input.patch_vertices);
     let plain = |i: usize| -> Option<PixelShade> {
         let k = pda.real_index[i];
-        if k == u32::MAX || in_span(i) && (pda.virtual_index[i] != u32::MAX || edge_at(i).is_some()) {
+        if k == u32::MAX || in_span(i) && (pda.virtual_index[i] != u32::MAX || edge_at(i).is_some())
+        {
             return None;
         }
         let k = k as usize;
         let r = match input.known {
             Some(known) => known.get(k),
-            None => input.real_pixel(&pda.real.points[k], &pda.real.terms[k * lights..(k + 1) * lights], photo[i].as_dvec3(), floor),
+            None => input.real_pixel(
+                &pda.real.points[k],
+                &pda.real.terms[k * lights..(k + 1) * lights],
+                photo[i].as_dvec3(),
+                floor,
+            ),
         };
-        let mut s = r.layers(interpolate_single(&h_with[r.patch()], r.affine.weights), &photo[i]);
+        let mut s = r.layers(
+            interpolate_single(&h_with[r.patch()], r.affine.weights),
+            &photo[i],
+        );
         if input.layers {
-            s.direct = input.irradiance(&pda.real.terms[k * lights..(k + 1) * lights], input.scales_with, true).as_vec3();
+            s.direct = input
+                .irradiance(
+                    &pda.real.terms[k * lights..(k + 1) * lights],
+                    input.scales_with,
+                    true,
+                )
+                .as_vec3();
         }
         Some(s)
     };
     let other = |i: usize| -> PixelShade {
         let (s, a) = shade(i);
         // Copied pixels keep the photo's exact bits.
-        let value: Vec3 = if s.copied { photo[i] } else { s.value.as_vec3() };
-        PixelShade { value, direct: s.direct.as_vec3(), indirect: s.indirect.as_vec3(), alpha: a, copied: s.copied, fallback: s.fallback, clamped: s.clamped }
+        let value: Vec3 = if s.copied {
+            photo[i]
+        } else {
+            s.value.as_vec3()
+        };
+        PixelShade {
+            value,
+            direct: s.direct.as_vec3(),
+            indirect: s.indirect.as_vec3(),
+            alpha: a,
+            copied: s.copied,
+            fallback: s.fallback,
+            clamped: s.clamped,
+        }
     };
     match input.known {
         // An update's image alone: a row at a time over plain slices, the
@@ -638,11 +855,20 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                 any_keep: may_keep.iter().any(|k| *k),
             };
             let w = (w as usize).max(1);
-            let rows = out.image.pixels.par_chunks_mut(w).zip(out.alpha.par_chunks_mut(w)).enumerate();
+            let rows = out
+                .image
+                .pixels
+                .par_chunks_mut(w)
+                .zip(out.alpha.par_chunks_mut(w))
+                .enumerate();
             let counts = rows
                 .map(|(row, (image, alpha))| {
                     let at = row * w..row * w + image.len();
-                    let (real, virt, photo_row) = (&pda.real_index[at.clone()], &pda.virtual_index[at.clone()], &photo[at]);
+                    let (real, virt, photo_row) = (
+                        &pda.real_index[at.clone()],
+                        &pda.virtual_index[at.clone()],
+                        &photo[at],
+                    );
                     // Outside the columns where objects or edges may show,
                     // every pixel is plain: a loop that asks nothing else.
                     let (x0, x1) = match spans[row] {
@@ -650,8 +876,20 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                         _ => (image.len(), image.len()),
                     };
                     let mut counts = Counts::default();
-                    tables.run(&mut image[..x0], &mut alpha[..x0], &real[..x0], &photo_row[..x0], &mut counts);
-                    tables.run(&mut image[x1..], &mut alpha[x1..], &real[x1..], &photo_row[x1..], &mut counts);
+                    tables.run(
+                        &mut image[..x0],
+                        &mut alpha[..x0],
+                        &real[..x0],
+                        &photo_row[..x0],
+                        &mut counts,
+                    );
+                    tables.run(
+                        &mut image[x1..],
+                        &mut alpha[x1..],
+                        &real[x1..],
+                        &photo_row[x1..],
+                        &mut counts,
+                    );
                     for x in x0..x1 {
                         let k = real[x];
                         if k == u32::MAX || virt[x] != u32::MAX || edge_at(row * w + x).is_some() {
@@ -661,12 +899,19 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                             counts.add(s.copied, s.fallback, s.clamped);
                             continue;
                         }
-                        tables.pixel(k as usize, &photo_row[x], &mut image[x], &mut alpha[x], &mut counts);
+                        tables.pixel(
+                            k as usize,
+                            &photo_row[x],
+                            &mut image[x],
+                            &mut alpha[x],
+                            &mut counts,
+                        );
                     }
                     counts
                 })
                 .reduce(Counts::default, Counts::sum);
-            (out.copied, out.ratio_fallbacks, out.clamped) = (counts.copied, counts.fallbacks, counts.clamped);
+            (out.copied, out.ratio_fallbacks, out.clamped) =
+                (counts.copied, counts.fallbacks, counts.clamped);
         }
         _ => out.fill(input.photo, |i| plain(i).unwrap_or_else(|| other(i))),
     }
@@ -687,9 +932,21 @@ mod tests {
         let mut rng = rand::rngs::StdRng::seed_from_u64(11);
         let (mut refused, mut kept) = (0, 0);
         for _ in 0..3000 {
-            let ids = if rng.random_bool(0.3) { [0, 1, 2, u32::MAX] } else { [0, 1, 2, 3] };
+            let ids = if rng.random_bool(0.3) {
+                [0, 1, 2, u32::MAX]
+            } else {
+                [0, 1, 2, 3]
+            };
             let scale = 10f64.powf(rng.random_range(-6.0..3.0));
-            let without: Vec<DVec3> = (0..4).map(|_| DVec3::new(rng.random_range(0.5..2.0), rng.random_range(0.5..2.0), rng.random_range(0.5..2.0)) * scale).collect();
+            let without: Vec<DVec3> = (0..4)
+                .map(|_| {
+                    DVec3::new(
+                        rng.random_range(0.5..2.0),
+                        rng.random_range(0.5..2.0),
+                        rng.random_range(0.5..2.0),
+                    ) * scale
+                })
+                .collect();
             let direct = rng.random_range(0.0..3.0) * scale;
             let band_size = (direct + scale) * UNCHANGED_INDIRECT;
             // Sometimes every corner moves one way, sometimes either way.
@@ -703,16 +960,38 @@ mod tests {
                 .collect();
             let pixels: Vec<(RealPixel, [f32; 4])> = (0..50)
                 .map(|_| {
-                    let mut w = [rng.random_range(0.0..1.0f64), rng.random_range(0.0..1.0), rng.random_range(0.0..1.0), rng.random_range(0.0..1.0)];
+                    let mut w = [
+                        rng.random_range(0.0..1.0f64),
+                        rng.random_range(0.0..1.0),
+                        rng.random_range(0.0..1.0),
+                        rng.random_range(0.0..1.0),
+                    ];
                     if ids[3] == u32::MAX {
                         w[3] = 0.0;
                     }
                     let sum: f64 = w.iter().sum();
                     let w = w.map(|x| (x / sum) as f32);
-                    let h_wo: DVec3 = (0..4).filter(|&i| w[i] != 0.0).map(|i| without[i] * w[i] as f64).sum();
+                    let h_wo: DVec3 = (0..4)
+                        .filter(|&i| w[i] != 0.0)
+                        .map(|i| without[i] * w[i] as f64)
+                        .sum();
                     let band = ((h_wo + DVec3::splat(direct)) * UNCHANGED_INDIRECT).as_vec3();
-                    let affine = AffinePixel { offset: Vec3::ZERO, slope: Vec3::ONE, patch: 0, weights: w };
-                    (RealPixel { affine, keep: PhotoBand { h_without: h_wo.as_vec3(), band } }, w)
+                    let affine = AffinePixel {
+                        offset: Vec3::ZERO,
+                        slope: Vec3::ONE,
+                        patch: 0,
+                        weights: w,
+                    };
+                    (
+                        RealPixel {
+                            affine,
+                            keep: PhotoBand {
+                                h_without: h_wo.as_vec3(),
+                                band,
+                            },
+                        },
+                        w,
+                    )
                 })
                 .collect();
             let mut known = RealPixels {
@@ -730,11 +1009,17 @@ mod tests {
             refused += !may as usize;
             for (r, w) in &pixels {
                 let holds = r.keep.holds(interpolate_single(&corners[0], *w).into());
-                assert!(may || !holds, "a pixel within its band on a patch said to keep nothing");
+                assert!(
+                    may || !holds,
+                    "a pixel within its band on a patch said to keep nothing"
+                );
                 kept += holds as usize;
             }
         }
         // Neither answer is vacuous.
-        assert!(refused > 500 && kept > 500, "refused {refused} patches, {kept} pixels kept");
+        assert!(
+            refused > 500 && kept > 500,
+            "refused {refused} patches, {kept} pixels kept"
+        );
     }
 }

@@ -27,7 +27,11 @@ pub struct Error {
 impl Error {
     /// An error about a whole file.
     pub fn file(file: impl AsRef<Path>, message: impl Into<String>) -> Self {
-        Error { file: file.as_ref().to_path_buf(), location: Location::File, message: message.into() }
+        Error {
+            file: file.as_ref().to_path_buf(),
+            location: Location::File,
+            message: message.into(),
+        }
     }
 
     /// An error at a key path of a TOML file.
@@ -41,7 +45,11 @@ impl Error {
 
     /// An error at a line of a text file.
     pub fn line(file: impl AsRef<Path>, line: usize, message: impl Into<String>) -> Self {
-        Error { file: file.as_ref().to_path_buf(), location: Location::Line(line), message: message.into() }
+        Error {
+            file: file.as_ref().to_path_buf(),
+            location: Location::Line(line),
+            message: message.into(),
+        }
     }
 
     /// An I/O failure on `file`, with the operating system's reason.

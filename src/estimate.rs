@@ -39,7 +39,12 @@ pub struct PhotoPatches {
 
 impl PhotoPatches {
     /// Traces each pixel centre into the real geometry and averages the photo per patch.
-    pub fn measure(camera: &Camera, tracer: &Tracer, patches: &Patches, photo: &Image) -> PhotoPatches {
+    pub fn measure(
+        camera: &Camera,
+        tracer: &Tracer,
+        patches: &Patches,
+        photo: &Image,
+    ) -> PhotoPatches {
         let n = patches.patch_count();
         let rows: Vec<Vec<(u32, DVec3)>> = (0..camera.height as usize)
             .into_par_iter()
@@ -49,7 +54,8 @@ impl PhotoPatches {
                     .enumerate()
                     .filter_map(|(col, h)| {
                         let h = h.as_ref()?;
-                        let x = camera.position + camera.pixel_ray(col as u32, row as u32).direction * h.t as f64;
+                        let x = camera.position
+                            + camera.pixel_ray(col as u32, row as u32).direction * h.t as f64;
                         let at = patches.locate(h.surface, h.triangle, x)?;
                         Some((at.patch, photo.get(col as u32, row as u32).as_dvec3()))
                     })
@@ -65,8 +71,16 @@ impl PhotoPatches {
             total += value;
             count += 1;
         }
-        let radiance = sum.iter().zip(&pixels).map(|(s, &c)| if c > 0 { *s / c as f64 } else { DVec3::ZERO }).collect();
-        PhotoPatches { radiance, pixels, image_mean: total / count.max(1) as f64 }
+        let radiance = sum
+            .iter()
+            .zip(&pixels)
+            .map(|(s, &c)| if c > 0 { *s / c as f64 } else { DVec3::ZERO })
+            .collect();
+        PhotoPatches {
+            radiance,
+            pixels,
+            image_mean: total / count.max(1) as f64,
+        }
     }
 }
 
@@ -98,7 +112,11 @@ pub struct EstimateSettings {
 
 impl Default for EstimateSettings {
     fn default() -> Self {
-        EstimateSettings { tolerance: 1e-4, max_iterations: 30, solve_tolerance: 1e-7 }
+        EstimateSettings {
+            tolerance: 1e-4,
+            max_iterations: 30,
+            solve_tolerance: 1e-7,
+        }
     }
 }
 
@@ -115,15 +133,22 @@ pub fn estimate_reflectances(
     let n = patches.patch_count();
     let pi = std::f64::consts::PI;
     let surface = |k: usize| patches.patch(k).surface;
-    let seen: Vec<bool> = (0..n).map(|k| photo.pixels[k] > 0 && !known.contains_key(&surface(k))).collect();
+    let seen: Vec<bool> = (0..n)
+        .map(|k| photo.pixels[k] > 0 && !known.contains_key(&surface(k)))
+        .collect();
 
     // Loscos Eq. 1 with ρ̂ the mean known reflectance (0.5 when none is known).
-    let rho_hat = if known.is_empty() { DVec3::splat(0.5) } else { known.values().copied().sum::<DVec3>() / known.len() as f64 };
+    let rho_hat = if known.is_empty() {
+        DVec3::splat(0.5)
+    } else {
+        known.values().copied().sum::<DVec3>() / known.len() as f64
+    };
     let mean = photo.image_mean.max(DVec3::splat(1e-30));
     let mut rho: Vec<DVec3> = (0..n)
         .map(|k| match known.get(&surface(k)) {
             Some(r) => *r,
-            None if seen[k] => (photo.radiance[k] / mean * rho_hat).clamp(DVec3::ZERO, DVec3::splat(MAX_REFLECTANCE)),
+            None if seen[k] => (photo.radiance[k] / mean * rho_hat)
+                .clamp(DVec3::ZERO, DVec3::splat(MAX_REFLECTANCE)),
             None => DVec3::ZERO,
         })
         .collect();
@@ -135,8 +160,24 @@ pub fn estimate_reflectances(
     while iterations < settings.max_iterations && change > settings.tolerance {
         iterations += 1;
         let emission: Vec<DVec3> = rho.iter().zip(direct).map(|(r, e)| *r * *e).collect();
-        let model = solve_from(patches, transport, &rho, &emission, previous.as_deref(), settings.solve_tolerance, 500);
-        let mixed: Vec<DVec3> = (0..n).map(|k| if photo.pixels[k] > 0 { photo.radiance[k] * pi } else { model.radiosity[k] }).collect();
+        let model = solve_from(
+            patches,
+            transport,
+            &rho,
+            &emission,
+            previous.as_deref(),
+            settings.solve_tolerance,
+            500,
+        );
+        let mixed: Vec<DVec3> = (0..n)
+            .map(|k| {
+                if photo.pixels[k] > 0 {
+                    photo.radiance[k] * pi
+                } else {
+                    model.radiosity[k]
+                }
+            })
+            .collect();
         previous = Some(model.radiosity);
         let gathered = transport.gather_rgb(patches, &mixed);
         // A patch must receive light for EQ2 to say anything: a hundred-
@@ -162,19 +203,45 @@ pub fn estimate_reflectances(
             estimated[k] = true;
         }
         fill_unseen(patches, &mut next, &estimated, known);
-        change = next.iter().zip(&rho).map(|(a, b)| (*a - *b).abs().max_element()).fold(0.0, f64::max);
+        change = next
+            .iter()
+            .zip(&rho)
+            .map(|(a, b)| (*a - *b).abs().max_element())
+            .fold(0.0, f64::max);
         rho = next;
     }
     let emission: Vec<DVec3> = rho.iter().zip(direct).map(|(r, e)| *r * *e).collect();
-    let solution = solve_from(patches, transport, &rho, &emission, previous.as_deref(), settings.solve_tolerance, 500);
-    let unseen = (0..n).filter(|&k| !estimated[k] && !known.contains_key(&surface(k))).count();
-    Estimate { reflectance: rho, solution, clamped, unseen, iterations, change }
+    let solution = solve_from(
+        patches,
+        transport,
+        &rho,
+        &emission,
+        previous.as_deref(),
+        settings.solve_tolerance,
+        500,
+    );
+    let unseen = (0..n)
+        .filter(|&k| !estimated[k] && !known.contains_key(&surface(k)))
+        .count();
+    Estimate {
+        reflectance: rho,
+        solution,
+        clamped,
+        unseen,
+        iterations,
+        change,
+    }
 }
 
 /// Gives every patch that has no estimate (and no known value) the
 /// area-weighted mean of its surface's estimated patches, or of all
 /// estimated patches when its surface has none.
-fn fill_unseen(patches: &Patches, rho: &mut [DVec3], estimated: &[bool], known: &HashMap<u32, DVec3>) {
+fn fill_unseen(
+    patches: &Patches,
+    rho: &mut [DVec3],
+    estimated: &[bool],
+    known: &HashMap<u32, DVec3>,
+) {
     let mut by_surface: HashMap<u32, (DVec3, f64)> = HashMap::new();
     let (mut all, mut all_area) = (DVec3::ZERO, 0.0);
     for k in 0..rho.len() {
@@ -187,7 +254,11 @@ fn fill_unseen(patches: &Patches, rho: &mut [DVec3], estimated: &[bool], known: 
             all_area += el.area;
         }
     }
-    let global = if all_area > 0.0 { all / all_area } else { DVec3::splat(0.5) };
+    let global = if all_area > 0.0 {
+        all / all_area
+    } else {
+        DVec3::splat(0.5)
+    };
     for k in 0..rho.len() {
         let s = patches.patch(k).surface;
         if let Some(r) = known.get(&s) {

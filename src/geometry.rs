@@ -49,7 +49,10 @@ pub fn is_degenerate(t: &Triangle) -> bool {
         return true;
     }
     let [a, b, c] = t.map(|p| p.as_dvec3());
-    let longest = (b - a).length_squared().max((c - a).length_squared()).max((c - b).length_squared());
+    let longest = (b - a)
+        .length_squared()
+        .max((c - a).length_squared())
+        .max((c - b).length_squared());
     longest == 0.0 || double_area(t) <= 1e-9 * longest
 }
 
@@ -108,7 +111,9 @@ pub fn is_closed(triangles: &[Triangle]) -> bool {
     for t in triangles {
         for i in 0..3 {
             let (a, b) = (key(t[i]), key(t[(i + 1) % 3]));
-            *edges.entry(if a < b { (a, b) } else { (b, a) }).or_default() += 1;
+            *edges
+                .entry(if a < b { (a, b) } else { (b, a) })
+                .or_default() += 1;
         }
     }
     !edges.is_empty() && edges.values().all(|n| n % 2 == 0)
@@ -126,7 +131,10 @@ pub fn encloses(triangles: &[Triangle], p: DVec3) -> bool {
     let inside_votes = dirs
         .iter()
         .filter(|d| {
-            let crossings = triangles.iter().filter(|t| ray_hits_triangle(p, d.normalize(), t)).count();
+            let crossings = triangles
+                .iter()
+                .filter(|t| ray_hits_triangle(p, d.normalize(), t))
+                .count();
             crossings % 2 == 1
         })
         .count();
@@ -159,12 +167,22 @@ fn ray_hits_triangle(o: DVec3, d: DVec3, t: &Triangle) -> bool {
 /// The smallest box holding the points: (min corner, max corner); an empty
 /// set gives lo > hi.
 pub fn bounds(points: impl IntoIterator<Item = DVec3>) -> (DVec3, DVec3) {
-    points.into_iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)))
+    points
+        .into_iter()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p), hi.max(p))
+        })
 }
 
 /// The eight corners of the box spanned by `lo` and `hi`.
 pub fn box_corners(lo: DVec3, hi: DVec3) -> [DVec3; 8] {
-    std::array::from_fn(|i| DVec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z }))
+    std::array::from_fn(|i| {
+        DVec3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        )
+    })
 }
 
 /// Whether the segment a→b meets the box [lo, hi] (slab test; the box is
@@ -232,24 +250,43 @@ impl UprightBox {
             }
         }
         let (_, cos, sin) = best;
-        let frame = UprightBox { lo: DVec3::ZERO, hi: DVec3::ZERO, cos, sin };
+        let frame = UprightBox {
+            lo: DVec3::ZERO,
+            hi: DVec3::ZERO,
+            cos,
+            sin,
+        };
         let (lo, hi) = bounds(points.iter().map(|p| frame.to_frame(*p)));
         UprightBox { lo, hi, ..frame }
     }
 
     /// `p` in the box's frame.
     pub fn to_frame(&self, p: DVec3) -> DVec3 {
-        DVec3::new(self.cos * p.x + self.sin * p.z, p.y, -self.sin * p.x + self.cos * p.z)
+        DVec3::new(
+            self.cos * p.x + self.sin * p.z,
+            p.y,
+            -self.sin * p.x + self.cos * p.z,
+        )
     }
 
     /// This box grown by `pad` on every side.
     pub fn padded(&self, pad: f64) -> UprightBox {
-        UprightBox { lo: self.lo - pad, hi: self.hi + pad, ..*self }
+        UprightBox {
+            lo: self.lo - pad,
+            hi: self.hi + pad,
+            ..*self
+        }
     }
 
     /// The eight corners, in the world.
     pub fn corners(&self) -> [DVec3; 8] {
-        box_corners(self.lo, self.hi).map(|q| DVec3::new(self.cos * q.x - self.sin * q.z, q.y, self.sin * q.x + self.cos * q.z))
+        box_corners(self.lo, self.hi).map(|q| {
+            DVec3::new(
+                self.cos * q.x - self.sin * q.z,
+                q.y,
+                self.sin * q.x + self.cos * q.z,
+            )
+        })
     }
 
     /// Whether the segment a→b meets the box ([`segment_meets_box`] in its frame).
@@ -274,7 +311,9 @@ fn plan_hull(points: &[DVec3]) -> Vec<glam::DVec2> {
         let start = hull.len();
         for k in 0..p.len() {
             let q = if pass == 0 { p[k] } else { p[p.len() - 1 - k] };
-            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
+            while hull.len() >= start + 2
+                && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0
+            {
                 hull.pop();
             }
             hull.push(q);
@@ -289,7 +328,12 @@ fn plan_hull(points: &[DVec3]) -> Vec<glam::DVec2> {
 pub fn load_obj(path: &Path) -> Result<Mesh> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, &e))?;
     check_obj_lines(path, &text)?;
-    let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: false,
+        ignore_points: true,
+        ignore_lines: true,
+    };
     let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
     let (models, materials) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |mtl| {
         tobj::load_mtl(dir.join(mtl))
@@ -316,13 +360,21 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
                 triangles.push(t);
             }
         }
-        let kd = m.material_id.and_then(|id| materials.get(id)).and_then(|mat| mat.diffuse).map(Vec3::from_array);
+        let kd = m
+            .material_id
+            .and_then(|id| materials.get(id))
+            .and_then(|mat| mat.diffuse)
+            .map(Vec3::from_array);
         match surfaces.iter_mut().find(|s| s.name == model.name) {
             Some(s) => {
                 s.triangles.extend(triangles);
                 s.material_rgb = s.material_rgb.or(kd);
             }
-            None => surfaces.push(MeshSurface { name: model.name.clone(), triangles, material_rgb: kd }),
+            None => surfaces.push(MeshSurface {
+                name: model.name.clone(),
+                triangles,
+                material_rgb: kd,
+            }),
         }
     }
     surfaces.retain(|s| !s.triangles.is_empty());
@@ -334,7 +386,10 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
         };
         return Err(Error::file(path, why));
     }
-    Ok(Mesh { surfaces, dropped_triangles: dropped })
+    Ok(Mesh {
+        surfaces,
+        dropped_triangles: dropped,
+    })
 }
 
 /// Checks the statements arlux relies on (`v` and `f`) line by line, so that
@@ -352,10 +407,14 @@ fn check_obj_lines(path: &Path, text: &str) -> Result<()> {
         let bad = |msg: String| Error::line(path, line_no, msg);
         let floats = |min: usize, what: &str| -> Result<()> {
             if args.len() < min {
-                return Err(bad(format!("{what} needs {min} numbers, found {}", args.len())));
+                return Err(bad(format!(
+                    "{what} needs {min} numbers, found {}",
+                    args.len()
+                )));
             }
             for a in &args[..min] {
-                a.parse::<f32>().map_err(|_| bad(format!("{what}: '{a}' is not a number")))?;
+                a.parse::<f32>()
+                    .map_err(|_| bad(format!("{what}: '{a}' is not a number")))?;
             }
             Ok(())
         };
@@ -374,7 +433,10 @@ fn check_obj_lines(path: &Path, text: &str) -> Result<()> {
             }
             "f" => {
                 if args.len() < 3 {
-                    return Err(bad(format!("face needs at least 3 vertices, found {}", args.len())));
+                    return Err(bad(format!(
+                        "face needs at least 3 vertices, found {}",
+                        args.len()
+                    )));
                 }
                 for a in &args {
                     let mut parts = a.split('/');
@@ -384,7 +446,9 @@ fn check_obj_lines(path: &Path, text: &str) -> Result<()> {
                         if p.is_empty() && k > 0 {
                             continue;
                         }
-                        let index: i64 = p.parse().map_err(|_| bad(format!("face: '{a}' is not a vertex reference")))?;
+                        let index: i64 = p
+                            .parse()
+                            .map_err(|_| bad(format!("face: '{a}' is not a vertex reference")))?;
                         let resolved = if index < 0 { count + index + 1 } else { index };
                         if index == 0 || resolved < 1 || resolved > *count {
                             return Err(bad(format!(
@@ -432,7 +496,11 @@ mod tests {
         let p = write(dir.path(), "bad.obj", "v 0 0 0\nv 1 0 x\nf 1 2 3\n");
         let e = load_obj(&p).unwrap_err();
         assert_eq!(e.location, crate::error::Location::Line(2), "{e}");
-        let p = write(dir.path(), "bad2.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n\nf 1 2 4\n");
+        let p = write(
+            dir.path(),
+            "bad2.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\n\nf 1 2 4\n",
+        );
         let e = load_obj(&p).unwrap_err();
         assert_eq!(e.location, crate::error::Location::Line(5), "{e}");
         assert!(e.to_string().contains("only 3"), "{e}");
@@ -440,30 +508,57 @@ mod tests {
 
     #[test]
     fn an_upright_box_fits_a_turned_cube_exactly() {
-        let turn = |p: DVec3, a: f64| DVec3::new(a.cos() * p.x - a.sin() * p.z, p.y, a.sin() * p.x + a.cos() * p.z);
+        let turn = |p: DVec3, a: f64| {
+            DVec3::new(
+                a.cos() * p.x - a.sin() * p.z,
+                p.y,
+                a.sin() * p.x + a.cos() * p.z,
+            )
+        };
         let a = 20f64.to_radians();
-        let cube: Vec<DVec3> = box_corners(DVec3::new(-0.15, 0.0, -0.15), DVec3::new(0.15, 0.3, 0.15)).iter().map(|p| turn(*p, a) + DVec3::new(0.4, 0.0, -0.2)).collect();
+        let cube: Vec<DVec3> =
+            box_corners(DVec3::new(-0.15, 0.0, -0.15), DVec3::new(0.15, 0.3, 0.15))
+                .iter()
+                .map(|p| turn(*p, a) + DVec3::new(0.4, 0.0, -0.2))
+                .collect();
         let b = UprightBox::around(&cube);
         let size = b.hi - b.lo;
-        assert!((size - DVec3::splat(0.3)).abs().max_element() < 1e-12, "{size}");
+        assert!(
+            (size - DVec3::splat(0.3)).abs().max_element() < 1e-12,
+            "{size}"
+        );
         for c in b.corners() {
-            assert!(cube.iter().any(|p| (*p - c).length() < 1e-12), "corner {c} not the cube's");
+            assert!(
+                cube.iter().any(|p| (*p - c).length() < 1e-12),
+                "corner {c} not the cube's"
+            );
         }
         // Through the world box's corner beside the cube: the world box meets it, the upright one does not.
         let (lo, hi) = bounds(cube.iter().copied());
-        let (from, to) = (DVec3::new(lo.x - 0.05, 0.15, lo.z + 0.06), DVec3::new(lo.x + 0.06, 0.15, lo.z - 0.05));
+        let (from, to) = (
+            DVec3::new(lo.x - 0.05, 0.15, lo.z + 0.06),
+            DVec3::new(lo.x + 0.06, 0.15, lo.z - 0.05),
+        );
         assert!(segment_meets_box(from, to, lo, hi) && !b.meets_segment(from, to));
         assert!(b.meets_segment(DVec3::new(0.4, 1.0, -0.2), DVec3::new(0.4, -1.0, -0.2)));
         // Points in a vertical plane, and a single point: boxes without thickness.
-        let flat = UprightBox::around(&[DVec3::ZERO, DVec3::new(1.0, 0.0, 1.0), DVec3::new(0.5, 1.0, 0.5)]);
-        assert!((flat.hi - flat.lo).z.abs() < 1e-12 && ((flat.hi - flat.lo).x - 2f64.sqrt()).abs() < 1e-12);
+        let flat = UprightBox::around(&[
+            DVec3::ZERO,
+            DVec3::new(1.0, 0.0, 1.0),
+            DVec3::new(0.5, 1.0, 0.5),
+        ]);
+        assert!(
+            (flat.hi - flat.lo).z.abs() < 1e-12
+                && ((flat.hi - flat.lo).x - 2f64.sqrt()).abs() < 1e-12
+        );
         let one = UprightBox::around(&[DVec3::ONE]);
         assert_eq!(one.corners(), [DVec3::ONE; 8]);
     }
 
     #[test]
     fn closed_boxes_enclose_their_inside_only() {
-        let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/geometry/box.obj");
+        let p =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/geometry/box.obj");
         let b = load_obj(&p).unwrap();
         let tris = &b.surfaces[0].triangles;
         assert!(is_closed(tris));
@@ -477,7 +572,11 @@ mod tests {
     #[test]
     fn a_file_of_only_degenerate_triangles_is_an_error() {
         let dir = tempfile::tempdir().unwrap();
-        let p = write(dir.path(), "flat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n");
+        let p = write(
+            dir.path(),
+            "flat.obj",
+            "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n",
+        );
         let e = load_obj(&p).unwrap_err();
         assert!(e.to_string().contains("1 degenerate"), "{e}");
     }

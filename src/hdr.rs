@@ -31,12 +31,28 @@ impl Exposure {
     /// curve is what maps codes to light).
     pub fn read(path: &Path, ev: f64) -> Result<Exposure> {
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
-        let img = image::load_from_memory(&bytes).map_err(|e| Error::file(path, format!("malformed image: {e}")))?;
-        if !matches!(img.color(), image::ColorType::Rgb8 | image::ColorType::Rgba8 | image::ColorType::L8 | image::ColorType::La8) {
-            return Err(Error::file(path, format!("brackets are 8-bit images; this one is {:?}", img.color())));
+        let img = image::load_from_memory(&bytes)
+            .map_err(|e| Error::file(path, format!("malformed image: {e}")))?;
+        if !matches!(
+            img.color(),
+            image::ColorType::Rgb8
+                | image::ColorType::Rgba8
+                | image::ColorType::L8
+                | image::ColorType::La8
+        ) {
+            return Err(Error::file(
+                path,
+                format!("brackets are 8-bit images; this one is {:?}", img.color()),
+            ));
         }
         let rgb = img.to_rgb8();
-        Ok(Exposure { path: path.to_path_buf(), width: rgb.width(), height: rgb.height(), codes: rgb.pixels().map(|p| p.0).collect(), ev })
+        Ok(Exposure {
+            path: path.to_path_buf(),
+            width: rgb.width(),
+            height: rgb.height(),
+            codes: rgb.pixels().map(|p| p.0).collect(),
+            ev,
+        })
     }
 
     /// ln of the exposure time, t0 = 1.
@@ -51,19 +67,36 @@ pub fn check_brackets(exposures: &[Exposure]) -> Result<()> {
         return Err(Error::file(Path::new("brackets"), "no exposures given"));
     };
     if exposures.len() < 2 {
-        return Err(Error::file(&first.path, "a single exposure: merging needs at least two different exposures"));
+        return Err(Error::file(
+            &first.path,
+            "a single exposure: merging needs at least two different exposures",
+        ));
     }
     for e in &exposures[1..] {
         if (e.width, e.height) != (first.width, first.height) {
             return Err(Error::file(
                 &e.path,
-                format!("is {}x{} but {} is {}x{}: brackets must be aligned shots of one size", e.width, e.height, first.path.display(), first.width, first.height),
+                format!(
+                    "is {}x{} but {} is {}x{}: brackets must be aligned shots of one size",
+                    e.width,
+                    e.height,
+                    first.path.display(),
+                    first.width,
+                    first.height
+                ),
             ));
         }
     }
     for (i, a) in exposures.iter().enumerate() {
         if let Some(b) = exposures[i + 1..].iter().find(|b| b.ev == a.ev) {
-            return Err(Error::file(&b.path, format!("has the same EV ({}) as {}: each exposure needs its own", a.ev, a.path.display())));
+            return Err(Error::file(
+                &b.path,
+                format!(
+                    "has the same EV ({}) as {}: each exposure needs its own",
+                    a.ev,
+                    a.path.display()
+                ),
+            ));
         }
     }
     Ok(())
@@ -112,7 +145,12 @@ pub fn recover_response(exposures: &[Exposure], samples: usize, lambda: f64) -> 
 
 /// The Debevec-Malik least-squares system for one channel, solved through
 /// its normal equations (Cholesky): unknowns g(0..255) then ln E per sample.
-fn solve_response(exposures: &[Exposure], pixels: &[usize], c: usize, lambda: f64) -> Result<Vec<f64>> {
+fn solve_response(
+    exposures: &[Exposure],
+    pixels: &[usize],
+    c: usize,
+    lambda: f64,
+) -> Result<Vec<f64>> {
     let m = 256 + pixels.len();
     let mut ata = vec![0.0f64; m * m];
     let mut atb = vec![0.0f64; m];
@@ -138,7 +176,10 @@ fn solve_response(exposures: &[Exposure], pixels: &[usize], c: usize, lambda: f6
         add_row(&[(z - 1, w), (z, -2.0 * w), (z + 1, w)], 0.0);
     }
     let x = cholesky_solve(&mut ata, &atb, m).ok_or_else(|| {
-        Error::file(&exposures[0].path, "the brackets do not determine a response curve (too few distinct exposures or codes)")
+        Error::file(
+            &exposures[0].path,
+            "the brackets do not determine a response curve (too few distinct exposures or codes)",
+        )
     })?;
     Ok(x[..256].to_vec())
 }
@@ -196,8 +237,14 @@ pub fn merge(exposures: &[Exposure], response: &Response) -> Result<Merged> {
     check_brackets(exposures)?;
     let first = &exposures[0];
     let n = first.codes.len();
-    let darkest = exposures.iter().min_by(|a, b| a.ev.total_cmp(&b.ev)).expect("checked non-empty");
-    let brightest = exposures.iter().max_by(|a, b| a.ev.total_cmp(&b.ev)).expect("checked non-empty");
+    let darkest = exposures
+        .iter()
+        .min_by(|a, b| a.ev.total_cmp(&b.ev))
+        .expect("checked non-empty");
+    let brightest = exposures
+        .iter()
+        .max_by(|a, b| a.ev.total_cmp(&b.ev))
+        .expect("checked non-empty");
     let mut image = Image::new(first.width, first.height);
     let mut saturated = vec![false; n];
     let mut black = vec![false; n];
@@ -220,11 +267,19 @@ pub fn merge(exposures: &[Exposure], response: &Response) -> Result<Merged> {
                 black[i] = true;
                 response[c][brightest.codes[i][c] as usize] - brightest.ln_time()
             };
-            px[c] = if black[i] && brightest.codes[i][c] == 0 { 0.0 } else { ln_e.exp() as f32 };
+            px[c] = if black[i] && brightest.codes[i][c] == 0 {
+                0.0
+            } else {
+                ln_e.exp() as f32
+            };
         }
         image.pixels[i] = px;
     }
-    Ok(Merged { image, saturated, black })
+    Ok(Merged {
+        image,
+        saturated,
+        black,
+    })
 }
 
 /// FNV-1a over bytes: names cache files after what they were made from.
@@ -261,18 +316,28 @@ pub fn merge_cached(scene_dir: &Path, brackets: &[(PathBuf, f64)]) -> Result<Ima
         feed(&ev.to_le_bytes());
         exposures.push((path, *ev));
     }
-    let cache = scene_dir.join(".arlux-cache").join(format!("merged-{:016x}.exr", hash.value()));
+    let cache = scene_dir
+        .join(".arlux-cache")
+        .join(format!("merged-{:016x}.exr", hash.value()));
     if cache.is_file()
         && let Ok(img) = crate::image_io::read_image(&cache)
     {
         return Ok(img);
     }
-    let exposures: Vec<Exposure> = exposures.iter().map(|(p, ev)| Exposure::read(p, *ev)).collect::<Result<_>>()?;
+    let exposures: Vec<Exposure> = exposures
+        .iter()
+        .map(|(p, ev)| Exposure::read(p, *ev))
+        .collect::<Result<_>>()?;
     let response = recover_response(&exposures, 64, 20.0)?;
     let merged = merge(&exposures, &response)?;
     // The cache is a convenience: failing to write it is not an error.
     if std::fs::create_dir_all(cache.parent().expect("has a parent")).is_ok() {
-        let _ = crate::image_io::write_exr(&cache, merged.image.width, merged.image.height, &[crate::image_io::ExrLayer::Rgb("", &merged.image)]);
+        let _ = crate::image_io::write_exr(
+            &cache,
+            merged.image.width,
+            merged.image.height,
+            &[crate::image_io::ExrLayer::Rgb("", &merged.image)],
+        );
     }
     Ok(merged.image)
 }
@@ -282,7 +347,13 @@ mod tests {
     use super::*;
 
     fn exposure(codes: Vec<[u8; 3]>, ev: f64) -> Exposure {
-        Exposure { path: PathBuf::from(format!("ev{ev}.png")), width: codes.len() as u32, height: 1, codes, ev }
+        Exposure {
+            path: PathBuf::from(format!("ev{ev}.png")),
+            width: codes.len() as u32,
+            height: 1,
+            codes,
+            ev,
+        }
     }
 
     #[test]
@@ -290,13 +361,20 @@ mod tests {
         // A linear camera: g(z) = ln(z/128).
         let g: Vec<f64> = (0..256).map(|z| ((z.max(1)) as f64 / 128.0).ln()).collect();
         let response: Response = [g.clone(), g.clone(), g];
-        let e = [exposure(vec![[255; 3], [0; 3], [64; 3]], -1.0), exposure(vec![[255; 3], [0; 3], [128; 3]], 0.0)];
+        let e = [
+            exposure(vec![[255; 3], [0; 3], [64; 3]], -1.0),
+            exposure(vec![[255; 3], [0; 3], [128; 3]], 0.0),
+        ];
         let m = merge(&e, &response).unwrap();
         assert_eq!((m.saturated[0], m.black[0]), (true, false));
         assert_eq!((m.saturated[1], m.black[1]), (false, true));
         assert!(!m.saturated[2] && !m.black[2]);
         // Saturated: the darkest exposure's value, exp(g(255)) / 2^-1.
-        assert!((m.image.pixels[0].x - (255.0 / 128.0 * 2.0)).abs() < 1e-5, "{}", m.image.pixels[0].x);
+        assert!(
+            (m.image.pixels[0].x - (255.0 / 128.0 * 2.0)).abs() < 1e-5,
+            "{}",
+            m.image.pixels[0].x
+        );
         assert_eq!(m.image.pixels[1], Vec3::ZERO);
         // Both exposures agree on the third pixel: radiance 1 at t0 = 1.
         assert!((m.image.pixels[2].x - 1.0).abs() < 1e-6);

@@ -91,23 +91,41 @@ impl<'a> Tokens<'a> {
         let tokens = lines
             .iter()
             .flat_map(|&(line, text)| {
-                text.split(|c: char| c.is_whitespace() || c == ',').filter(|t| !t.is_empty()).map(move |text| Token { text, line })
+                text.split(|c: char| c.is_whitespace() || c == ',')
+                    .filter(|t| !t.is_empty())
+                    .map(move |text| Token { text, line })
             })
             .collect();
-        Tokens { path, tokens, next: 0, last_line: lines.last().map_or(1, |l| l.0) }
+        Tokens {
+            path,
+            tokens,
+            next: 0,
+            last_line: lines.last().map_or(1, |l| l.0),
+        }
     }
 
     fn number(&mut self, what: &str) -> Result<(f64, usize)> {
         let Some(t) = self.tokens.get(self.next) else {
-            return Err(Error::line(self.path, self.last_line, format!("the file ends where {what} should be")));
+            return Err(Error::line(
+                self.path,
+                self.last_line,
+                format!("the file ends where {what} should be"),
+            ));
         };
         self.next += 1;
-        let v: f64 = t
-            .text
-            .parse()
-            .map_err(|_| Error::line(self.path, t.line, format!("{what}: '{}' is not a number", t.text)))?;
+        let v: f64 = t.text.parse().map_err(|_| {
+            Error::line(
+                self.path,
+                t.line,
+                format!("{what}: '{}' is not a number", t.text),
+            )
+        })?;
         if !v.is_finite() {
-            return Err(Error::line(self.path, t.line, format!("{what}: must be finite, found {}", t.text)));
+            return Err(Error::line(
+                self.path,
+                t.line,
+                format!("{what}: must be finite, found {}", t.text),
+            ));
         }
         Ok((v, t.line))
     }
@@ -115,19 +133,32 @@ impl<'a> Tokens<'a> {
     fn count(&mut self, what: &str) -> Result<(u32, usize)> {
         let (v, line) = self.number(what)?;
         if v < 1.0 || v.fract() != 0.0 || v > 1e6 {
-            return Err(Error::line(self.path, line, format!("{what}: must be a positive whole number, found {v}")));
+            return Err(Error::line(
+                self.path,
+                line,
+                format!("{what}: must be a positive whole number, found {v}"),
+            ));
         }
         Ok((v as u32, line))
     }
 
     /// `n` numbers, strictly increasing when they are angles.
-    fn numbers(&mut self, n: usize, what: &str, increasing: bool) -> Result<(Vec<f64>, Vec<usize>)> {
+    fn numbers(
+        &mut self,
+        n: usize,
+        what: &str,
+        increasing: bool,
+    ) -> Result<(Vec<f64>, Vec<usize>)> {
         let mut values = Vec::with_capacity(n);
         let mut lines = Vec::with_capacity(n);
         for i in 0..n {
             let (v, line) = self.number(&format!("{what} {} of {n}", i + 1))?;
             if increasing && values.last().is_some_and(|&p| v <= p) {
-                return Err(Error::line(self.path, line, format!("{what} must increase, but {v} follows {}", values[i - 1])));
+                return Err(Error::line(
+                    self.path,
+                    line,
+                    format!("{what} must increase, but {v} follows {}", values[i - 1]),
+                ));
             }
             values.push(v);
             lines.push(line);
@@ -147,14 +178,24 @@ impl IesProfile {
 
     /// Parses the text of an IES file; `path` names it in errors.
     pub fn parse(text: &str, path: &Path) -> Result<IesProfile> {
-        let lines: Vec<(usize, &str)> = text.lines().enumerate().map(|(i, l)| (i + 1, l.trim_end_matches('\r'))).collect();
+        let lines: Vec<(usize, &str)> = text
+            .lines()
+            .enumerate()
+            .map(|(i, l)| (i + 1, l.trim_end_matches('\r')))
+            .collect();
         if lines.iter().all(|(_, l)| l.trim().is_empty()) {
             return Err(Error::file(path, "empty IES file"));
         }
         let tilt_at = lines
             .iter()
             .position(|(_, l)| l.trim_start().to_ascii_uppercase().starts_with("TILT"))
-            .ok_or_else(|| Error::line(path, lines.len(), "no TILT= line (every LM-63 file has one before the photometric data)"))?;
+            .ok_or_else(|| {
+                Error::line(
+                    path,
+                    lines.len(),
+                    "no TILT= line (every LM-63 file has one before the photometric data)",
+                )
+            })?;
 
         let mut version = String::new();
         let mut keywords = Vec::new();
@@ -172,19 +213,38 @@ impl IesProfile {
         }
 
         let (tilt_line_no, tilt_line) = lines[tilt_at];
-        let tilt_value = tilt_line.trim().split_once('=').map(|(_, v)| v.trim()).ok_or_else(|| {
-            Error::line(path, tilt_line_no, "TILT line needs '=': TILT=NONE, TILT=INCLUDE or TILT=<file>")
-        })?;
+        let tilt_value = tilt_line
+            .trim()
+            .split_once('=')
+            .map(|(_, v)| v.trim())
+            .ok_or_else(|| {
+                Error::line(
+                    path,
+                    tilt_line_no,
+                    "TILT line needs '=': TILT=NONE, TILT=INCLUDE or TILT=<file>",
+                )
+            })?;
         let mut tokens = Tokens::new(path, &lines[tilt_at + 1..]);
         let tilt = match tilt_value.to_ascii_uppercase().as_str() {
             "NONE" => None,
             "INCLUDE" => Some(read_tilt(&mut tokens)?),
-            "" => return Err(Error::line(path, tilt_line_no, "TILT= is empty: give NONE, INCLUDE or a file")),
+            "" => {
+                return Err(Error::line(
+                    path,
+                    tilt_line_no,
+                    "TILT= is empty: give NONE, INCLUDE or a file",
+                ));
+            }
             _ => {
                 let tilt_path = path.parent().unwrap_or(Path::new("")).join(tilt_value);
-                let tilt_text = std::fs::read_to_string(&tilt_path)
-                    .map_err(|e| Error::io(&tilt_path, &e).within(path, format!("line {tilt_line_no}: TILT")))?;
-                let tilt_lines: Vec<(usize, &str)> = tilt_text.lines().enumerate().map(|(i, l)| (i + 1, l)).collect();
+                let tilt_text = std::fs::read_to_string(&tilt_path).map_err(|e| {
+                    Error::io(&tilt_path, &e).within(path, format!("line {tilt_line_no}: TILT"))
+                })?;
+                let tilt_lines: Vec<(usize, &str)> = tilt_text
+                    .lines()
+                    .enumerate()
+                    .map(|(i, l)| (i + 1, l))
+                    .collect();
                 let mut t = Tokens::new(&tilt_path, &tilt_lines);
                 Some(read_tilt(&mut t)?)
             }
@@ -194,7 +254,11 @@ impl IesProfile {
         let (lumens_per_lamp, _) = tokens.number("lumens per lamp")?;
         let (multiplier, ml) = tokens.number("candela multiplier")?;
         if multiplier < 0.0 {
-            return Err(Error::line(path, ml, "candela multiplier must not be negative"));
+            return Err(Error::line(
+                path,
+                ml,
+                "candela multiplier must not be negative",
+            ));
         }
         let (nv, _) = tokens.count("number of vertical angles")?;
         let (nh, _) = tokens.count("number of horizontal angles")?;
@@ -203,11 +267,21 @@ impl IesProfile {
             1 if pt == 1.0 => PhotometricType::C,
             2 if pt == 2.0 => PhotometricType::B,
             3 if pt == 3.0 => PhotometricType::A,
-            _ => return Err(Error::line(path, ptl, format!("photometric type must be 1 (C), 2 (B) or 3 (A), found {pt}"))),
+            _ => {
+                return Err(Error::line(
+                    path,
+                    ptl,
+                    format!("photometric type must be 1 (C), 2 (B) or 3 (A), found {pt}"),
+                ));
+            }
         };
         let (units, ul) = tokens.number("units type")?;
         if units != 1.0 && units != 2.0 {
-            return Err(Error::line(path, ul, format!("units type must be 1 (feet) or 2 (metres), found {units}")));
+            return Err(Error::line(
+                path,
+                ul,
+                format!("units type must be 1 (feet) or 2 (metres), found {units}"),
+            ));
         }
         let (width, _) = tokens.number("width")?;
         let (length, _) = tokens.number("length")?;
@@ -219,13 +293,21 @@ impl IesProfile {
         let (horizontal, hlines) = tokens.numbers(nh as usize, "horizontal angle", true)?;
         let (candela, clines) = tokens.numbers((nv * nh) as usize, "candela value", false)?;
         if let Some(i) = candela.iter().position(|&c| c < 0.0) {
-            return Err(Error::line(path, clines[i], format!("candela value {} is negative", candela[i])));
+            return Err(Error::line(
+                path,
+                clines[i],
+                format!("candela value {} is negative", candela[i]),
+            ));
         }
         if let Some(t) = tokens.tokens.get(tokens.next) {
             return Err(Error::line(
                 path,
                 t.line,
-                format!("unexpected '{}' after the {} candela values (arlux reads one luminaire per file)", t.text, nv * nh),
+                format!(
+                    "unexpected '{}' after the {} candela values (arlux reads one luminaire per file)",
+                    t.text,
+                    nv * nh
+                ),
             ));
         }
 
@@ -248,38 +330,78 @@ impl IesProfile {
             horizontal,
             candela,
         };
-        profile.check_angles(path, vlines[0], *vlines.last().unwrap(), hlines[0], *hlines.last().unwrap())?;
+        profile.check_angles(
+            path,
+            vlines[0],
+            *vlines.last().unwrap(),
+            hlines[0],
+            *hlines.last().unwrap(),
+        )?;
         Ok(profile)
     }
 
-    fn check_angles(&self, path: &Path, v_first_line: usize, v_last_line: usize, h_first_line: usize, h_last_line: usize) -> Result<()> {
+    fn check_angles(
+        &self,
+        path: &Path,
+        v_first_line: usize,
+        v_last_line: usize,
+        h_first_line: usize,
+        h_last_line: usize,
+    ) -> Result<()> {
         let (v0, v1) = (self.vertical[0], *self.vertical.last().unwrap());
         let (h0, h1) = (self.horizontal[0], *self.horizontal.last().unwrap());
         match self.photometric_type {
             PhotometricType::C => {
                 if v0 != 0.0 && v0 != 90.0 {
-                    return Err(Error::line(path, v_first_line, format!("type C vertical angles start at 0 or 90, not {v0}")));
+                    return Err(Error::line(
+                        path,
+                        v_first_line,
+                        format!("type C vertical angles start at 0 or 90, not {v0}"),
+                    ));
                 }
                 if v1 > 180.0 {
-                    return Err(Error::line(path, v_last_line, format!("type C vertical angles end at 180 at most, not {v1}")));
+                    return Err(Error::line(
+                        path,
+                        v_last_line,
+                        format!("type C vertical angles end at 180 at most, not {v1}"),
+                    ));
                 }
-                let symmetric = (h0 == 0.0 && [0.0, 90.0, 180.0].contains(&h1)) || (h0 == 90.0 && h1 == 270.0);
+                let symmetric =
+                    (h0 == 0.0 && [0.0, 90.0, 180.0].contains(&h1)) || (h0 == 90.0 && h1 == 270.0);
                 let full = h0 == 0.0 && h1 > 180.0 && h1 <= 360.0;
                 if !(symmetric || full) {
-                    let line = if h0 != 0.0 && h0 != 90.0 { h_first_line } else { h_last_line };
+                    let line = if h0 != 0.0 && h0 != 90.0 {
+                        h_first_line
+                    } else {
+                        h_last_line
+                    };
                     return Err(Error::line(
                         path,
                         line,
-                        format!("type C horizontal angles {h0}..{h1} are none of 0, 0-90, 0-180, 90-270, 0-360"),
+                        format!(
+                            "type C horizontal angles {h0}..{h1} are none of 0, 0-90, 0-180, 90-270, 0-360"
+                        ),
                     ));
                 }
             }
             PhotometricType::B | PhotometricType::A => {
                 if !((v0 == -90.0 || v0 == 0.0) && v1 <= 90.0) {
-                    return Err(Error::line(path, v_first_line, format!("type A/B vertical angles lie in -90..90 starting at -90 or 0, not {v0}..{v1}")));
+                    return Err(Error::line(
+                        path,
+                        v_first_line,
+                        format!(
+                            "type A/B vertical angles lie in -90..90 starting at -90 or 0, not {v0}..{v1}"
+                        ),
+                    ));
                 }
                 if !((h0 == -90.0 || h0 == 0.0) && h1 <= 90.0) {
-                    return Err(Error::line(path, h_first_line, format!("type A/B horizontal angles lie in -90..90 starting at -90 or 0, not {h0}..{h1}")));
+                    return Err(Error::line(
+                        path,
+                        h_first_line,
+                        format!(
+                            "type A/B horizontal angles lie in -90..90 starting at -90 or 0, not {h0}..{h1}"
+                        ),
+                    ));
                 }
             }
         }
@@ -297,7 +419,9 @@ impl IesProfile {
     pub fn candela(&self, vertical_deg: f64, horizontal_deg: f64) -> f64 {
         let (v, h) = self.fold(vertical_deg, horizontal_deg);
         let nv = self.vertical.len();
-        let Some((vi, vt)) = bracket(&self.vertical, v) else { return 0.0 };
+        let Some((vi, vt)) = bracket(&self.vertical, v) else {
+            return 0.0;
+        };
         let (hi, ht, hj) = match self.horizontal.len() {
             1 => (0, 0.0, 0),
             _ => match bracket(&self.horizontal, h) {
@@ -361,11 +485,20 @@ impl IesProfile {
         let (a, r, s) = (d.dot(axis), d.dot(reference), d.dot(side));
         let (v, h) = match self.photometric_type {
             // d = cosV·axis + sinV·(cosH·reference + sinH·side)
-            PhotometricType::C => (a.clamp(-1.0, 1.0).acos().to_degrees(), s.atan2(r).to_degrees()),
+            PhotometricType::C => (
+                a.clamp(-1.0, 1.0).acos().to_degrees(),
+                s.atan2(r).to_degrees(),
+            ),
             // d = cosV·(cosH·axis + sinH·side) + sinV·reference
-            PhotometricType::B => (r.clamp(-1.0, 1.0).asin().to_degrees(), s.atan2(a).to_degrees()),
+            PhotometricType::B => (
+                r.clamp(-1.0, 1.0).asin().to_degrees(),
+                s.atan2(a).to_degrees(),
+            ),
             // d = cosV·(cosH·reference + sinH·side) − sinV·axis
-            PhotometricType::A => ((-a).clamp(-1.0, 1.0).asin().to_degrees(), s.atan2(r).to_degrees()),
+            PhotometricType::A => (
+                (-a).clamp(-1.0, 1.0).asin().to_degrees(),
+                s.atan2(r).to_degrees(),
+            ),
         };
         self.candela(v, h)
     }
@@ -373,7 +506,11 @@ impl IesProfile {
     /// The file's text in LM-63-2002 form (TILT=INCLUDE when it has a tilt).
     pub fn to_lm63(&self) -> String {
         let mut out = String::new();
-        let version = if self.version.is_empty() { "IESNA:LM-63-2002" } else { &self.version };
+        let version = if self.version.is_empty() {
+            "IESNA:LM-63-2002"
+        } else {
+            &self.version
+        };
         let _ = writeln!(out, "{version}");
         for (k, v) in &self.keywords {
             if k.is_empty() {
@@ -415,7 +552,11 @@ impl IesProfile {
             self.length,
             self.height
         );
-        let _ = writeln!(out, "{} {} {}", self.ballast_factor, self.ballast_lamp_factor, self.input_watts);
+        let _ = writeln!(
+            out,
+            "{} {} {}",
+            self.ballast_factor, self.ballast_lamp_factor, self.input_watts
+        );
         row(&mut out, &self.vertical);
         row(&mut out, &self.horizontal);
         for h in self.candela.chunks(self.vertical.len()) {
@@ -428,12 +569,20 @@ impl IesProfile {
 fn read_tilt(tokens: &mut Tokens) -> Result<Tilt> {
     let (g, gl) = tokens.count("lamp-to-luminaire geometry")?;
     if g > 3 {
-        return Err(Error::line(tokens.path, gl, format!("lamp-to-luminaire geometry must be 1, 2 or 3, found {g}")));
+        return Err(Error::line(
+            tokens.path,
+            gl,
+            format!("lamp-to-luminaire geometry must be 1, 2 or 3, found {g}"),
+        ));
     }
     let (n, _) = tokens.count("number of tilt angles")?;
     let (angles, _) = tokens.numbers(n as usize, "tilt angle", true)?;
     let (factors, _) = tokens.numbers(n as usize, "tilt multiplying factor", false)?;
-    Ok(Tilt { lamp_geometry: g, angles, factors })
+    Ok(Tilt {
+        lamp_geometry: g,
+        angles,
+        factors,
+    })
 }
 
 /// The interval of sorted `xs` holding `x`: (index, fraction), or None outside.
@@ -447,7 +596,10 @@ fn bracket(xs: &[f64], x: f64) -> Option<(usize, f64)> {
         return Some((0, 0.0));
     }
     let x = x.clamp(first, last);
-    let i = xs.partition_point(|&a| a <= x).saturating_sub(1).min(xs.len() - 2);
+    let i = xs
+        .partition_point(|&a| a <= x)
+        .saturating_sub(1)
+        .min(xs.len() - 2);
     Some((i, (x - xs[i]) / (xs[i + 1] - xs[i])))
 }
 

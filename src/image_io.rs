@@ -22,7 +22,11 @@ pub struct Image {
 
 impl Image {
     pub fn new(width: u32, height: u32) -> Image {
-        Image { width, height, pixels: vec![Vec3::ZERO; width as usize * height as usize] }
+        Image {
+            width,
+            height,
+            pixels: vec![Vec3::ZERO; width as usize * height as usize],
+        }
     }
 
     pub fn get(&self, x: u32, y: u32) -> Vec3 {
@@ -48,27 +52,43 @@ pub fn read_image(path: &Path) -> Result<Image> {
         "exr" => read_exr_rgb(path)?,
         "png" | "jpg" | "jpeg" => read_8bit(path)?,
         other => {
-            return Err(Error::file(path, format!("unsupported image type '.{other}' (use .exr, .png, .jpg)")));
+            return Err(Error::file(
+                path,
+                format!("unsupported image type '.{other}' (use .exr, .png, .jpg)"),
+            ));
         }
     };
     if let Some(i) = img.pixels.iter().position(|p| !p.is_finite()) {
         let bad = img.pixels.iter().filter(|p| !p.is_finite()).count();
         let (x, y) = (i as u32 % img.width, i as u32 / img.width);
-        return Err(Error::file(path, format!("{bad} pixels are NaN or infinite (the first at x={x}, y={y})")));
+        return Err(Error::file(
+            path,
+            format!("{bad} pixels are NaN or infinite (the first at x={x}, y={y})"),
+        ));
     }
     Ok(img)
 }
 
 fn extension(path: &Path) -> String {
-    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
+    path.extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default()
 }
 
 fn read_8bit(path: &Path) -> Result<Image> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
-    let decoded = image::load_from_memory(&bytes).map_err(|e| Error::file(path, format!("malformed image: {e}")))?;
+    let decoded = image::load_from_memory(&bytes)
+        .map_err(|e| Error::file(path, format!("malformed image: {e}")))?;
     let rgb = decoded.to_rgb32f();
-    let pixels = rgb.pixels().map(|p| Vec3::from_array(p.0.map(srgb_to_linear))).collect();
-    Ok(Image { width: rgb.width(), height: rgb.height(), pixels })
+    let pixels = rgb
+        .pixels()
+        .map(|p| Vec3::from_array(p.0.map(srgb_to_linear)))
+        .collect();
+    Ok(Image {
+        width: rgb.width(),
+        height: rgb.height(),
+        pixels,
+    })
 }
 
 /// All channels of the first part of an EXR file, by full name, as f32.
@@ -93,8 +113,17 @@ fn read_exr_channels(path: &Path) -> Result<ExrChannels> {
     let mut out: Option<ExrChannels> = None;
     for layer in &image.layer_data {
         let (w, h) = (layer.size.width(), layer.size.height());
-        let prefix = layer.attributes.layer_name.as_ref().map(|n| format!("{n}.")).unwrap_or_default();
-        let target = out.get_or_insert(ExrChannels { width: w, height: h, channels: Vec::new() });
+        let prefix = layer
+            .attributes
+            .layer_name
+            .as_ref()
+            .map(|n| format!("{n}."))
+            .unwrap_or_default();
+        let target = out.get_or_insert(ExrChannels {
+            width: w,
+            height: h,
+            channels: Vec::new(),
+        });
         if (target.width, target.height) != (w, h) {
             continue;
         }
@@ -105,9 +134,17 @@ fn read_exr_channels(path: &Path) -> Result<ExrChannels> {
                 x::FlatSamples::U32(v) => v.iter().map(|&s| s as f32).collect(),
             };
             if samples.len() != w * h {
-                return Err(Error::file(path, format!("channel {} is subsampled; arlux reads full-resolution channels", ch.name)));
+                return Err(Error::file(
+                    path,
+                    format!(
+                        "channel {} is subsampled; arlux reads full-resolution channels",
+                        ch.name
+                    ),
+                ));
             }
-            target.channels.push((format!("{prefix}{}", ch.name), samples));
+            target
+                .channels
+                .push((format!("{prefix}{}", ch.name), samples));
         }
     }
     out.ok_or_else(|| Error::file(path, "the EXR has no image layer"))
@@ -120,7 +157,10 @@ pub fn read_exr_channel(path: &Path, name: &str) -> Result<(u32, u32, Vec<f32>)>
     let found = c.channels.iter().find(|(n, _)| n == name);
     match found {
         Some((_, v)) => Ok((c.width as u32, c.height as u32, v.clone())),
-        None => Err(Error::file(path, format!("no channel '{name}' (channels: {})", names.join(", ")))),
+        None => Err(Error::file(
+            path,
+            format!("no channel '{name}' (channels: {})", names.join(", ")),
+        )),
     }
 }
 
@@ -137,20 +177,33 @@ fn read_exr_rgb(path: &Path) -> Result<Image> {
     }
     let mut planes = None;
     for p in &prefixes {
-        if let (Some(r), Some(g), Some(b)) = (find(&format!("{p}R")), find(&format!("{p}G")), find(&format!("{p}B"))) {
+        if let (Some(r), Some(g), Some(b)) = (
+            find(&format!("{p}R")),
+            find(&format!("{p}G")),
+            find(&format!("{p}B")),
+        ) {
             planes = Some([r, g, b]);
             break;
         }
     }
     let pixels: Vec<Vec3> = match (planes, find("Y")) {
-        (Some([r, g, b]), _) => (0..c.width * c.height).map(|i| Vec3::new(r[i], g[i], b[i])).collect(),
+        (Some([r, g, b]), _) => (0..c.width * c.height)
+            .map(|i| Vec3::new(r[i], g[i], b[i]))
+            .collect(),
         (None, Some(y)) => y.iter().map(|&v| Vec3::splat(v)).collect(),
         (None, None) => {
             let names: Vec<&str> = c.channels.iter().map(|(n, _)| n.as_str()).collect();
-            return Err(Error::file(path, format!("no R, G, B channels (channels: {})", names.join(", "))));
+            return Err(Error::file(
+                path,
+                format!("no R, G, B channels (channels: {})", names.join(", ")),
+            ));
         }
     };
-    Ok(Image { width: c.width as u32, height: c.height as u32, pixels })
+    Ok(Image {
+        width: c.width as u32,
+        height: c.height as u32,
+        pixels,
+    })
 }
 
 /// One named part of an EXR file to write.
@@ -169,31 +222,62 @@ pub fn write_exr(path: &Path, width: u32, height: u32, layers: &[ExrLayer]) -> R
     for layer in layers {
         match layer {
             ExrLayer::Rgb(name, img) => {
-                assert_eq!((img.width, img.height), (width, height), "layer '{name}' has the wrong size");
+                assert_eq!(
+                    (img.width, img.height),
+                    (width, height),
+                    "layer '{name}' has the wrong size"
+                );
                 for (c, cname) in ["R", "G", "B"].iter().enumerate() {
-                    let full = if name.is_empty() { cname.to_string() } else { format!("{name}.{cname}") };
+                    let full = if name.is_empty() {
+                        cname.to_string()
+                    } else {
+                        format!("{name}.{cname}")
+                    };
                     let samples = img.pixels.iter().map(|p| p[c]).collect();
-                    list.push(x::AnyChannel::new(full.as_str(), x::FlatSamples::F32(samples)));
+                    list.push(x::AnyChannel::new(
+                        full.as_str(),
+                        x::FlatSamples::F32(samples),
+                    ));
                 }
             }
             ExrLayer::Channel(name, data) => {
                 assert_eq!(data.len(), w * h, "channel '{name}' has the wrong size");
-                list.push(x::AnyChannel::new(*name, x::FlatSamples::F32(data.to_vec())));
+                list.push(x::AnyChannel::new(
+                    *name,
+                    x::FlatSamples::F32(data.to_vec()),
+                ));
             }
         }
     }
-    let layer = x::Layer::new((w, h), x::LayerAttributes::default(), x::Encoding { line_order: x::LineOrder::Increasing, ..x::Encoding::FAST_LOSSLESS }, x::AnyChannels::sort(list));
+    let layer = x::Layer::new(
+        (w, h),
+        x::LayerAttributes::default(),
+        x::Encoding {
+            line_order: x::LineOrder::Increasing,
+            ..x::Encoding::FAST_LOSSLESS
+        },
+        x::AnyChannels::sort(list),
+    );
     let image = x::Image::from_layer(layer);
     let mut bytes = std::io::Cursor::new(Vec::new());
-    image.write().to_buffered(&mut bytes).map_err(|e| Error::file(path, format!("could not encode EXR: {e}")))?;
+    image
+        .write()
+        .to_buffered(&mut bytes)
+        .map_err(|e| Error::file(path, format!("could not encode EXR: {e}")))?;
     write_atomic(path, bytes.get_ref())
 }
 
 /// Writes `img` as an 8-bit sRGB PNG after multiplying by 2^exposure_ev, atomically.
 pub fn write_png(path: &Path, img: &Image, exposure_ev: f32) -> Result<()> {
     let gain = exposure_ev.exp2();
-    let bytes: Vec<u8> =
-        img.pixels.iter().flat_map(|p| p.to_array().map(|c| (linear_to_srgb(c * gain) * 255.0).round() as u8)).collect();
+    let bytes: Vec<u8> = img
+        .pixels
+        .iter()
+        .flat_map(|p| {
+            p.to_array()
+                .map(|c| (linear_to_srgb(c * gain) * 255.0).round() as u8)
+        })
+        .collect();
     write_png_rgb8(path, img.width, img.height, bytes)
 }
 
@@ -201,7 +285,8 @@ pub fn write_png(path: &Path, img: &Image, exposure_ev: f32) -> Result<()> {
 pub fn write_png_rgb8(path: &Path, width: u32, height: u32, bytes: Vec<u8>) -> Result<()> {
     let buf = image::RgbImage::from_raw(width, height, bytes).expect("buffer matches its size");
     let mut out = std::io::Cursor::new(Vec::new());
-    buf.write_to(&mut out, image::ImageFormat::Png).map_err(|e| Error::file(path, format!("could not encode PNG: {e}")))?;
+    buf.write_to(&mut out, image::ImageFormat::Png)
+        .map_err(|e| Error::file(path, format!("could not encode PNG: {e}")))?;
     write_atomic(path, out.get_ref())
 }
 
@@ -212,8 +297,14 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    let name = path.file_name().ok_or_else(|| Error::file(path, "not a file name"))?;
-    let tmp = dir.join(format!(".{}.tmp{}", name.to_string_lossy(), std::process::id()));
+    let name = path
+        .file_name()
+        .ok_or_else(|| Error::file(path, "not a file name"))?;
+    let tmp = dir.join(format!(
+        ".{}.tmp{}",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
         f.write_all(bytes)?;
@@ -224,7 +315,10 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         let _ = std::fs::remove_file(&tmp);
         // Writing, "not found" means the folder: say so.
         if e.kind() == std::io::ErrorKind::NotFound && !dir.is_dir() {
-            return Error::file(path, format!("cannot write: the folder {} does not exist", dir.display()));
+            return Error::file(
+                path,
+                format!("cannot write: the folder {} does not exist", dir.display()),
+            );
         }
         Error::io(path, &e)
     })
@@ -232,13 +326,25 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 
 /// sRGB transfer function, encoding: linear \[0,1\] → encoded \[0,1\] (clamped).
 pub fn linear_to_srgb(c: f32) -> f32 {
-    let c = if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 };
-    if c <= 0.003_130_8 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 }
+    let c = if c.is_finite() {
+        c.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
 }
 
 /// sRGB transfer function, decoding: encoded \[0,1\] → linear.
 pub fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.040_45 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+    if c <= 0.040_45 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
 }
 
 #[cfg(test)]
@@ -261,8 +367,17 @@ mod tests {
         let p = dir.path().join("a.exr");
         let (main, extra) = (ramp(5, 3), Image::new(5, 3));
         let alpha = vec![0.5f32; 15];
-        write_exr(&p, 5, 3, &[ExrLayer::Rgb("", &main), ExrLayer::Rgb("direct", &extra), ExrLayer::Channel("A", &alpha)])
-            .unwrap();
+        write_exr(
+            &p,
+            5,
+            3,
+            &[
+                ExrLayer::Rgb("", &main),
+                ExrLayer::Rgb("direct", &extra),
+                ExrLayer::Channel("A", &alpha),
+            ],
+        )
+        .unwrap();
         assert_eq!(read_image(&p).unwrap(), main);
         assert_eq!(read_exr_channel(&p, "A").unwrap().2, alpha);
         assert_eq!(read_exr_channel(&p, "direct.G").unwrap().2, vec![0.0; 15]);
@@ -279,7 +394,13 @@ mod tests {
         let files: Vec<Vec<u8>> = (0..4)
             .map(|i| {
                 let p = dir.path().join(format!("{i}.exr"));
-                write_exr(&p, 512, 384, &[ExrLayer::Rgb("", &img), ExrLayer::Rgb("direct", &img)]).unwrap();
+                write_exr(
+                    &p,
+                    512,
+                    384,
+                    &[ExrLayer::Rgb("", &img), ExrLayer::Rgb("direct", &img)],
+                )
+                .unwrap();
                 std::fs::read(&p).unwrap()
             })
             .collect();
@@ -296,7 +417,10 @@ mod tests {
         let back = read_image(&p).unwrap();
         for (a, b) in img.pixels.iter().zip(&back.pixels) {
             // One 8-bit step of sRGB is at most ~0.9% of the linear value above black.
-            assert!((*a - *b).abs().max_element() <= 0.01 * a.max_element() + 2e-4, "{a} vs {b}");
+            assert!(
+                (*a - *b).abs().max_element() <= 0.01 * a.max_element() + 2e-4,
+                "{a} vs {b}"
+            );
         }
     }
 
@@ -318,6 +442,9 @@ mod tests {
         let bytes = std::fs::read(&good).unwrap();
         std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
         let e = read_image(&p).unwrap_err();
-        assert!(e.to_string().contains("cut.exr") && e.to_string().contains("malformed EXR"), "{e}");
+        assert!(
+            e.to_string().contains("cut.exr") && e.to_string().contains("malformed EXR"),
+            "{e}"
+        );
     }
 }

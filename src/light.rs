@@ -20,11 +20,24 @@ use crate::trace::{Layer, TraceRay, Tracer};
 #[derive(Debug, Clone, PartialEq)]
 pub enum Distribution {
     Uniform(DVec3),
-    Lambertian { normal: DVec3, rgb: DVec3 },
+    Lambertian {
+        normal: DVec3,
+        rgb: DVec3,
+    },
     /// Angles in radians.
-    Spot { axis: DVec3, rgb: DVec3, beam: f64, cutoff: f64 },
+    Spot {
+        axis: DVec3,
+        rgb: DVec3,
+        beam: f64,
+        cutoff: f64,
+    },
     /// `rgb` includes the file's tilt factor at this orientation.
-    Ies { profile: Box<IesProfile>, axis: DVec3, reference: DVec3, rgb: DVec3 },
+    Ies {
+        profile: Box<IesProfile>,
+        axis: DVec3,
+        reference: DVec3,
+        rgb: DVec3,
+    },
 }
 
 impl Distribution {
@@ -33,7 +46,12 @@ impl Distribution {
         match self {
             Distribution::Uniform(rgb) => *rgb,
             Distribution::Lambertian { normal, rgb } => *rgb * d.dot(*normal).max(0.0),
-            Distribution::Spot { axis, rgb, beam, cutoff } => {
+            Distribution::Spot {
+                axis,
+                rgb,
+                beam,
+                cutoff,
+            } => {
                 let angle = d.dot(*axis).clamp(-1.0, 1.0).acos();
                 if angle <= *beam {
                     *rgb
@@ -43,7 +61,12 @@ impl Distribution {
                     *rgb * ((*cutoff - angle) / (*cutoff - *beam))
                 }
             }
-            Distribution::Ies { profile, axis, reference, rgb } => *rgb * profile.candela_towards(d, *axis, *reference),
+            Distribution::Ies {
+                profile,
+                axis,
+                reference,
+                rgb,
+            } => *rgb * profile.candela_towards(d, *axis, *reference),
         }
     }
 }
@@ -53,7 +76,11 @@ impl Distribution {
 pub enum Emitter {
     Point,
     /// Spans centre ± u/2 ± v/2; emits on the side of `normal` = unit u×v.
-    Rect { u: DVec3, v: DVec3, normal: DVec3 },
+    Rect {
+        u: DVec3,
+        v: DVec3,
+        normal: DVec3,
+    },
 }
 
 /// Shadow-ray targets on a rect light (Grosch §3.1): the rectangle is
@@ -109,9 +136,12 @@ impl JitteredGrid {
     /// The `2^level` sample positions (s, t) a pixel with `seed` uses.
     pub fn samples(&self, level: usize, seed: u64) -> impl Iterator<Item = DVec2> + '_ {
         let level = level.min(MAX_GRID_LEVEL);
-        self.levels[level].iter().enumerate().map(move |(cell, points)| {
-            points[(hash2(seed, cell as u64) % POINTS_PER_CELL as u64) as usize]
-        })
+        self.levels[level]
+            .iter()
+            .enumerate()
+            .map(move |(cell, points)| {
+                points[(hash2(seed, cell as u64) % POINTS_PER_CELL as u64) as usize]
+            })
     }
 }
 
@@ -148,8 +178,15 @@ pub(crate) fn test_panel(position: DVec3) -> LightSource {
         real: false,
         scale: 1.0,
         position,
-        emitter: Emitter::Rect { u, v, normal: u.cross(v).normalize() },
-        distribution: Distribution::Lambertian { normal: DVec3::NEG_Y, rgb: DVec3::splat(4.0) },
+        emitter: Emitter::Rect {
+            u,
+            v,
+            normal: u.cross(v).normalize(),
+        },
+        distribution: Distribution::Lambertian {
+            normal: DVec3::NEG_Y,
+            rgb: DVec3::splat(4.0),
+        },
         grid: Some(JitteredGrid::new(0.6, 0.6, 1)),
     }
 }
@@ -157,13 +194,18 @@ pub(crate) fn test_panel(position: DVec3) -> LightSource {
 /// For tests: [`test_panel`]'s light from a point at `position`.
 #[cfg(test)]
 pub(crate) fn test_spot(position: DVec3) -> LightSource {
-    LightSource { emitter: Emitter::Point, grid: None, ..test_panel(position) }
+    LightSource {
+        emitter: Emitter::Point,
+        grid: None,
+        ..test_panel(position)
+    }
 }
 
 impl LightSource {
     /// The emitting shape's corners: the point itself, or the rectangle's four.
     pub fn corners(&self) -> Vec<DVec3> {
-        self.rect_corners().map_or_else(|| vec![self.position], |c| c.to_vec())
+        self.rect_corners()
+            .map_or_else(|| vec![self.position], |c| c.to_vec())
     }
 
     /// A rect light's four corners (None for a point light).
@@ -188,42 +230,87 @@ impl LightSource {
         let position = match &l.position {
             LightPosition::Known(p) => *p,
             LightPosition::FromShadows(c) => {
-                crate::shadows::position_from_shadows(c).map_err(|m| Error::key(&scene.file, key("position"), m))?.position
+                crate::shadows::position_from_shadows(c)
+                    .map_err(|m| Error::key(&scene.file, key("position"), m))?
+                    .position
             }
         };
         let emitter = match l.shape {
             LightShape::Point => Emitter::Point,
-            LightShape::Rect { u, v } => Emitter::Rect { u, v, normal: u.cross(v).normalize() },
+            LightShape::Rect { u, v } => Emitter::Rect {
+                u,
+                v,
+                normal: u.cross(v).normalize(),
+            },
         };
         let distribution = match &l.intensity {
             Intensity::Uniform(rgb) => Distribution::Uniform(*rgb),
-            Intensity::Lambertian { normal, rgb } => Distribution::Lambertian { normal: *normal, rgb: *rgb },
-            Intensity::Spot { direction, rgb, beam_deg, cutoff_deg } => Distribution::Spot {
+            Intensity::Lambertian { normal, rgb } => Distribution::Lambertian {
+                normal: *normal,
+                rgb: *rgb,
+            },
+            Intensity::Spot {
+                direction,
+                rgb,
+                beam_deg,
+                cutoff_deg,
+            } => Distribution::Spot {
                 axis: *direction,
                 rgb: *rgb,
                 beam: beam_deg.to_radians(),
                 cutoff: cutoff_deg.to_radians(),
             },
-            Intensity::Ies { profile, rgb, direction, reference, .. } => {
+            Intensity::Ies {
+                profile,
+                rgb,
+                direction,
+                reference,
+                ..
+            } => {
                 // LM-63 tilt: lamp output at the luminaire's tilt from its
                 // photometric position (photometric zero pointing down, -y).
-                let tilt = profile.tilt.as_ref().map_or(1.0, |t| t.factor(direction.angle_between(DVec3::NEG_Y).to_degrees()));
-                Distribution::Ies { profile: Box::new(profile.clone()), axis: *direction, reference: *reference, rgb: *rgb * tilt }
+                let tilt = profile.tilt.as_ref().map_or(1.0, |t| {
+                    t.factor(direction.angle_between(DVec3::NEG_Y).to_degrees())
+                });
+                Distribution::Ies {
+                    profile: Box::new(profile.clone()),
+                    axis: *direction,
+                    reference: *reference,
+                    rgb: *rgb * tilt,
+                }
             }
             Intensity::Reconstruct => {
-                return Err(Error::key(&scene.file, key("intensity"), "\"reconstruct\": the goniometric must be recovered from the photo before this light can be used (arlux gonio, render and radiosity do it)"));
+                return Err(Error::key(
+                    &scene.file,
+                    key("intensity"),
+                    "\"reconstruct\": the goniometric must be recovered from the photo before this light can be used (arlux gonio, render and radiosity do it)",
+                ));
             }
         };
         let grid = match emitter {
             Emitter::Point => None,
-            Emitter::Rect { u, v, .. } => Some(JitteredGrid::new(u.length(), v.length(), hash2(0x5eed_11c4, index as u64))),
+            Emitter::Rect { u, v, .. } => Some(JitteredGrid::new(
+                u.length(),
+                v.length(),
+                hash2(0x5eed_11c4, index as u64),
+            )),
         };
-        Ok(LightSource { name: l.name.clone(), real: l.real, scale: l.scale, position, emitter, distribution, grid })
+        Ok(LightSource {
+            name: l.name.clone(),
+            real: l.real,
+            scale: l.scale,
+            position,
+            emitter,
+            distribution,
+            grid,
+        })
     }
 
     /// All lights of a scene, on or off, in scene order.
     pub fn all(scene: &Scene) -> Result<Vec<LightSource>> {
-        (0..scene.lights.len()).map(|i| LightSource::from_scene(scene, i)).collect()
+        (0..scene.lights.len())
+            .map(|i| LightSource::from_scene(scene, i))
+            .collect()
     }
 
     pub fn is_on(&self) -> bool {
@@ -242,7 +329,9 @@ impl LightSource {
     pub fn colour(&self) -> DVec3 {
         match &self.distribution {
             Distribution::Uniform(rgb) => *rgb,
-            Distribution::Lambertian { rgb, .. } | Distribution::Spot { rgb, .. } | Distribution::Ies { rgb, .. } => *rgb,
+            Distribution::Lambertian { rgb, .. }
+            | Distribution::Spot { rgb, .. }
+            | Distribution::Ies { rgb, .. } => *rgb,
         }
     }
 
@@ -271,20 +360,25 @@ impl LightSource {
     /// mean of I/N·|cosθ|/d² over the 16 cell centres of grid level 4.
     pub fn unoccluded_irradiance(&self, x: DVec3, n: DVec3) -> DVec3 {
         match self.emitter {
-            Emitter::Point => point_contribution(self.position, x, n, |d| self.distribution.intensity(d)),
+            Emitter::Point => {
+                point_contribution(self.position, x, n, |d| self.distribution.intensity(d))
+            }
             Emitter::Rect { u, v, normal } => {
                 if (x - self.position).dot(normal) <= 0.0 {
                     return DVec3::ZERO;
                 }
                 if let Distribution::Lambertian { rgb, .. } = self.distribution {
                     let area = u.cross(v).length();
-                    return rgb / area * std::f64::consts::PI * polygon_form_factor(x, n, &rect_quad(self.position, u, v));
+                    return rgb / area
+                        * std::f64::consts::PI
+                        * polygon_form_factor(x, n, &rect_quad(self.position, u, v));
                 }
                 let mut sum = DVec3::ZERO;
                 let k = 4;
                 for i in 0..k {
                     for j in 0..k {
-                        let st = DVec2::new((i as f64 + 0.5) / k as f64, (j as f64 + 0.5) / k as f64);
+                        let st =
+                            DVec2::new((i as f64 + 0.5) / k as f64, (j as f64 + 0.5) / k as f64);
                         sum += point_contribution(self.point_at(st), x, n, |d| self.intensity(d));
                     }
                 }
@@ -296,7 +390,15 @@ impl LightSource {
     /// Direct light at `x` with normal `n`: the unoccluded irradiance and
     /// the visibility from `2^level` shadow rays to the grid (one for a point
     /// light), blocked by geometry of `layer`. `seed` picks the grid points.
-    pub fn direct(&self, tracer: &Tracer, layer: Layer, x: DVec3, n: DVec3, level: usize, seed: u64) -> DirectLight {
+    pub fn direct(
+        &self,
+        tracer: &Tracer,
+        layer: Layer,
+        x: DVec3,
+        n: DVec3,
+        level: usize,
+        seed: u64,
+    ) -> DirectLight {
         self.direct_by(x, n, level, seed, |_, rays, blocked| match rays {
             [one] if self.grid.is_none() => blocked[0] = tracer.occluded(one, layer),
             _ => tracer.occluded_batch(rays, layer, blocked),
@@ -306,20 +408,42 @@ impl LightSource {
     /// [`LightSource::direct`], with `occluded(targets, rays, blocked)`
     /// saying which rays (to those points of the light) are blocked; the
     /// rays are counted as cast all the same.
-    pub fn direct_by(&self, x: DVec3, n: DVec3, level: usize, seed: u64, occluded: impl FnOnce(&[DVec3], &[TraceRay], &mut [bool])) -> DirectLight {
+    pub fn direct_by(
+        &self,
+        x: DVec3,
+        n: DVec3,
+        level: usize,
+        seed: u64,
+        occluded: impl FnOnce(&[DVec3], &[TraceRay], &mut [bool]),
+    ) -> DirectLight {
         let unoccluded = self.unoccluded_irradiance(x, n);
         if unoccluded == DVec3::ZERO {
-            return DirectLight { unoccluded, visibility: 0.0, rays: 0 };
+            return DirectLight {
+                unoccluded,
+                visibility: 0.0,
+                rays: 0,
+            };
         }
         let origin = offset_origin(x, n, self.position);
         match &self.grid {
             None => {
                 let mut blocked = [false];
-                occluded(&[self.position], &[segment(origin, self.position)], &mut blocked);
-                DirectLight { unoccluded, visibility: if blocked[0] { 0.0 } else { 1.0 }, rays: 1 }
+                occluded(
+                    &[self.position],
+                    &[segment(origin, self.position)],
+                    &mut blocked,
+                );
+                DirectLight {
+                    unoccluded,
+                    visibility: if blocked[0] { 0.0 } else { 1.0 },
+                    rays: 1,
+                }
             }
             Some(grid) => {
-                let targets: Vec<DVec3> = grid.samples(level, seed).map(|st| self.point_at(st)).collect();
+                let targets: Vec<DVec3> = grid
+                    .samples(level, seed)
+                    .map(|st| self.point_at(st))
+                    .collect();
                 let rays: Vec<TraceRay> = targets.iter().map(|&t| segment(origin, t)).collect();
                 let mut blocked = vec![false; rays.len()];
                 occluded(&targets, &rays, &mut blocked);
@@ -334,7 +458,11 @@ impl LightSource {
                     }
                 }
                 let visibility = if total > 0.0 { seen / total } else { 0.0 };
-                DirectLight { unoccluded, visibility, rays: rays.len() as u32 }
+                DirectLight {
+                    unoccluded,
+                    visibility,
+                    rays: rays.len() as u32,
+                }
             }
         }
     }
@@ -342,12 +470,22 @@ impl LightSource {
 
 /// The corners of the rectangle centre ± u/2 ± v/2, in order around it.
 fn rect_quad(c: DVec3, u: DVec3, v: DVec3) -> [DVec3; 4] {
-    [c - 0.5 * u - 0.5 * v, c + 0.5 * u - 0.5 * v, c + 0.5 * u + 0.5 * v, c - 0.5 * u + 0.5 * v]
+    [
+        c - 0.5 * u - 0.5 * v,
+        c + 0.5 * u - 0.5 * v,
+        c + 0.5 * u + 0.5 * v,
+        c - 0.5 * u + 0.5 * v,
+    ]
 }
 
 /// Irradiance at `x` (normal `n`, two-sided) from a point emitter at `p`
 /// with intensity function `intensity(direction from p)`: I·|cosθ|/d².
-pub fn point_contribution(p: DVec3, x: DVec3, n: DVec3, intensity: impl Fn(DVec3) -> DVec3) -> DVec3 {
+pub fn point_contribution(
+    p: DVec3,
+    x: DVec3,
+    n: DVec3,
+    intensity: impl Fn(DVec3) -> DVec3,
+) -> DVec3 {
     let d = x - p;
     let dist2 = d.length_squared();
     if dist2 <= 0.0 {
@@ -373,7 +511,12 @@ pub fn origin_lift(x: DVec3) -> f64 {
 pub fn segment(a: DVec3, b: DVec3) -> TraceRay {
     let len = (b - a).length().max(1e-12);
     let eps = (1e-5 / len).min(0.25) as f32;
-    TraceRay { origin: a.as_vec3(), direction: (b - a).as_vec3(), tnear: 0.0, tfar: 1.0 - eps }
+    TraceRay {
+        origin: a.as_vec3(),
+        direction: (b - a).as_vec3(),
+        tnear: 0.0,
+        tfar: 1.0 - eps,
+    }
 }
 
 /// The unoccluded form factor from a differential area at `x` with unit
@@ -432,9 +575,21 @@ pub fn polygon_form_factor_sided(x: DVec3, n: DVec3, polygon: &[DVec3], two_side
 /// mode on every call: it took about half of their time.
 fn angle_atan2(y: f64, x: f64) -> f64 {
     use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
-    const P: [f64; 5] = [-8.750608600031904122785e-1, -1.615753718733365076637e1, -7.500855792314704667340e1, -1.228866684490136173410e2, -6.485021904942025371773e1];
-    const Q: [f64; 5] = [2.485846490142306297962e1, 1.650270098316988542046e2, 4.328810604912902668951e2, 4.853903996359136964868e2, 1.945506571482613964425e2];
-    const MOREBITS: f64 = 6.123233995736765886130e-17;
+    const P: [f64; 5] = [
+        -8.750_608_600_031_904e-1,
+        -1.615_753_718_733_365_2e1,
+        -7.500_855_792_314_705e1,
+        -1.228_866_684_490_136_1e2,
+        -6.485_021_904_942_025e1,
+    ];
+    const Q: [f64; 5] = [
+        2.485_846_490_142_306_2e1,
+        1.650_270_098_316_988_5e2,
+        4.328_810_604_912_902_7e2,
+        4.853_903_996_359_137e2,
+        1.945_506_571_482_614e2,
+    ];
+    const MOREBITS: f64 = 6.123_233_995_736_766e-17;
     const TAN_3PI_8: f64 = 2.414_213_562_373_095;
     debug_assert!(y >= 0.0);
     let ax = x.abs();

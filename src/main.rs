@@ -24,7 +24,11 @@ macro_rules! say {
 }
 
 #[derive(Parser)]
-#[command(name = "arlux", version, about = "Per-pixel differential rendering of virtual objects and lights into photographs")]
+#[command(
+    name = "arlux",
+    version,
+    about = "Per-pixel differential rendering of virtual objects and lights into photographs"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -35,13 +39,17 @@ struct Cli {
 }
 
 /// Stages timed anywhere in this run, in order, for `--timings`.
-static STAGES: std::sync::Mutex<Vec<(String, std::time::Duration)>> = std::sync::Mutex::new(Vec::new());
+static STAGES: std::sync::Mutex<Vec<(String, std::time::Duration)>> =
+    std::sync::Mutex::new(Vec::new());
 
 /// Runs `f` as the stage `name` of this run.
 fn stage<T>(name: &str, f: impl FnOnce() -> T) -> T {
     let t0 = std::time::Instant::now();
     let out = f();
-    STAGES.lock().unwrap_or_else(|e| e.into_inner()).push((name.to_string(), t0.elapsed()));
+    STAGES
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .push((name.to_string(), t0.elapsed()));
     out
 }
 
@@ -52,7 +60,12 @@ const SIDE_BY_SIDE: &str = "  | ";
 fn keep(times: &arlux::model::StageTimes) {
     let mut stages = STAGES.lock().unwrap_or_else(|e| e.into_inner());
     stages.extend(times.0.iter().map(|(n, d)| (n.to_string(), *d)));
-    stages.extend(times.1.iter().map(|(n, d)| (format!("{SIDE_BY_SIDE}{n}"), *d)));
+    stages.extend(
+        times
+            .1
+            .iter()
+            .map(|(n, d)| (format!("{SIDE_BY_SIDE}{n}"), *d)),
+    );
 }
 
 /// Peak resident memory of this process (Linux: VmHWM), bytes.
@@ -73,14 +86,27 @@ fn report_timings(wall: std::time::Duration) {
             None => merged.push((name, d.as_secs_f64())),
         }
     }
-    let sum: f64 = merged.iter().filter(|m| !m.0.starts_with(SIDE_BY_SIDE)).map(|m| m.1).sum();
+    let sum: f64 = merged
+        .iter()
+        .filter(|m| !m.0.starts_with(SIDE_BY_SIDE))
+        .map(|m| m.1)
+        .sum();
     let wall = wall.as_secs_f64();
     eprintln!("timings:");
     for (name, secs) in &merged {
         eprintln!("  {name:<32} {:>10.1} ms", secs * 1e3);
     }
-    eprintln!("  {:<32} {:>10.1} ms", "(outside stages)", (wall - sum).max(0.0) * 1e3);
-    eprintln!("  {:<32} {:>10.1} ms  (stages: {:.1}% of it)", "wall", wall * 1e3, 100.0 * sum / wall.max(1e-12));
+    eprintln!(
+        "  {:<32} {:>10.1} ms",
+        "(outside stages)",
+        (wall - sum).max(0.0) * 1e3
+    );
+    eprintln!(
+        "  {:<32} {:>10.1} ms  (stages: {:.1}% of it)",
+        "wall",
+        wall * 1e3,
+        100.0 * sum / wall.max(1e-12)
+    );
     match peak_memory() {
         Some(b) => eprintln!("  peak memory {:.1} MB", b as f64 / 1e6),
         None => eprintln!("  peak memory: not known on this system"),
@@ -297,7 +323,10 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             // A closed pipe (`arlux info | head`) is not a failure.
-            if e.chain().any(|c| c.downcast_ref::<std::io::Error>().is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)) {
+            if e.chain().any(|c| {
+                c.downcast_ref::<std::io::Error>()
+                    .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+            }) {
                 return ExitCode::SUCCESS;
             }
             eprintln!("error: {e}");
@@ -313,11 +342,33 @@ fn main() -> ExitCode {
 fn output_files(command: &Command) -> Vec<&Path> {
     let mut out: Vec<&Path> = Vec::new();
     match command {
-        Command::Ids { output, exr, .. } => out.extend([Some(output.as_path()), exr.as_deref()].into_iter().flatten()),
-        Command::Render { output, png, .. } => out.extend([Some(output.as_path()), png.as_deref()].into_iter().flatten()),
-        Command::Hdr { output, response, .. } => out.extend([Some(output.as_path()), response.as_deref()].into_iter().flatten()),
-        Command::Radiosity { output, mesh, .. } => out.extend([Some(output.as_path()), mesh.as_deref()].into_iter().flatten()),
-        Command::Gonio { output, plot, .. } => out.extend([Some(output.as_path()), plot.as_deref()].into_iter().flatten()),
+        Command::Ids { output, exr, .. } => out.extend(
+            [Some(output.as_path()), exr.as_deref()]
+                .into_iter()
+                .flatten(),
+        ),
+        Command::Render { output, png, .. } => out.extend(
+            [Some(output.as_path()), png.as_deref()]
+                .into_iter()
+                .flatten(),
+        ),
+        Command::Hdr {
+            output, response, ..
+        } => out.extend(
+            [Some(output.as_path()), response.as_deref()]
+                .into_iter()
+                .flatten(),
+        ),
+        Command::Radiosity { output, mesh, .. } => out.extend(
+            [Some(output.as_path()), mesh.as_deref()]
+                .into_iter()
+                .flatten(),
+        ),
+        Command::Gonio { output, plot, .. } => out.extend(
+            [Some(output.as_path()), plot.as_deref()]
+                .into_iter()
+                .flatten(),
+        ),
         Command::Motion { debug_blocks, .. } => out.extend(debug_blocks.as_deref()),
         Command::Info { .. } | Command::Compare { .. } | Command::Sweep { .. } => {}
     }
@@ -327,17 +378,42 @@ fn output_files(command: &Command) -> Vec<&Path> {
 fn run(cli: Cli) -> Result<()> {
     // Refuse an output whose folder is missing before any work, not after it.
     for file in output_files(&cli.command) {
-        let dir = file.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let dir = file
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
         if !dir.is_dir() {
-            bail!(arlux::Error::file(file, format!("cannot write: the folder {} does not exist", dir.display())));
+            bail!(arlux::Error::file(
+                file,
+                format!("cannot write: the folder {} does not exist", dir.display())
+            ));
         }
     }
     match cli.command {
-        Command::Info { scene, variant, json } => info(&scene, variant.as_deref(), json),
-        Command::Ids { scene, output, exr, with_virtual, variant } => {
-            ids(&scene, &output, exr.as_deref(), with_virtual, variant.as_deref())
-        }
-        Command::Compare { image, reference, mask, json } => compare_cmd(&image, &reference, mask.as_deref(), json),
+        Command::Info {
+            scene,
+            variant,
+            json,
+        } => info(&scene, variant.as_deref(), json),
+        Command::Ids {
+            scene,
+            output,
+            exr,
+            with_virtual,
+            variant,
+        } => ids(
+            &scene,
+            &output,
+            exr.as_deref(),
+            with_virtual,
+            variant.as_deref(),
+        ),
+        Command::Compare {
+            image,
+            reference,
+            mask,
+            json,
+        } => compare_cmd(&image, &reference, mask.as_deref(), json),
         Command::Render {
             scene,
             variant,
@@ -359,18 +435,33 @@ fn run(cli: Cli) -> Result<()> {
             min_leaf_pixels,
             json,
         } => {
-            let mut settings = render_settings(patch_size.unwrap_or(0.25), full, epsilon, min_level, penumbra_level, supersample, &composite)?;
+            let mut settings = render_settings(
+                patch_size.unwrap_or(0.25),
+                full,
+                epsilon,
+                min_level,
+                penumbra_level,
+                supersample,
+                &composite,
+            )?;
             if let Some(m) = patch_size {
                 settings.patch_size = arlux::render::PatchSize::Metres(m);
             }
             if !(virtual_patch_size > 0.0 && virtual_patch_size.is_finite()) {
-                bail!("--virtual-patch-size must be a positive number of metres, not {virtual_patch_size}");
+                bail!(
+                    "--virtual-patch-size must be a positive number of metres, not {virtual_patch_size}"
+                );
             }
             settings.virtual_patch_size = virtual_patch_size;
             let texture_flags = [
                 ("--colour-threshold", colour_threshold, 0.0, f64::INFINITY),
                 ("--visibility-threshold", visibility_threshold, 0.0, 0.5),
-                ("--reference-colour-threshold", reference_colour_threshold, 0.0, f64::INFINITY),
+                (
+                    "--reference-colour-threshold",
+                    reference_colour_threshold,
+                    0.0,
+                    f64::INFINITY,
+                ),
                 ("--min-leaf-pixels", min_leaf_pixels, 0.0, f64::INFINITY),
             ];
             if method == "texture" {
@@ -383,7 +474,9 @@ fn run(cli: Cli) -> Result<()> {
                     ("--supersample", supersample != d.pda.supersample),
                 ];
                 if let Some((flag, _)) = pda_only.iter().find(|(_, given)| *given) {
-                    bail!("{flag} applies to --method pda (the texture path casts its shadow rays per leaf and displays T×B/D)");
+                    bail!(
+                        "{flag} applies to --method pda (the texture path casts its shadow rays per leaf and displays T×B/D)"
+                    );
                 }
             }
             for (flag, value, lo, hi) in texture_flags {
@@ -402,27 +495,89 @@ fn run(cli: Cli) -> Result<()> {
                         patch_size,
                         link_epsilon: epsilon,
                         colour_threshold: colour_threshold.unwrap_or(d.colour_threshold),
-                        visibility_threshold: visibility_threshold.unwrap_or(d.visibility_threshold),
-                        reference_colour_threshold: reference_colour_threshold.unwrap_or(d.reference_colour_threshold),
+                        visibility_threshold: visibility_threshold
+                            .unwrap_or(d.visibility_threshold),
+                        reference_colour_threshold: reference_colour_threshold
+                            .unwrap_or(d.reference_colour_threshold),
                         min_leaf_pixels: min_leaf_pixels.unwrap_or(d.min_leaf_pixels),
                         ..d
                     })
                 }
                 _ => Method::Pda(settings),
             };
-            render_cmd(&scene, variant.as_deref(), &output, png.as_deref(), aov.as_deref(), &method, json)
+            render_cmd(
+                &scene,
+                variant.as_deref(),
+                &output,
+                png.as_deref(),
+                aov.as_deref(),
+                &method,
+                json,
+            )
         }
-        Command::Hdr { brackets, output, response } => hdr_cmd(&brackets, &output, response.as_deref()),
-        Command::Motion { scene, motion, output, debug_blocks, json } => motion_cmd(&scene, &motion, &output, debug_blocks.as_deref(), json),
-        Command::Sweep { scene, variant, motion, output, quick, repeats, json } => {
-            sweep_cmd(&scene, variant.as_deref(), motion.as_deref(), &output, quick, repeats.unwrap_or(if quick { 1 } else { 3 }), json)
-        }
-        Command::Gonio { scene, output, plot, vertical_step, horizontal_step, json } => {
-            gonio_cmd(&scene, &output, plot.as_deref(), vertical_step, horizontal_step, json)
-        }
-        Command::Radiosity { scene, output, mesh, patch_size, full, epsilon, light_level, json } => {
-            radiosity_cmd(&scene, &output, mesh.as_deref(), patch_size, full, epsilon, light_level, json)
-        }
+        Command::Hdr {
+            brackets,
+            output,
+            response,
+        } => hdr_cmd(&brackets, &output, response.as_deref()),
+        Command::Motion {
+            scene,
+            motion,
+            output,
+            debug_blocks,
+            json,
+        } => motion_cmd(&scene, &motion, &output, debug_blocks.as_deref(), json),
+        Command::Sweep {
+            scene,
+            variant,
+            motion,
+            output,
+            quick,
+            repeats,
+            json,
+        } => sweep_cmd(
+            &scene,
+            variant.as_deref(),
+            motion.as_deref(),
+            &output,
+            quick,
+            repeats.unwrap_or(if quick { 1 } else { 3 }),
+            json,
+        ),
+        Command::Gonio {
+            scene,
+            output,
+            plot,
+            vertical_step,
+            horizontal_step,
+            json,
+        } => gonio_cmd(
+            &scene,
+            &output,
+            plot.as_deref(),
+            vertical_step,
+            horizontal_step,
+            json,
+        ),
+        Command::Radiosity {
+            scene,
+            output,
+            mesh,
+            patch_size,
+            full,
+            epsilon,
+            light_level,
+            json,
+        } => radiosity_cmd(
+            &scene,
+            &output,
+            mesh.as_deref(),
+            patch_size,
+            full,
+            epsilon,
+            light_level,
+            json,
+        ),
     }
 }
 
@@ -438,7 +593,10 @@ fn load(path: &Path, variant: Option<&str>) -> Result<Scene> {
 }
 
 fn rel(scene: &Scene, p: &Path) -> String {
-    p.strip_prefix(scene.dir()).unwrap_or(p).display().to_string()
+    p.strip_prefix(scene.dir())
+        .unwrap_or(p)
+        .display()
+        .to_string()
 }
 
 fn fmt3(v: glam::DVec3) -> String {
@@ -482,7 +640,12 @@ fn info(path: &Path, variant: Option<&str>, as_json: bool) -> Result<()> {
     stage("report", || info_report(&scene, &names, photo, as_json))
 }
 
-fn info_report(scene: &Scene, names: &[String], photo: serde_json::Value, as_json: bool) -> Result<()> {
+fn info_report(
+    scene: &Scene,
+    names: &[String],
+    photo: serde_json::Value,
+    as_json: bool,
+) -> Result<()> {
     let surfaces: Vec<_> = scene
         .surfaces
         .iter()
@@ -565,7 +728,11 @@ fn info_report(scene: &Scene, names: &[String], photo: serde_json::Value, as_jso
         return Ok(());
     }
     writeln!(out, "scene '{}' ({})", scene.name, scene.file.display())?;
-    writeln!(out, "camera: {}x{} px, fx {:.2} fy {:.2}, principal point ({:.1}, {:.1})", c.width, c.height, c.fx, c.fy, c.cx, c.cy)?;
+    writeln!(
+        out,
+        "camera: {}x{} px, fx {:.2} fy {:.2}, principal point ({:.1}, {:.1})",
+        c.width, c.height, c.fx, c.fy, c.cx, c.cy
+    )?;
     match &report["photo"]["range"] {
         serde_json::Value::Null => writeln!(out, "photo: {}", report["photo"])?,
         r => writeln!(
@@ -577,16 +744,36 @@ fn info_report(scene: &Scene, names: &[String], photo: serde_json::Value, as_jso
             r["min"],
             r["max"],
             r["mean"].as_f64().unwrap_or(0.0),
-            r["dynamic_range"].as_f64().map_or("n/a".into(), |d| format!("{d:.0}")),
+            r["dynamic_range"]
+                .as_f64()
+                .map_or("n/a".into(), |d| format!("{d:.0}")),
         )?,
     }
-    writeln!(out, "real surfaces: {} ({} triangles)", scene.surfaces.len(), scene.triangle_count())?;
+    writeln!(
+        out,
+        "real surfaces: {} ({} triangles)",
+        scene.surfaces.len(),
+        scene.triangle_count()
+    )?;
     for s in &surfaces {
         let known = s["known_reflectance"]
             .as_array()
-            .map(|k| format!("  known reflectance {}", serde_json::Value::Array(k.clone())))
+            .map(|k| {
+                format!(
+                    "  known reflectance {}",
+                    serde_json::Value::Array(k.clone())
+                )
+            })
             .unwrap_or_default();
-        writeln!(out, "  {:>3} {:<16} {:>6} triangles  {}{}", s["id"], s["name"].as_str().unwrap_or(""), s["triangles"], s["mesh"].as_str().unwrap_or(""), known)?;
+        writeln!(
+            out,
+            "  {:>3} {:<16} {:>6} triangles  {}{}",
+            s["id"],
+            s["name"].as_str().unwrap_or(""),
+            s["triangles"],
+            s["mesh"].as_str().unwrap_or(""),
+            known
+        )?;
     }
     writeln!(out, "lights: {}", lights.len())?;
     for l in &lights {
@@ -594,7 +781,11 @@ fn info_report(scene: &Scene, names: &[String], photo: serde_json::Value, as_jso
             out,
             "  {:<12} {:<7} scale {:<4} at {}  {}  {}",
             l["name"].as_str().unwrap_or(""),
-            if l["real"].as_bool().unwrap_or(true) { "real" } else { "virtual" },
+            if l["real"].as_bool().unwrap_or(true) {
+                "real"
+            } else {
+                "virtual"
+            },
             l["scale"],
             l["position"].as_str().unwrap_or(""),
             l["shape"].as_str().unwrap_or(""),
@@ -608,18 +799,34 @@ fn info_report(scene: &Scene, names: &[String], photo: serde_json::Value, as_jso
             "  {:<12} {} triangles, {}, at {} rotated {}°",
             o["name"].as_str().unwrap_or(""),
             o["triangles"],
-            if o["enabled"].as_bool().unwrap_or(false) { "enabled" } else { "disabled" },
+            if o["enabled"].as_bool().unwrap_or(false) {
+                "enabled"
+            } else {
+                "disabled"
+            },
             o["translate"],
             o["rotate_y_deg"]
         )?;
     }
     writeln!(out, "variants: {}", variants.len())?;
     for v in &variants {
-        writeln!(out, "  {:<20} reference {}", v["name"].as_str().unwrap_or(""), v["reference"].as_str().unwrap_or("none"))?;
+        writeln!(
+            out,
+            "  {:<20} reference {}",
+            v["name"].as_str().unwrap_or(""),
+            v["reference"].as_str().unwrap_or("none")
+        )?;
     }
     writeln!(out, "motions: {}", motions.len())?;
     for m in &motions {
-        writeln!(out, "  {:<20} moves {} through {} poses ({} references)", m["name"].as_str().unwrap_or(""), m["object"].as_str().unwrap_or(""), m["poses"], m["references"])?;
+        writeln!(
+            out,
+            "  {:<20} moves {} through {} poses ({} references)",
+            m["name"].as_str().unwrap_or(""),
+            m["object"].as_str().unwrap_or(""),
+            m["poses"],
+            m["references"]
+        )?;
     }
     Ok(())
 }
@@ -630,7 +837,10 @@ fn display_photo(scene: &Scene) -> Result<Image> {
     match &scene.photo {
         Photo::Image(_) => Ok(scene.load_photo()?),
         Photo::Brackets(bs) => {
-            let b = bs.iter().min_by(|a, b| a.ev.abs().total_cmp(&b.ev.abs())).context("no brackets")?;
+            let b = bs
+                .iter()
+                .min_by(|a, b| a.ev.abs().total_cmp(&b.ev.abs()))
+                .context("no brackets")?;
             let img = image_io::read_image(&b.image)?;
             scene.check_size(&img, "photo.brackets")?;
             Ok(img)
@@ -638,43 +848,84 @@ fn display_photo(scene: &Scene) -> Result<Image> {
     }
 }
 
-fn ids(path: &Path, output: &Path, exr: Option<&Path>, with_virtual: bool, variant: Option<&str>) -> Result<()> {
+fn ids(
+    path: &Path,
+    output: &Path,
+    exr: Option<&Path>,
+    with_virtual: bool,
+    variant: Option<&str>,
+) -> Result<()> {
     let scene = stage("load", || load(path, variant))?;
     let photo = stage("read photo", || display_photo(&scene))?;
     let tracer = stage("tracer", || scene.build_tracer())?;
-    let layer = if with_virtual { Layer::All } else { Layer::Real };
-    let ids = stage("trace ids", || SurfaceIds::at_pixel_centres(&scene.camera, &tracer, layer));
+    let layer = if with_virtual {
+        Layer::All
+    } else {
+        Layer::Real
+    };
+    let ids = stage("trace ids", || {
+        SurfaceIds::at_pixel_centres(&scene.camera, &tracer, layer)
+    });
     if ids.covered() == 0 {
-        bail!(arlux::Error::key(&scene.file, "camera", "the camera sees no surface: check position, look_at and the field of view"));
+        bail!(arlux::Error::key(
+            &scene.file,
+            "camera",
+            "the camera sees no surface: check position, look_at and the field of view"
+        ));
     }
     stage("write", || -> Result<()> {
         let picture = ids.registration_picture(&photo);
         image_io::write_png_rgb8(output, 2 * scene.camera.width, scene.camera.height, picture)?;
         if let Some(exr) = exr {
             let values: Vec<f32> = ids.ids.iter().map(|&i| i as f32).collect();
-            image_io::write_exr(exr, scene.camera.width, scene.camera.height, &[image_io::ExrLayer::Channel("Y", &values)])?;
+            image_io::write_exr(
+                exr,
+                scene.camera.width,
+                scene.camera.height,
+                &[image_io::ExrLayer::Channel("Y", &values)],
+            )?;
         }
         Ok(())
     })?;
     let names = scene.surface_names();
     let total = ids.ids.len() as f64;
-    say!("{} of {} pixels see a surface; wrote {}", ids.covered(), ids.ids.len(), output.display());
+    say!(
+        "{} of {} pixels see a surface; wrote {}",
+        ids.covered(),
+        ids.ids.len(),
+        output.display()
+    );
     for (i, name) in names.iter().enumerate() {
         let n = ids.ids.iter().filter(|&&s| s == i as i32).count();
         if n > 0 {
             let [r, g, b] = id_colour(i as i32);
-            say!("  {i:>3} {name:<20} #{r:02x}{g:02x}{b:02x}  {:5.1}% of the image", 100.0 * n as f64 / total);
+            say!(
+                "  {i:>3} {name:<20} #{r:02x}{g:02x}{b:02x}  {:5.1}% of the image",
+                100.0 * n as f64 / total
+            );
         }
     }
     Ok(())
 }
 
 fn compare_cmd(image: &Path, reference: &Path, mask: Option<&Path>, as_json: bool) -> Result<()> {
-    let (a, b) = stage("load", || -> Result<(Image, Image)> { Ok((image_io::read_image(image)?, image_io::read_image(reference)?)) })?;
+    let (a, b) = stage("load", || -> Result<(Image, Image)> {
+        Ok((
+            image_io::read_image(image)?,
+            image_io::read_image(reference)?,
+        ))
+    })?;
     if (a.width, a.height) != (b.width, b.height) {
         bail!(arlux::Error::file(
             image,
-            format!("is {}x{} but {} is {}x{}", a.width, a.height, reference.display(), b.width, b.height)
+            format!(
+                "is {}x{} but {} is {}x{}",
+                a.width,
+                a.height,
+                reference.display(),
+                b.width,
+                b.height
+            )
         ));
     }
     let mask = mask.map(|m| read_mask(m, a.width, a.height)).transpose()?;
@@ -684,8 +935,16 @@ fn compare_cmd(image: &Path, reference: &Path, mask: Option<&Path>, as_json: boo
     } else {
         say!("pixels         {}", c.pixels);
         say!("rmse           {:.6}", c.rmse);
-        say!("relative rmse  {}", c.relative_rmse.map_or("n/a (black reference)".into(), |r| format!("{:.4}", r)));
-        say!("psnr (sRGB)    {}", c.psnr_srgb_db.map_or("inf (identical)".into(), |p| format!("{p:.2} dB")));
+        say!(
+            "relative rmse  {}",
+            c.relative_rmse
+                .map_or("n/a (black reference)".into(), |r| format!("{:.4}", r))
+        );
+        say!(
+            "psnr (sRGB)    {}",
+            c.psnr_srgb_db
+                .map_or("inf (identical)".into(), |p| format!("{p:.2} dB"))
+        );
         say!("mean           {:.6}", c.mean);
         say!("mean reference {:.6}", c.mean_reference);
     }
@@ -694,19 +953,41 @@ fn compare_cmd(image: &Path, reference: &Path, mask: Option<&Path>, as_json: boo
 
 #[allow(clippy::too_many_arguments)]
 /// The photo in the scene's units: merged brackets scaled by the known reflectances.
-fn photo_in_units(scene: &Scene, tracer: &arlux::trace::Tracer, times: &mut arlux::model::StageTimes) -> Result<Image> {
+fn photo_in_units(
+    scene: &Scene,
+    tracer: &arlux::trace::Tracer,
+    times: &mut arlux::model::StageTimes,
+) -> Result<Image> {
     let mut photo = times.time("read photo", || scene.load_photo())?;
     if scene.photo_is_relative() {
         let base = arlux::model::ModelSettings::default();
-        match times.time("bracket scale", || arlux::render::bracket_scale_cached(scene, &photo, tracer, &base, arlux::render::fine_patch_size(scene))) {
+        match times.time("bracket scale", || {
+            arlux::render::bracket_scale_cached(
+                scene,
+                &photo,
+                tracer,
+                &base,
+                arlux::render::fine_patch_size(scene),
+            )
+        }) {
             Some(s) => photo.pixels.iter_mut().for_each(|p| *p *= s as f32),
-            None => eprintln!("warning: the photo comes from brackets and no reflectance is known: radiance is relative"),
+            None => eprintln!(
+                "warning: the photo comes from brackets and no reflectance is known: radiance is relative"
+            ),
         }
     }
     Ok(photo)
 }
 
-fn sweep_cmd(path: &Path, variant: Option<&str>, motion: Option<&str>, dir: &Path, quick: bool, repeats: usize, as_json: bool) -> Result<()> {
+fn sweep_cmd(
+    path: &Path,
+    variant: Option<&str>,
+    motion: Option<&str>,
+    dir: &Path,
+    quick: bool,
+    repeats: usize,
+    as_json: bool,
+) -> Result<()> {
     if repeats == 0 {
         bail!("--repeats must be at least 1");
     }
@@ -717,10 +998,14 @@ fn sweep_cmd(path: &Path, variant: Option<&str>, motion: Option<&str>, dir: &Pat
         (Some(v), None) => (Target::Variant { name: v }, format!("variant {v}")),
         (None, None) => bail!("give --variant or --motion"),
     };
-    std::fs::create_dir_all(dir).with_context(|| format!("{}: could not create the folder", dir.display()))?;
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("{}: could not create the folder", dir.display()))?;
     let settings = grid(quick, matches!(target, Target::Variant { .. }));
     let bar = indicatif::ProgressBar::new(settings.len() as u64);
-    bar.set_style(indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} settings, {elapsed} {msg}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} settings, {elapsed} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
     let rows = stage("renders", || {
         run(&scene, &target, &settings, repeats, |_, row| {
             bar.set_message(format!("last: {:.2} s, RMSE {:.5}", row.seconds, row.rmse));
@@ -729,14 +1014,29 @@ fn sweep_cmd(path: &Path, variant: Option<&str>, motion: Option<&str>, dir: &Pat
     })?;
     bar.finish_and_clear();
     let reference = match &target {
-        Target::Variant { name } => scene.variant(name)?.reference.as_ref().map_or(String::new(), |r| rel(&scene, r)),
-        Target::Motion { name } => format!("{} references of motion {name}", scene.motion(name)?.references.len()),
+        Target::Variant { name } => scene
+            .variant(name)?
+            .reference
+            .as_ref()
+            .map_or(String::new(), |r| rel(&scene, r)),
+        Target::Motion { name } => format!(
+            "{} references of motion {name}",
+            scene.motion(name)?.references.len()
+        ),
     };
     let csv = dir.join("sweep.csv");
     let png = dir.join("sweep.png");
     stage("write", || -> Result<()> {
         image_io::write_atomic(&csv, to_csv(&rows, &reference).as_bytes())?;
-        plot(&rows, &format!("{}: {label}, error against time ({} settings)", scene.name, rows.len()), &png)?;
+        plot(
+            &rows,
+            &format!(
+                "{}: {label}, error against time ({} settings)",
+                scene.name,
+                rows.len()
+            ),
+            &png,
+        )?;
         Ok(())
     })?;
     let mut front: Vec<&arlux::sweep::SweepRow> = rows.iter().filter(|r| r.pareto).collect();
@@ -745,7 +1045,9 @@ fn sweep_cmd(path: &Path, variant: Option<&str>, motion: Option<&str>, dir: &Pat
         let s = &r.settings;
         let method = match s.method {
             arlux::sweep::SweepMethod::Pda => json!("pda"),
-            arlux::sweep::SweepMethod::Texture { min_leaf_pixels } => json!({ "texture": { "min_leaf_pixels": min_leaf_pixels } }),
+            arlux::sweep::SweepMethod::Texture { min_leaf_pixels } => {
+                json!({ "texture": { "min_leaf_pixels": min_leaf_pixels } })
+            }
         };
         json!({
             "method": method,
@@ -756,20 +1058,46 @@ fn sweep_cmd(path: &Path, variant: Option<&str>, motion: Option<&str>, dir: &Pat
         })
     };
     if as_json {
-        say!("{}", serde_json::to_string_pretty(&json!({
-            "target": label, "settings": rows.len(), "csv": csv.display().to_string(), "plot": png.display().to_string(),
-            "rows": rows.iter().map(describe).collect::<Vec<_>>(),
-        }))?);
+        say!(
+            "{}",
+            serde_json::to_string_pretty(&json!({
+                "target": label, "settings": rows.len(), "csv": csv.display().to_string(), "plot": png.display().to_string(),
+                "rows": rows.iter().map(describe).collect::<Vec<_>>(),
+            }))?
+        );
         return Ok(());
     }
-    say!("{} settings of {label}; wrote {} and {}", rows.len(), csv.display(), png.display());
+    say!(
+        "{} settings of {label}; wrote {} and {}",
+        rows.len(),
+        csv.display(),
+        png.display()
+    );
     say!("Pareto front (faster and closer than nothing else):");
-    say!("  {:>7} {:>11} {:>10} {:>10} {:>8} {:>8} {:>9} {:>10}", "method", "shadow rays", "supersamp.", "patch", "objects", "epsilon", "seconds", "RMSE");
+    say!(
+        "  {:>7} {:>11} {:>10} {:>10} {:>8} {:>8} {:>9} {:>10}",
+        "method",
+        "shadow rays",
+        "supersamp.",
+        "patch",
+        "objects",
+        "epsilon",
+        "seconds",
+        "RMSE"
+    );
     for r in front {
         let s = &r.settings;
         let (method, rays, supersample) = match s.method {
-            arlux::sweep::SweepMethod::Pda => ("pda", format!("{}-{}", 1u32 << s.min_level, 1u32 << s.penumbra_level), s.supersample.to_string()),
-            arlux::sweep::SweepMethod::Texture { min_leaf_pixels } => ("texture", format!("leaf {min_leaf_pixels} px"), "-".to_string()),
+            arlux::sweep::SweepMethod::Pda => (
+                "pda",
+                format!("{}-{}", 1u32 << s.min_level, 1u32 << s.penumbra_level),
+                s.supersample.to_string(),
+            ),
+            arlux::sweep::SweepMethod::Texture { min_leaf_pixels } => (
+                "texture",
+                format!("leaf {min_leaf_pixels} px"),
+                "-".to_string(),
+            ),
         };
         let objects = match s.method {
             arlux::sweep::SweepMethod::Pda => format!("{} m", s.virtual_patch_size),
@@ -780,7 +1108,8 @@ fn sweep_cmd(path: &Path, variant: Option<&str>, motion: Option<&str>, dir: &Pat
             method,
             rays,
             supersample,
-            s.patch_size.map_or("auto".to_string(), |m| format!("{m} m")),
+            s.patch_size
+                .map_or("auto".to_string(), |m| format!("{m} m")),
             objects,
             s.epsilon,
             r.seconds,
@@ -790,9 +1119,19 @@ fn sweep_cmd(path: &Path, variant: Option<&str>, motion: Option<&str>, dir: &Pat
     Ok(())
 }
 
-fn gonio_cmd(path: &Path, output: &Path, plot: Option<&Path>, vertical_step: f64, horizontal_step: f64, as_json: bool) -> Result<()> {
+fn gonio_cmd(
+    path: &Path,
+    output: &Path,
+    plot: Option<&Path>,
+    vertical_step: f64,
+    horizontal_step: f64,
+    as_json: bool,
+) -> Result<()> {
     use arlux::gonio::{GonioSettings, ReflectanceSource, reconstruct};
-    for (name, v, max) in [("--vertical-step", vertical_step, 90.0), ("--horizontal-step", horizontal_step, 90.0)] {
+    for (name, v, max) in [
+        ("--vertical-step", vertical_step, 90.0),
+        ("--horizontal-step", horizontal_step, 90.0),
+    ] {
         if !(v > 0.0 && v <= max) {
             bail!("{name} must be in (0, {max}] degrees, not {v}");
         }
@@ -800,12 +1139,21 @@ fn gonio_cmd(path: &Path, output: &Path, plot: Option<&Path>, vertical_step: f64
     let mut times = arlux::model::StageTimes::default();
     let scene = times.time("load", || load(path, None))?;
     if arlux::gonio::light_to_reconstruct(&scene)?.is_none() {
-        bail!("{}: no light has intensity = \"reconstruct\"", path.display());
+        bail!(
+            "{}: no light has intensity = \"reconstruct\"",
+            path.display()
+        );
     }
     let tracer = times.time("tracer", || scene.build_tracer())?;
     let photo = photo_in_units(&scene, &tracer, &mut times)?;
-    let settings = GonioSettings { vertical_step_deg: vertical_step, horizontal_step_deg: horizontal_step, ..GonioSettings::default() };
-    let rec = times.time("reconstruct", || reconstruct(&scene, &photo, &tracer, &settings))?;
+    let settings = GonioSettings {
+        vertical_step_deg: vertical_step,
+        horizontal_step_deg: horizontal_step,
+        ..GonioSettings::default()
+    };
+    let rec = times.time("reconstruct", || {
+        reconstruct(&scene, &photo, &tracer, &settings)
+    })?;
     times.time("write", || -> Result<()> {
         image_io::write_atomic(output, rec.profile.to_lm63().as_bytes())?;
         if let Some(plot) = plot {
@@ -852,20 +1200,57 @@ fn gonio_cmd(path: &Path, output: &Path, plot: Option<&Path>, vertical_step: f64
         say!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
-    say!("light '{}' at {}: reconstructed from {} pixels ({} patches for the indirect light), {} rounds (last change {:.1e} of the peak)", light.name, fmt3(rec.position), rec.samples, rec.patches, rec.rounds, rec.change);
-    say!("peak {:.3} × rgb {} towards {}; {:.1}% of the sphere is known from the photo (the rest is 0 and marked unknown)", peak, fmt3(rec.colour), fmt3(peak_dir), 100.0 * rec.coverage);
+    say!(
+        "light '{}' at {}: reconstructed from {} pixels ({} patches for the indirect light), {} rounds (last change {:.1e} of the peak)",
+        light.name,
+        fmt3(rec.position),
+        rec.samples,
+        rec.patches,
+        rec.rounds,
+        rec.change
+    );
+    say!(
+        "peak {:.3} × rgb {} towards {}; {:.1}% of the sphere is known from the photo (the rest is 0 and marked unknown)",
+        peak,
+        fmt3(rec.colour),
+        fmt3(peak_dir),
+        100.0 * rec.coverage
+    );
     for r in &rec.reflectances {
-        let rgb = r.rgb.map_or("-".to_string(), |c| format!("[{:.3}, {:.3}, {:.3}]", c.x, c.y, c.z));
+        let rgb = r.rgb.map_or("-".to_string(), |c| {
+            format!("[{:.3}, {:.3}, {:.3}]", c.x, c.y, c.z)
+        });
         match r.source {
             ReflectanceSource::Known => say!("  {:<14} {rgb}  known", r.name),
-            ReflectanceSource::Propagated { step, angle_deg, samples } => {
-                say!("  {:<14} {rgb}  EQ2 step {step}, from directions within {angle_deg:.2}° ({samples} pixels)", r.name)
+            ReflectanceSource::Propagated {
+                step,
+                angle_deg,
+                samples,
+            } => {
+                say!(
+                    "  {:<14} {rgb}  EQ2 step {step}, from directions within {angle_deg:.2}° ({samples} pixels)",
+                    r.name
+                )
             }
-            ReflectanceSource::Unreached => say!("  {:<14} -  not lit by this light where the photo sees it", r.name),
+            ReflectanceSource::Unreached => say!(
+                "  {:<14} -  not lit by this light where the photo sees it",
+                r.name
+            ),
         }
     }
-    say!("reconstruction {:.2} s (Grosch et al.: 97.9 s for 282 patches); total {:.2} s", rec.seconds, times.total().as_secs_f64());
-    say!("wrote {}; use it as: intensity = {{ ies = \"{}\", rgb = [{:.4}, {:.4}, {:.4}], direction = [0.0, -1.0, 0.0], reference = [1.0, 0.0, 0.0] }}", output.display(), output.display(), rec.colour.x, rec.colour.y, rec.colour.z);
+    say!(
+        "reconstruction {:.2} s (Grosch et al.: 97.9 s for 282 patches); total {:.2} s",
+        rec.seconds,
+        times.total().as_secs_f64()
+    );
+    say!(
+        "wrote {}; use it as: intensity = {{ ies = \"{}\", rgb = [{:.4}, {:.4}, {:.4}], direction = [0.0, -1.0, 0.0], reference = [1.0, 0.0, 0.0] }}",
+        output.display(),
+        output.display(),
+        rec.colour.x,
+        rec.colour.y,
+        rec.colour.z
+    );
     Ok(())
 }
 
@@ -889,7 +1274,10 @@ fn radiosity_cmd(
         bail!("--epsilon must be positive, not {epsilon}");
     }
     if light_level > arlux::light::MAX_GRID_LEVEL {
-        bail!("--light-level must be at most {}", arlux::light::MAX_GRID_LEVEL);
+        bail!(
+            "--light-level must be at most {}",
+            arlux::light::MAX_GRID_LEVEL
+        );
     }
     let mut times = StageTimes::default();
     let scene = times.time("load", || load(path, None))?;
@@ -897,17 +1285,25 @@ fn radiosity_cmd(
     let photo = photo_in_units(&scene, &tracer, &mut times)?;
     // A light to reconstruct is recovered first, as `render` does.
     let scene = match arlux::gonio::light_to_reconstruct(&scene)? {
-        Some(_) => times.time("goniometric", || arlux::render::reconstruct_cached(&scene, &photo, &tracer))?,
+        Some(_) => times.time("goniometric", || {
+            arlux::render::reconstruct_cached(&scene, &photo, &tracer)
+        })?,
         None => scene,
     };
     let settings = ModelSettings {
         patch_size,
-        transport: if full { TransportMethod::Full } else { TransportMethod::Hierarchical { epsilon } },
+        transport: if full {
+            TransportMethod::Full
+        } else {
+            TransportMethod::Hierarchical { epsilon }
+        },
         light_level,
         ..ModelSettings::default()
     };
     let model = Model::build(&scene, &photo, &tracer, &settings, &mut times)?;
-    let view = times.time("render view", || ModelView::render(&scene, &tracer, &model, light_level));
+    let view = times.time("render view", || {
+        ModelView::render(&scene, &tracer, &model, light_level)
+    });
     let error = times.time("compare", || compare(&view.radiance, &photo, None));
     times.time("write", || -> Result<()> {
         let (w, h) = (scene.camera.width, scene.camera.height);
@@ -923,7 +1319,11 @@ fn radiosity_cmd(
             ],
         )?;
         if let Some(mesh) = mesh {
-            let ids = SurfaceIds { width: w, height: h, ids: view.patch_ids.clone() };
+            let ids = SurfaceIds {
+                width: w,
+                height: h,
+                ids: view.patch_ids.clone(),
+            };
             image_io::write_png_rgb8(mesh, 2 * w, h, ids.registration_picture(&view.radiance))?;
         }
         Ok(())
@@ -967,12 +1367,18 @@ fn radiosity_cmd(
         arlux::estimate::MAX_REFLECTANCE,
         est.unseen
     );
-    say!("radiosity: GMRES {} iterations, residual {:.1e}", est.solution.iterations, est.solution.residual);
+    say!(
+        "radiosity: GMRES {} iterations, residual {:.1e}",
+        est.solution.iterations,
+        est.solution.residual
+    );
     say!(
         "model against the photo: RMSE {:.5}, relative {:.3}, PSNR {}",
         error.rmse,
         error.relative_rmse.unwrap_or(f64::NAN),
-        error.psnr_srgb_db.map_or("inf".into(), |p| format!("{p:.2} dB"))
+        error
+            .psnr_srgb_db
+            .map_or("inf".into(), |p| format!("{p:.2} dB"))
     );
     print_stages(&times)?;
     Ok(())
@@ -1007,11 +1413,23 @@ fn render_settings(
     Ok(RenderSettings {
         model: ModelSettings {
             patch_size,
-            transport: if full { TransportMethod::Full } else { TransportMethod::Hierarchical { epsilon } },
+            transport: if full {
+                TransportMethod::Full
+            } else {
+                TransportMethod::Hierarchical { epsilon }
+            },
             ..ModelSettings::default()
         },
-        pda: arlux::pda::PdaSettings { min_level, penumbra_level, supersample },
-        mode: if composite == "additive" { arlux::composite::CompositeMode::Additive } else { arlux::composite::CompositeMode::Ratio },
+        pda: arlux::pda::PdaSettings {
+            min_level,
+            penumbra_level,
+            supersample,
+        },
+        mode: if composite == "additive" {
+            arlux::composite::CompositeMode::Additive
+        } else {
+            arlux::composite::CompositeMode::Ratio
+        },
         ..defaults
     })
 }
@@ -1022,7 +1440,15 @@ enum Method {
     Texture(arlux::relight::TextureSettings),
 }
 
-fn render_cmd(path: &Path, variant: Option<&str>, output: &Path, png: Option<&Path>, aov: Option<&Path>, method: &Method, as_json: bool) -> Result<()> {
+fn render_cmd(
+    path: &Path,
+    variant: Option<&str>,
+    output: &Path,
+    png: Option<&Path>,
+    aov: Option<&Path>,
+    method: &Method,
+    as_json: bool,
+) -> Result<()> {
     use arlux::model::StageTimes;
     let mut times = StageTimes::default();
     let base = times.time("load", || load(path, None))?;
@@ -1030,11 +1456,15 @@ fn render_cmd(path: &Path, variant: Option<&str>, output: &Path, png: Option<&Pa
         Some(v) => base.with_variant(v)?,
         None => base.clone(),
     };
-    let reference = variant.and_then(|v| base.variant(v).ok()).and_then(|v| v.reference.clone());
+    let reference = variant
+        .and_then(|v| base.variant(v).ok())
+        .and_then(|v| v.reference.clone());
     let photo = times.time("read photo", || scene.load_photo())?;
     let out = match method {
         Method::Pda(settings) => arlux::render::render(&scene, &photo, settings, &mut times)?,
-        Method::Texture(settings) => arlux::relight::render_texture(&scene, &photo, settings, &mut times)?,
+        Method::Texture(settings) => {
+            arlux::relight::render_texture(&scene, &photo, settings, &mut times)?
+        }
     };
     let c = &out.composite;
     times.time("write", || -> Result<()> {
@@ -1051,13 +1481,33 @@ fn render_cmd(path: &Path, variant: Option<&str>, output: &Path, png: Option<&Pa
             image_io::write_png(png, &c.image, 0.0)?;
         }
         if let Some(dir) = aov {
-            std::fs::create_dir_all(dir).with_context(|| format!("{}: could not create the folder", dir.display()))?;
-            for (name, img) in [("direct", &c.direct), ("indirect", &c.indirect), ("change", &c.change)] {
-                image_io::write_exr(&dir.join(format!("{name}.exr")), w, h, &[image_io::ExrLayer::Rgb("", img)])?;
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("{}: could not create the folder", dir.display()))?;
+            for (name, img) in [
+                ("direct", &c.direct),
+                ("indirect", &c.indirect),
+                ("change", &c.change),
+            ] {
+                image_io::write_exr(
+                    &dir.join(format!("{name}.exr")),
+                    w,
+                    h,
+                    &[image_io::ExrLayer::Rgb("", img)],
+                )?;
             }
-            image_io::write_exr(&dir.join("alpha.exr"), w, h, &[image_io::ExrLayer::Channel("Y", &c.alpha)])?;
+            image_io::write_exr(
+                &dir.join("alpha.exr"),
+                w,
+                h,
+                &[image_io::ExrLayer::Channel("Y", &c.alpha)],
+            )?;
             if let Some((_, unoccluded, _)) = &out.texture {
-                image_io::write_exr(&dir.join("unoccluded_texture.exr"), w, h, &[image_io::ExrLayer::Rgb("", unoccluded)])?;
+                image_io::write_exr(
+                    &dir.join("unoccluded_texture.exr"),
+                    w,
+                    h,
+                    &[image_io::ExrLayer::Rgb("", unoccluded)],
+                )?;
             }
         }
         Ok(())
@@ -1116,19 +1566,39 @@ fn render_cmd(path: &Path, variant: Option<&str>, output: &Path, png: Option<&Pa
         Some((s, _, change)) => {
             say!(
                 "texture path: {} leaves from {:.2} m patches after {} refinement rounds ({} splits, {} undone: no visibility change); {} form factors",
-                out.patches, out.patch_size, s.rounds, s.splits, s.undone, out.links
+                out.patches,
+                out.patch_size,
+                s.rounds,
+                s.splits,
+                s.undone,
+                out.links
             );
             say!(
                 "{} seen leaves in some real shadow: {} corrected from a frontier leaf, {} from the user's [[texture_reference]], {} left as Step 1 made them",
-                s.occluded, s.by_frontier, s.by_user_reference, s.uncorrected
+                s.occluded,
+                s.by_frontier,
+                s.by_user_reference,
+                s.uncorrected
             );
-            say!("textures {:.1} MB ({} texels); the light change alone (radiosity step + display): {:.3} s (Loscos: 0.8 s)", s.texture_bytes as f64 / 1e6, s.texels, change.as_secs_f64());
+            say!(
+                "textures {:.1} MB ({} texels); the light change alone (radiosity step + display): {:.3} s (Loscos: 0.8 s)",
+                s.texture_bytes as f64 / 1e6,
+                s.texels,
+                change.as_secs_f64()
+            );
         }
     }
     if c.ratio_fallbacks > 0 || c.clamped > 0 {
         match out.texture {
-            None => say!("{} samples fell back from the ratio to the additive form (dark before), {} were clamped at zero", c.ratio_fallbacks, c.clamped),
-            Some(_) => say!("{} pixels show the radiosity B/π: the photo saw them unlit (D ≈ 0)", c.ratio_fallbacks),
+            None => say!(
+                "{} samples fell back from the ratio to the additive form (dark before), {} were clamped at zero",
+                c.ratio_fallbacks,
+                c.clamped
+            ),
+            Some(_) => say!(
+                "{} pixels show the radiosity B/π: the photo saw them unlit (D ≈ 0)",
+                c.ratio_fallbacks
+            ),
         }
     }
     if let Some(e) = error {
@@ -1136,7 +1606,8 @@ fn render_cmd(path: &Path, variant: Option<&str>, output: &Path, png: Option<&Pa
             "against the reference: RMSE {:.5}, relative {:.4}, PSNR {}, mean {:.5} (reference {:.5})",
             e.rmse,
             e.relative_rmse.unwrap_or(f64::NAN),
-            e.psnr_srgb_db.map_or("inf".into(), |p| format!("{p:.2} dB")),
+            e.psnr_srgb_db
+                .map_or("inf".into(), |p| format!("{p:.2} dB")),
             e.mean,
             e.mean_reference
         );
@@ -1155,7 +1626,10 @@ fn hdr_cmd(brackets: &[String], output: &Path, response_csv: Option<&Path>) -> R
         let Some((path, ev)) = b.rsplit_once(':') else {
             bail!("--bracket {b}: give IMAGE:EV, e.g. ev-2.png:-2");
         };
-        let ev: f64 = ev.trim().parse().map_err(|_| anyhow::anyhow!("--bracket {b}: '{ev}' is not an EV number"))?;
+        let ev: f64 = ev
+            .trim()
+            .parse()
+            .map_err(|_| anyhow::anyhow!("--bracket {b}: '{ev}' is not an EV number"))?;
         if !ev.is_finite() {
             bail!("--bracket {b}: the EV must be finite");
         }
@@ -1164,10 +1638,20 @@ fn hdr_cmd(brackets: &[String], output: &Path, response_csv: Option<&Path>) -> R
     let response = stage("response", || recover_response(&exposures, 64, 20.0))?;
     let merged = stage("merge", || merge(&exposures, &response))?;
     stage("write", || -> Result<()> {
-        image_io::write_exr(output, merged.image.width, merged.image.height, &[image_io::ExrLayer::Rgb("", &merged.image)])?;
+        image_io::write_exr(
+            output,
+            merged.image.width,
+            merged.image.height,
+            &[image_io::ExrLayer::Rgb("", &merged.image)],
+        )?;
         if let Some(csv) = response_csv {
             let mut text = String::from("code,ln_exposure_r,ln_exposure_g,ln_exposure_b\n");
-            for (z, ((r, g), b)) in response[0].iter().zip(&response[1]).zip(&response[2]).enumerate() {
+            for (z, ((r, g), b)) in response[0]
+                .iter()
+                .zip(&response[1])
+                .zip(&response[2])
+                .enumerate()
+            {
                 text.push_str(&format!("{z},{r},{g},{b}\n"));
             }
             image_io::write_atomic(csv, text.as_bytes())?;
@@ -1186,16 +1670,28 @@ fn hdr_cmd(brackets: &[String], output: &Path, response_csv: Option<&Path>) -> R
     Ok(())
 }
 
-fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, as_json: bool) -> Result<()> {
+fn motion_cmd(
+    path: &Path,
+    name: &str,
+    dir: &Path,
+    debug_blocks: Option<&Path>,
+    as_json: bool,
+) -> Result<()> {
     use arlux::model::StageTimes;
     use arlux::render::{RenderSettings, Session};
     let base = stage("load", || load(path, None))?;
     let motion = base.motion(name)?.clone();
-    std::fs::create_dir_all(dir).with_context(|| format!("{}: could not create the folder", dir.display()))?;
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("{}: could not create the folder", dir.display()))?;
     let settings = RenderSettings::default();
     let write = |pose: usize, img: &Image| -> Result<()> {
         let file = dir.join(format!("{name}_{pose:03}.exr"));
-        image_io::write_exr(&file, img.width, img.height, &[image_io::ExrLayer::Rgb("", img)])?;
+        image_io::write_exr(
+            &file,
+            img.width,
+            img.height,
+            &[image_io::ExrLayer::Rgb("", img)],
+        )?;
         Ok(())
     };
     let error_at = |pose: usize, img: &Image| -> Result<Option<arlux::compare::Comparison>> {
@@ -1218,7 +1714,12 @@ fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, 
     keep(&times);
     // Speed-ups compare with what re-rendering a pose costs: the photo's
     // calibration and a light's reconstruction are done once per scene.
-    let once: f64 = times.0.iter().filter(|(n, _)| matches!(*n, "bracket scale" | "goniometric")).map(|(_, d)| d.as_secs_f64()).sum();
+    let once: f64 = times
+        .0
+        .iter()
+        .filter(|(n, _)| matches!(*n, "bracket scale" | "goniometric"))
+        .map(|(_, d)| d.as_secs_f64())
+        .sum();
     let full_seconds = times.total().as_secs_f64() - once;
     stage("write", || write(0, &session.composite.image))?;
     let (pda_bytes, block_bytes) = session.memory_bytes();
@@ -1232,7 +1733,11 @@ fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, 
             full_seconds * 1e3,
             pda_bytes as f64 / 1e6,
             block_bytes as f64 / 1e6,
-            rows[0]["error_against_reference"]["rmse"].as_f64().map_or(String::new(), |e| format!("; RMSE against its reference {e:.5}"))
+            rows[0]["error_against_reference"]["rmse"]
+                .as_f64()
+                .map_or(String::new(), |e| format!(
+                    "; RMSE against its reference {e:.5}"
+                ))
         );
     }
     let mut last_skipped = Vec::new();
@@ -1253,7 +1758,10 @@ fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, 
                 stats.pixels_retraced,
                 stats.shaft_tests,
                 stats.rays,
-                error.map_or(String::new(), |e| format!("; RMSE against its reference {:.5}", e.rmse))
+                error.map_or(String::new(), |e| format!(
+                    "; RMSE against its reference {:.5}",
+                    e.rmse
+                ))
             );
         }
         rows.push(json!({
@@ -1270,18 +1778,27 @@ fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, 
         let mut bytes: Vec<u8> = photo
             .pixels
             .iter()
-            .flat_map(|p| (*p * (0.09 / photo.mean().max(1e-12) as f32)).to_array().map(|c| (image_io::linear_to_srgb(c) * 255.0) as u8))
+            .flat_map(|p| {
+                (*p * (0.09 / photo.mean().max(1e-12) as f32))
+                    .to_array()
+                    .map(|c| (image_io::linear_to_srgb(c) * 255.0) as u8)
+            })
             .collect();
         if let Some(skipped) = last_skipped.iter().find(|s| !s.is_empty()) {
             for &(level, bx, by) in skipped {
                 let (x0, y0, x1, y1) = blocks.block_pixels(level, bx, by);
-                let colour = arlux::surface_ids::id_colour(level as i32 + 3 * (bx as i32 + by as i32) % 2);
+                let colour =
+                    arlux::surface_ids::id_colour(level as i32 + 3 * (bx as i32 + by as i32) % 2);
                 for y in y0..y1 {
                     for x in x0..x1 {
                         let i = ((y * w + x) * 3) as usize;
                         let edge = x == x0 || y == y0;
                         for c in 0..3 {
-                            bytes[i + c] = if edge { 0 } else { ((bytes[i + c] as u16 + colour[c] as u16) / 2) as u8 };
+                            bytes[i + c] = if edge {
+                                0
+                            } else {
+                                ((bytes[i + c] as u16 + colour[c] as u16) / 2) as u8
+                            };
                         }
                     }
                 }
@@ -1294,17 +1811,30 @@ fn motion_cmd(path: &Path, name: &str, dir: &Path, debug_blocks: Option<&Path>, 
     if as_json {
         say!(
             "{}",
-            serde_json::to_string_pretty(&json!({ "motion": name, "poses": rows, "pda_bytes": pda_bytes, "block_bytes": block_bytes, "block_bytes_end": block_bytes_end }))?
+            serde_json::to_string_pretty(
+                &json!({ "motion": name, "poses": rows, "pda_bytes": pda_bytes, "block_bytes": block_bytes, "block_bytes_end": block_bytes_end })
+            )?
         );
     } else {
-        say!("pixel blocks at the end: {:.1} MB", block_bytes_end as f64 / 1e6);
+        say!(
+            "pixel blocks at the end: {:.1} MB",
+            block_bytes_end as f64 / 1e6
+        );
     }
     Ok(())
 }
 
 fn stages_json(times: &arlux::model::StageTimes) -> serde_json::Value {
-    let side_by_side = times.1.iter().map(|(n, d)| json!({ "stage": n, "seconds": d.as_secs_f64(), "side_by_side": true }));
-    times.0.iter().map(|(n, d)| json!({ "stage": n, "seconds": d.as_secs_f64() })).chain(side_by_side).collect()
+    let side_by_side = times
+        .1
+        .iter()
+        .map(|(n, d)| json!({ "stage": n, "seconds": d.as_secs_f64(), "side_by_side": true }));
+    times
+        .0
+        .iter()
+        .map(|(n, d)| json!({ "stage": n, "seconds": d.as_secs_f64() }))
+        .chain(side_by_side)
+        .collect()
 }
 
 fn print_stages(times: &arlux::model::StageTimes) -> Result<()> {
@@ -1313,8 +1843,16 @@ fn print_stages(times: &arlux::model::StageTimes) -> Result<()> {
         say!("  {name:<26} {:>9.1} ms", d.as_secs_f64() * 1e3);
     }
     for (name, d) in &times.1 {
-        say!("  {:<26} {:>9.1} ms", format!("{SIDE_BY_SIDE}{name}"), d.as_secs_f64() * 1e3);
+        say!(
+            "  {:<26} {:>9.1} ms",
+            format!("{SIDE_BY_SIDE}{name}"),
+            d.as_secs_f64() * 1e3
+        );
     }
-    say!("  {:<26} {:>9.1} ms", "total", times.total().as_secs_f64() * 1e3);
+    say!(
+        "  {:<26} {:>9.1} ms",
+        "total",
+        times.total().as_secs_f64() * 1e3
+    );
     Ok(())
 }

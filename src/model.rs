@@ -45,7 +45,9 @@ impl Default for ModelSettings {
     fn default() -> Self {
         ModelSettings {
             patch_size: 0.25,
-            transport: TransportMethod::Hierarchical { epsilon: DEFAULT_LINK_EPSILON },
+            transport: TransportMethod::Hierarchical {
+                epsilon: DEFAULT_LINK_EPSILON,
+            },
             light_level: 4,
             estimate: EstimateSettings::default(),
         }
@@ -56,7 +58,10 @@ impl Default for ModelSettings {
 /// side within one of those (see [`StageTimes::concurrently`]), which the
 /// total leaves out.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct StageTimes(pub Vec<(&'static str, Duration)>, pub Vec<(&'static str, Duration)>);
+pub struct StageTimes(
+    pub Vec<(&'static str, Duration)>,
+    pub Vec<(&'static str, Duration)>,
+);
 
 impl StageTimes {
     /// Runs `f` and records its time under `name`.
@@ -105,24 +110,55 @@ pub struct Model {
 impl Model {
     /// Builds the model of `scene`'s real surfaces under its lights as the
     /// photo shows them (real lights at scale 1, virtual lights off).
-    pub fn build(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &ModelSettings, times: &mut StageTimes) -> Result<Model> {
+    pub fn build(
+        scene: &Scene,
+        photo: &Image,
+        tracer: &Tracer,
+        settings: &ModelSettings,
+        times: &mut StageTimes,
+    ) -> Result<Model> {
         let lights = LightSource::all(scene)?;
-        let patches = times.time("mesh", || Patches::of_scene(scene, false, settings.patch_size));
-        let direct_per_light =
-            times.time("direct light", || direct_irradiance(&patches, &lights, tracer, Layer::Real, settings.light_level));
+        let patches = times.time("mesh", || {
+            Patches::of_scene(scene, false, settings.patch_size)
+        });
+        let direct_per_light = times.time("direct light", || {
+            direct_irradiance(&patches, &lights, tracer, Layer::Real, settings.light_level)
+        });
         let transport = times.time("form factors", || match settings.transport {
             TransportMethod::Full => Transport::full(&patches, tracer, Layer::Real),
-            TransportMethod::Hierarchical { epsilon } => Transport::hierarchical(&patches, tracer, Layer::Real, epsilon),
+            TransportMethod::Hierarchical { epsilon } => {
+                Transport::hierarchical(&patches, tracer, Layer::Real, epsilon)
+            }
         });
-        let photo = times.time("photo per patch", || PhotoPatches::measure(&scene.camera, tracer, &patches, photo));
-        let known: HashMap<u32, DVec3> = scene.reflectances.iter().map(|k| (k.surface as u32, k.rgb)).collect();
+        let photo = times.time("photo per patch", || {
+            PhotoPatches::measure(&scene.camera, tracer, &patches, photo)
+        });
+        let known: HashMap<u32, DVec3> = scene
+            .reflectances
+            .iter()
+            .map(|k| (k.surface as u32, k.rgb))
+            .collect();
         // The photo shows the real lights as they are and no virtual light.
         let scales: Vec<f64> = lights.iter().map(|l| l.photo_scale()).collect();
         let direct = total_direct(&scales, &direct_per_light);
         let estimate = times.time("estimate + solve", || {
-            estimate_reflectances(&patches, &transport, &direct, &photo, &known, settings.estimate)
+            estimate_reflectances(
+                &patches,
+                &transport,
+                &direct,
+                &photo,
+                &known,
+                settings.estimate,
+            )
         });
-        Ok(Model { patches, lights, direct_per_light, transport, photo, estimate })
+        Ok(Model {
+            patches,
+            lights,
+            direct_per_light,
+            transport,
+            photo,
+            estimate,
+        })
     }
 }
 
@@ -146,7 +182,9 @@ impl ModelView {
     pub fn render(scene: &Scene, tracer: &Tracer, model: &Model, level: usize) -> ModelView {
         let cam = &scene.camera;
         let (w, h) = (cam.width as usize, cam.height as usize);
-        let vertex_indirect = model.patches.vertex_values(&model.estimate.solution.indirect_irradiance);
+        let vertex_indirect = model
+            .patches
+            .vertex_values(&model.estimate.solution.indirect_irradiance);
         let pi = std::f64::consts::PI;
         // Per pixel: radiance, direct, indirect, reflectance, surface id, rays.
         type Sample = (DVec3, DVec3, DVec3, DVec3, i32, u64);
@@ -161,19 +199,40 @@ impl ModelView {
                         let Some(hit) = hit else { return none };
                         let ray = cam.pixel_ray(col as u32, row as u32);
                         let x = ray.origin + ray.direction * hit.t as f64;
-                        let Some(at) = model.patches.locate(hit.surface, hit.triangle, x) else { return none };
+                        let Some(at) = model.patches.locate(hit.surface, hit.triangle, x) else {
+                            return none;
+                        };
                         let n = hit.normal.as_dvec3();
                         let seed = hash2((row * w + col) as u64, 0x0D1_EC7);
                         let mut e = DVec3::ZERO;
                         let mut count = 0u64;
-                        for (li, light) in model.lights.iter().enumerate().filter(|(_, l)| l.photo_scale() > 0.0) {
-                            let d = light.direct(tracer, Layer::Real, x, n, level, hash2(seed, li as u64));
+                        for (li, light) in model
+                            .lights
+                            .iter()
+                            .enumerate()
+                            .filter(|(_, l)| l.photo_scale() > 0.0)
+                        {
+                            let d = light.direct(
+                                tracer,
+                                Layer::Real,
+                                x,
+                                n,
+                                level,
+                                hash2(seed, li as u64),
+                            );
                             e += d.unoccluded * d.visibility * light.photo_scale();
                             count += d.rays as u64;
                         }
                         let indirect = model.patches.interpolate(&vertex_indirect, &at);
                         let rho = model.estimate.reflectance[at.patch as usize];
-                        (rho * (e + indirect) / pi, e, indirect, rho, at.patch as i32, count)
+                        (
+                            rho * (e + indirect) / pi,
+                            e,
+                            indirect,
+                            rho,
+                            at.patch as i32,
+                            count,
+                        )
                     })
                     .collect()
             })
@@ -203,7 +262,12 @@ impl ModelView {
 /// treated as unknown, and the photo is scaled until their estimates match
 /// the known values (a few rounds: the indirect term makes it not quite
 /// linear). `None` when no reflectance is known (radiance stays relative).
-pub fn bracket_scale(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &ModelSettings) -> Option<f64> {
+pub fn bracket_scale(
+    scene: &Scene,
+    photo: &Image,
+    tracer: &Tracer,
+    settings: &ModelSettings,
+) -> Option<f64> {
     if scene.reflectances.is_empty() {
         return None;
     }
@@ -214,10 +278,16 @@ pub fn bracket_scale(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &M
     let direct = total_direct(&scales, &per_light);
     let transport = match settings.transport {
         TransportMethod::Full => Transport::full(&patches, tracer, Layer::Real),
-        TransportMethod::Hierarchical { epsilon } => Transport::hierarchical(&patches, tracer, Layer::Real, epsilon),
+        TransportMethod::Hierarchical { epsilon } => {
+            Transport::hierarchical(&patches, tracer, Layer::Real, epsilon)
+        }
     };
     let measured = PhotoPatches::measure(&scene.camera, tracer, &patches, photo);
-    let known: HashMap<u32, DVec3> = scene.reflectances.iter().map(|k| (k.surface as u32, k.rgb)).collect();
+    let known: HashMap<u32, DVec3> = scene
+        .reflectances
+        .iter()
+        .map(|k| (k.surface as u32, k.rgb))
+        .collect();
     // ln(known / estimated) at a given scale, averaged over known surfaces.
     let mismatch = |scale: f64| -> Option<f64> {
         let scaled = PhotoPatches {
@@ -225,7 +295,14 @@ pub fn bracket_scale(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &M
             pixels: measured.pixels.clone(),
             image_mean: measured.image_mean * scale,
         };
-        let est = estimate_reflectances(&patches, &transport, &direct, &scaled, &HashMap::new(), settings.estimate);
+        let est = estimate_reflectances(
+            &patches,
+            &transport,
+            &direct,
+            &scaled,
+            &HashMap::new(),
+            settings.estimate,
+        );
         let logs: Vec<f64> = known
             .iter()
             .filter_map(|(s, rgb)| {

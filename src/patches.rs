@@ -17,15 +17,25 @@ use crate::geometry::Triangle;
 pub enum Shape {
     Tri([DVec3; 3]),
     /// The parallelogram origin, origin+u, origin+u+v, origin+v.
-    Quad { origin: DVec3, u: DVec3, v: DVec3 },
+    Quad {
+        origin: DVec3,
+        u: DVec3,
+        v: DVec3,
+    },
 }
 
 impl Shape {
     /// The corners in order (3 or 4), without allocating.
     pub fn corners(&self) -> Corners {
         match *self {
-            Shape::Tri([a, b, c]) => Corners { points: [a, b, c, c], len: 3 },
-            Shape::Quad { origin, u, v } => Corners { points: [origin, origin + u, origin + u + v, origin + v], len: 4 },
+            Shape::Tri([a, b, c]) => Corners {
+                points: [a, b, c, c],
+                len: 3,
+            },
+            Shape::Quad { origin, u, v } => Corners {
+                points: [origin, origin + u, origin + u + v, origin + v],
+                len: 4,
+            },
         }
     }
 
@@ -89,9 +99,15 @@ impl Shape {
                 for i in 0..n {
                     for j in 0..n - i {
                         let (fi, fj) = (i as f64, j as f64);
-                        out.push((a + e1 * ((fi + 1.0 / 3.0) / k) + e2 * ((fj + 1.0 / 3.0) / k), w));
+                        out.push((
+                            a + e1 * ((fi + 1.0 / 3.0) / k) + e2 * ((fj + 1.0 / 3.0) / k),
+                            w,
+                        ));
                         if i + j + 1 < n {
-                            out.push((a + e1 * ((fi + 2.0 / 3.0) / k) + e2 * ((fj + 2.0 / 3.0) / k), w));
+                            out.push((
+                                a + e1 * ((fi + 2.0 / 3.0) / k) + e2 * ((fj + 2.0 / 3.0) / k),
+                                w,
+                            ));
                         }
                     }
                 }
@@ -221,7 +237,11 @@ pub struct Patches {
 impl Patches {
     /// The polygon of every root element of a real surface.
     pub fn real_root_polygons(&self) -> Vec<Vec<DVec3>> {
-        self.roots.iter().filter(|&&r| !self.is_virtual_element(r)).map(|&r| self.elements[r as usize].shape.corners().to_vec()).collect()
+        self.roots
+            .iter()
+            .filter(|&&r| !self.is_virtual_element(r))
+            .map(|&r| self.elements[r as usize].shape.corners().to_vec())
+            .collect()
     }
 
     /// Whether element `e` lies on a virtual object.
@@ -244,7 +264,12 @@ impl Patches {
     /// [`Patches::of_scene`] with its own patch size for the virtual objects.
     /// Open surfaces face the camera: the photo shows that side, and a
     /// single radiosity for both sides would pass light through walls.
-    pub fn of_scene_with(scene: &crate::scene::Scene, with_virtual: bool, target_size: f64, virtual_size: f64) -> Patches {
+    pub fn of_scene_with(
+        scene: &crate::scene::Scene,
+        with_virtual: bool,
+        target_size: f64,
+        virtual_size: f64,
+    ) -> Patches {
         let mut p = Self::of_scene_two_sided(scene, with_virtual, target_size, virtual_size);
         p.face_open_surfaces_towards(scene.camera.position);
         p
@@ -254,10 +279,21 @@ impl Patches {
     /// room's own mesh, `room` = `of_scene(scene, false, target_size)`:
     /// its part is the same, so it is copied rather than meshed again (an
     /// update meshes the moved objects alone).
-    pub fn of_scene_from_room(room: &Patches, scene: &crate::scene::Scene, virtual_size: f64) -> Patches {
+    pub fn of_scene_from_room(
+        room: &Patches,
+        scene: &crate::scene::Scene,
+        virtual_size: f64,
+    ) -> Patches {
         let mut p = room.clone();
         let virt = scene.virtual_world_surfaces();
-        let inputs: Vec<SurfaceInput> = virt.iter().map(|(id, t)| SurfaceInput { surface: *id, triangles: t, is_virtual: true }).collect();
+        let inputs: Vec<SurfaceInput> = virt
+            .iter()
+            .map(|(id, t)| SurfaceInput {
+                surface: *id,
+                triangles: t,
+                is_virtual: true,
+            })
+            .collect();
         p.append(&inputs, virtual_size);
         p.face_open_surfaces_towards(scene.camera.position);
         p
@@ -265,28 +301,67 @@ impl Patches {
 
     /// [`Patches::of_scene_with`] with the real leaves in `marks` split once
     /// more (the meshes are otherwise identical: same roots, same order).
-    pub fn of_scene_refined(scene: &crate::scene::Scene, with_virtual: bool, target_size: f64, virtual_size: f64, marks: &SplitMarks) -> Patches {
-        let mut p = Self::of_scene_two_sided_marked(scene, with_virtual, target_size, virtual_size, marks);
+    pub fn of_scene_refined(
+        scene: &crate::scene::Scene,
+        with_virtual: bool,
+        target_size: f64,
+        virtual_size: f64,
+        marks: &SplitMarks,
+    ) -> Patches {
+        let mut p =
+            Self::of_scene_two_sided_marked(scene, with_virtual, target_size, virtual_size, marks);
         p.face_open_surfaces_towards(scene.camera.position);
         p
     }
 
-    fn of_scene_two_sided(scene: &crate::scene::Scene, with_virtual: bool, target_size: f64, virtual_size: f64) -> Patches {
-        Self::of_scene_two_sided_marked(scene, with_virtual, target_size, virtual_size, &SplitMarks::new())
+    fn of_scene_two_sided(
+        scene: &crate::scene::Scene,
+        with_virtual: bool,
+        target_size: f64,
+        virtual_size: f64,
+    ) -> Patches {
+        Self::of_scene_two_sided_marked(
+            scene,
+            with_virtual,
+            target_size,
+            virtual_size,
+            &SplitMarks::new(),
+        )
     }
 
-    fn of_scene_two_sided_marked(scene: &crate::scene::Scene, with_virtual: bool, target_size: f64, virtual_size: f64, marks: &SplitMarks) -> Patches {
-        let virt = if with_virtual { scene.virtual_world_surfaces() } else { Vec::new() };
+    fn of_scene_two_sided_marked(
+        scene: &crate::scene::Scene,
+        with_virtual: bool,
+        target_size: f64,
+        virtual_size: f64,
+        marks: &SplitMarks,
+    ) -> Patches {
+        let virt = if with_virtual {
+            scene.virtual_world_surfaces()
+        } else {
+            Vec::new()
+        };
         let inputs: Vec<SurfaceInput> = scene
             .surfaces
             .iter()
             .enumerate()
-            .map(|(i, s)| SurfaceInput { surface: i as u32, triangles: &s.triangles, is_virtual: false })
+            .map(|(i, s)| SurfaceInput {
+                surface: i as u32,
+                triangles: &s.triangles,
+                is_virtual: false,
+            })
             .collect();
         let mut p = Patches::build(&[], target_size);
         p.append_marked(&inputs, target_size, marks);
         if !virt.is_empty() {
-            let virt_inputs: Vec<SurfaceInput> = virt.iter().map(|(id, t)| SurfaceInput { surface: *id, triangles: t, is_virtual: true }).collect();
+            let virt_inputs: Vec<SurfaceInput> = virt
+                .iter()
+                .map(|(id, t)| SurfaceInput {
+                    surface: *id,
+                    triangles: t,
+                    is_virtual: true,
+                })
+                .collect();
             p.append(&virt_inputs, virtual_size);
         }
         p
@@ -342,15 +417,22 @@ impl Patches {
     fn append_marked(&mut self, inputs: &[SurfaceInput], target_size: f64, marks: &SplitMarks) {
         let mut weld: HashMap<(u32, [i64; 4], [i64; 3]), u32> = HashMap::new();
         for input in inputs {
-            self.surface_is_virtual.insert(input.surface, input.is_virtual);
+            self.surface_is_virtual
+                .insert(input.surface, input.is_virtual);
             // A closed surface is a solid: its faces are one-sided, facing
             // out, or light would bounce around inside it. (The parity test
             // is linear in the surface's triangles: large solids stay two-sided.)
-            let closed = input.triangles.len() <= MAX_SOLID_TRIANGLES && crate::geometry::is_closed(input.triangles);
+            let closed = input.triangles.len() <= MAX_SOLID_TRIANGLES
+                && crate::geometry::is_closed(input.triangles);
             for (shape, tris) in primitives(input.triangles) {
                 let root = self.elements.len() as u32;
                 let region = match shape {
-                    Shape::Quad { .. } => Region::Quad { s0: 0.0, s1: 1.0, t0: 0.0, t1: 1.0 },
+                    Shape::Quad { .. } => Region::Quad {
+                        s0: 0.0,
+                        s1: 1.0,
+                        t0: 0.0,
+                        t1: 1.0,
+                    },
                     Shape::Tri(_) => Region::Tri([DVec2::ZERO, DVec2::X, DVec2::Y]),
                 };
                 self.push_element(shape, input.surface, root, None, region);
@@ -375,15 +457,31 @@ impl Patches {
                     of[t as usize] = root;
                 }
                 let ordinal = self.roots.len() as u32 - 1;
-                self.subdivide(root, target_size, 0, &mut weld, marks.get(&ordinal).map_or(&[][..], |m| &m[..]));
+                self.subdivide(
+                    root,
+                    target_size,
+                    0,
+                    &mut weld,
+                    marks.get(&ordinal).map_or(&[][..], |m| &m[..]),
+                );
             }
         }
     }
 
-    fn push_element(&mut self, shape: Shape, surface: u32, root: u32, parent: Option<u32>, region: Region) -> u32 {
+    fn push_element(
+        &mut self,
+        shape: Shape,
+        surface: u32,
+        root: u32,
+        parent: Option<u32>,
+        region: Region,
+    ) -> u32 {
         // Children face the way their parent faces.
         let (normal, one_sided) = match parent {
-            Some(p) => (self.elements[p as usize].normal, self.elements[p as usize].one_sided),
+            Some(p) => (
+                self.elements[p as usize].normal,
+                self.elements[p as usize].one_sided,
+            ),
             None => (shape.normal(), false),
         };
         self.elements.push(Element {
@@ -404,10 +502,21 @@ impl Patches {
         (self.elements.len() - 1) as u32
     }
 
-    fn subdivide(&mut self, e: u32, target: f64, depth: u32, weld: &mut HashMap<(u32, [i64; 4], [i64; 3]), u32>, marks: &[(DVec2, f64)]) {
+    fn subdivide(
+        &mut self,
+        e: u32,
+        target: f64,
+        depth: u32,
+        weld: &mut HashMap<(u32, [i64; 4], [i64; 3]), u32>,
+        marks: &[(DVec2, f64)],
+    ) {
         let el = self.elements[e as usize].clone();
         let size = el.shape.size();
-        let marked = || marks.iter().any(|(st, s)| size >= s * (1.0 - 1e-9) && distance_outside(&el.region, *st) <= 1e-12);
+        let marked = || {
+            marks.iter().any(|(st, s)| {
+                size >= s * (1.0 - 1e-9) && distance_outside(&el.region, *st) <= 1e-12
+            })
+        };
         if (size <= target && !marked()) || depth >= 40 {
             let patch = self.patches.len() as u32;
             self.patches.push(e);
@@ -416,10 +525,20 @@ impl Patches {
             // Vertices are shared within a plane only: a solid's edge joins
             // faces that face different ways and see different light.
             let n = el.shape.normal();
-            let n = if n.x.abs() > 1e-9 { n * n.x.signum() } else if n.y.abs() > 1e-9 { n * n.y.signum() } else { n * n.z.signum() };
+            let n = if n.x.abs() > 1e-9 {
+                n * n.x.signum()
+            } else if n.y.abs() > 1e-9 {
+                n * n.y.signum()
+            } else {
+                n * n.z.signum()
+            };
             let plane = [n.x, n.y, n.z, n.dot(el.centre)].map(|v| (v * 1e4).round() as i64);
             for (k, c) in el.shape.corners().iter().enumerate() {
-                let key = (el.surface, plane, (*c * 1e6).round().as_i64vec3().to_array());
+                let key = (
+                    el.surface,
+                    plane,
+                    (*c * 1e6).round().as_i64vec3().to_array(),
+                );
                 let next = self.vertices.len() as u32;
                 ids[k] = *weld.entry(key).or_insert(next);
                 if ids[k] == next {
@@ -459,7 +578,11 @@ impl Patches {
 
     /// The root element holding triangle `triangle` of `surface`.
     pub fn root_of(&self, surface: u32, triangle: u32) -> Option<u32> {
-        self.root_of_triangle.get(surface as usize)?.get(triangle as usize).copied().filter(|&r| r != u32::MAX)
+        self.root_of_triangle
+            .get(surface as usize)?
+            .get(triangle as usize)
+            .copied()
+            .filter(|&r| r != u32::MAX)
     }
 
     /// `x`'s parameters (s, t) in root element `root`.
@@ -485,16 +608,35 @@ impl Patches {
         // Within a quad root (nearly every point), a halved quad's point lies
         // in the half on its side of the cut: the same choice the distances
         // below make, as the distance across the cut is then exactly zero.
-        let in_quad = matches!(self.elements[root as usize].region, Region::Quad { .. }) && st.cmpge(DVec2::ZERO).all() && st.cmple(DVec2::ONE).all();
+        let in_quad = matches!(self.elements[root as usize].region, Region::Quad { .. })
+            && st.cmpge(DVec2::ZERO).all()
+            && st.cmple(DVec2::ONE).all();
         while let Some([a, b]) = self.elements[e as usize].children {
-            let (ra, rp) = (&self.elements[a as usize].region, &self.elements[e as usize].region);
-            if let (true, Region::Quad { s1, t1, .. }, Region::Quad { s1: ps1, .. }) = (in_quad, ra, rp) {
-                e = if if *s1 != *ps1 { st.x <= *s1 } else { st.y <= *t1 } { a } else { b };
+            let (ra, rp) = (
+                &self.elements[a as usize].region,
+                &self.elements[e as usize].region,
+            );
+            if let (true, Region::Quad { s1, t1, .. }, Region::Quad { s1: ps1, .. }) =
+                (in_quad, ra, rp)
+            {
+                e = if if *s1 != *ps1 {
+                    st.x <= *s1
+                } else {
+                    st.y <= *t1
+                } {
+                    a
+                } else {
+                    b
+                };
                 continue;
             }
             // Inside a: a, whatever b's distance (the same choice, one test fewer).
             let da = distance_outside(ra, st);
-            e = if da == 0.0 || da <= distance_outside(&self.elements[b as usize].region, st) { a } else { b };
+            e = if da == 0.0 || da <= distance_outside(&self.elements[b as usize].region, st) {
+                a
+            } else {
+                b
+            };
         }
         let el = &self.elements[e as usize];
         let patch = el.patch.expect("leaves are patches");
@@ -503,12 +645,22 @@ impl Patches {
             Region::Quad { s0, s1, t0, t1 } => {
                 let a = ((st.x - s0) / (s1 - s0)).clamp(0.0, 1.0);
                 let b = ((st.y - t0) / (t1 - t0)).clamp(0.0, 1.0);
-                [(ids[0], (1.0 - a) * (1.0 - b)), (ids[1], a * (1.0 - b)), (ids[2], a * b), (ids[3], (1.0 - a) * b)]
+                [
+                    (ids[0], (1.0 - a) * (1.0 - b)),
+                    (ids[1], a * (1.0 - b)),
+                    (ids[2], a * b),
+                    (ids[3], (1.0 - a) * b),
+                ]
             }
             Region::Tri(q) => {
                 let l = barycentric(st, q).map(|w| w.max(0.0));
                 let sum = (l[0] + l[1] + l[2]).max(1e-300);
-                [(ids[0], l[0] / sum), (ids[1], l[1] / sum), (ids[2], l[2] / sum), (ids[0], 0.0)]
+                [
+                    (ids[0], l[0] / sum),
+                    (ids[1], l[1] / sum),
+                    (ids[2], l[2] / sum),
+                    (ids[0], 0.0),
+                ]
             }
         };
         Location { patch, weights }
@@ -520,18 +672,28 @@ impl Patches {
         let mut weight = vec![0.0; self.vertices.len()];
         for (k, ids) in self.patch_vertices.iter().enumerate() {
             let a = self.patch(k).area;
-            let n = if matches!(self.patch(k).shape, Shape::Tri(_)) { 3 } else { 4 };
+            let n = if matches!(self.patch(k).shape, Shape::Tri(_)) {
+                3
+            } else {
+                4
+            };
             for &v in &ids[..n] {
                 sum[v as usize] += patch_values[k] * a;
                 weight[v as usize] += a;
             }
         }
-        sum.iter().zip(&weight).map(|(s, w)| if *w > 0.0 { *s / *w } else { DVec3::ZERO }).collect()
+        sum.iter()
+            .zip(&weight)
+            .map(|(s, w)| if *w > 0.0 { *s / *w } else { DVec3::ZERO })
+            .collect()
     }
 
     /// Interpolates vertex values at a located point.
     pub fn interpolate(&self, vertex_values: &[DVec3], at: &Location) -> DVec3 {
-        at.weights.iter().map(|&(v, w)| vertex_values[v as usize] * w).sum()
+        at.weights
+            .iter()
+            .map(|&(v, w)| vertex_values[v as usize] * w)
+            .sum()
     }
 }
 
@@ -548,24 +710,51 @@ pub fn split(shape: Shape, region: Region) -> [(Shape, Region); 2] {
             if u.length() >= v.length() {
                 let (h, sm) = (0.5 * u, 0.5 * (s0 + s1));
                 [
-                    (Shape::Quad { origin, u: h, v }, Region::Quad { s0, s1: sm, t0, t1 }),
-                    (Shape::Quad { origin: origin + h, u: h, v }, Region::Quad { s0: sm, s1, t0, t1 }),
+                    (
+                        Shape::Quad { origin, u: h, v },
+                        Region::Quad { s0, s1: sm, t0, t1 },
+                    ),
+                    (
+                        Shape::Quad {
+                            origin: origin + h,
+                            u: h,
+                            v,
+                        },
+                        Region::Quad { s0: sm, s1, t0, t1 },
+                    ),
                 ]
             } else {
                 let (h, tm) = (0.5 * v, 0.5 * (t0 + t1));
                 [
-                    (Shape::Quad { origin, u, v: h }, Region::Quad { s0, s1, t0, t1: tm }),
-                    (Shape::Quad { origin: origin + h, u, v: h }, Region::Quad { s0, s1, t0: tm, t1 }),
+                    (
+                        Shape::Quad { origin, u, v: h },
+                        Region::Quad { s0, s1, t0, t1: tm },
+                    ),
+                    (
+                        Shape::Quad {
+                            origin: origin + h,
+                            u,
+                            v: h,
+                        },
+                        Region::Quad { s0, s1, t0: tm, t1 },
+                    ),
                 ]
             }
         }
         (Shape::Tri(p), Region::Tri(q)) => {
             // Bisect the longest edge (i, j); k is the opposite corner.
-            let lens = [(p[1] - p[0]).length(), (p[2] - p[1]).length(), (p[0] - p[2]).length()];
+            let lens = [
+                (p[1] - p[0]).length(),
+                (p[2] - p[1]).length(),
+                (p[0] - p[2]).length(),
+            ];
             let i = (0..3).max_by(|&a, &b| lens[a].total_cmp(&lens[b])).unwrap();
             let (j, k) = ((i + 1) % 3, (i + 2) % 3);
             let (m, mq) = (0.5 * (p[i] + p[j]), 0.5 * (q[i] + q[j]));
-            [(Shape::Tri([p[i], m, p[k]]), Region::Tri([q[i], mq, q[k]])), (Shape::Tri([m, p[j], p[k]]), Region::Tri([mq, q[j], q[k]]))]
+            [
+                (Shape::Tri([p[i], m, p[k]]), Region::Tri([q[i], mq, q[k]])),
+                (Shape::Tri([m, p[j], p[k]]), Region::Tri([mq, q[j], q[k]])),
+            ]
         }
         _ => unreachable!("an element's region matches its shape"),
     }
@@ -599,7 +788,9 @@ fn barycentric(p: DVec2, q: [DVec2; 3]) -> [f64; 3] {
 /// holds a point, robustly at shared edges.
 pub fn distance_outside(region: &Region, st: DVec2) -> f64 {
     match *region {
-        Region::Quad { s0, s1, t0, t1 } => (s0 - st.x).max(st.x - s1).max(0.0) + (t0 - st.y).max(st.y - t1).max(0.0),
+        Region::Quad { s0, s1, t0, t1 } => {
+            (s0 - st.x).max(st.x - s1).max(0.0) + (t0 - st.y).max(st.y - t1).max(0.0)
+        }
         Region::Tri(q) => barycentric(st, q).iter().map(|w| (-w).max(0.0)).sum(),
     }
 }
@@ -614,7 +805,10 @@ fn primitives(triangles: &[Triangle]) -> Vec<(Shape, Vec<u32>)> {
     for (i, t) in triangles.iter().enumerate() {
         for k in 0..3 {
             let (a, b) = (key(t[k]), key(t[(k + 1) % 3]));
-            by_edge.entry(if a < b { (a, b) } else { (b, a) }).or_default().push(i as u32);
+            by_edge
+                .entry(if a < b { (a, b) } else { (b, a) })
+                .or_default()
+                .push(i as u32);
         }
     }
     let mut used = vec![false; triangles.len()];
@@ -628,7 +822,9 @@ fn primitives(triangles: &[Triangle]) -> Vec<(Shape, Vec<u32>)> {
         let mut paired = None;
         'edges: for k in 0..3 {
             let (a, b) = (key(triangles[i][k]), key(triangles[i][(k + 1) % 3]));
-            let Some(others) = by_edge.get(&if a < b { (a, b) } else { (b, a) }) else { continue };
+            let Some(others) = by_edge.get(&if a < b { (a, b) } else { (b, a) }) else {
+                continue;
+            };
             for &j in others {
                 let j = j as usize;
                 if used[j] {
@@ -636,15 +832,31 @@ fn primitives(triangles: &[Triangle]) -> Vec<(Shape, Vec<u32>)> {
                 }
                 // Shared edge (p, q); opposite corners r (of i) and r2 (of j).
                 let (p, q, r) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-                let Some(r2) = tris[j].iter().copied().find(|c| (*c - p).length() > 1e-9 && (*c - q).length() > 1e-9) else {
+                let Some(r2) = tris[j]
+                    .iter()
+                    .copied()
+                    .find(|c| (*c - p).length() > 1e-9 && (*c - q).length() > 1e-9)
+                else {
                     continue;
                 };
                 // Within the single-precision corners' own rounding: a
                 // solid moved away from the origin keeps its quads.
                 let scale = (p - r).length().max((q - r).length());
-                let magnitude = [p, q, r, r2].iter().map(|c| c.abs().max_element()).fold(0.0, f64::max);
-                if ((p + q) - (r + r2)).length() <= 1e-7 * scale.max(1e-9) + 8.0 * f32::EPSILON as f64 * magnitude {
-                    paired = Some((j, Shape::Quad { origin: r, u: p - r, v: q - r }));
+                let magnitude = [p, q, r, r2]
+                    .iter()
+                    .map(|c| c.abs().max_element())
+                    .fold(0.0, f64::max);
+                if ((p + q) - (r + r2)).length()
+                    <= 1e-7 * scale.max(1e-9) + 8.0 * f32::EPSILON as f64 * magnitude
+                {
+                    paired = Some((
+                        j,
+                        Shape::Quad {
+                            origin: r,
+                            u: p - r,
+                            v: q - r,
+                        },
+                    ));
                     break 'edges;
                 }
             }

@@ -37,7 +37,11 @@ pub struct PdaSettings {
 
 impl Default for PdaSettings {
     fn default() -> Self {
-        PdaSettings { min_level: 2, penumbra_level: 4, supersample: 4 }
+        PdaSettings {
+            min_level: 2,
+            penumbra_level: 4,
+            supersample: 4,
+        }
     }
 }
 
@@ -55,12 +59,21 @@ pub struct LightTerm {
 impl LightTerm {
     pub fn new(unoccluded: f32, visible_real: f64, visible_all: f64) -> LightTerm {
         let q = |v: f64| (v.clamp(0.0, 1.0) * 65535.0).round() as u16;
-        LightTerm { unoccluded, visible_real: q(visible_real), visible_all: q(visible_all) }
+        LightTerm {
+            unoccluded,
+            visible_real: q(visible_real),
+            visible_all: q(visible_all),
+        }
     }
 
     /// The visible fraction through real geometry only, or through all.
     pub fn visible(&self, all: bool) -> f64 {
-        (if all { self.visible_all } else { self.visible_real }) as f64 / 65535.0
+        (if all {
+            self.visible_all
+        } else {
+            self.visible_real
+        }) as f64
+            / 65535.0
     }
 }
 
@@ -81,10 +94,18 @@ impl RealMask {
     const MAX_SAMPLES: usize = 16;
     /// No sample blocked at either level: what a point whose light the
     /// room cannot block knows without a ray.
-    const CLEAR: RealMask = RealMask { first: 0, penumbra: 0, known: 3 };
+    const CLEAR: RealMask = RealMask {
+        first: 0,
+        penumbra: 0,
+        known: 3,
+    };
 
     fn get(&self, penumbra: bool) -> Option<u16> {
-        let (bit, v) = if penumbra { (2, self.penumbra) } else { (1, self.first) };
+        let (bit, v) = if penumbra {
+            (2, self.penumbra)
+        } else {
+            (1, self.first)
+        };
         (self.known & bit != 0).then_some(v)
     }
 
@@ -207,7 +228,8 @@ impl VirtualBounds {
             let object = ObjectBounds::around(&points);
             let sides = clear_sides(t, (object.aabb.1 - object.aabb.0).length());
             let convex = sides.iter().all(|c| *c != Vec3::ZERO);
-            out.convex_centre.push(convex.then(|| points.iter().sum::<DVec3>() / points.len() as f64));
+            out.convex_centre
+                .push(convex.then(|| points.iter().sum::<DVec3>() / points.len() as f64));
             out.clear_side.push(sides);
             out.objects.push(object);
             out.surfaces.push(*surface);
@@ -233,9 +255,18 @@ impl VirtualBounds {
             .iter()
             .map(|o| {
                 let corners = o.upright.corners();
-                let pad = 2.0 * crate::light::origin_lift(DVec3::splat(corners.iter().map(|c| c.abs().max_element()).fold(0.0, f64::max)));
+                let pad = 2.0
+                    * crate::light::origin_lift(DVec3::splat(
+                        corners
+                            .iter()
+                            .map(|c| c.abs().max_element())
+                            .fold(0.0, f64::max),
+                    ));
                 let grown = o.upright.padded(pad).corners();
-                lights.iter().map(|light| clear_of_room(&corners, &grown, light, room)).collect()
+                lights
+                    .iter()
+                    .map(|light| clear_of_room(&corners, &grown, light, room))
+                    .collect()
             })
             .collect();
         self
@@ -248,35 +279,68 @@ impl VirtualBounds {
     /// it; then n faces out where the solid's centre lies behind x), the
     /// room cannot block it ([`VirtualBounds::with_room`]), and no other
     /// object's box meets the box around it and the light.
-    pub fn only_own_blocks(&self, surface: u32, x: DVec3, n: DVec3, l: usize, light: &LightSource) -> bool {
-        let Some(k) = self.surfaces.iter().position(|&s| s == surface) else { return false };
-        let Some(centre) = self.convex_centre[k] else { return false };
+    pub fn only_own_blocks(
+        &self,
+        surface: u32,
+        x: DVec3,
+        n: DVec3,
+        l: usize,
+        light: &LightSource,
+    ) -> bool {
+        let Some(k) = self.surfaces.iter().position(|&s| s == surface) else {
+            return false;
+        };
+        let Some(centre) = self.convex_centre[k] else {
+            return false;
+        };
         let (llo, lhi) = light.bounds();
-        let (lo, hi) = (self.objects[k].aabb.0.min(llo), self.objects[k].aabb.1.max(lhi));
-        let apart = |(j, o): (usize, &ObjectBounds)| j == k || o.aabb.0.cmpgt(hi).any() || o.aabb.1.cmplt(lo).any();
-        (x - centre).dot(n) > 0.0 && self.room_clear_of(k, l) && self.objects.iter().enumerate().all(apart)
+        let (lo, hi) = (
+            self.objects[k].aabb.0.min(llo),
+            self.objects[k].aabb.1.max(lhi),
+        );
+        let apart = |(j, o): (usize, &ObjectBounds)| {
+            j == k || o.aabb.0.cmpgt(hi).any() || o.aabb.1.cmplt(lo).any()
+        };
+        (x - centre).dot(n) > 0.0
+            && self.room_clear_of(k, l)
+            && self.objects.iter().enumerate().all(apart)
     }
 
     /// Whether the room cannot block light between `p` (on an object) and light `l`.
     fn room_clear(&self, p: &SurfacePoint, l: usize) -> bool {
-        p.is_virtual && self.surfaces.iter().position(|&s| s == p.surface).is_some_and(|k| self.room_clear_of(k, l))
+        p.is_virtual
+            && self
+                .surfaces
+                .iter()
+                .position(|&s| s == p.surface)
+                .is_some_and(|k| self.room_clear_of(k, l))
     }
 
     /// Whether the room cannot block light between object `k` and light `l`
     /// (no when not asked: [`VirtualBounds::with_room`]).
     fn room_clear_of(&self, k: usize, l: usize) -> bool {
-        self.room_clear.get(k).and_then(|c| c.get(l)).copied().unwrap_or(false)
+        self.room_clear
+            .get(k)
+            .and_then(|c| c.get(l))
+            .copied()
+            .unwrap_or(false)
     }
 
     /// The index of the solid `p` lies on, when `p`'s face is clear of it.
     fn own_clear(&self, p: &SurfacePoint) -> Option<usize> {
-        p.clear_of_own.then(|| self.surfaces.iter().position(|&s| s == p.surface)).flatten()
+        p.clear_of_own
+            .then(|| self.surfaces.iter().position(|&s| s == p.surface))
+            .flatten()
     }
 
     /// Whether `hit`'s point, facing `hit.normal`, lies on a face clear of its own solid.
     fn is_clear_of_own(&self, hit: &Hit) -> bool {
-        let Some(k) = self.surfaces.iter().position(|&s| s == hit.surface) else { return false };
-        self.clear_side[k].get(hit.triangle as usize).is_some_and(|n| n.dot(hit.normal) > 0.0)
+        let Some(k) = self.surfaces.iter().position(|&s| s == hit.surface) else {
+            return false;
+        };
+        self.clear_side[k]
+            .get(hit.triangle as usize)
+            .is_some_and(|n| n.dot(hit.normal) > 0.0)
     }
 
     pub fn is_empty(&self) -> bool {
@@ -286,14 +350,23 @@ impl VirtualBounds {
     /// Whether light travelling from `x` to the light's emitter may pass a
     /// virtual object, other than the surface of box `own` (clear of x).
     fn may_shadow(&self, x: DVec3, light: &LightSource, own: Option<usize>) -> bool {
-        let others = || self.objects.iter().enumerate().filter(move |(k, _)| Some(*k) != own).map(|(_, o)| o);
+        let others = || {
+            self.objects
+                .iter()
+                .enumerate()
+                .filter(move |(k, _)| Some(*k) != own)
+                .map(|(_, o)| o)
+        };
         match light.rect_corners() {
             None => others().any(|o| o.meets_segment(x, light.position)),
             Some(quad) => {
                 // A box apart from the one around x and the light meets no
                 // ray between them: no pyramid needed (most points, most boxes).
-                let (slo, shi) = quad.iter().fold((x, x), |(lo, hi), c| (lo.min(*c), hi.max(*c)));
-                let near = |o: &&ObjectBounds| !(o.aabb.0.cmpgt(shi).any() || o.aabb.1.cmplt(slo).any());
+                let (slo, shi) = quad
+                    .iter()
+                    .fold((x, x), |(lo, hi), c| (lo.min(*c), hi.max(*c)));
+                let near =
+                    |o: &&ObjectBounds| !(o.aabb.0.cmpgt(shi).any() || o.aabb.1.cmplt(slo).any());
                 if !others().any(|o| near(&o)) {
                     return false;
                 }
@@ -316,7 +389,12 @@ pub fn own_blocks(x: DVec3, n: DVec3, centre: DVec3, y: DVec3) -> bool {
 /// Whether no polygon of `room` can block a segment from a point of the
 /// box with corners `object` (`grown`: grown by the rays' lift) to a point
 /// of the light (see [`VirtualBounds::with_room`]).
-fn clear_of_room(object: &[DVec3; 8], grown: &[DVec3; 8], light: &LightSource, room: &[Vec<DVec3>]) -> bool {
+fn clear_of_room(
+    object: &[DVec3; 8],
+    grown: &[DVec3; 8],
+    light: &LightSource,
+    room: &[Vec<DVec3>],
+) -> bool {
     let emitter = match light.rect_corners() {
         Some(quad) => quad.to_vec(),
         None => vec![light.position],
@@ -331,14 +409,20 @@ fn clear_of_room(object: &[DVec3; 8], grown: &[DVec3; 8], light: &LightSource, r
             return true;
         }
         // Newell's normal: any polygon the mesh keeps as a root.
-        let n = polygon.iter().zip(polygon.iter().cycle().skip(1)).fold(DVec3::ZERO, |n, (a, b)| n + a.cross(*b));
+        let n = polygon
+            .iter()
+            .zip(polygon.iter().cycle().skip(1))
+            .fold(DVec3::ZERO, |n, (a, b)| n + a.cross(*b));
         if n != DVec3::ZERO {
             let d = |e: &DVec3| (*e - polygon[0]).dot(n) / n.length();
             if ends.iter().all(|e| d(e) >= -slack) || ends.iter().all(|e| d(e) <= slack) {
                 return true;
             }
         }
-        hull.get_or_insert_with(|| Shaft::hull(&grown.iter().chain(&emitter).copied().collect::<Vec<_>>())).excludes(polygon)
+        hull.get_or_insert_with(|| {
+            Shaft::hull(&grown.iter().chain(&emitter).copied().collect::<Vec<_>>())
+        })
+        .excludes(polygon)
     })
 }
 
@@ -347,7 +431,9 @@ fn clear_of_room(object: &[DVec3; 8], grown: &[DVec3; 8], light: &LightSource, r
 /// solid's corners (within `size` × 1e-5: the corners are single
 /// precision), or zero.
 fn clear_sides(triangles: &[crate::geometry::Triangle], size: f64) -> Vec<Vec3> {
-    if triangles.len() * 3 * triangles.len() > CLEAR_TEST_LIMIT || !crate::geometry::is_closed(triangles) {
+    if triangles.len() * 3 * triangles.len() > CLEAR_TEST_LIMIT
+        || !crate::geometry::is_closed(triangles)
+    {
         return vec![Vec3::ZERO; triangles.len()];
     }
     let tolerance = 1e-5 * size;
@@ -392,7 +478,13 @@ pub struct PdaInput<'a> {
 impl PdaInput<'_> {
     /// The light terms of a surface point; returns rays cast. `masks`:
     /// where to keep each light's real blockers (real points only).
-    fn terms(&self, p: &SurfacePoint, seed: u64, out: &mut Vec<LightTerm>, mut masks: Option<&mut Vec<RealMask>>) -> u64 {
+    fn terms(
+        &self,
+        p: &SurfacePoint,
+        seed: u64,
+        out: &mut Vec<LightTerm>,
+        mut masks: Option<&mut Vec<RealMask>>,
+    ) -> u64 {
         let (x, n) = (p.position.as_dvec3(), p.normal.as_dvec3());
         let own = self.bounds.own_clear(p);
         let mut rays = 0;
@@ -405,7 +497,18 @@ impl PdaInput<'_> {
                 } else {
                     self.bounds.room_clear(p, l).then_some(&mut clear)
                 };
-                let (term, r) = light_term(self.tracer, light, self.bounds, own, x, n, hash2(seed, l as u64), self.settings, None, keep);
+                let (term, r) = light_term(
+                    self.tracer,
+                    light,
+                    self.bounds,
+                    own,
+                    x,
+                    n,
+                    hash2(seed, l as u64),
+                    self.settings,
+                    None,
+                    keep,
+                );
                 out.push(term);
                 rays += r;
             } else {
@@ -421,9 +524,20 @@ impl PdaInput<'_> {
     fn point(&self, hit: &Hit, origin: DVec3, direction: DVec3) -> Option<SurfacePoint> {
         let x = origin + direction * hit.t as f64;
         let at = self.patches.locate(hit.surface, hit.triangle, x)?;
-        let location = PatchPoint { patch: at.patch, weights: at.weights.map(|(_, w)| w as f32) };
+        let location = PatchPoint {
+            patch: at.patch,
+            weights: at.weights.map(|(_, w)| w as f32),
+        };
         let clear_of_own = hit.is_virtual && self.bounds.is_clear_of_own(hit);
-        Some(SurfacePoint { position: x.as_vec3(), normal: hit.normal, surface: hit.surface, is_virtual: hit.is_virtual, pixel_terms: false, clear_of_own, location })
+        Some(SurfacePoint {
+            position: x.as_vec3(),
+            normal: hit.normal,
+            surface: hit.surface,
+            is_virtual: hit.is_virtual,
+            pixel_terms: false,
+            clear_of_own,
+            location,
+        })
     }
 }
 
@@ -479,17 +593,33 @@ fn light_term(
                 (!blocked, 1)
             }
         };
-        let all = real_visible && !if check_virtual { tracer.occluded(&ray, Layer::Virtual) } else { own_blocks(light.position) };
+        let all = real_visible
+            && !if check_virtual {
+                tracer.occluded(&ray, Layer::Virtual)
+            } else {
+                own_blocks(light.position)
+            };
         rays_cast += (real_visible && check_virtual) as u64;
         let f = |b: bool| if b { 1.0 } else { 0.0 };
-        return (LightTerm::new(unoccluded, f(real_visible), f(all)), rays_cast);
+        return (
+            LightTerm::new(unoccluded, f(real_visible), f(all)),
+            rays_cast,
+        );
     };
     // Buffers for the most rays one call may cast: on the stack for the
     // usual budgets (filling 256 entries per pixel and light, whatever the
     // budget, cost more than the shading around it), on the heap beyond.
-    let most = 1usize << settings.min_level.max(settings.penumbra_level).min(crate::light::MAX_GRID_LEVEL);
+    let most = 1usize
+        << settings
+            .min_level
+            .max(settings.penumbra_level)
+            .min(crate::light::MAX_GRID_LEVEL);
     const SMALL: usize = 16;
-    let mut run = |targets: &mut [DVec3], rays: &mut [TraceRay], real_blocked: &mut [bool], virt_blocked: &mut [bool]| -> (LightTerm, u64) {
+    let mut run = |targets: &mut [DVec3],
+                   rays: &mut [TraceRay],
+                   real_blocked: &mut [bool],
+                   virt_blocked: &mut [bool]|
+     -> (LightTerm, u64) {
         let mut level = settings.min_level;
         let mut rays_cast = 0u64;
         loop {
@@ -500,14 +630,19 @@ fn light_term(
                 count += 1;
             }
             let penumbra = level != settings.min_level;
-            let keep = real.as_deref_mut().filter(|_| count <= RealMask::MAX_SAMPLES);
+            let keep = real
+                .as_deref_mut()
+                .filter(|_| count <= RealMask::MAX_SAMPLES);
             match keep.as_ref().and_then(|m| m.get(penumbra)) {
                 Some(bits) => (0..count).for_each(|k| real_blocked[k] = bits >> k & 1 == 1),
                 None => {
                     tracer.occluded_batch(&rays[..count], Layer::Real, &mut real_blocked[..count]);
                     rays_cast += count as u64;
                     if let Some(m) = keep {
-                        m.set(penumbra, (0..count).fold(0u16, |b, k| b | (real_blocked[k] as u16) << k));
+                        m.set(
+                            penumbra,
+                            (0..count).fold(0u16, |b, k| b | (real_blocked[k] as u16) << k),
+                        );
                     }
                 }
             }
@@ -521,7 +656,8 @@ fn light_term(
             }
             // Which rays the room blocks, and which it or the objects block:
             // some, and some not, of each.
-            let (mut real_some, mut real_none, mut all_some, mut all_none) = (false, false, false, false);
+            let (mut real_some, mut real_none, mut all_some, mut all_none) =
+                (false, false, false, false);
             for k in 0..count {
                 let all = real_blocked[k] || virt_blocked[k];
                 real_some |= real_blocked[k];
@@ -539,12 +675,16 @@ fn light_term(
             // towards x per sample) are needed only for the rest.
             if !real_mixed && !all_mixed {
                 let settled = |some: bool| if some { 0.0 } else { 1.0 };
-                return (LightTerm::new(unoccluded, settled(real_some), settled(all_some)), rays_cast);
+                return (
+                    LightTerm::new(unoccluded, settled(real_some), settled(all_some)),
+                    rays_cast,
+                );
             }
             // Each ray weighs what its sample contributes at x.
             let (mut total, mut real, mut all) = (0.0, 0.0, 0.0);
             for k in 0..count {
-                let w = crate::light::point_contribution(targets[k], x, n, |d| light.intensity(d)).max_element();
+                let w = crate::light::point_contribution(targets[k], x, n, |d| light.intensity(d))
+                    .max_element();
                 total += w;
                 if !real_blocked[k] {
                     real += w;
@@ -559,9 +699,19 @@ fn light_term(
     };
     let blank = TraceRay::new(glam::Vec3::ZERO, glam::Vec3::Z);
     if most <= SMALL {
-        run(&mut [DVec3::ZERO; SMALL], &mut [blank; SMALL], &mut [false; SMALL], &mut [false; SMALL])
+        run(
+            &mut [DVec3::ZERO; SMALL],
+            &mut [blank; SMALL],
+            &mut [false; SMALL],
+            &mut [false; SMALL],
+        )
     } else {
-        run(&mut vec![DVec3::ZERO; most], &mut vec![blank; most], &mut vec![false; most], &mut vec![false; most])
+        run(
+            &mut vec![DVec3::ZERO; most],
+            &mut vec![blank; most],
+            &mut vec![false; most],
+            &mut vec![false; most],
+        )
     }
 }
 
@@ -574,7 +724,11 @@ impl PixelDataArray {
         let has_virtual = input.tracer.virtual_objects.is_some();
         // Pixels near a virtual object's image are tested for mixed sub-pixels.
         let near_virtual = screen_boxes(cam, input.bounds);
-        let candidates = if near_virtual.is_empty() { None } else { edge_candidates(input) };
+        let candidates = if near_virtual.is_empty() {
+            None
+        } else {
+            edge_candidates(input)
+        };
         let candidate = |pixel: u32| candidates.as_ref().is_none_or(|m| m[pixel as usize]);
 
         struct Row {
@@ -591,7 +745,17 @@ impl PixelDataArray {
         let rows: Vec<Row> = (0..h)
             .into_par_iter()
             .map(|row| {
-                let mut r = Row { real: vec![], real_terms: vec![], real_masks: vec![], virt: vec![], virt_terms: vec![], edges: vec![], edge_terms: vec![], real_t: vec![], rays: 0 };
+                let mut r = Row {
+                    real: vec![],
+                    real_terms: vec![],
+                    real_masks: vec![],
+                    virt: vec![],
+                    virt_terms: vec![],
+                    edges: vec![],
+                    edge_terms: vec![],
+                    real_t: vec![],
+                    rays: 0,
+                };
                 let rays: Vec<TraceRay> = (0..w)
                     .map(|col| {
                         let ray = cam.pixel_ray(col, row);
@@ -599,21 +763,36 @@ impl PixelDataArray {
                     })
                     .collect();
                 let mut real_hits = vec![None; w as usize];
-                input.tracer.intersect_batch(&rays, Layer::Real, &mut real_hits);
-                let real_t: Vec<f32> = rays.iter().zip(&real_hits).map(|(r, h)| h.map_or(r.tfar, |h| h.t)).collect();
+                input
+                    .tracer
+                    .intersect_batch(&rays, Layer::Real, &mut real_hits);
+                let real_t: Vec<f32> = rays
+                    .iter()
+                    .zip(&real_hits)
+                    .map(|(r, h)| h.map_or(r.tfar, |h| h.t))
+                    .collect();
                 // What a query through both layers gives, its real half kept from above.
                 let mut all_hits = real_hits.clone();
                 if has_virtual {
-                    input.tracer.put_virtual_in_front(&rays, &real_t, &mut all_hits);
+                    input
+                        .tracer
+                        .put_virtual_in_front(&rays, &real_t, &mut all_hits);
                 }
                 r.real_t = real_t;
                 for col in 0..w {
                     let pixel = row * w + col;
                     let seed = hash2(pixel as u64, 0x5A17);
                     let ray = cam.pixel_ray(col, row);
-                    let real = real_hits[col as usize].as_ref().and_then(|hit| input.point(hit, ray.origin, ray.direction));
+                    let real = real_hits[col as usize]
+                        .as_ref()
+                        .and_then(|hit| input.point(hit, ray.origin, ray.direction));
                     if let Some(p) = real {
-                        r.rays += input.terms(&p, seed, &mut r.real_terms, input.for_updates.then_some(&mut r.real_masks));
+                        r.rays += input.terms(
+                            &p,
+                            seed,
+                            &mut r.real_terms,
+                            input.for_updates.then_some(&mut r.real_masks),
+                        );
                         r.real.push((pixel, p));
                     }
                     if let Some(hit) = all_hits[col as usize].as_ref().filter(|h| h.is_virtual)
@@ -624,8 +803,17 @@ impl PixelDataArray {
                     }
                     if near_virtual.iter().any(|b| b.contains(col, row)) && candidate(pixel) {
                         // Only a real point the pixel's centre sees: one behind an object may be in its shadow.
-                        let seen = all_hits[col as usize].as_ref().is_some_and(|h| !h.is_virtual);
-                        let (kept, rays) = edge_samples(input, col, row, seed, real.as_ref().filter(|_| seen), &mut r.edge_terms);
+                        let seen = all_hits[col as usize]
+                            .as_ref()
+                            .is_some_and(|h| !h.is_virtual);
+                        let (kept, rays) = edge_samples(
+                            input,
+                            col,
+                            row,
+                            seed,
+                            real.as_ref().filter(|_| seen),
+                            &mut r.edge_terms,
+                        );
                         r.rays += rays;
                         if let Some(kept) = kept {
                             r.edges.push((pixel, kept));
@@ -668,7 +856,11 @@ impl PixelDataArray {
             pda.virtual_samples.terms.extend(r.virt_terms);
             for (pixel, subs) in r.edges {
                 let start = pda.edge_samples.points.len() as u32;
-                pda.edges.push(EdgePixel { pixel, start, count: subs.len() as u32 });
+                pda.edges.push(EdgePixel {
+                    pixel,
+                    start,
+                    count: subs.len() as u32,
+                });
                 pda.edge_samples.points.extend(subs);
             }
             pda.edge_samples.terms.extend(r.edge_terms);
@@ -685,12 +877,23 @@ impl PixelDataArray {
     /// as the pixel-block traversal found them.
     ///
     /// [`build`]: PixelDataArray::build
-    pub fn recompute_real_terms(&mut self, input: &PdaInput, pixels: &[u32], now: &[u32], light: usize) -> u64 {
+    pub fn recompute_real_terms(
+        &mut self,
+        input: &PdaInput,
+        pixels: &[u32],
+        now: &[u32],
+        light: usize,
+    ) -> u64 {
         if !input.active[light] {
             return 0;
         }
         let lights = self.light_count;
-        let (real_index, points, terms, masks) = (&self.real_index, &self.real.points, &self.real.terms, &self.real_masks);
+        let (real_index, points, terms, masks) = (
+            &self.real_index,
+            &self.real.points,
+            &self.real.terms,
+            &self.real_masks,
+        );
         // Only what the objects block can have changed: the geometry factor
         // and the room's blockers are taken as the full render found them.
         let fresh: Vec<(usize, LightTerm, Option<RealMask>, u64)> = pixels
@@ -753,7 +956,11 @@ impl PixelDataArray {
         }
         self.edges.clear();
         let boxes = screen_boxes(cam, input.bounds);
-        let candidates = if boxes.is_empty() { None } else { edge_candidates(input) };
+        let candidates = if boxes.is_empty() {
+            None
+        } else {
+            edge_candidates(input)
+        };
         let candidate = |pixel: u32| candidates.as_ref().is_none_or(|m| m[pixel as usize]);
         // The nearest any object can be to the camera: a pixel whose real
         // surface (and its neighbours', which its sub-pixels may reach) is
@@ -765,11 +972,19 @@ impl PixelDataArray {
             .map(|o| (cam.position.clamp(o.aabb.0, o.aabb.1) - cam.position).length())
             .fold(f64::INFINITY, f64::min);
         let hidden = |x: u32, y: u32| {
-            let (x0, x1, y0, y1) = (x.saturating_sub(1), (x + 1).min(self.width - 1), y.saturating_sub(1), (y + 1).min(self.height - 1));
+            let (x0, x1, y0, y1) = (
+                x.saturating_sub(1),
+                (x + 1).min(self.width - 1),
+                y.saturating_sub(1),
+                (y + 1).min(self.height - 1),
+            );
             (y0..=y1).all(|yy| {
                 (x0..=x1).all(|xx| {
                     let k = self.real_index[(yy * self.width + xx) as usize];
-                    k != NONE && (self.real.points[k as usize].position.as_dvec3() - cam.position).length() < nearest
+                    k != NONE
+                        && (self.real.points[k as usize].position.as_dvec3() - cam.position)
+                            .length()
+                            < nearest
                 })
             })
         };
@@ -785,7 +1000,12 @@ impl PixelDataArray {
         }
         pixels.sort_unstable();
         pixels.dedup();
-        type Found = (u32, Option<(SurfacePoint, Vec<LightTerm>)>, Option<(Vec<SurfacePoint>, Vec<LightTerm>)>, u64);
+        type Found = (
+            u32,
+            Option<(SurfacePoint, Vec<LightTerm>)>,
+            Option<(Vec<SurfacePoint>, Vec<LightTerm>)>,
+            u64,
+        );
         // Centre rays in packets of 16 (the kernel `build` traces with, so
         // the same bits), through the objects only as far as the real hit
         // `build` found; then each pixel's shading and edge test.
@@ -802,7 +1022,9 @@ impl PixelDataArray {
                     .collect();
                 let before: Vec<f32> = chunk.iter().map(|&pixel| real_t[pixel as usize]).collect();
                 let mut hits = vec![None; chunk.len()];
-                input.tracer.intersect_virtual_before(&traced, &before, &mut hits);
+                input
+                    .tracer
+                    .intersect_virtual_before(&traced, &before, &mut hits);
                 chunk.iter().copied().zip(hits).collect::<Vec<_>>()
             })
             .collect::<Vec<_>>()
@@ -812,16 +1034,25 @@ impl PixelDataArray {
                 let seed = hash2(pixel as u64, 0x5A17);
                 let ray = cam.pixel_ray(col, row);
                 let mut rays = 0;
-                let virt = hit.filter(|h| h.is_virtual).and_then(|h| input.point(&h, ray.origin, ray.direction)).map(|p| {
-                    let mut terms = Vec::with_capacity(input.lights.len());
-                    rays += input.terms(&p, hash2(seed, 1), &mut terms, None);
-                    (p, terms)
-                });
+                let virt = hit
+                    .filter(|h| h.is_virtual)
+                    .and_then(|h| input.point(&h, ray.origin, ray.direction))
+                    .map(|p| {
+                        let mut terms = Vec::with_capacity(input.lights.len());
+                        rays += input.terms(&p, hash2(seed, 1), &mut terms, None);
+                        (p, terms)
+                    });
                 let mut edge_terms = Vec::new();
                 // No object in front: the centre sees the real hit, if there is one.
                 let seen = hit.is_none() && real_t[pixel as usize].is_finite();
-                let real = Some(self.real_index[pixel as usize]).filter(|&k| k != NONE && seen).map(|k| &self.real.points[k as usize]);
-                let (kept, r) = if candidate(pixel) { edge_samples(input, col, row, seed, real, &mut edge_terms) } else { (None, 0) };
+                let real = Some(self.real_index[pixel as usize])
+                    .filter(|&k| k != NONE && seen)
+                    .map(|k| &self.real.points[k as usize]);
+                let (kept, r) = if candidate(pixel) {
+                    edge_samples(input, col, row, seed, real, &mut edge_terms)
+                } else {
+                    (None, 0)
+                };
                 rays += r;
                 let edge = kept.map(|kept| (kept, edge_terms));
                 (pixel, virt, edge, rays)
@@ -838,7 +1069,11 @@ impl PixelDataArray {
             }
             if let Some((kept, terms)) = edge {
                 let start = self.edge_samples.points.len() as u32;
-                self.edges.push(EdgePixel { pixel, start, count: kept.len() as u32 });
+                self.edges.push(EdgePixel {
+                    pixel,
+                    start,
+                    count: kept.len() as u32,
+                });
                 self.edge_samples.points.extend(kept);
                 self.edge_samples.terms.extend(terms);
             }
@@ -848,8 +1083,15 @@ impl PixelDataArray {
 
     /// Bytes held, and per pixel.
     pub fn memory_bytes(&self) -> usize {
-        let samples = |s: &Samples| s.points.len() * std::mem::size_of::<SurfacePoint>() + s.terms.len() * std::mem::size_of::<LightTerm>();
-        (self.real_index.len() + self.real_t.len() + self.virtual_index.len() + self.virtual_pixels.len()) * 4
+        let samples = |s: &Samples| {
+            s.points.len() * std::mem::size_of::<SurfacePoint>()
+                + s.terms.len() * std::mem::size_of::<LightTerm>()
+        };
+        (self.real_index.len()
+            + self.real_t.len()
+            + self.virtual_index.len()
+            + self.virtual_pixels.len())
+            * 4
             + samples(&self.real)
             + self.real_masks.len() * std::mem::size_of::<RealMask>()
             + samples(&self.virtual_samples)
@@ -863,7 +1105,14 @@ impl PixelDataArray {
 /// where they do not mix. `real`: the pixel's own real point when its
 /// centre sees it, whose light terms the real sub-pixels on its plane take
 /// (no rays of their own; their terms here are left empty). Returns rays cast.
-fn edge_samples(input: &PdaInput, col: u32, row: u32, seed: u64, real: Option<&SurfacePoint>, terms: &mut Vec<LightTerm>) -> (Option<Vec<SurfacePoint>>, u64) {
+fn edge_samples(
+    input: &PdaInput,
+    col: u32,
+    row: u32,
+    seed: u64,
+    real: Option<&SurfacePoint>,
+    terms: &mut Vec<LightTerm>,
+) -> (Option<Vec<SurfacePoint>>, u64) {
     let n = input.settings.supersample;
     if n <= 1 {
         return (None, 0);
@@ -881,13 +1130,18 @@ fn edge_samples(input: &PdaInput, col: u32, row: u32, seed: u64, real: Option<&S
     for (k, s) in subs.into_iter().enumerate() {
         // A sub-pixel that sees nothing counts as the photo's background.
         if let Some(mut p) = s {
-            p.pixel_terms = !p.is_virtual && real.is_some_and(|r| r.surface == p.surface && r.normal.dot(p.normal) > 0.999);
+            p.pixel_terms = !p.is_virtual
+                && real.is_some_and(|r| r.surface == p.surface && r.normal.dot(p.normal) > 0.999);
             // Sub-pixels on one plane share the light of the first of them:
             // within a pixel's footprint it differs by less than the shadow
             // rays' own noise, and each would cost a full set of rays.
-            let first = kept.iter().position(|q| !q.pixel_terms && q.surface == p.surface && q.normal.dot(p.normal) > 0.999);
+            let first = kept.iter().position(|q| {
+                !q.pixel_terms && q.surface == p.surface && q.normal.dot(p.normal) > 0.999
+            });
             match first {
-                _ if p.pixel_terms => terms.extend(std::iter::repeat_n(LightTerm::default(), lights)),
+                _ if p.pixel_terms => {
+                    terms.extend(std::iter::repeat_n(LightTerm::default(), lights))
+                }
                 Some(j) => terms.extend_from_within(base + j * lights..base + (j + 1) * lights),
                 None => rays += input.terms(&p, hash2(seed, 100 + k as u64), terms, None),
             }
@@ -918,7 +1172,9 @@ fn sub_pixels_mix(input: &PdaInput, col: u32, row: u32, n: u32) -> (bool, Vec<Op
             *ray = sub_ray(cam, col, row, n, k as u32).0;
         }
         let mut hits = [None; PACKET];
-        input.tracer.intersect_batch(&rays[..len], Layer::Virtual, &mut hits[..len]);
+        input
+            .tracer
+            .intersect_batch(&rays[..len], Layer::Virtual, &mut hits[..len]);
         rays_cast += len as u64;
         // Of the sub-rays meeting an object, those a real surface hides before it.
         let mut short = [TraceRay::new(glam::Vec3::ZERO, glam::Vec3::Z); PACKET];
@@ -933,7 +1189,9 @@ fn sub_pixels_mix(input: &PdaInput, col: u32, row: u32, n: u32) -> (bool, Vec<Op
         }
         if m > 0 {
             let mut hidden = [false; PACKET];
-            input.tracer.occluded_batch(&short[..m], Layer::Real, &mut hidden[..m]);
+            input
+                .tracer
+                .occluded_batch(&short[..m], Layer::Real, &mut hidden[..m]);
             rays_cast += m as u64;
             for (&k, hidden) in at[..m].iter().zip(&hidden[..m]) {
                 if !hidden {
@@ -949,8 +1207,15 @@ fn sub_pixels_mix(input: &PdaInput, col: u32, row: u32, n: u32) -> (bool, Vec<Op
 /// Sub-ray k of a pixel's n×n (row by row), for the tracer and in double precision.
 fn sub_ray(cam: &Camera, col: u32, row: u32, n: u32, k: u32) -> (TraceRay, DVec3, DVec3) {
     let (i, j) = (k % n, k / n);
-    let r = cam.ray(col as f64 + (i as f64 + 0.5) / n as f64, row as f64 + (j as f64 + 0.5) / n as f64);
-    (TraceRay::new(r.origin.as_vec3(), r.direction.as_vec3()), r.origin, r.direction)
+    let r = cam.ray(
+        col as f64 + (i as f64 + 0.5) / n as f64,
+        row as f64 + (j as f64 + 0.5) / n as f64,
+    );
+    (
+        TraceRay::new(r.origin.as_vec3(), r.direction.as_vec3()),
+        r.origin,
+        r.direction,
+    )
 }
 
 /// The pixels whose sub-pixels may mix real and virtual surfaces, as a
@@ -985,15 +1250,30 @@ fn edge_candidates(input: &PdaInput) -> Option<Vec<bool>> {
     // Within this many pixels of an edge a sub-ray may fall either side
     // once the tracer's single precision has rounded it.
     const MARGIN: f64 = 0.01;
-    let roots: Vec<&crate::patches::Element> = patches.roots.iter().filter(|r| is_virtual(r)).map(|&r| &patches.elements[r as usize]).collect();
+    let roots: Vec<&crate::patches::Element> = patches
+        .roots
+        .iter()
+        .filter(|r| is_virtual(r))
+        .map(|&r| &patches.elements[r as usize])
+        .collect();
     let edges = interior_edges(cam, &roots);
     for root in &roots {
         let corners = root.shape.corners();
-        let projected: Option<Vec<(f64, f64)>> = corners.iter().map(|c| cam.project(*c).map(|(x, y, _)| (x, y))).collect();
+        let projected: Option<Vec<(f64, f64)>> = corners
+            .iter()
+            .map(|c| cam.project(*c).map(|(x, y, _)| (x, y)))
+            .collect();
         let projected = projected?;
         for (k, a) in projected.iter().enumerate() {
             if !edges.contains(&edge_key(corners[k], corners[(k + 1) % corners.len()])) {
-                mark_segment(&mut marks, w, h, *a, projected[(k + 1) % projected.len()], MARGIN);
+                mark_segment(
+                    &mut marks,
+                    w,
+                    h,
+                    *a,
+                    projected[(k + 1) % projected.len()],
+                    MARGIN,
+                );
             }
         }
     }
@@ -1034,7 +1314,11 @@ fn interior_edges(cam: &Camera, roots: &[&crate::patches::Element]) -> HashSet<E
                     let cross = (b - a).perp_dot(c - a);
                     // Within rounding of the line: edge-on.
                     let size = (b - a).length() * (c - a).length();
-                    if cross.abs() <= 1e-9 * size { 0 } else { cross.signum() as i32 }
+                    if cross.abs() <= 1e-9 * size {
+                        0
+                    } else {
+                        cross.signum() as i32
+                    }
                 }
                 _ => 0,
             };
@@ -1045,7 +1329,11 @@ fn interior_edges(cam: &Camera, roots: &[&crate::patches::Element]) -> HashSet<E
         }
     }
     // Two polygons, one strictly on each side.
-    sides.into_iter().filter(|(_, (count, left, right))| *count == 2 && *left && *right).map(|(edge, _)| edge).collect()
+    sides
+        .into_iter()
+        .filter(|(_, (count, left, right))| *count == 2 && *left && *right)
+        .map(|(edge, _)| edge)
+        .collect()
 }
 
 /// Marks every pixel whose square comes within `margin` of segment a–b.
@@ -1086,18 +1374,31 @@ fn mark_segment(marks: &mut [bool], w: u32, h: u32, a: (f64, f64), b: (f64, f64)
 /// the scene), given the object each sub-ray sees ([`sub_pixels_mix`]):
 /// only the others are traced, through the room. Returns the points and
 /// the rays cast.
-fn sub_points(input: &PdaInput, col: u32, row: u32, n: u32, visible: &[Option<Hit>]) -> (Vec<Option<SurfacePoint>>, u64) {
+fn sub_points(
+    input: &PdaInput,
+    col: u32,
+    row: u32,
+    n: u32,
+    visible: &[Option<Hit>],
+) -> (Vec<Option<SurfacePoint>>, u64) {
     let cam = input.camera;
-    let rays: Vec<(TraceRay, DVec3, DVec3)> = (0..n * n).map(|k| sub_ray(cam, col, row, n, k)).collect();
+    let rays: Vec<(TraceRay, DVec3, DVec3)> =
+        (0..n * n).map(|k| sub_ray(cam, col, row, n, k)).collect();
     let rest: Vec<usize> = (0..rays.len()).filter(|&k| visible[k].is_none()).collect();
     let traced: Vec<TraceRay> = rest.iter().map(|&k| rays[k].0).collect();
     let mut hits = visible.to_vec();
     let mut real = vec![None; traced.len()];
-    input.tracer.intersect_batch(&traced, Layer::Real, &mut real);
+    input
+        .tracer
+        .intersect_batch(&traced, Layer::Real, &mut real);
     for (&k, h) in rest.iter().zip(real) {
         hits[k] = h;
     }
-    let points = hits.iter().zip(&rays).map(|(h, r)| h.as_ref().and_then(|h| input.point(h, r.1, r.2))).collect();
+    let points = hits
+        .iter()
+        .zip(&rays)
+        .map(|(h, r)| h.as_ref().and_then(|h| input.point(h, r.1, r.2)))
+        .collect();
     (points, traced.len() as u64)
 }
 
@@ -1124,10 +1425,23 @@ fn screen_boxes(cam: &Camera, bounds: &VirtualBounds) -> Vec<PixelBox> {
         .iter()
         .map(|o| {
             let (lo, hi) = &o.aabb;
-            let projected: Option<Vec<(f64, f64)>> = box_corners(*lo, *hi).iter().map(|c| cam.project(*c).map(|(x, y, _)| (x, y))).collect();
-            let full = PixelBox { x0: 0, y0: 0, x1: cam.width - 1, y1: cam.height - 1 };
+            let projected: Option<Vec<(f64, f64)>> = box_corners(*lo, *hi)
+                .iter()
+                .map(|c| cam.project(*c).map(|(x, y, _)| (x, y)))
+                .collect();
+            let full = PixelBox {
+                x0: 0,
+                y0: 0,
+                x1: cam.width - 1,
+                y1: cam.height - 1,
+            };
             let Some(pts) = projected else { return full };
-            let (mut x0, mut y0, mut x1, mut y1) = (f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
+            let (mut x0, mut y0, mut x1, mut y1) = (
+                f64::INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::NEG_INFINITY,
+            );
             for (x, y) in pts {
                 x0 = x0.min(x);
                 y0 = y0.min(y);
@@ -1154,9 +1468,25 @@ mod tests {
 
     /// The 12 triangles of the box lo..hi, wound outwards.
     fn cube(lo: Vec3, hi: Vec3) -> Vec<crate::geometry::Triangle> {
-        let c = |i: usize| Vec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z });
-        let quads = [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]];
-        quads.iter().flat_map(|q| [[c(q[0]), c(q[1]), c(q[2])], [c(q[0]), c(q[2]), c(q[3])]]).collect()
+        let c = |i: usize| {
+            Vec3::new(
+                if i & 1 == 0 { lo.x } else { hi.x },
+                if i & 2 == 0 { lo.y } else { hi.y },
+                if i & 4 == 0 { lo.z } else { hi.z },
+            )
+        };
+        let quads = [
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+        ];
+        quads
+            .iter()
+            .flat_map(|q| [[c(q[0]), c(q[1]), c(q[2])], [c(q[0]), c(q[2]), c(q[3])]])
+            .collect()
     }
 
     #[test]
@@ -1166,75 +1496,160 @@ mod tests {
         let centre = (lo + hi) / 2.0;
         for (t, side) in one.iter().zip(clear_sides(&one, 1.0)) {
             let outward = (t[0] + t[1] + t[2]) / 3.0 - centre;
-            assert!(side.dot(outward) > 0.0 && (side.length() - 1.0).abs() < 1e-6, "{t:?}: {side}");
+            assert!(
+                side.dot(outward) > 0.0 && (side.length() - 1.0).abs() < 1e-6,
+                "{t:?}: {side}"
+            );
         }
         // Two boxes as one solid: a face turned to the other box is not clear.
         let mut two = one.clone();
         two.extend(cube(Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.3, 0.3, 0.3)));
         let sides = clear_sides(&two, 1.3);
-        let facing = |t: &crate::geometry::Triangle| t.iter().all(|p| p.x == 0.3) || t.iter().all(|p| p.x == 1.0);
+        let facing = |t: &crate::geometry::Triangle| {
+            t.iter().all(|p| p.x == 0.3) || t.iter().all(|p| p.x == 1.0)
+        };
         for (t, side) in two.iter().zip(&sides) {
             assert_eq!(*side == Vec3::ZERO, facing(t), "{t:?}: {side}");
         }
         // An open box is no solid: its inside may shadow its faces.
-        assert!(clear_sides(&one[..10], 1.0).iter().all(|s| *s == Vec3::ZERO));
+        assert!(
+            clear_sides(&one[..10], 1.0)
+                .iter()
+                .all(|s| *s == Vec3::ZERO)
+        );
     }
 
     #[test]
     fn a_face_clear_of_its_solid_gets_the_light_tracing_the_solid_gives() {
         let boxed = cube(Vec3::new(-0.15, 0.0, -0.15), Vec3::new(0.15, 0.3, 0.15));
-        let tracer = Tracer::build(&[], &[SurfaceTriangles { surface: 7, triangles: &boxed }]).unwrap();
+        let tracer = Tracer::build(
+            &[],
+            &[SurfaceTriangles {
+                surface: 7,
+                triangles: &boxed,
+            }],
+        )
+        .unwrap();
         let bounds = VirtualBounds::of(&[(7, boxed.clone())]);
         // Panels whose planes cut the box's side faces' planes: part of each
         // light lies behind a side face, where only the solid blocks it.
-        let lights = [test_panel(DVec3::new(0.0, 1.0, 0.0)), test_panel(DVec3::new(0.2, 0.6, -0.1)), test_spot(DVec3::new(0.5, 0.8, 0.3)), test_spot(DVec3::new(0.1, 0.2, 0.9))];
+        let lights = [
+            test_panel(DVec3::new(0.0, 1.0, 0.0)),
+            test_panel(DVec3::new(0.2, 0.6, -0.1)),
+            test_spot(DVec3::new(0.5, 0.8, 0.3)),
+            test_spot(DVec3::new(0.1, 0.2, 0.9)),
+        ];
         let settings = PdaSettings::default();
         let (mut compared, mut saved) = (0, 0);
         for (k, t) in boxed.iter().enumerate() {
             let [a, b, c] = t.map(|p| p.as_dvec3());
             let n = (b - a).cross(c - a).normalize();
-            let hit = Hit { surface: 7, triangle: k as u32, u: 0.0, v: 0.0, t: 1.0, normal: n.as_vec3(), is_virtual: true };
+            let hit = Hit {
+                surface: 7,
+                triangle: k as u32,
+                u: 0.0,
+                v: 0.0,
+                t: 1.0,
+                normal: n.as_vec3(),
+                is_virtual: true,
+            };
             assert!(bounds.is_clear_of_own(&hit));
-            for (i, (s, r)) in [(0.2, 0.3), (0.6, 0.2), (0.25, 0.5)].into_iter().enumerate() {
+            for (i, (s, r)) in [(0.2, 0.3), (0.6, 0.2), (0.25, 0.5)]
+                .into_iter()
+                .enumerate()
+            {
                 let x = a + (b - a) * s + (c - a) * r;
                 for (l, light) in lights.iter().enumerate() {
                     let seed = (k * 16 + i * 4 + l) as u64;
-                    let (traced, all_rays) = light_term(&tracer, light, &bounds, None, x, n, seed, settings, None, None);
-                    let (known, fewer) = light_term(&tracer, light, &bounds, Some(0), x, n, seed, settings, None, None);
+                    let (traced, all_rays) = light_term(
+                        &tracer, light, &bounds, None, x, n, seed, settings, None, None,
+                    );
+                    let (known, fewer) = light_term(
+                        &tracer,
+                        light,
+                        &bounds,
+                        Some(0),
+                        x,
+                        n,
+                        seed,
+                        settings,
+                        None,
+                        None,
+                    );
                     assert_eq!(known, traced, "face {k}, point {i}, light {l}");
                     compared += 1;
                     saved += all_rays - fewer;
                 }
             }
         }
-        assert!(compared == 144 && saved > 0, "{compared} terms, {saved} rays saved");
+        assert!(
+            compared == 144 && saved > 0,
+            "{compared} terms, {saved} rays saved"
+        );
     }
 
     #[test]
     fn only_edges_with_a_polygon_on_either_side_in_the_image_are_no_outline() {
-        let eye = |at: DVec3| Camera::new(64, 64, at, DVec3::splat(0.5), DVec3::Y, crate::camera::Projection::FovY { degrees: 60.0 }).unwrap();
+        let eye = |at: DVec3| {
+            Camera::new(
+                64,
+                64,
+                at,
+                DVec3::splat(0.5),
+                DVec3::Y,
+                crate::camera::Projection::FovY { degrees: 60.0 },
+            )
+            .unwrap()
+        };
         let roots_of = |triangles: &[crate::geometry::Triangle]| {
-            let patches = Patches::build(&[crate::patches::SurfaceInput { surface: 7, triangles, is_virtual: true }], 0.5);
-            patches.roots.iter().map(|&r| patches.elements[r as usize].clone()).collect::<Vec<_>>()
+            let patches = Patches::build(
+                &[crate::patches::SurfaceInput {
+                    surface: 7,
+                    triangles,
+                    is_virtual: true,
+                }],
+                0.5,
+            );
+            patches
+                .roots
+                .iter()
+                .map(|&r| patches.elements[r as usize].clone())
+                .collect::<Vec<_>>()
         };
         let boxed = cube(Vec3::ZERO, Vec3::ONE);
         let roots = roots_of(&boxed);
         let roots: Vec<&crate::patches::Element> = roots.iter().collect();
         assert_eq!(roots.len(), 6);
         // The edges meeting at (1,1,1), and those meeting at (0,0,0), along x, y, z.
-        let near: Vec<EdgeKey> = [DVec3::X, DVec3::Y, DVec3::Z].iter().map(|a| edge_key(DVec3::ONE, DVec3::ONE - *a)).collect();
-        let far: Vec<EdgeKey> = [DVec3::X, DVec3::Y, DVec3::Z].iter().map(|a| edge_key(DVec3::ZERO, *a)).collect();
+        let near: Vec<EdgeKey> = [DVec3::X, DVec3::Y, DVec3::Z]
+            .iter()
+            .map(|a| edge_key(DVec3::ONE, DVec3::ONE - *a))
+            .collect();
+        let far: Vec<EdgeKey> = [DVec3::X, DVec3::Y, DVec3::Z]
+            .iter()
+            .map(|a| edge_key(DVec3::ZERO, *a))
+            .collect();
         let set = |keys: &[EdgeKey]| keys.iter().copied().collect::<HashSet<_>>();
         // Seeing the faces x = 1, y = 1 and z = 1: the three edges between two
         // of them and the three between two unseen faces; the six others are
         // the outline.
-        assert_eq!(interior_edges(&eye(DVec3::new(3.0, 2.0, 2.5)), &roots), set(&[near.clone(), far.clone()].concat()));
+        assert_eq!(
+            interior_edges(&eye(DVec3::new(3.0, 2.0, 2.5)), &roots),
+            set(&[near.clone(), far.clone()].concat())
+        );
         // The face y = 1 seen edge-on: its edges are outline, as are those
         // between a seen face and an unseen one.
-        assert_eq!(interior_edges(&eye(DVec3::new(3.0, 1.0, 2.5)), &roots), set(&[near[1], far[0], far[1], far[2]]));
+        assert_eq!(
+            interior_edges(&eye(DVec3::new(3.0, 1.0, 2.5)), &roots),
+            set(&[near[1], far[0], far[1], far[2]])
+        );
         // An edge whose ends differ in the last bit is taken for outline.
         let mut moved = boxed.clone();
-        moved.iter_mut().flatten().filter(|p| **p == Vec3::ONE).for_each(|p| p.x = f32::from_bits(p.x.to_bits() - 1));
+        moved
+            .iter_mut()
+            .flatten()
+            .filter(|p| **p == Vec3::ONE)
+            .for_each(|p| p.x = f32::from_bits(p.x.to_bits() - 1));
         let roots = roots_of(&moved);
         let roots: Vec<&crate::patches::Element> = roots.iter().collect();
         assert!(interior_edges(&eye(DVec3::new(3.0, 2.0, 2.5)), &roots).is_disjoint(&set(&near)));
@@ -1251,10 +1666,24 @@ mod tests {
         // As a render meshes it: both panels turned to the camera, so their
         // normals alone would call the fold seen from outside no outline.
         let fold = edge_key(DVec3::new(1.0, 0.0, 0.0), DVec3::new(1.0, 0.0, 1.0));
-        for (at, expected) in [(DVec3::new(3.0, 2.0, 2.5), set(&[])), (DVec3::new(-2.0, 2.0, 2.5), set(&[fold]))] {
-            let mut patches = Patches::build(&[crate::patches::SurfaceInput { surface: 7, triangles: &folded, is_virtual: true }], 0.5);
+        for (at, expected) in [
+            (DVec3::new(3.0, 2.0, 2.5), set(&[])),
+            (DVec3::new(-2.0, 2.0, 2.5), set(&[fold])),
+        ] {
+            let mut patches = Patches::build(
+                &[crate::patches::SurfaceInput {
+                    surface: 7,
+                    triangles: &folded,
+                    is_virtual: true,
+                }],
+                0.5,
+            );
             patches.face_open_surfaces_towards(at);
-            let roots: Vec<&crate::patches::Element> = patches.roots.iter().map(|&r| &patches.elements[r as usize]).collect();
+            let roots: Vec<&crate::patches::Element> = patches
+                .roots
+                .iter()
+                .map(|&r| &patches.elements[r as usize])
+                .collect();
             assert!(roots.len() == 2 && roots.iter().all(|e| (at - e.centre).dot(e.normal) > 0.0));
             assert_eq!(interior_edges(&eye(at), &roots), expected, "seen from {at}");
         }
@@ -1264,30 +1693,84 @@ mod tests {
     fn an_object_the_room_cannot_shadow_gets_the_light_tracing_the_room_gives() {
         let boxed = cube(Vec3::new(-0.15, 0.0, -0.15), Vec3::new(0.15, 0.3, 0.15));
         // The floor the box stands on, and a table top above it.
-        let (f0, f1, f2, f3) = (Vec3::new(-2.0, 0.0, -2.0), Vec3::new(-2.0, 0.0, 2.0), Vec3::new(2.0, 0.0, 2.0), Vec3::new(2.0, 0.0, -2.0));
+        let (f0, f1, f2, f3) = (
+            Vec3::new(-2.0, 0.0, -2.0),
+            Vec3::new(-2.0, 0.0, 2.0),
+            Vec3::new(2.0, 0.0, 2.0),
+            Vec3::new(2.0, 0.0, -2.0),
+        );
         let floor = vec![[f0, f1, f2], [f0, f2, f3]];
         let top = cube(Vec3::new(-0.5, 0.7, -0.5), Vec3::new(0.5, 0.75, 0.5));
         let polygons = |t: &[crate::geometry::Triangle]| -> Vec<Vec<DVec3>> {
-            t.chunks(2).map(|q| [q[0][0], q[0][1], q[0][2], q[1][2]].iter().map(|p| p.as_dvec3()).collect()).collect()
+            t.chunks(2)
+                .map(|q| {
+                    [q[0][0], q[0][1], q[0][2], q[1][2]]
+                        .iter()
+                        .map(|p| p.as_dvec3())
+                        .collect()
+                })
+                .collect()
         };
         // The spot beside the box, below the table top.
-        let lights = [test_panel(DVec3::new(0.0, 1.2, 0.0)), test_spot(DVec3::new(1.5, 0.5, 0.3))];
+        let lights = [
+            test_panel(DVec3::new(0.0, 1.2, 0.0)),
+            test_spot(DVec3::new(1.5, 0.5, 0.3)),
+        ];
         let settings = PdaSettings::default();
         let (mut compared, mut saved) = (0, 0);
-        for (room, expected) in [(floor.clone(), [true, true]), ([floor.clone(), top.clone()].concat(), [false, true])] {
-            let tracer = Tracer::build(&[SurfaceTriangles { surface: 1, triangles: &room }], &[SurfaceTriangles { surface: 7, triangles: &boxed }]).unwrap();
-            let bounds = VirtualBounds::of(&[(7, boxed.clone())]).with_room(&polygons(&room), &lights);
+        for (room, expected) in [
+            (floor.clone(), [true, true]),
+            ([floor.clone(), top.clone()].concat(), [false, true]),
+        ] {
+            let tracer = Tracer::build(
+                &[SurfaceTriangles {
+                    surface: 1,
+                    triangles: &room,
+                }],
+                &[SurfaceTriangles {
+                    surface: 7,
+                    triangles: &boxed,
+                }],
+            )
+            .unwrap();
+            let bounds =
+                VirtualBounds::of(&[(7, boxed.clone())]).with_room(&polygons(&room), &lights);
             assert_eq!(bounds.room_clear, vec![expected.to_vec()]);
             for (k, t) in boxed.iter().enumerate() {
                 let [a, b, c] = t.map(|p| p.as_dvec3());
                 let n = (b - a).cross(c - a).normalize();
-                for (i, (s, r)) in [(0.2, 0.3), (0.6, 0.2), (0.01, 0.01)].into_iter().enumerate() {
+                for (i, (s, r)) in [(0.2, 0.3), (0.6, 0.2), (0.01, 0.01)]
+                    .into_iter()
+                    .enumerate()
+                {
                     let x = a + (b - a) * s + (c - a) * r;
                     for (l, light) in lights.iter().enumerate() {
                         let seed = (k * 16 + i * 4 + l) as u64;
-                        let (traced, all_rays) = light_term(&tracer, light, &bounds, Some(0), x, n, seed, settings, None, None);
+                        let (traced, all_rays) = light_term(
+                            &tracer,
+                            light,
+                            &bounds,
+                            Some(0),
+                            x,
+                            n,
+                            seed,
+                            settings,
+                            None,
+                            None,
+                        );
                         let mut clear = RealMask::CLEAR;
-                        let (known, fewer) = light_term(&tracer, light, &bounds, Some(0), x, n, seed, settings, None, expected[l].then_some(&mut clear));
+                        let (known, fewer) = light_term(
+                            &tracer,
+                            light,
+                            &bounds,
+                            Some(0),
+                            x,
+                            n,
+                            seed,
+                            settings,
+                            None,
+                            expected[l].then_some(&mut clear),
+                        );
                         assert_eq!(known, traced, "face {k}, point {i}, light {l}");
                         compared += 1;
                         saved += all_rays - fewer;
@@ -1295,6 +1778,9 @@ mod tests {
                 }
             }
         }
-        assert!(compared == 144 && saved > 0, "{compared} terms, {saved} rays saved");
+        assert!(
+            compared == 144 && saved > 0,
+            "{compared} terms, {saved} rays saved"
+        );
     }
 }

@@ -57,15 +57,24 @@ const FF_ORDER: usize = 3;
 /// partial occlusion shows as such and makes refinement go deeper.
 fn visibility_sampling(p: &Element, q: &Element) -> (usize, usize) {
     let d = (q.centre - p.centre).length().max(1e-12);
-    let r = if d > 3.0 * p.size && p.children.is_none() { 1 } else { 2 };
-    let m = if d > 3.0 * q.size && q.children.is_none() { 1 } else { 2 };
+    let r = if d > 3.0 * p.size && p.children.is_none() {
+        1
+    } else {
+        2
+    };
+    let m = if d > 3.0 * q.size && q.children.is_none() {
+        1
+    } else {
+        2
+    };
     (r, m)
 }
 
 /// Whether two elements lie in one plane (they exchange no light).
 fn coplanar(p: &Element, q: &Element) -> bool {
     let scale = p.size.max(q.size);
-    p.normal.dot(q.normal).abs() > 1.0 - 1e-9 && (q.centre - p.centre).dot(p.normal).abs() < 1e-9 * scale.max(1e-9)
+    p.normal.dot(q.normal).abs() > 1.0 - 1e-9
+        && (q.centre - p.centre).dot(p.normal).abs() < 1e-9 * scale.max(1e-9)
 }
 
 /// Whether a one-sided element has the other wholly behind its plane: then
@@ -73,7 +82,14 @@ fn coplanar(p: &Element, q: &Element) -> bool {
 /// receiver sees nothing behind it, the source sends nothing backwards), so
 /// the pair needs neither an occluder search nor a link.
 fn faces_away(p: &Element, q: &Element) -> bool {
-    let behind = |e: &Element, other: &Element| e.one_sided && other.shape.corners().iter().all(|c| (*c - e.centre).dot(e.normal) <= 0.0);
+    let behind = |e: &Element, other: &Element| {
+        e.one_sided
+            && other
+                .shape
+                .corners()
+                .iter()
+                .all(|c| (*c - e.centre).dot(e.normal) <= 0.0)
+    };
     behind(p, q) || behind(q, p)
 }
 
@@ -118,14 +134,23 @@ pub fn unoccluded_form_factor(p: &Element, q: &Element) -> f64 {
     // clips p to q's front exactly.
     if straddles(p, q) && !straddles(q, p) && p.area > 0.0 {
         let polygon = p.shape.corners();
-        let f: f64 = q.shape.quadrature(FF_ORDER).into_iter().map(|(y, w)| w * point_factor(y, q, p, &polygon)).sum();
+        let f: f64 = q
+            .shape
+            .quadrature(FF_ORDER)
+            .into_iter()
+            .map(|(y, w)| w * point_factor(y, q, p, &polygon))
+            .sum();
         return f * q.area / p.area;
     }
     let polygon = q.shape.corners();
-    p.shape.quadrature(FF_ORDER).into_iter().map(|(x, w)| w * point_factor(x, p, q, &polygon)).sum()
+    p.shape
+        .quadrature(FF_ORDER)
+        .into_iter()
+        .map(|(x, w)| w * point_factor(x, p, q, &polygon))
+        .sum()
 }
 
-/// The two shafts [`ShaftTest`] tests roots against, built when first
+/// The two shafts `ShaftTest` tests roots against, built when first
 /// needed: Haines & Wallace's shaft between the two elements' boxes (cheap,
 /// and holding the exact hull, so what it excludes the hull excludes too),
 /// then the hull. Most pairs' roots never pass the box test and need neither.
@@ -155,7 +180,13 @@ struct ShaftTest<'a> {
 }
 
 impl<'a> ShaftTest<'a> {
-    fn new(patches: &'a Patches, layer: Layer, p: &'a Element, q: &'a Element, shafts: &'a PairShafts) -> Self {
+    fn new(
+        patches: &'a Patches,
+        layer: Layer,
+        p: &'a Element,
+        q: &'a Element,
+        shafts: &'a PairShafts,
+    ) -> Self {
         let ((plo, phi), (qlo, qhi)) = (p.bounds, q.bounds);
         let (lo, hi) = (plo.min(qlo), phi.max(qhi));
         let slack = 1e-9 * (hi - lo).max_element().max(1.0);
@@ -163,7 +194,14 @@ impl<'a> ShaftTest<'a> {
             if e.one_sided {
                 return Some((e.centre, e.normal));
             }
-            let d = other.shape.corners().iter().map(|c| (*c - e.centre).dot(e.normal)).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), d| (lo.min(d), hi.max(d)));
+            let d = other
+                .shape
+                .corners()
+                .iter()
+                .map(|c| (*c - e.centre).dot(e.normal))
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), d| {
+                    (lo.min(d), hi.max(d))
+                });
             if d.0 > slack {
                 Some((e.centre, e.normal))
             } else if d.1 < -slack {
@@ -176,7 +214,18 @@ impl<'a> ShaftTest<'a> {
         // Single-precision vertices leave a solid's corners ~1e-7 of the
         // coordinates off its neighbouring faces' planes; rays start 1e-5 off.
         let plane_slack = 1e-6 * (hi - lo).max_element().max(1.0);
-        ShaftTest { patches, layer, p, q, lo, hi, slack, shafts, planes, plane_slack }
+        ShaftTest {
+            patches,
+            layer,
+            p,
+            q,
+            lo,
+            hi,
+            slack,
+            shafts,
+            planes,
+            plane_slack,
+        }
     }
 
     /// Whether root `r` may block light between p and q: it is in the
@@ -198,27 +247,50 @@ impl<'a> ShaftTest<'a> {
             return false;
         }
         let corners = root.shape.corners();
-        let behind = |&(o, n): &(DVec3, DVec3)| corners.iter().all(|c| (*c - o).dot(n) <= self.plane_slack);
+        let behind =
+            |&(o, n): &(DVec3, DVec3)| corners.iter().all(|c| (*c - o).dot(n) <= self.plane_slack);
         if self.planes.iter().flatten().any(behind) {
             return false;
         }
         let (p, q) = (self.p, self.q);
-        if self.shafts.coarse.get_or_init(|| Shaft::between_boxes(p.bounds, q.bounds)).excludes(&corners) {
+        if self
+            .shafts
+            .coarse
+            .get_or_init(|| Shaft::between_boxes(p.bounds, q.bounds))
+            .excludes(&corners)
+        {
             return false;
         }
-        !self.shafts.hull.get_or_init(|| Shaft::between_polygons(&p.shape.corners(), &q.shape.corners())).excludes(&corners)
+        !self
+            .shafts
+            .hull
+            .get_or_init(|| Shaft::between_polygons(&p.shape.corners(), &q.shape.corners()))
+            .excludes(&corners)
     }
 }
 
 /// The root elements among `candidates` that may block light between `p`
 /// and `q` (see `ShaftTest`). Empty means certainly visible. A child
 /// pair's shaft lies inside its parents', so their occluders are a subset.
-pub fn occluders_between(patches: &Patches, layer: Layer, p: &Element, q: &Element, candidates: &[u32]) -> Vec<u32> {
+pub fn occluders_between(
+    patches: &Patches,
+    layer: Layer,
+    p: &Element,
+    q: &Element,
+    candidates: &[u32],
+) -> Vec<u32> {
     occluders_between_using(patches, layer, p, q, candidates, &PairShafts::default())
 }
 
 /// [`occluders_between`] with the pair's shafts kept in `shafts`.
-fn occluders_between_using(patches: &Patches, layer: Layer, p: &Element, q: &Element, candidates: &[u32], shafts: &PairShafts) -> Vec<u32> {
+fn occluders_between_using(
+    patches: &Patches,
+    layer: Layer,
+    p: &Element,
+    q: &Element,
+    candidates: &[u32],
+    shafts: &PairShafts,
+) -> Vec<u32> {
     if candidates.is_empty() {
         return Vec::new();
     }
@@ -230,12 +302,25 @@ fn occluders_between_using(patches: &Patches, layer: Layer, p: &Element, q: &Ele
 }
 
 /// Whether any of `candidates` may block light between `p` and `q`.
-pub fn may_be_occluded(patches: &Patches, layer: Layer, p: &Element, q: &Element, candidates: &[u32]) -> bool {
+pub fn may_be_occluded(
+    patches: &Patches,
+    layer: Layer,
+    p: &Element,
+    q: &Element,
+    candidates: &[u32],
+) -> bool {
     may_be_occluded_using(patches, layer, p, q, candidates, &PairShafts::default())
 }
 
 /// [`may_be_occluded`] with the pair's shafts kept in `shafts`.
-fn may_be_occluded_using(patches: &Patches, layer: Layer, p: &Element, q: &Element, candidates: &[u32], shafts: &PairShafts) -> bool {
+fn may_be_occluded_using(
+    patches: &Patches,
+    layer: Layer,
+    p: &Element,
+    q: &Element,
+    candidates: &[u32],
+    shafts: &PairShafts,
+) -> bool {
     let test = ShaftTest::new(patches, layer, p, q, shafts);
     candidates.iter().any(|&r| test.may_block(r))
 }
@@ -255,7 +340,11 @@ fn visibility_rays(p: &Element, q: &Element) -> Vec<TraceRay> {
     let targets: Vec<DVec3> = q.shape.quadrature(m).into_iter().map(|(x, _)| x).collect();
     let origins = p.shape.quadrature(r);
     let mut rays = Vec::with_capacity(origins.len() * targets.len());
-    rays.extend(origins.into_iter().flat_map(|(x, _)| targets.iter().map(move |&t| segment(offset_origin(x, p.normal, t), t))));
+    rays.extend(origins.into_iter().flat_map(|(x, _)| {
+        targets
+            .iter()
+            .map(move |&t| segment(offset_origin(x, p.normal, t), t))
+    }));
     rays
 }
 
@@ -270,7 +359,12 @@ fn room_blocked(rays: &[TraceRay], tracer: &Tracer) -> Option<u64> {
     }
     let mut blocked = vec![false; rays.len()];
     tracer.occluded_batch(rays, Layer::Real, &mut blocked);
-    Some(blocked.iter().enumerate().fold(0, |m, (k, b)| m | (*b as u64) << k))
+    Some(
+        blocked
+            .iter()
+            .enumerate()
+            .fold(0, |m, (k, b)| m | (*b as u64) << k),
+    )
 }
 
 /// [`visibility`] through all geometry of a pair's `rays`, `room` giving
@@ -281,7 +375,12 @@ fn room_blocked(rays: &[TraceRay], tracer: &Tracer) -> Option<u64> {
 fn visibility_with_room(rays: &[TraceRay], tracer: &Tracer, room: u64) -> f64 {
     let mut blocked = vec![false; rays.len()];
     tracer.occluded_batch(rays, Layer::Virtual, &mut blocked);
-    blocked.iter().enumerate().filter(|(k, b)| room >> k & 1 == 0 && !**b).count() as f64 / rays.len() as f64
+    blocked
+        .iter()
+        .enumerate()
+        .filter(|(k, b)| room >> k & 1 == 0 && !**b)
+        .count() as f64
+        / rays.len() as f64
 }
 
 /// The form factor from receiver element `p` to source element `q` (what
@@ -310,7 +409,10 @@ pub enum Transport {
     Full { n: usize, form_factors: Vec<f32> },
     /// Links between elements of the hierarchy, sorted by receiver, and
     /// each receiver's range of them.
-    Hierarchical { links: Vec<Link>, ranges: Vec<(u32, u32, u32)> },
+    Hierarchical {
+        links: Vec<Link>,
+        ranges: Vec<(u32, u32, u32)>,
+    },
 }
 
 impl Transport {
@@ -319,44 +421,68 @@ impl Transport {
         let n = patches.patch_count();
         // Possible occluders between each pair of roots, narrowed per patch pair.
         let roots = &patches.roots;
-        let root_index: std::collections::HashMap<u32, usize> = roots.iter().enumerate().map(|(i, r)| (*r, i)).collect();
+        let root_index: std::collections::HashMap<u32, usize> =
+            roots.iter().enumerate().map(|(i, r)| (*r, i)).collect();
         let between: Vec<Vec<u32>> = (0..roots.len() * roots.len())
             .into_par_iter()
             .map(|k| {
-                let (a, b) = (&patches.elements[roots[k / roots.len()] as usize], &patches.elements[roots[k % roots.len()] as usize]);
+                let (a, b) = (
+                    &patches.elements[roots[k / roots.len()] as usize],
+                    &patches.elements[roots[k % roots.len()] as usize],
+                );
                 occluders_between(patches, layer, a, b, roots)
             })
             .collect();
         let mut ff = vec![0f32; n * n];
-        ff.par_chunks_mut(n.max(1)).enumerate().for_each(|(i, row)| {
-            let p = patches.patch(i);
-            let ri = root_index[&p.root];
-            for (j, f) in row.iter_mut().enumerate() {
-                if i != j {
-                    let q = patches.patch(j);
-                    let u = unoccluded_form_factor(p, q);
-                    if u > 0.0 {
-                        let candidates = &between[ri * roots.len() + root_index[&q.root]];
-                        let occluded = may_be_occluded(patches, layer, p, q, candidates);
-                        let v = if occluded { visibility(p, q, tracer, layer) } else { 1.0 };
-                        *f = (u * v) as f32;
+        ff.par_chunks_mut(n.max(1))
+            .enumerate()
+            .for_each(|(i, row)| {
+                let p = patches.patch(i);
+                let ri = root_index[&p.root];
+                for (j, f) in row.iter_mut().enumerate() {
+                    if i != j {
+                        let q = patches.patch(j);
+                        let u = unoccluded_form_factor(p, q);
+                        if u > 0.0 {
+                            let candidates = &between[ri * roots.len() + root_index[&q.root]];
+                            let occluded = may_be_occluded(patches, layer, p, q, candidates);
+                            let v = if occluded {
+                                visibility(p, q, tracer, layer)
+                            } else {
+                                1.0
+                            };
+                            *f = (u * v) as f32;
+                        }
                     }
                 }
-            }
-        });
-        Transport::Full { n, form_factors: ff }
+            });
+        Transport::Full {
+            n,
+            form_factors: ff,
+        }
     }
 
     /// Hierarchical radiosity: starting from every pair of root elements,
     /// refined (see `refine`) until one form factor represents each
     /// exchange to within `epsilon`.
-    pub fn hierarchical(patches: &Patches, tracer: &Tracer, layer: Layer, epsilon: f64) -> Transport {
+    pub fn hierarchical(
+        patches: &Patches,
+        tracer: &Tracer,
+        layer: Layer,
+        epsilon: f64,
+    ) -> Transport {
         let links: Vec<Link> = patches
             .roots
             .par_iter()
             .flat_map_iter(|&p| {
                 let mut out = Vec::new();
-                let with = Refiner { patches, tracer, layer, epsilon, trace_first: false };
+                let with = Refiner {
+                    patches,
+                    tracer,
+                    layer,
+                    epsilon,
+                    trace_first: false,
+                };
                 for &q in &patches.roots {
                     if p != q {
                         refine(&with, p, q, &patches.roots, &mut out);
@@ -378,15 +504,31 @@ impl Transport {
     /// With `objects_receive` false the objects get no links of their own to
     /// gather through (the caller supplies their light, e.g. by final
     /// gathering from the photo); they still send light and shadow the room.
-    pub fn with_objects(&self, patches: &Patches, tracer: &Tracer, epsilon: f64, objects_receive: bool) -> Transport {
+    pub fn with_objects(
+        &self,
+        patches: &Patches,
+        tracer: &Tracer,
+        epsilon: f64,
+        objects_receive: bool,
+    ) -> Transport {
         self.with_objects_using(patches, tracer, epsilon, objects_receive, None)
     }
 
     /// [`Transport::with_objects`], keeping in `facts` (made for this
     /// transport by [`RoomLinkFacts::new`]) what it learns about the room's
     /// links for the next placement of the objects: the same links result.
-    pub fn with_objects_using(&self, patches: &Patches, tracer: &Tracer, epsilon: f64, objects_receive: bool, facts: Option<&RoomLinkFacts>) -> Transport {
-        let Transport::Hierarchical { links: room_links, .. } = self else {
+    pub fn with_objects_using(
+        &self,
+        patches: &Patches,
+        tracer: &Tracer,
+        epsilon: f64,
+        objects_receive: bool,
+        facts: Option<&RoomLinkFacts>,
+    ) -> Transport {
+        let Transport::Hierarchical {
+            links: room_links, ..
+        } = self
+        else {
             return Transport::full(patches, tracer, Layer::All);
         };
         let is_virtual = |r: &u32| patches.is_virtual_element(*r);
@@ -396,12 +538,18 @@ impl Transport {
         let (olo, ohi) = object_roots
             .iter()
             .map(|&r| patches.elements[r as usize].bounds)
-            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), (a, b)| (lo.min(a), hi.max(b)));
+            .fold(
+                (DVec3::INFINITY, DVec3::NEG_INFINITY),
+                |(lo, hi), (a, b)| (lo.min(a), hi.max(b)),
+            );
         let object_box = crate::geometry::box_corners(olo, ohi);
         // The candidates are the objects' own roots: no layer to look up per root.
         let near_objects = |i: usize| {
             let l = &room_links[i];
-            let (a, b) = (&patches.elements[l.receiver as usize], &patches.elements[l.source as usize]);
+            let (a, b) = (
+                &patches.elements[l.receiver as usize],
+                &patches.elements[l.source as usize],
+            );
             let ((alo, ahi), (blo, bhi)) = (a.bounds, b.bounds);
             let (lo, hi) = (alo.min(blo), ahi.max(bhi));
             if olo.cmpgt(hi).any() || ohi.cmplt(lo).any() {
@@ -410,15 +558,30 @@ impl Transport {
             match facts.and_then(|f| f.shafts.get(i)) {
                 // A shaft that leaves out the objects' whole box leaves out each of their roots.
                 Some(shafts) => {
-                    !shafts.coarse.get_or_init(|| Shaft::between_boxes(a.bounds, b.bounds)).excludes(&object_box)
+                    !shafts
+                        .coarse
+                        .get_or_init(|| Shaft::between_boxes(a.bounds, b.bounds))
+                        .excludes(&object_box)
                         && may_be_occluded_using(patches, Layer::All, a, b, &object_roots, shafts)
                 }
                 None => may_be_occluded(patches, Layer::All, a, b, &object_roots),
             }
         };
-        let near: Vec<bool> = (0..room_links.len()).into_par_iter().map(near_objects).collect();
-        let mut links: Vec<Link> = room_links.iter().zip(&near).filter(|(_, n)| !**n).map(|(l, _)| *l).collect();
-        let room_roots: Vec<u32> = all_roots.iter().copied().filter(|r| !is_virtual(r)).collect();
+        let near: Vec<bool> = (0..room_links.len())
+            .into_par_iter()
+            .map(near_objects)
+            .collect();
+        let mut links: Vec<Link> = room_links
+            .iter()
+            .zip(&near)
+            .filter(|(_, n)| !**n)
+            .map(|(l, _)| *l)
+            .collect();
+        let room_roots: Vec<u32> = all_roots
+            .iter()
+            .copied()
+            .filter(|r| !is_virtual(r))
+            .collect();
         // One task per room link the objects may shadow and per (object
         // root, root) pair, so that both cores share the few large ones.
         enum Task {
@@ -428,9 +591,20 @@ impl Transport {
         let tasks: Vec<Task> = (0..room_links.len())
             .filter(|&i| near[i])
             .map(Task::Room)
-            .chain(object_roots.iter().flat_map(|&v| all_roots.iter().filter(move |&&r| r != v).map(move |&r| Task::Object(v, r))))
+            .chain(object_roots.iter().flat_map(|&v| {
+                all_roots
+                    .iter()
+                    .filter(move |&&r| r != v)
+                    .map(move |&r| Task::Object(v, r))
+            }))
             .collect();
-        let with = Refiner { patches, tracer, layer: Layer::All, epsilon, trace_first: true };
+        let with = Refiner {
+            patches,
+            tracer,
+            layer: Layer::All,
+            epsilon,
+            trace_first: true,
+        };
         let new: Vec<Link> = tasks
             .par_iter()
             .with_max_len(4)
@@ -439,11 +613,23 @@ impl Transport {
                 match *task {
                     Task::Room(i) => {
                         let l = room_links[i];
-                        let (ep, eq) = (&patches.elements[l.receiver as usize], &patches.elements[l.source as usize]);
+                        let (ep, eq) = (
+                            &patches.elements[l.receiver as usize],
+                            &patches.elements[l.source as usize],
+                        );
                         match facts.and_then(|f| Some((f.facts.get(i)?, f.shafts.get(i)?))) {
                             Some((cell, shafts)) => {
-                                let known = cell.get_or_init(|| PairFacts::of(patches, tracer, ep, eq, &room_roots, shafts));
-                                refine_from(&with, l.receiver, l.source, all_roots, Some((known, &object_roots, shafts)), &mut out);
+                                let known = cell.get_or_init(|| {
+                                    PairFacts::of(patches, tracer, ep, eq, &room_roots, shafts)
+                                });
+                                refine_from(
+                                    &with,
+                                    l.receiver,
+                                    l.source,
+                                    all_roots,
+                                    Some((known, &object_roots, shafts)),
+                                    &mut out,
+                                );
                             }
                             None => refine(&with, l.receiver, l.source, all_roots, &mut out),
                         }
@@ -479,7 +665,9 @@ impl Transport {
     /// Number of form factors stored (links, or the matrix's non-zeros).
     pub fn link_count(&self) -> usize {
         match self {
-            Transport::Full { form_factors, .. } => form_factors.iter().filter(|f| **f != 0.0).count(),
+            Transport::Full { form_factors, .. } => {
+                form_factors.iter().filter(|f| **f != 0.0).count()
+            }
             Transport::Hierarchical { links, .. } => links.len(),
         }
     }
@@ -488,7 +676,8 @@ impl Transport {
         match self {
             Transport::Full { form_factors, .. } => form_factors.len() * 4,
             Transport::Hierarchical { links, ranges } => {
-                links.len() * std::mem::size_of::<Link>() + ranges.len() * std::mem::size_of::<(u32, u32, u32)>()
+                links.len() * std::mem::size_of::<Link>()
+                    + ranges.len() * std::mem::size_of::<(u32, u32, u32)>()
             }
         }
     }
@@ -513,11 +702,21 @@ impl Transport {
                 for e in (0..elements.len()).rev() {
                     if let Some([c0, c1]) = elements[e].children {
                         let (a0, a1) = (elements[c0 as usize].area, elements[c1 as usize].area);
-                        node_b[e] = (node_b[c0 as usize] * a0 + node_b[c1 as usize] * a1) / (a0 + a1);
+                        node_b[e] =
+                            (node_b[c0 as usize] * a0 + node_b[c1 as usize] * a1) / (a0 + a1);
                     }
                 }
-                let gather_range = |&(_, a, b): &(u32, u32, u32)| -> f64 { links[a as usize..b as usize].iter().map(|l| l.form_factor as f64 * node_b[l.source as usize]).sum() };
-                let gathered: Vec<f64> = if links.len() < SERIAL_GATHER_LINKS { ranges.iter().map(gather_range).collect() } else { ranges.par_iter().map(gather_range).collect() };
+                let gather_range = |&(_, a, b): &(u32, u32, u32)| -> f64 {
+                    links[a as usize..b as usize]
+                        .iter()
+                        .map(|l| l.form_factor as f64 * node_b[l.source as usize])
+                        .sum()
+                };
+                let gathered: Vec<f64> = if links.len() < SERIAL_GATHER_LINKS {
+                    ranges.iter().map(gather_range).collect()
+                } else {
+                    ranges.par_iter().map(gather_range).collect()
+                };
                 let mut node_h = vec![0.0; elements.len()];
                 for (&(receiver, _, _), h) in ranges.iter().zip(gathered) {
                     node_h[receiver as usize] = h;
@@ -563,7 +762,11 @@ fn factor_spread(p: &Element, q: &Element) -> (f64, f64) {
     let mut hi: f64 = 0.0;
     let mut mean = 0.0;
     let corners = p.shape.corners();
-    for x in corners.iter().map(|c| p.centre + (*c - p.centre) * 0.9).chain(std::iter::once(p.centre)) {
+    for x in corners
+        .iter()
+        .map(|c| p.centre + (*c - p.centre) * 0.9)
+        .chain(std::iter::once(p.centre))
+    {
         let f = point_factor(x, p, q, &polygon);
         lo = lo.min(f);
         hi = hi.max(f);
@@ -579,7 +782,11 @@ fn factor_spread(p: &Element, q: &Element) -> (f64, f64) {
 fn source_spread(p: &Element, q: &Element) -> f64 {
     let corners = q.shape.corners();
     let (mut lo, mut hi, mut sum) = (f64::INFINITY, 0.0f64, 0.0);
-    for y in corners.iter().map(|c| q.centre + (*c - q.centre) * 0.9).chain(std::iter::once(q.centre)) {
+    for y in corners
+        .iter()
+        .map(|c| q.centre + (*c - q.centre) * 0.9)
+        .chain(std::iter::once(q.centre))
+    {
         let r = y - p.centre;
         let d2 = r.length_squared().max(1e-300);
         let k = (p.normal.dot(r) * q.normal.dot(r)).abs() / (d2 * d2);
@@ -638,7 +845,14 @@ pub struct PairFacts {
 }
 
 impl PairFacts {
-    fn of(patches: &Patches, tracer: &Tracer, p: &Element, q: &Element, room_roots: &[u32], shafts: &PairShafts) -> PairFacts {
+    fn of(
+        patches: &Patches,
+        tracer: &Tracer,
+        p: &Element,
+        q: &Element,
+        room_roots: &[u32],
+        shafts: &PairShafts,
+    ) -> PairFacts {
         let (spread, mean) = factor_spread(p, q);
         let occluders = occluders_between_using(patches, Layer::All, p, q, room_roots, shafts);
         let rays = visibility_rays(p, q);
@@ -666,30 +880,59 @@ pub struct RoomLinkFacts {
 impl RoomLinkFacts {
     pub fn new(transport: &Transport) -> RoomLinkFacts {
         let n = transport.link_count();
-        RoomLinkFacts { facts: (0..n).map(|_| std::sync::OnceLock::new()).collect(), shafts: (0..n).map(|_| PairShafts::default()).collect() }
+        RoomLinkFacts {
+            facts: (0..n).map(|_| std::sync::OnceLock::new()).collect(),
+            shafts: (0..n).map(|_| PairShafts::default()).collect(),
+        }
     }
 }
 
 /// [`refine`], with the pair's room facts already known (`known`: the
 /// facts, the other candidates — the objects' roots — and the pair's kept
 /// shafts) at this first level.
-fn refine_from(with: &Refiner, p: u32, q: u32, candidates: &[u32], known: Option<(&PairFacts, &[u32], &PairShafts)>, out: &mut Vec<Link>) {
-    let Refiner { patches, tracer, layer, epsilon, trace_first } = *with;
+fn refine_from(
+    with: &Refiner,
+    p: u32,
+    q: u32,
+    candidates: &[u32],
+    known: Option<(&PairFacts, &[u32], &PairShafts)>,
+    out: &mut Vec<Link>,
+) {
+    let Refiner {
+        patches,
+        tracer,
+        layer,
+        epsilon,
+        trace_first,
+    } = *with;
     let (ep, eq) = (&patches.elements[p as usize], &patches.elements[q as usize]);
     if coplanar(ep, eq) || faces_away(ep, eq) {
         return;
     }
     let occluders = match known {
-        Some((facts, others, shafts)) => facts.occluders.iter().copied().chain(occluders_between_using(patches, layer, ep, eq, others, shafts)).collect(),
+        Some((facts, others, shafts)) => facts
+            .occluders
+            .iter()
+            .copied()
+            .chain(occluders_between_using(
+                patches, layer, ep, eq, others, shafts,
+            ))
+            .collect(),
         None => occluders_between(patches, layer, ep, eq, candidates),
     };
     let facts = known.map(|k| k.0);
     let (p_leaf, q_leaf) = (ep.children.is_none(), eq.children.is_none());
     // Two leaves split neither way: their factors' spread decides nothing.
-    let (spread, mean) = if p_leaf && q_leaf { (0.0, 0.0) } else { facts.map_or_else(|| factor_spread(ep, eq), |f| (f.spread, f.mean)) };
+    let (spread, mean) = if p_leaf && q_leaf {
+        (0.0, 0.0)
+    } else {
+        facts.map_or_else(|| factor_spread(ep, eq), |f| (f.spread, f.mean))
+    };
     let split_receiver = if (spread > epsilon || straddles(ep, eq)) && !p_leaf {
         Some(true)
-    } else if !q_leaf && mean * facts.map_or_else(|| source_spread(ep, eq), |f| f.source_spread) > epsilon {
+    } else if !q_leaf
+        && mean * facts.map_or_else(|| source_spread(ep, eq), |f| f.source_spread) > epsilon
+    {
         Some(false)
     } else {
         let f = facts.map_or_else(|| unoccluded_form_factor(ep, eq), |f| f.form_factor);
@@ -710,7 +953,11 @@ fn refine_from(with: &Refiner, p: u32, q: u32, candidates: &[u32], known: Option
         // twice, were it counted here).
         let traced = || match facts.and_then(|f| Some((f.room_blocked?, &f.rays))) {
             Some((room, rays)) if layer == Layer::All => visibility_with_room(rays, tracer, room),
-            _ if layer == Layer::All && !occluders.iter().any(|&r| patches.is_virtual_element(r)) => visibility(ep, eq, tracer, Layer::Real),
+            _ if layer == Layer::All
+                && !occluders.iter().any(|&r| patches.is_virtual_element(r)) =>
+            {
+                visibility(ep, eq, tracer, Layer::Real)
+            }
             _ => visibility(ep, eq, tracer, layer),
         };
         let visible = match (occluded, splits && !trace_first) {
@@ -721,7 +968,11 @@ fn refine_from(with: &Refiner, p: u32, q: u32, candidates: &[u32], known: Option
         match visible {
             Some(v) if !(splits && v > 0.0 && v < 1.0) => {
                 if v > 0.0 {
-                    out.push(Link { receiver: p, source: q, form_factor: (f * v) as f32 });
+                    out.push(Link {
+                        receiver: p,
+                        source: q,
+                        form_factor: (f * v) as f32,
+                    });
                 }
                 None
             }
@@ -729,8 +980,16 @@ fn refine_from(with: &Refiner, p: u32, q: u32, candidates: &[u32], known: Option
         }
     };
     match split_receiver {
-        Some(true) => ep.children.unwrap().iter().for_each(|&c| refine(with, c, q, &occluders, out)),
-        Some(false) => eq.children.unwrap().iter().for_each(|&c| refine(with, p, c, &occluders, out)),
+        Some(true) => ep
+            .children
+            .unwrap()
+            .iter()
+            .for_each(|&c| refine(with, c, q, &occluders, out)),
+        Some(false) => eq
+            .children
+            .unwrap()
+            .iter()
+            .for_each(|&c| refine(with, p, c, &occluders, out)),
         None => {}
     }
 }
@@ -738,10 +997,21 @@ fn refine_from(with: &Refiner, p: u32, q: u32, candidates: &[u32], known: Option
 /// Direct irradiance per patch from each light (before the light's scale):
 /// the mean over 2×2 points of unoccluded irradiance × visibility, with
 /// `2^level` shadow rays per point to rect lights. Indexed `[light][patch]`.
-pub fn direct_irradiance(patches: &Patches, lights: &[LightSource], tracer: &Tracer, layer: Layer, level: usize) -> Vec<Vec<DVec3>> {
+pub fn direct_irradiance(
+    patches: &Patches,
+    lights: &[LightSource],
+    tracer: &Tracer,
+    layer: Layer,
+    level: usize,
+) -> Vec<Vec<DVec3>> {
     lights
         .iter()
-        .map(|light| (0..patches.patch_count()).into_par_iter().map(|k| patch_direct(patches, k, light, tracer, layer, level)).collect())
+        .map(|light| {
+            (0..patches.patch_count())
+                .into_par_iter()
+                .map(|k| patch_direct(patches, k, light, tracer, layer, level))
+                .collect()
+        })
         .collect()
 }
 
@@ -752,7 +1022,14 @@ pub fn direct_irradiance(patches: &Patches, lights: &[LightSource], tracer: &Tra
 /// there, so the numbers are the same — and only the rest are traced.
 /// An object's patch whose light only its own solid can block
 /// ([`VirtualBounds::only_own_blocks`]) knows its rays without tracing.
-pub fn direct_irradiance_with_objects(patches: &Patches, lights: &[LightSource], tracer: &Tracer, level: usize, room: &[Vec<DVec3>], objects: &VirtualBounds) -> Vec<Vec<DVec3>> {
+pub fn direct_irradiance_with_objects(
+    patches: &Patches,
+    lights: &[LightSource],
+    tracer: &Tracer,
+    level: usize,
+    room: &[Vec<DVec3>],
+    objects: &VirtualBounds,
+) -> Vec<Vec<DVec3>> {
     lights
         .iter()
         .zip(room)
@@ -785,13 +1062,26 @@ pub fn direct_irradiance_with_objects(patches: &Patches, lights: &[LightSource],
 }
 
 /// Patch k's direct irradiance from `light`: the mean over 2×2 points.
-fn patch_direct(patches: &Patches, k: usize, light: &LightSource, tracer: &Tracer, layer: Layer, level: usize) -> DVec3 {
-    patch_direct_by(patches, k, |x, n, seed| light.direct(tracer, layer, x, n, level, seed))
+fn patch_direct(
+    patches: &Patches,
+    k: usize,
+    light: &LightSource,
+    tracer: &Tracer,
+    layer: Layer,
+    level: usize,
+) -> DVec3 {
+    patch_direct_by(patches, k, |x, n, seed| {
+        light.direct(tracer, layer, x, n, level, seed)
+    })
 }
 
 /// [`patch_direct`], with `direct(point, normal, seed)` giving each point's
 /// direct light (see [`LightSource::direct_by`]).
-fn patch_direct_by(patches: &Patches, k: usize, direct: impl Fn(DVec3, DVec3, u64) -> crate::light::DirectLight) -> DVec3 {
+fn patch_direct_by(
+    patches: &Patches,
+    k: usize,
+    direct: impl Fn(DVec3, DVec3, u64) -> crate::light::DirectLight,
+) -> DVec3 {
     let el = patches.patch(k);
     el.shape
         .quadrature(2)
@@ -834,8 +1124,23 @@ pub struct Solution {
 
 /// Solves B = b + ρ ⊙ T(B) per channel by restarted GMRES, to relative
 /// residual `tolerance`. For lights, b = ρ ⊙ E_direct.
-pub fn solve(patches: &Patches, transport: &Transport, reflectance: &[DVec3], b: &[DVec3], tolerance: f64, max_iterations: usize) -> Solution {
-    solve_from(patches, transport, reflectance, b, None, tolerance, max_iterations)
+pub fn solve(
+    patches: &Patches,
+    transport: &Transport,
+    reflectance: &[DVec3],
+    b: &[DVec3],
+    tolerance: f64,
+    max_iterations: usize,
+) -> Solution {
+    solve_from(
+        patches,
+        transport,
+        reflectance,
+        b,
+        None,
+        tolerance,
+        max_iterations,
+    )
 }
 
 /// [`solve`] starting from a guess (a previous solution of a nearby system).
@@ -876,29 +1181,70 @@ pub fn solve_from(
 
 /// The plain gather iteration B ← b + ρ ⊙ T(B) from B = b, until the
 /// change is below `tolerance` (relative): the baseline GMRES is measured against.
-pub fn solve_by_iteration(patches: &Patches, transport: &Transport, reflectance: &[DVec3], b: &[DVec3], tolerance: f64, max_iterations: usize) -> Solution {
+pub fn solve_by_iteration(
+    patches: &Patches,
+    transport: &Transport,
+    reflectance: &[DVec3],
+    b: &[DVec3],
+    tolerance: f64,
+    max_iterations: usize,
+) -> Solution {
     let mut x = b.to_vec();
-    let norm = b.iter().map(|v| v.length_squared()).sum::<f64>().sqrt().max(1e-300);
+    let norm = b
+        .iter()
+        .map(|v| v.length_squared())
+        .sum::<f64>()
+        .sqrt()
+        .max(1e-300);
     let mut iterations = 0;
     let mut change = f64::INFINITY;
     while iterations < max_iterations && change > tolerance {
         let h = transport.gather_rgb(patches, &x);
-        let next: Vec<DVec3> = b.iter().zip(&h).zip(reflectance).map(|((b, h), r)| *b + *r * *h).collect();
-        change = next.iter().zip(&x).map(|(a, b)| (*a - *b).length_squared()).sum::<f64>().sqrt() / norm;
+        let next: Vec<DVec3> = b
+            .iter()
+            .zip(&h)
+            .zip(reflectance)
+            .map(|((b, h), r)| *b + *r * *h)
+            .collect();
+        change = next
+            .iter()
+            .zip(&x)
+            .map(|(a, b)| (*a - *b).length_squared())
+            .sum::<f64>()
+            .sqrt()
+            / norm;
         x = next;
         iterations += 1;
     }
     finish(patches, transport, x, iterations, change)
 }
 
-fn finish(patches: &Patches, transport: &Transport, radiosity: Vec<DVec3>, iterations: usize, residual: f64) -> Solution {
+fn finish(
+    patches: &Patches,
+    transport: &Transport,
+    radiosity: Vec<DVec3>,
+    iterations: usize,
+    residual: f64,
+) -> Solution {
     let indirect_irradiance = transport.gather_rgb(patches, &radiosity);
-    Solution { radiosity, indirect_irradiance, iterations, residual }
+    Solution {
+        radiosity,
+        indirect_irradiance,
+        iterations,
+        residual,
+    }
 }
 
 /// Restarted GMRES for A x = b from the guess `x0`. Returns (x, operator
 /// applications, relative residual).
-fn gmres(apply: impl Fn(&[f64], &mut [f64]), b: &[f64], x0: Vec<f64>, tolerance: f64, max_iterations: usize, restart: usize) -> (Vec<f64>, usize, f64) {
+fn gmres(
+    apply: impl Fn(&[f64], &mut [f64]),
+    b: &[f64],
+    x0: Vec<f64>,
+    tolerance: f64,
+    max_iterations: usize,
+    restart: usize,
+) -> (Vec<f64>, usize, f64) {
     let n = b.len();
     let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
     let bnorm = dot(b, b).sqrt();
@@ -938,7 +1284,11 @@ fn gmres(apply: impl Fn(&[f64], &mut [f64]), b: &[f64], x0: Vec<f64>, tolerance:
                 h[i][k] = t;
             }
             let denom = h[k][k].hypot(h[k + 1][k]);
-            (cs[k], sn[k]) = if denom == 0.0 { (1.0, 0.0) } else { (h[k][k] / denom, h[k + 1][k] / denom) };
+            (cs[k], sn[k]) = if denom == 0.0 {
+                (1.0, 0.0)
+            } else {
+                (h[k][k] / denom, h[k + 1][k] / denom)
+            };
             h[k][k] = denom;
             h[k + 1][k] = 0.0;
             g[k + 1] = -sn[k] * g[k];
@@ -954,7 +1304,11 @@ fn gmres(apply: impl Fn(&[f64], &mut [f64]), b: &[f64], x0: Vec<f64>, tolerance:
         let mut y = vec![0.0; k];
         for i in (0..k).rev() {
             let s: f64 = (i + 1..k).map(|j| h[i][j] * y[j]).sum();
-            y[i] = if h[i][i] != 0.0 { (g[i] - s) / h[i][i] } else { 0.0 };
+            y[i] = if h[i][i] != 0.0 {
+                (g[i] - s) / h[i][i]
+            } else {
+                0.0
+            };
         }
         for (i, yi) in y.iter().enumerate() {
             for (xj, vj) in x.iter_mut().zip(&v[i]) {

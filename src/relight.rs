@@ -132,8 +132,14 @@ impl Texture {
 #[derive(Debug, Clone, Copy)]
 enum PixelPoint {
     /// `texture` indexes [`TexturePath::textures`].
-    Real { texture: u32, at: Location, texel: u32 },
-    Virtual { at: Location },
+    Real {
+        texture: u32,
+        at: Location,
+        texel: u32,
+    },
+    Virtual {
+        at: Location,
+    },
 }
 
 /// The preprocessed scene: mesh, links, shadow-free textures, D.
@@ -174,13 +180,28 @@ struct LightTerm {
 impl LightTerm {
     fn visibility(&self) -> f64 {
         let u = self.unoccluded.element_sum();
-        if u > 0.0 { (self.occluded.element_sum() / u).clamp(0.0, 1.0) } else { 1.0 }
+        if u > 0.0 {
+            (self.occluded.element_sum() / u).clamp(0.0, 1.0)
+        } else {
+            1.0
+        }
     }
 }
 
 /// Mean direct light over an element's 2×2 quadrature points.
-fn element_light(shape: &Shape, normal: DVec3, light: &LightSource, tracer: &Tracer, layer: Layer, level: usize, seed: u64) -> LightTerm {
-    let mut t = LightTerm { occluded: DVec3::ZERO, unoccluded: DVec3::ZERO };
+fn element_light(
+    shape: &Shape,
+    normal: DVec3,
+    light: &LightSource,
+    tracer: &Tracer,
+    layer: Layer,
+    level: usize,
+    seed: u64,
+) -> LightTerm {
+    let mut t = LightTerm {
+        occluded: DVec3::ZERO,
+        unoccluded: DVec3::ZERO,
+    };
     for (i, (x, w)) in shape.quadrature(2).iter().enumerate() {
         let d = light.direct(tracer, layer, *x, normal, level, hash2(seed, i as u64));
         t.unoccluded += d.unoccluded * *w;
@@ -191,7 +212,13 @@ fn element_light(shape: &Shape, normal: DVec3, light: &LightSource, tracer: &Tra
 
 /// Each light's terms per leaf, `[light][leaf]`, seeded by the leaf's
 /// identity (the same leaf gets the same rays in every mesh that holds it).
-fn leaf_light(patches: &Patches, lights: &[LightSource], tracer: &Tracer, layer: Layer, level: usize) -> Vec<Vec<LightTerm>> {
+fn leaf_light(
+    patches: &Patches,
+    lights: &[LightSource],
+    tracer: &Tracer,
+    layer: Layer,
+    level: usize,
+) -> Vec<Vec<LightTerm>> {
     lights
         .iter()
         .map(|light| {
@@ -199,7 +226,15 @@ fn leaf_light(patches: &Patches, lights: &[LightSource], tracer: &Tracer, layer:
                 .into_par_iter()
                 .map(|k| {
                     let el = patches.patch(k);
-                    element_light(&el.shape, el.normal, light, tracer, layer, level, element_seed(patches, el))
+                    element_light(
+                        &el.shape,
+                        el.normal,
+                        light,
+                        tracer,
+                        layer,
+                        level,
+                        element_seed(patches, el),
+                    )
                 })
                 .collect()
         })
@@ -212,7 +247,12 @@ type TermCache = HashMap<((u32, i64, i64, i64), usize, bool), LightTerm>;
 /// An element's identity across rebuilds of the mesh (its root, centre and size).
 fn element_key(patches: &Patches, el: &Element) -> (u32, i64, i64, i64) {
     let c = region_centre(&el.region);
-    (patches.root_ordinal(el.root),(c.x * 1e9).round() as i64, (c.y * 1e9).round() as i64, (el.shape.size() * 1e9).round() as i64)
+    (
+        patches.root_ordinal(el.root),
+        (c.x * 1e9).round() as i64,
+        (c.y * 1e9).round() as i64,
+        (el.shape.size() * 1e9).round() as i64,
+    )
 }
 
 fn element_seed(patches: &Patches, el: &Element) -> u64 {
@@ -226,7 +266,13 @@ pub fn cielab(rgb: DVec3, white: f64) -> DVec3 {
     let x = (0.4124 * c.x + 0.3576 * c.y + 0.1805 * c.z) / 0.95047;
     let y = 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
     let z = (0.0193 * c.x + 0.1192 * c.y + 0.9505 * c.z) / 1.08883;
-    let f = |t: f64| if t > 216.0 / 24389.0 { t.cbrt() } else { (24389.0 / 27.0 * t + 16.0) / 116.0 };
+    let f = |t: f64| {
+        if t > 216.0 / 24389.0 {
+            t.cbrt()
+        } else {
+            (24389.0 / 27.0 * t + 16.0) / 116.0
+        }
+    };
     let (fx, fy, fz) = (f(x), f(y), f(z));
     DVec3::new(116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz))
 }
@@ -254,11 +300,19 @@ fn real_hits(scene: &Scene, tracer: &Tracer) -> Vec<Option<RealHit>> {
     (0..cam.height)
         .into_par_iter()
         .flat_map_iter(|row| {
-            crate::surface_ids::row_hits(cam, tracer, Layer::Real, row).into_iter().enumerate().map(move |(col, h)| {
-                let h = h?;
-                let x = cam.position + cam.pixel_ray(col as u32, row).direction * h.t as f64;
-                Some(RealHit { surface: h.surface, triangle: h.triangle, x, t: h.t as f64 })
-            })
+            crate::surface_ids::row_hits(cam, tracer, Layer::Real, row)
+                .into_iter()
+                .enumerate()
+                .map(move |(col, h)| {
+                    let h = h?;
+                    let x = cam.position + cam.pixel_ray(col as u32, row).direction * h.t as f64;
+                    Some(RealHit {
+                        surface: h.surface,
+                        triangle: h.triangle,
+                        x,
+                        t: h.t as f64,
+                    })
+                })
         })
         .collect()
 }
@@ -271,19 +325,35 @@ struct LeafPixels {
     footprint: Vec<f64>,
 }
 
-fn leaf_pixels(patches: &Patches, hits: &[Option<RealHit>], photo: &Image, pixel_angle: f64) -> LeafPixels {
+fn leaf_pixels(
+    patches: &Patches,
+    hits: &[Option<RealHit>],
+    photo: &Image,
+    pixel_angle: f64,
+) -> LeafPixels {
     let n = patches.patch_count();
-    let (mut sum, mut count, mut footprint) = (vec![DVec3::ZERO; n], vec![0u32; n], vec![f64::INFINITY; n]);
+    let (mut sum, mut count, mut footprint) =
+        (vec![DVec3::ZERO; n], vec![0u32; n], vec![f64::INFINITY; n]);
     for (i, h) in hits.iter().enumerate() {
         let Some(h) = h else { continue };
-        let Some(at) = patches.locate(h.surface, h.triangle, h.x) else { continue };
+        let Some(at) = patches.locate(h.surface, h.triangle, h.x) else {
+            continue;
+        };
         let k = at.patch as usize;
         sum[k] += photo.pixels[i].as_dvec3();
         count[k] += 1;
         footprint[k] = footprint[k].min(h.t * pixel_angle);
     }
-    let mean = sum.iter().zip(&count).map(|(s, &c)| if c > 0 { *s / c as f64 } else { DVec3::ZERO }).collect();
-    LeafPixels { mean, count, footprint }
+    let mean = sum
+        .iter()
+        .zip(&count)
+        .map(|(s, &c)| if c > 0 { *s / c as f64 } else { DVec3::ZERO })
+        .collect();
+    LeafPixels {
+        mean,
+        count,
+        footprint,
+    }
 }
 
 /// Leaves sharing a vertex with each leaf (vertices are welded per surface
@@ -322,14 +392,24 @@ struct Criteria {
 impl TexturePath {
     /// Preprocesses `scene` (a variant or the scene itself: its inserted
     /// lights and objects take part in the refinement) over `photo`.
-    pub fn prepare(scene: &Scene, photo: &Image, tracer: &Tracer, settings: &TextureSettings, times: &mut StageTimes) -> Result<TexturePath> {
+    pub fn prepare(
+        scene: &Scene,
+        photo: &Image,
+        tracer: &Tracer,
+        settings: &TextureSettings,
+        times: &mut StageTimes,
+    ) -> Result<TexturePath> {
         let lights = LightSource::all(scene)?;
         let photo_scales: Vec<f64> = lights.iter().map(|l| l.photo_scale()).collect();
         let has_objects = tracer.virtual_objects.is_some();
-        let patch_size = settings.patch_size.unwrap_or_else(|| crate::render::fine_patch_size(scene));
+        let patch_size = settings
+            .patch_size
+            .unwrap_or_else(|| crate::render::fine_patch_size(scene));
         let virtual_size = 0.1f64.min(patch_size);
         let criteria = Criteria {
-            texture: (0..lights.len()).filter(|&l| photo_scales[l] > 0.0).collect(),
+            texture: (0..lights.len())
+                .filter(|&l| photo_scales[l] > 0.0)
+                .collect(),
             forced: (0..lights.len())
                 .filter(|&l| lights[l].scale > 0.0 && (photo_scales[l] == 0.0 || has_objects))
                 .map(|l| (l, if has_objects { Layer::All } else { Layer::Real }))
@@ -337,7 +417,10 @@ impl TexturePath {
         };
         let cam = &scene.camera;
         let pixel_angle = 1.0 / cam.fx.min(cam.fy);
-        let mut stats = TextureStats { patch_size, ..Default::default() };
+        let mut stats = TextureStats {
+            patch_size,
+            ..Default::default()
+        };
 
         // Texture-based refinement (Fig. 12), one level per round.
         let base = times.time("mesh", || Patches::of_scene(scene, false, patch_size));
@@ -348,20 +431,31 @@ impl TexturePath {
             let root = base.roots.iter().copied().find(|&root| {
                 let el = &base.elements[root as usize];
                 let st = base.root_params(root, r.point);
-                el.surface == r.surface as u32 && (base.root_point(root, st) - r.point).length() < 1e-3 && crate::patches::distance_outside(&el.region, st) <= 1e-6
+                el.surface == r.surface as u32
+                    && (base.root_point(root, st) - r.point).length() < 1e-3
+                    && crate::patches::distance_outside(&el.region, st) <= 1e-6
             });
             let Some(root) = root else {
                 return Err(crate::error::Error::key(
                     &scene.file,
                     format!("texture_reference[{i}].point"),
-                    format!("{:?} does not lie on surface '{}' (within 1 mm)", r.point.to_array(), scene.surfaces[r.surface].name),
+                    format!(
+                        "{:?} does not lie on surface '{}' (within 1 mm)",
+                        r.point.to_array(),
+                        scene.surfaces[r.surface].name
+                    ),
                 ));
             };
             user_points.push((r.surface as u32, base.root_ordinal(root), r.point));
         }
         let hits = times.time("camera rays", || real_hits(scene, tracer));
         let white = {
-            let mut l: Vec<f64> = hits.iter().zip(&photo.pixels).filter(|(h, _)| h.is_some()).map(|(_, p)| luminance(p.as_dvec3())).collect();
+            let mut l: Vec<f64> = hits
+                .iter()
+                .zip(&photo.pixels)
+                .filter(|(h, _)| h.is_some())
+                .map(|(_, p)| luminance(p.as_dvec3()))
+                .collect();
             l.sort_by(f64::total_cmp);
             l.get(l.len() * 99 / 100).copied().unwrap_or(1.0).max(1e-30)
         };
@@ -371,7 +465,20 @@ impl TexturePath {
             let mut patches = base;
             for _ in 0..settings.max_rounds {
                 stats.rounds += 1;
-                let added = refine_round(&patches, &hits, photo, pixel_angle, white, &lights, &criteria, tracer, settings, &mut cache, &mut marks, &mut stats);
+                let added = refine_round(
+                    &patches,
+                    &hits,
+                    photo,
+                    pixel_angle,
+                    white,
+                    &lights,
+                    &criteria,
+                    tracer,
+                    settings,
+                    &mut cache,
+                    &mut marks,
+                    &mut stats,
+                );
                 if added == 0 {
                     break;
                 }
@@ -384,17 +491,41 @@ impl TexturePath {
 
         // The illumination model on the refined mesh (links at the leaves for
         // the light sources: direct light is per leaf).
-        let real_direct = times.time("direct light", || leaf_light(&patches, &lights, tracer, Layer::Real, settings.light_level));
-        let transport = times.time("form factors", || Transport::hierarchical(&patches, tracer, Layer::Real, settings.link_epsilon));
-        let measured = times.time("photo per patch", || PhotoPatches::measure(cam, tracer, &patches, photo));
-        let known: HashMap<u32, DVec3> = scene.reflectances.iter().map(|k| (k.surface as u32, k.rgb)).collect();
+        let real_direct = times.time("direct light", || {
+            leaf_light(&patches, &lights, tracer, Layer::Real, settings.light_level)
+        });
+        let transport = times.time("form factors", || {
+            Transport::hierarchical(&patches, tracer, Layer::Real, settings.link_epsilon)
+        });
+        let measured = times.time("photo per patch", || {
+            PhotoPatches::measure(cam, tracer, &patches, photo)
+        });
+        let known: HashMap<u32, DVec3> = scene
+            .reflectances
+            .iter()
+            .map(|k| (k.surface as u32, k.rgb))
+            .collect();
         let sum_scaled = |f: &dyn Fn(&LightTerm) -> DVec3, k: usize| -> DVec3 {
-            (0..lights.len()).filter(|&l| photo_scales[l] > 0.0).map(|l| f(&real_direct[l][k]) * photo_scales[l]).sum()
+            (0..lights.len())
+                .filter(|&l| photo_scales[l] > 0.0)
+                .map(|l| f(&real_direct[l][k]) * photo_scales[l])
+                .sum()
         };
-        let e_occluded: Vec<DVec3> = (0..real_patches).map(|k| sum_scaled(&|t| t.occluded, k)).collect();
-        let e_unoccluded: Vec<DVec3> = (0..real_patches).map(|k| sum_scaled(&|t| t.unoccluded, k)).collect();
+        let e_occluded: Vec<DVec3> = (0..real_patches)
+            .map(|k| sum_scaled(&|t| t.occluded, k))
+            .collect();
+        let e_unoccluded: Vec<DVec3> = (0..real_patches)
+            .map(|k| sum_scaled(&|t| t.unoccluded, k))
+            .collect();
         let estimate = times.time("estimate + solve", || {
-            estimate_reflectances(&patches, &transport, &e_occluded, &measured, &known, crate::estimate::EstimateSettings::default())
+            estimate_reflectances(
+                &patches,
+                &transport,
+                &e_occluded,
+                &measured,
+                &known,
+                crate::estimate::EstimateSettings::default(),
+            )
         });
         let h = &estimate.solution.indirect_irradiance;
         let solve_tolerance = crate::estimate::EstimateSettings::default().solve_tolerance;
@@ -403,7 +534,19 @@ impl TexturePath {
 
         // Visibility per light at the real vertices (the mesh's shadows).
         let vis_vertex = |direct: &[Vec<LightTerm>], p: &Patches| -> Vec<Vec<f64>> {
-            direct.iter().map(|l| p.vertex_values(&l.iter().map(|t| DVec3::splat(t.visibility())).collect::<Vec<_>>()).iter().map(|v| v.x).collect()).collect()
+            direct
+                .iter()
+                .map(|l| {
+                    p.vertex_values(
+                        &l.iter()
+                            .map(|t| DVec3::splat(t.visibility()))
+                            .collect::<Vec<_>>(),
+                    )
+                    .iter()
+                    .map(|v| v.x)
+                    .collect()
+                })
+                .collect()
         };
         let real_vis = vis_vertex(&real_direct, &patches);
         let h_vertex = patches.vertex_values(h);
@@ -414,7 +557,11 @@ impl TexturePath {
             let (mut unocc, mut occ) = (DVec3::ZERO, DVec3::ZERO);
             for &l in &criteria.texture {
                 let e = lights[l].unoccluded_irradiance(x, n) * photo_scales[l];
-                let v: f64 = at.weights.iter().map(|&(k, w)| real_vis[l][k as usize] * w).sum();
+                let v: f64 = at
+                    .weights
+                    .iter()
+                    .map(|&(k, w)| real_vis[l][k as usize] * w)
+                    .sum();
                 unocc += e;
                 occ += e * v.clamp(0.0, 1.0);
             }
@@ -422,7 +569,12 @@ impl TexturePath {
             let (num, den) = (unocc + hh, occ + hh);
             // Where the photo holds almost none of the light there is nothing
             // to scale back; the factor is capped where it cannot tell.
-            DVec3::select(den.cmpgt(num * 1e-3), num / den.max(DVec3::splat(1e-300)), DVec3::ONE).clamp(DVec3::ONE, DVec3::splat(1e3))
+            DVec3::select(
+                den.cmpgt(num * 1e-3),
+                num / den.max(DVec3::splat(1e-300)),
+                DVec3::ONE,
+            )
+            .clamp(DVec3::ONE, DVec3::splat(1e3))
         };
 
         // Per pixel: leaf and Step 1.
@@ -442,25 +594,56 @@ impl TexturePath {
                     sum[at.patch as usize] += photo.pixels[i].as_dvec3() * factor(i);
                 }
             }
-            sum.iter().zip(&lp.count).map(|(s, &c)| if c > 0 { *s / c as f64 } else { DVec3::ZERO }).collect()
+            sum.iter()
+                .zip(&lp.count)
+                .map(|(s, &c)| if c > 0 { *s / c as f64 } else { DVec3::ZERO })
+                .collect()
         };
         let step1_of = |i: usize| pixel_leaf[i].map_or(DVec3::ONE, |p| p.1);
         let t_inter = leaf_mean(&step1_of);
-        let irradiance_unoccluded: Vec<DVec3> = (0..real_patches).map(|k| e_unoccluded[k] + h[k]).collect();
-        let rho_of = |t: DVec3, k: usize| (t * pi / irradiance_unoccluded[k].max(DVec3::splat(1e-300))).clamp(DVec3::ZERO, DVec3::splat(crate::estimate::MAX_REFLECTANCE));
-        let rho_inter: Vec<DVec3> = (0..real_patches).map(|k| if lp.count[k] > 0 { rho_of(t_inter[k], k) } else { estimate.reflectance[k] }).collect();
+        let irradiance_unoccluded: Vec<DVec3> =
+            (0..real_patches).map(|k| e_unoccluded[k] + h[k]).collect();
+        let rho_of = |t: DVec3, k: usize| {
+            (t * pi / irradiance_unoccluded[k].max(DVec3::splat(1e-300)))
+                .clamp(DVec3::ZERO, DVec3::splat(crate::estimate::MAX_REFLECTANCE))
+        };
+        let rho_inter: Vec<DVec3> = (0..real_patches)
+            .map(|k| {
+                if lp.count[k] > 0 {
+                    rho_of(t_inter[k], k)
+                } else {
+                    estimate.reflectance[k]
+                }
+            })
+            .collect();
 
         // Step 2 (Eq. 7-9, Fig. 15-16): reference leaves on the frontier.
         let near = neighbours(&patches, real_patches);
         let tau = settings.visibility_threshold;
         let occluded: Vec<bool> = (0..real_patches)
-            .map(|k| criteria.texture.iter().any(|&l| real_direct[l][k].unoccluded.element_sum() > 0.0 && real_direct[l][k].visibility() < 1.0 - tau))
+            .map(|k| {
+                criteria.texture.iter().any(|&l| {
+                    real_direct[l][k].unoccluded.element_sum() > 0.0
+                        && real_direct[l][k].visibility() < 1.0 - tau
+                })
+            })
             .collect();
         let seen = |k: usize| lp.count[k] > 0;
-        let frontier: Vec<usize> = (0..real_patches).filter(|&k| seen(k) && !occluded[k] && near[k].iter().any(|&n| occluded[n as usize])).collect();
+        let frontier: Vec<usize> = (0..real_patches)
+            .filter(|&k| seen(k) && !occluded[k] && near[k].iter().any(|&n| occluded[n as usize]))
+            .collect();
         let lab: Vec<DVec3> = rho_inter.iter().map(|r| cielab(*r, 1.0)).collect();
-        let user_reference: HashMap<u32, usize> =
-            user_points.iter().map(|&(surface, ordinal, point)| (surface, patches.locate_in_root(patches.roots[ordinal as usize], point).patch as usize)).collect();
+        let user_reference: HashMap<u32, usize> = user_points
+            .iter()
+            .map(|&(surface, ordinal, point)| {
+                (
+                    surface,
+                    patches
+                        .locate_in_root(patches.roots[ordinal as usize], point)
+                        .patch as usize,
+                )
+            })
+            .collect();
         let mut correction = vec![DVec3::ONE; real_patches];
         for k in (0..real_patches).filter(|&k| occluded[k] && seen(k)) {
             stats.occluded += 1;
@@ -468,7 +651,9 @@ impl TexturePath {
             let mut best: Option<(f64, usize)> = None;
             for &n in &frontier {
                 let en = patches.patch(n);
-                if en.surface != el.surface || colour_distance(lab[k], lab[n]) >= settings.reference_colour_threshold {
+                if en.surface != el.surface
+                    || colour_distance(lab[k], lab[n]) >= settings.reference_colour_threshold
+                {
                     continue;
                 }
                 let d = (en.centre - el.centre).length();
@@ -500,36 +685,74 @@ impl TexturePath {
         let step2 = |at: &Location| patches.interpolate(&corr_v, at);
 
         // ρ_final from T_final, a radiosity step; D = ρ·(unoccluded direct + indirect).
-        let t_final_leaf = leaf_mean(&|i| step1_of(i) * pixel_leaf[i].as_ref().map_or(DVec3::ONE, |p| step2(&p.0)));
+        let t_final_leaf = leaf_mean(&|i| {
+            step1_of(i) * pixel_leaf[i].as_ref().map_or(DVec3::ONE, |p| step2(&p.0))
+        });
         let rho_final: Vec<DVec3> = (0..real_patches)
-            .map(|k| if occluded[k] && seen(k) && !known.contains_key(&patches.patch(k).surface) { rho_of(t_final_leaf[k], k) } else { estimate.reflectance[k] })
+            .map(|k| {
+                if occluded[k] && seen(k) && !known.contains_key(&patches.patch(k).surface) {
+                    rho_of(t_final_leaf[k], k)
+                } else {
+                    estimate.reflectance[k]
+                }
+            })
             .collect();
         times.0.push(("steps 1 and 2", steps_started.elapsed()));
         let final_solution = times.time("solve unoccluded", || {
-            let b: Vec<DVec3> = rho_final.iter().zip(&e_occluded).map(|(r, e)| *r * *e).collect();
-            solve_from(&patches, &transport, &rho_final, &b, Some(&estimate.solution.radiosity), solve_tolerance, 500)
+            let b: Vec<DVec3> = rho_final
+                .iter()
+                .zip(&e_occluded)
+                .map(|(r, e)| *r * *e)
+                .collect();
+            solve_from(
+                &patches,
+                &transport,
+                &rho_final,
+                &b,
+                Some(&estimate.solution.radiosity),
+                solve_tolerance,
+                500,
+            )
         });
 
         // The textures: photo re-projected, then Steps 1 and 2 applied per texel.
         let textures = times.time("textures", || {
-            build_textures(scene, &patches, &hits, photo, pixel_angle, settings.texels_per_pixel, &|root, x| {
-                let at = patches.locate_in_root(root, x);
-                step1(x, patches.patch(at.patch as usize).normal, &at) * step2(&at)
-            })
+            build_textures(
+                scene,
+                &patches,
+                &hits,
+                photo,
+                pixel_angle,
+                settings.texels_per_pixel,
+                &|root, x| {
+                    let at = patches.locate_in_root(root, x);
+                    step1(x, patches.patch(at.patch as usize).normal, &at) * step2(&at)
+                },
+            )
         });
         // Indexed, not hashed: the display looks one up per pixel.
         let mut by_root: Vec<(u32, Texture)> = textures.into_iter().collect();
         by_root.sort_unstable_by_key(|(root, _)| *root);
-        let texture_of: HashMap<u32, u32> = by_root.iter().enumerate().map(|(i, (root, _))| (*root, i as u32)).collect();
+        let texture_of: HashMap<u32, u32> = by_root
+            .iter()
+            .enumerate()
+            .map(|(i, (root, _))| (*root, i as u32))
+            .collect();
         let textures: Vec<Texture> = by_root.into_iter().map(|(_, t)| t).collect();
         stats.texels = textures.iter().map(|t| t.texels.len()).sum();
         stats.texture_bytes = stats.texels * std::mem::size_of::<Vec3>();
 
         // The mesh with the inserted objects, and the direct light through them.
         let (patches, direct, transport) = if has_objects {
-            let all = times.time("virtual mesh", || Patches::of_scene_refined(scene, true, patch_size, virtual_size, &marks));
-            let direct = times.time("direct light with objects", || leaf_light(&all, &lights, tracer, Layer::All, settings.light_level));
-            let transport = times.time("form factors with objects", || transport.with_objects(&all, tracer, settings.link_epsilon, true));
+            let all = times.time("virtual mesh", || {
+                Patches::of_scene_refined(scene, true, patch_size, virtual_size, &marks)
+            });
+            let direct = times.time("direct light with objects", || {
+                leaf_light(&all, &lights, tracer, Layer::All, settings.light_level)
+            });
+            let transport = times.time("form factors with objects", || {
+                transport.with_objects(&all, tracer, settings.link_epsilon, true)
+            });
             (all, direct, transport)
         } else {
             (patches, real_direct, transport)
@@ -537,17 +760,24 @@ impl TexturePath {
         stats.links = transport.link_count();
         let rest_started = std::time::Instant::now();
         let visibility = vis_vertex(&direct, &patches);
-        let direct: Vec<Vec<DVec3>> = direct.iter().map(|l| l.iter().map(|t| t.occluded).collect()).collect();
+        let direct: Vec<Vec<DVec3>> = direct
+            .iter()
+            .map(|l| l.iter().map(|t| t.occluded).collect())
+            .collect();
         let virtual_rgb = scene.virtual_surface_rgb();
         let mut reflectance = rho_final;
-        reflectance.extend((real_patches..patches.patch_count()).map(|k| virtual_rgb[&patches.patch(k).surface]));
+        reflectance.extend(
+            (real_patches..patches.patch_count()).map(|k| virtual_rgb[&patches.patch(k).surface]),
+        );
         let mut radiosity_final = final_solution.radiosity;
         radiosity_final.resize(patches.patch_count(), DVec3::ZERO);
         let mut h_final = final_solution.indirect_irradiance;
         h_final.resize(patches.patch_count(), DVec3::ZERO);
         let h_final_vertex = patches.vertex_values(&h_final);
 
-        times.0.push(("reflectances and links", rest_started.elapsed()));
+        times
+            .0
+            .push(("reflectances and links", rest_started.elapsed()));
         // What each pixel shows (through the objects too) and each light's
         // unoccluded irradiance there, written row by row in place.
         let layer = if has_objects { Layer::All } else { Layer::Real };
@@ -555,27 +785,38 @@ impl TexturePath {
         let mut pixels: Vec<Option<PixelPoint>> = vec![None; cam.pixel_count()];
         let mut unoccluded = vec![Vec3::ZERO; cam.pixel_count() * nl];
         times.time("pixel points", || {
-            pixels.par_chunks_mut(w).zip(unoccluded.par_chunks_mut(w * nl)).enumerate().for_each(|(row, (points, irradiance))| {
-                let hits = crate::surface_ids::row_hits(cam, tracer, layer, row as u32);
-                for (col, h) in hits.into_iter().enumerate() {
-                    let Some(h) = h else { continue };
-                    let x = cam.position + cam.pixel_ray(col as u32, row as u32).direction * h.t as f64;
-                    let Some(root) = patches.root_of(h.surface, h.triangle) else { continue };
-                    let at = patches.locate_in_root(root, x);
-                    let n = patches.patch(at.patch as usize).normal;
-                    for (e, light) in irradiance[col * nl..(col + 1) * nl].iter_mut().zip(&lights) {
-                        *e = light.unoccluded_irradiance(x, n).as_vec3();
+            pixels
+                .par_chunks_mut(w)
+                .zip(unoccluded.par_chunks_mut(w * nl))
+                .enumerate()
+                .for_each(|(row, (points, irradiance))| {
+                    let hits = crate::surface_ids::row_hits(cam, tracer, layer, row as u32);
+                    for (col, h) in hits.into_iter().enumerate() {
+                        let Some(h) = h else { continue };
+                        let x = cam.position
+                            + cam.pixel_ray(col as u32, row as u32).direction * h.t as f64;
+                        let Some(root) = patches.root_of(h.surface, h.triangle) else {
+                            continue;
+                        };
+                        let at = patches.locate_in_root(root, x);
+                        let n = patches.patch(at.patch as usize).normal;
+                        for (e, light) in
+                            irradiance[col * nl..(col + 1) * nl].iter_mut().zip(&lights)
+                        {
+                            *e = light.unoccluded_irradiance(x, n).as_vec3();
+                        }
+                        points[col] = if h.is_virtual {
+                            Some(PixelPoint::Virtual { at })
+                        } else {
+                            texture_of.get(&root).map(|&texture| {
+                                let texel = textures[texture as usize]
+                                    .texel_of(patches.root_params(root, x))
+                                    as u32;
+                                PixelPoint::Real { texture, at, texel }
+                            })
+                        };
                     }
-                    points[col] = if h.is_virtual {
-                        Some(PixelPoint::Virtual { at })
-                    } else {
-                        texture_of.get(&root).map(|&texture| {
-                            let texel = textures[texture as usize].texel_of(patches.root_params(root, x)) as u32;
-                            PixelPoint::Real { texture, at, texel }
-                        })
-                    };
-                }
-            });
+                });
         });
         let display_started = std::time::Instant::now();
         // D per pixel: the photo's lights unoccluded, plus the final indirect light.
@@ -584,14 +825,23 @@ impl TexturePath {
             .enumerate()
             .map(|(i, p)| match p {
                 Some(PixelPoint::Real { at, .. }) => {
-                    let e: DVec3 = criteria.texture.iter().map(|&l| unoccluded[i * nl + l].as_dvec3() * photo_scales[l]).sum();
+                    let e: DVec3 = criteria
+                        .texture
+                        .iter()
+                        .map(|&l| unoccluded[i * nl + l].as_dvec3() * photo_scales[l])
+                        .sum();
                     (e + patches.interpolate(&h_final_vertex, at)).as_vec3()
                 }
                 _ => Vec3::ZERO,
             })
             .collect();
         let d_floor = {
-            let d: Vec<f64> = display.iter().zip(&pixels).filter(|(_, p)| matches!(p, Some(PixelPoint::Real { .. }))).map(|(d, _)| luminance(d.as_dvec3())).collect();
+            let d: Vec<f64> = display
+                .iter()
+                .zip(&pixels)
+                .filter(|(_, p)| matches!(p, Some(PixelPoint::Real { .. })))
+                .map(|(d, _)| luminance(d.as_dvec3()))
+                .collect();
             1e-3 * d.iter().sum::<f64>() / d.len().max(1) as f64
         };
         times.0.push(("display factors", display_started.elapsed()));
@@ -658,10 +908,25 @@ impl TexturePath {
             }
         }
         let solution = times.time("radiosity step", || {
-            let b: Vec<DVec3> = self.reflectance.iter().zip(&e).map(|(r, e)| *r * *e).collect();
-            solve_from(&self.patches, &self.transport, &self.reflectance, &b, Some(&self.radiosity_final), self.solve_tolerance, 500)
+            let b: Vec<DVec3> = self
+                .reflectance
+                .iter()
+                .zip(&e)
+                .map(|(r, e)| *r * *e)
+                .collect();
+            solve_from(
+                &self.patches,
+                &self.transport,
+                &self.reflectance,
+                &b,
+                Some(&self.radiosity_final),
+                self.solve_tolerance,
+                500,
+            )
         });
-        times.time("display", || self.display(scales, &solution.indirect_irradiance))
+        times.time("display", || {
+            self.display(scales, &solution.indirect_irradiance)
+        })
     }
 
     /// Per pixel B/D: each light's exact unoccluded irradiance times the
@@ -685,16 +950,31 @@ impl TexturePath {
         };
         out.fill(photo, |i| {
             let Some(px) = &self.pixels[i] else {
-                return PixelShade { value: photo.pixels[i], direct: Vec3::ZERO, indirect: Vec3::ZERO, alpha: 0.0, copied: true, fallback: false, clamped: false };
+                return PixelShade {
+                    value: photo.pixels[i],
+                    direct: Vec3::ZERO,
+                    indirect: Vec3::ZERO,
+                    alpha: 0.0,
+                    copied: true,
+                    fallback: false,
+                    clamped: false,
+                };
             };
             let (at, texture) = match px {
-                PixelPoint::Real { at, texture, texel } => (at, Some(self.textures[*texture as usize].texels[*texel as usize])),
+                PixelPoint::Real { at, texture, texel } => (
+                    at,
+                    Some(self.textures[*texture as usize].texels[*texel as usize]),
+                ),
                 PixelPoint::Virtual { at } => (at, None),
             };
             let mut e = DVec3::ZERO;
             for (l, &s) in scales.iter().enumerate() {
                 if s > 0.0 {
-                    let v: f64 = at.weights.iter().map(|&(k, w)| self.visibility[l][k as usize] * w).sum();
+                    let v: f64 = at
+                        .weights
+                        .iter()
+                        .map(|&(k, w)| self.visibility[l][k as usize] * w)
+                        .sum();
                     e += self.unoccluded[i * nl + l].as_dvec3() * (s * v.clamp(0.0, 1.0));
                 }
             }
@@ -714,9 +994,22 @@ impl TexturePath {
                 }
                 None => rho * (e + hh) / pi,
             };
-            let value = if value.is_finite() { value.max(DVec3::ZERO) } else { DVec3::ZERO }.as_vec3();
+            let value = if value.is_finite() {
+                value.max(DVec3::ZERO)
+            } else {
+                DVec3::ZERO
+            }
+            .as_vec3();
             let alpha = if texture.is_some() { 0.0 } else { 1.0 };
-            PixelShade { value, direct: e.as_vec3(), indirect: hh.as_vec3(), alpha, copied: false, fallback, clamped: false }
+            PixelShade {
+                value,
+                direct: e.as_vec3(),
+                indirect: hh.as_vec3(),
+                alpha,
+                copied: false,
+                fallback,
+                clamped: false,
+            }
         });
         out
     }
@@ -725,10 +1018,22 @@ impl TexturePath {
 /// `arlux render --method texture`: the preprocess for `scene` (a variant:
 /// its inserted lights and objects refine the mesh), then one light change
 /// to the variant's scales.
-pub fn render_texture(scene: &Scene, photo: &Image, settings: &TextureSettings, times: &mut StageTimes) -> Result<crate::render::RenderOutput> {
+pub fn render_texture(
+    scene: &Scene,
+    photo: &Image,
+    settings: &TextureSettings,
+    times: &mut StageTimes,
+) -> Result<crate::render::RenderOutput> {
     let tracer = times.time("tracer", || scene.build_tracer())?;
     let mut left_out = Vec::new();
-    let (resolved, photo) = crate::render::resolve_inputs(scene, photo, &tracer, &crate::model::ModelSettings::default(), times, &mut left_out)?;
+    let (resolved, photo) = crate::render::resolve_inputs(
+        scene,
+        photo,
+        &tracer,
+        &crate::model::ModelSettings::default(),
+        times,
+        &mut left_out,
+    )?;
     let scene = resolved.as_ref().unwrap_or(scene);
     if tracer.virtual_objects.is_none() {
         left_out.push("virtual geometry: no virtual object".to_string());
@@ -775,23 +1080,44 @@ fn refine_round(
     let seen = |k: usize| lp.count[k] > 0;
     let lab: Vec<DVec3> = lp.mean.iter().map(|c| cielab(*c, white)).collect();
     // Every (light, layer) the criteria look at.
-    let mut wanted: Vec<(usize, Layer)> = criteria.texture.iter().map(|&l| (l, Layer::Real)).collect();
+    let mut wanted: Vec<(usize, Layer)> =
+        criteria.texture.iter().map(|&l| (l, Layer::Real)).collect();
     wanted.extend(criteria.forced.iter().copied());
     wanted.dedup();
     let terms = |els: &[Element], cache: &mut HashMap<_, LightTerm>| -> Vec<Vec<LightTerm>> {
         // Compute what the cache lacks in parallel, then read.
         for &(l, layer) in &wanted {
             let all = layer == Layer::All;
-            let missing: Vec<&Element> = els.iter().filter(|el| !cache.contains_key(&(element_key(patches, el), l, all))).collect();
+            let missing: Vec<&Element> = els
+                .iter()
+                .filter(|el| !cache.contains_key(&(element_key(patches, el), l, all)))
+                .collect();
             let computed: Vec<LightTerm> = missing
                 .par_iter()
-                .map(|el| element_light(&el.shape, el.normal, &lights[l], tracer, layer, settings.light_level, element_seed(patches, el)))
+                .map(|el| {
+                    element_light(
+                        &el.shape,
+                        el.normal,
+                        &lights[l],
+                        tracer,
+                        layer,
+                        settings.light_level,
+                        element_seed(patches, el),
+                    )
+                })
                 .collect();
             for (el, t) in missing.iter().zip(computed) {
                 cache.insert((element_key(patches, el), l, all), t);
             }
         }
-        els.iter().map(|el| wanted.iter().map(|&(l, layer)| cache[&(element_key(patches, el), l, layer == Layer::All)]).collect()).collect()
+        els.iter()
+            .map(|el| {
+                wanted
+                    .iter()
+                    .map(|&(l, layer)| cache[&(element_key(patches, el), l, layer == Layer::All)])
+                    .collect()
+            })
+            .collect()
     };
     let leaves: Vec<Element> = (0..n).map(|k| patches.patch(k).clone()).collect();
     let eligible: Vec<usize> = (0..n)
@@ -801,7 +1127,10 @@ fn refine_round(
                 && leaves[k].shape.size() >= settings.min_leaf_pixels * lp.footprint[k]
         })
         .collect();
-    let vis: Vec<Vec<f64>> = terms(&leaves, cache).iter().map(|t| t.iter().map(LightTerm::visibility).collect()).collect();
+    let vis: Vec<Vec<f64>> = terms(&leaves, cache)
+        .iter()
+        .map(|t| t.iter().map(LightTerm::visibility).collect())
+        .collect();
     let halves: Vec<Element> = eligible
         .iter()
         .flat_map(|&k| {
@@ -827,7 +1156,10 @@ fn refine_round(
     let mut added = 0;
     let mut mark = |k: usize, marks: &mut SplitMarks| {
         let el = &leaves[k];
-        marks.entry(patches.root_ordinal(el.root)).or_default().push((region_centre(&el.region), el.shape.size()));
+        marks
+            .entry(patches.root_ordinal(el.root))
+            .or_default()
+            .push((region_centre(&el.region), el.shape.size()));
         added += 1;
     };
     for (i, &k) in eligible.iter().enumerate() {
@@ -841,17 +1173,26 @@ fn refine_round(
                 continue;
             }
             let similar_colour = colour_distance(lab[k], lab[m]) < settings.colour_threshold;
-            let differ = |range: std::ops::Range<usize>| range.into_iter().any(|j| (vis[k][j] - vis[m][j]).abs() >= tau);
+            let differ = |range: std::ops::Range<usize>| {
+                range
+                    .into_iter()
+                    .any(|j| (vis[k][j] - vis[m][j]).abs() >= tau)
+            };
             let texture_vis_differs = differ(0..texture_count);
             // Inserted lights and objects: visibility alone decides.
             let forced_differs = differ(texture_count..wanted.len());
-            split_it = (similar_colour && texture_vis_differs) || (!similar_colour && !texture_vis_differs && texture_count > 0) || forced_differs;
+            split_it = (similar_colour && texture_vis_differs)
+                || (!similar_colour && !texture_vis_differs && texture_count > 0)
+                || forced_differs;
         }
         if !split_it {
             continue;
         }
         // Undone when the halves see every light as the leaf does.
-        let changes = (0..wanted.len()).any(|j| (a[j].visibility() - vis[k][j]).abs() >= tau || (b[j].visibility() - vis[k][j]).abs() >= tau);
+        let changes = (0..wanted.len()).any(|j| {
+            (a[j].visibility() - vis[k][j]).abs() >= tau
+                || (b[j].visibility() - vis[k][j]).abs() >= tau
+        });
         if changes {
             stats.splits += 1;
             mark(k, marks);
@@ -881,7 +1222,9 @@ fn build_textures(
     // Per root: seen parameter range and nearest footprint.
     let mut range: HashMap<u32, (DVec2, DVec2, f64)> = HashMap::new();
     for h in hits.iter().flatten() {
-        let Some(root) = patches.root_of(h.surface, h.triangle) else { continue };
+        let Some(root) = patches.root_of(h.surface, h.triangle) else {
+            continue;
+        };
         let st = patches.root_params(root, h.x);
         let e = range.entry(root).or_insert((st, st, f64::INFINITY));
         e.0 = e.0.min(st);
@@ -906,27 +1249,51 @@ fn build_textures(
             let nu = (((s1 - s0) / ds).ceil() as usize).clamp(1, MAX_SIDE);
             let nv = (((t1 - t0) / dt).ceil() as usize).clamp(1, MAX_SIDE);
             let (ds, dt) = ((s1 - s0) / nu as f64, (t1 - t0) / nv as f64);
-            let mut tex = Texture { s0, t0, ds, dt, nu, nv, texels: vec![Vec3::ZERO; nu * nv] };
+            let mut tex = Texture {
+                s0,
+                t0,
+                ds,
+                dt,
+                nu,
+                nv,
+                texels: vec![Vec3::ZERO; nu * nv],
+            };
             let mut known = vec![false; nu * nv];
-            let centre = |k: usize| DVec2::new(s0 + ((k % nu) as f64 + 0.5) * ds, t0 + ((k / nu) as f64 + 0.5) * dt);
-            tex.texels.par_iter_mut().zip(known.par_iter_mut()).enumerate().for_each(|(k, (texel, known))| {
-                let x = patches.root_point(root, centre(k));
-                let Some((px, py, _)) = cam.project(x) else { return };
-                if px < 0.0 || py < 0.0 || px >= cam.width as f64 || py >= cam.height as f64 {
-                    return;
-                }
-                let (col, row) = (px as u32, py as u32);
-                // Seen: the photo's pixel there shows this polygon (its centre's ray meets it).
-                if hits[(row * cam.width + col) as usize].is_some_and(|h| patches.root_of(h.surface, h.triangle) == Some(root)) {
-                    *texel = photo.get(col, row);
-                    *known = true;
-                }
-            });
+            let centre = |k: usize| {
+                DVec2::new(
+                    s0 + ((k % nu) as f64 + 0.5) * ds,
+                    t0 + ((k / nu) as f64 + 0.5) * dt,
+                )
+            };
+            tex.texels
+                .par_iter_mut()
+                .zip(known.par_iter_mut())
+                .enumerate()
+                .for_each(|(k, (texel, known))| {
+                    let x = patches.root_point(root, centre(k));
+                    let Some((px, py, _)) = cam.project(x) else {
+                        return;
+                    };
+                    if px < 0.0 || py < 0.0 || px >= cam.width as f64 || py >= cam.height as f64 {
+                        return;
+                    }
+                    let (col, row) = (px as u32, py as u32);
+                    // Seen: the photo's pixel there shows this polygon (its centre's ray meets it).
+                    if hits[(row * cam.width + col) as usize]
+                        .is_some_and(|h| patches.root_of(h.surface, h.triangle) == Some(root))
+                    {
+                        *texel = photo.get(col, row);
+                        *known = true;
+                    }
+                });
             fill_unknown(&mut tex, &mut known);
-            tex.texels.par_iter_mut().enumerate().for_each(|(k, texel)| {
-                let m = modulation(root, patches.root_point(root, centre(k)));
-                *texel = (texel.as_dvec3() * m).as_vec3();
-            });
+            tex.texels
+                .par_iter_mut()
+                .enumerate()
+                .for_each(|(k, texel)| {
+                    let m = modulation(root, patches.root_point(root, centre(k)));
+                    *texel = (texel.as_dvec3() * m).as_vec3();
+                });
             (root, tex)
         })
         .collect()
@@ -939,7 +1306,12 @@ fn fill_unknown(tex: &mut Texture, known: &mut [bool]) {
     let mut queue: std::collections::VecDeque<usize> = (0..nu * nv).filter(|&k| known[k]).collect();
     while let Some(k) = queue.pop_front() {
         let (i, j) = (k % nu, k / nu);
-        let around = [(i > 0).then(|| k - 1), (i + 1 < nu).then(|| k + 1), (j > 0).then(|| k - nu), (j + 1 < nv).then(|| k + nu)];
+        let around = [
+            (i > 0).then(|| k - 1),
+            (i + 1 < nu).then(|| k + 1),
+            (j > 0).then(|| k - nu),
+            (j + 1 < nv).then(|| k + nu),
+        ];
         for n in around.into_iter().flatten() {
             if !known[n] {
                 known[n] = true;
@@ -957,10 +1329,16 @@ mod tests {
     #[test]
     fn cielab_of_reference_colours() {
         let white = cielab(DVec3::ONE, 1.0);
-        assert!((white.x - 100.0).abs() < 0.05 && white.y.abs() < 0.05 && white.z.abs() < 0.05, "{white}");
+        assert!(
+            (white.x - 100.0).abs() < 0.05 && white.y.abs() < 0.05 && white.z.abs() < 0.05,
+            "{white}"
+        );
         // sRGB red: L 53.24, a 80.09, b 67.20.
         let red = cielab(DVec3::X, 1.0);
-        assert!((red - DVec3::new(53.24, 80.09, 67.20)).length() < 0.1, "{red}");
+        assert!(
+            (red - DVec3::new(53.24, 80.09, 67.20)).length() < 0.1,
+            "{red}"
+        );
         assert_eq!(cielab(DVec3::ZERO, 1.0), DVec3::ZERO);
         // Relative to the white given: twice as bright and a white of 2 is white.
         assert!((cielab(DVec3::splat(2.0), 2.0) - white).length() < 1e-9);
@@ -968,7 +1346,15 @@ mod tests {
 
     #[test]
     fn unknown_texels_take_their_nearest_known_value() {
-        let mut tex = Texture { s0: 0.0, t0: 0.0, ds: 0.25, dt: 0.5, nu: 4, nv: 2, texels: vec![Vec3::ZERO; 8] };
+        let mut tex = Texture {
+            s0: 0.0,
+            t0: 0.0,
+            ds: 0.25,
+            dt: 0.5,
+            nu: 4,
+            nv: 2,
+            texels: vec![Vec3::ZERO; 8],
+        };
         let mut known = vec![false; 8];
         tex.texels[0] = Vec3::ONE;
         known[0] = true;

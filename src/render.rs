@@ -86,7 +86,12 @@ pub struct RenderOutput {
 
 /// Renders `scene` (an effective scene: a variant or motion pose of the
 /// loaded one) over `photo`.
-pub fn render(scene: &Scene, photo: &Image, settings: &RenderSettings, times: &mut StageTimes) -> Result<RenderOutput> {
+pub fn render(
+    scene: &Scene,
+    photo: &Image,
+    settings: &RenderSettings,
+    times: &mut StageTimes,
+) -> Result<RenderOutput> {
     let n = photo.pixels.len();
     if !scene.changes_the_photo() {
         let composite = Composite {
@@ -100,7 +105,17 @@ pub fn render(scene: &Scene, photo: &Image, settings: &RenderSettings, times: &m
             clamped: 0,
         };
         let left_out = vec!["everything: the scene shows the photo's state (no virtual object, lights as photographed)".to_string()];
-        return Ok(RenderOutput { composite, left_out, pda_bytes: 0, pda_pixels: n, rays: 0, patches: 0, links: 0, patch_size: 0.0, texture: None });
+        return Ok(RenderOutput {
+            composite,
+            left_out,
+            pda_bytes: 0,
+            pda_pixels: n,
+            rays: 0,
+            patches: 0,
+            links: 0,
+            patch_size: 0.0,
+            texture: None,
+        });
     }
     Ok(Session::begin(scene, photo, settings, times, false)?.into_output())
 }
@@ -178,10 +193,22 @@ impl GatherDirections {
         if self.of.len() > 4 * vertices.len() {
             self.of.clear();
         }
-        let missing: Vec<_> = vertices.iter().filter(|&&(v, n, side)| !self.of.contains_key(&GatherDirections::key(v, n, side))).collect();
+        let missing: Vec<_> = vertices
+            .iter()
+            .filter(|&&(v, n, side)| !self.of.contains_key(&GatherDirections::key(v, n, side)))
+            .collect();
         let made: Vec<_> = missing
             .into_par_iter()
-            .map(|&(v, n, side)| (GatherDirections::key(v, n, side), crate::gather::cosine_directions(n, side, crate::light::hash2(v as u64, 0x6A7E))))
+            .map(|&(v, n, side)| {
+                (
+                    GatherDirections::key(v, n, side),
+                    crate::gather::cosine_directions(
+                        n,
+                        side,
+                        crate::light::hash2(v as u64, 0x6A7E),
+                    ),
+                )
+            })
             .collect();
         self.of.extend(made);
     }
@@ -206,39 +233,93 @@ pub struct UpdateStats {
 
 impl Session {
     /// A full render of `scene` over `photo`, kept for updates.
-    pub fn start(scene: &Scene, photo: &Image, settings: &RenderSettings, times: &mut StageTimes) -> Result<Session> {
+    pub fn start(
+        scene: &Scene,
+        photo: &Image,
+        settings: &RenderSettings,
+        times: &mut StageTimes,
+    ) -> Result<Session> {
         Session::begin(scene, photo, settings, times, true)
     }
 
     /// A full render; `for_updates`: keep what updates need and a still does not.
-    fn begin(scene: &Scene, photo: &Image, settings: &RenderSettings, times: &mut StageTimes, for_updates: bool) -> Result<Session> {
+    fn begin(
+        scene: &Scene,
+        photo: &Image,
+        settings: &RenderSettings,
+        times: &mut StageTimes,
+        for_updates: bool,
+    ) -> Result<Session> {
         let mut left_out = Vec::new();
         let patch_size = match settings.patch_size {
             PatchSize::Metres(m) => m,
             PatchSize::Auto => {
-                let lights_change = scene.lights.iter().any(|l| l.scale != if l.real { 1.0 } else { 0.0 });
-                if lights_change { fine_patch_size(scene) } else { room_diagonal(scene) / 6.0 }
+                let lights_change = scene
+                    .lights
+                    .iter()
+                    .any(|l| l.scale != if l.real { 1.0 } else { 0.0 });
+                if lights_change {
+                    fine_patch_size(scene)
+                } else {
+                    room_diagonal(scene) / 6.0
+                }
             }
         };
-        let settings = RenderSettings { model: ModelSettings { patch_size, ..settings.model }, ..*settings };
+        let settings = RenderSettings {
+            model: ModelSettings {
+                patch_size,
+                ..settings.model
+            },
+            ..*settings
+        };
         let tracer = times.time("tracer", || scene.build_tracer())?;
         let given_lights = scene.lights.clone();
-        let (resolved, photo) = resolve_inputs(scene, photo, &tracer, &settings.model, times, &mut left_out)?;
+        let (resolved, photo) =
+            resolve_inputs(scene, photo, &tracer, &settings.model, times, &mut left_out)?;
         let scene = resolved.as_ref().unwrap_or(scene);
         let model = Model::build(scene, &photo, &tracer, &settings.model, times)?;
         let scales_without: Vec<f64> = model.lights.iter().map(|l| l.photo_scale()).collect();
         let scales_with: Vec<f64> = model.lights.iter().map(|l| l.scale).collect();
-        let active: Vec<bool> = scales_with.iter().zip(&scales_without).map(|(a, b)| *a > 0.0 || *b > 0.0).collect();
-        let indirect_without = model.patches.vertex_values(&model.estimate.solution.indirect_irradiance);
+        let active: Vec<bool> = scales_with
+            .iter()
+            .zip(&scales_without)
+            .map(|(a, b)| *a > 0.0 || *b > 0.0)
+            .collect();
+        let indirect_without = model
+            .patches
+            .vertex_values(&model.estimate.solution.indirect_irradiance);
         if tracer.virtual_objects.is_none() {
             left_out.push("virtual geometry and new form factors: no virtual object (the room's transport is reused)".to_string());
-            left_out.push("rays against virtual geometry and edge supersampling: no virtual object".to_string());
+            left_out.push(
+                "rays against virtual geometry and edge supersampling: no virtual object"
+                    .to_string(),
+            );
         }
         let link_facts = crate::radiosity::RoomLinkFacts::new(&model.transport);
-        let bounds = VirtualBounds::of(&scene.virtual_world_surfaces()).with_room(&model.patches.real_root_polygons(), &model.lights);
-        let objects = object_patches(scene, &model.patches, tracer.virtual_objects.is_some(), &settings, times);
+        let bounds = VirtualBounds::of(&scene.virtual_world_surfaces())
+            .with_room(&model.patches.real_root_polygons(), &model.lights);
+        let objects = object_patches(
+            scene,
+            &model.patches,
+            tracer.virtual_objects.is_some(),
+            &settings,
+            times,
+        );
         let mut gather_directions = GatherDirections::default();
-        let changes = solve_changes(scene, &photo, &tracer, &model, &scales_with, &settings, &bounds, &link_facts, objects.as_ref(), &mut gather_directions, times).with_patches(objects);
+        let changes = solve_changes(
+            scene,
+            &photo,
+            &tracer,
+            &model,
+            &scales_with,
+            &settings,
+            &bounds,
+            &link_facts,
+            objects.as_ref(),
+            &mut gather_directions,
+            times,
+        )
+        .with_patches(objects);
         let patches = changes.own.as_ref().map_or(&model.patches, |o| &o.0);
         let pda = times.time("pixel data array", || {
             PixelDataArray::build(&PdaInput {
@@ -286,7 +367,11 @@ impl Session {
     /// Composites the image; `recomputed` lists the pixels whose real
     /// point's light terms changed since the last composite.
     fn recomposite(&mut self, times: &mut StageTimes, recomputed: &[u32]) {
-        let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| &o.0);
+        let patches = self
+            .changes
+            .own
+            .as_ref()
+            .map_or(&self.model.patches, |o| &o.0);
         let known = self.known.take();
         let mut out = std::mem::replace(&mut self.composite, crate::composite::Composite::empty());
         let known = times.time("composite", || {
@@ -316,7 +401,13 @@ impl Session {
                 }
                 None => RealPixels::of(&input),
             };
-            composite_into(&CompositeInput { known: Some(&known), ..input }, &mut out);
+            composite_into(
+                &CompositeInput {
+                    known: Some(&known),
+                    ..input
+                },
+                &mut out,
+            );
             Some(known)
         });
         self.composite = out;
@@ -335,7 +426,12 @@ impl Session {
     /// not asked for before).
     pub fn prepare_updates(&mut self, times: &mut StageTimes) {
         if self.blocks.is_none() {
-            let (pda, lights, active, objects) = (&self.pda, &self.model.lights, &self.active, &self.bounds.objects);
+            let (pda, lights, active, objects) = (
+                &self.pda,
+                &self.model.lights,
+                &self.active,
+                &self.bounds.objects,
+            );
             let (blocks, (reached, shafts)) = times.time("pixel blocks", || {
                 use rayon::prelude::*;
                 let blocks = crate::blocks::BlockHierarchy::build(pda);
@@ -365,7 +461,12 @@ impl Session {
     /// with the shafts kept so far (0 until built).
     pub fn memory_bytes(&self) -> (usize, usize) {
         let shafts: usize = self.block_shafts.iter().map(|s| s.memory_bytes()).sum();
-        (self.pda.memory_bytes(), self.blocks.as_ref().map_or(0, |b| b.memory_bytes() + shafts))
+        (
+            self.pda.memory_bytes(),
+            self.blocks
+                .as_ref()
+                .map_or(0, |b| b.memory_bytes() + shafts),
+        )
     }
 
     pub fn pda(&self) -> &PixelDataArray {
@@ -384,14 +485,25 @@ impl Session {
     /// again on the room's links with the objects re-linked.
     pub fn update(&mut self, scene: &Scene, times: &mut StageTimes) -> Result<UpdateStats> {
         let same_lights = scene.lights == self.given_lights;
-        if !same_lights || scene.camera != self.scene.camera || scene.surfaces.len() != self.scene.surfaces.len() {
-            return Err(crate::error::Error::file(&scene.file, "an update moves virtual objects only; lights, camera and real geometry must stay"));
+        if !same_lights
+            || scene.camera != self.scene.camera
+            || scene.surfaces.len() != self.scene.surfaces.len()
+        {
+            return Err(crate::error::Error::file(
+                &scene.file,
+                "an update moves virtual objects only; lights, camera and real geometry must stay",
+            ));
         }
         self.prepare_updates(times);
         let mut stats = UpdateStats::default();
         let virt = scene.virtual_world_surfaces();
-        let sets: Vec<crate::trace::SurfaceTriangles> =
-            virt.iter().map(|(id, t)| crate::trace::SurfaceTriangles { surface: *id, triangles: t }).collect();
+        let sets: Vec<crate::trace::SurfaceTriangles> = virt
+            .iter()
+            .map(|(id, t)| crate::trace::SurfaceTriangles {
+                surface: *id,
+                triangles: t,
+            })
+            .collect();
         // The tracer's objects, their bounds and their mesh, side by side.
         let has_objects = sets.iter().any(|s| !s.triangles.is_empty());
         let (tracer, model, settings) = (&mut self.tracer, &self.model, &self.settings);
@@ -399,8 +511,12 @@ impl Session {
             "place objects",
             |times| times.time("move objects", || tracer.rebuild_virtual(&sets)),
             |times| {
-                let bounds = VirtualBounds::of(&virt).with_room(&model.patches.real_root_polygons(), &model.lights);
-                (bounds, object_patches(scene, &model.patches, has_objects, settings, times))
+                let bounds = VirtualBounds::of(&virt)
+                    .with_room(&model.patches.real_root_polygons(), &model.lights);
+                (
+                    bounds,
+                    object_patches(scene, &model.patches, has_objects, settings, times),
+                )
             },
         );
         moved.map_err(|e| crate::error::Error::file(&scene.file, e.to_string()))?;
@@ -411,14 +527,53 @@ impl Session {
         // The Pixel Data Array does not depend on the radiosity solution:
         // the two are computed side by side.
         let (solved, (touched, pixel_rays, retraced)) = {
-            let (scene, photo, tracer, model, scales_with, settings, bounds, link_facts, directions) =
-                (&self.scene, &self.photo, &self.tracer, &self.model, &self.scales_with, &self.settings, &self.bounds, &self.link_facts, &mut self.gather_directions);
-            let (pda, blocks, active, stats, reached) = (&mut self.pda, self.blocks.as_ref().expect("prepared above"), &self.active, &mut stats, &mut self.reached);
+            let (
+                scene,
+                photo,
+                tracer,
+                model,
+                scales_with,
+                settings,
+                bounds,
+                link_facts,
+                directions,
+            ) = (
+                &self.scene,
+                &self.photo,
+                &self.tracer,
+                &self.model,
+                &self.scales_with,
+                &self.settings,
+                &self.bounds,
+                &self.link_facts,
+                &mut self.gather_directions,
+            );
+            let (pda, blocks, active, stats, reached) = (
+                &mut self.pda,
+                self.blocks.as_ref().expect("prepared above"),
+                &self.active,
+                &mut stats,
+                &mut self.reached,
+            );
             let block_shafts = &mut self.block_shafts;
             let objects = objects.as_ref();
             times.concurrently(
                 "radiosity | pixels",
-                |times| solve_changes(scene, photo, tracer, model, scales_with, settings, bounds, link_facts, objects, directions, times),
+                |times| {
+                    solve_changes(
+                        scene,
+                        photo,
+                        tracer,
+                        model,
+                        scales_with,
+                        settings,
+                        bounds,
+                        link_facts,
+                        objects,
+                        directions,
+                        times,
+                    )
+                },
                 |times| {
                     let input = PdaInput {
                         camera: &scene.camera,
@@ -430,33 +585,38 @@ impl Session {
                         settings: settings.pda,
                         for_updates: true,
                     };
-                    let (mut rays, retraced) = times.time("re-trace objects and edges", || pda.rebuild_virtual(&input));
+                    let (mut rays, retraced) =
+                        times.time("re-trace objects and edges", || pda.rebuild_virtual(&input));
                     // The pixels whose shafts may meet the objects' old
                     // bounds are those the last update (or the hierarchy's
                     // building) reached against them: only the new bounds
                     // are traversed.
-                    let traversals: Vec<Option<(crate::blocks::Traversal, Vec<u32>)>> = times.time("pixel-block traversal", || {
-                        use rayon::prelude::*;
-                        input
-                            .lights
-                            .par_iter()
-                            .zip(std::mem::take(reached))
-                            .zip(block_shafts.par_iter_mut())
-                            .enumerate()
-                            .map(|(l, ((light, before), shafts))| {
-                                input.active[l].then(|| {
-                                    let mut t = blocks.traverse(light, &bounds.objects, shafts);
-                                    let mut now = std::mem::take(&mut t.pixels);
-                                    now.sort_unstable();
-                                    // Both lists sorted: merged, not sorted again.
-                                    t.pixels = merge_sorted(&now, &before);
-                                    (t, now)
+                    let traversals: Vec<Option<(crate::blocks::Traversal, Vec<u32>)>> =
+                        times.time("pixel-block traversal", || {
+                            use rayon::prelude::*;
+                            input
+                                .lights
+                                .par_iter()
+                                .zip(std::mem::take(reached))
+                                .zip(block_shafts.par_iter_mut())
+                                .enumerate()
+                                .map(|(l, ((light, before), shafts))| {
+                                    input.active[l].then(|| {
+                                        let mut t = blocks.traverse(light, &bounds.objects, shafts);
+                                        let mut now = std::mem::take(&mut t.pixels);
+                                        now.sort_unstable();
+                                        // Both lists sorted: merged, not sorted again.
+                                        t.pixels = merge_sorted(&now, &before);
+                                        (t, now)
+                                    })
                                 })
-                            })
-                            .collect()
-                    });
+                                .collect()
+                        });
                     let (traversals, now): (Vec<Option<crate::blocks::Traversal>>, Vec<Vec<u32>>) =
-                        traversals.into_iter().map(|t| t.map_or((None, Vec::new()), |(t, now)| (Some(t), now))).unzip();
+                        traversals
+                            .into_iter()
+                            .map(|t| t.map_or((None, Vec::new()), |(t, now)| (Some(t), now)))
+                            .unzip();
                     let touched = times.time("recompute pixels", || {
                         let mut touched: Vec<u32> = Vec::new();
                         for (l, t) in traversals.into_iter().enumerate() {
@@ -487,8 +647,16 @@ impl Session {
     }
 
     pub fn into_output(self) -> RenderOutput {
-        let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| &o.0);
-        let transport = self.changes.own.as_ref().map_or(&self.model.transport, |o| &o.2);
+        let patches = self
+            .changes
+            .own
+            .as_ref()
+            .map_or(&self.model.patches, |o| &o.0);
+        let transport = self
+            .changes
+            .own
+            .as_ref()
+            .map_or(&self.model.transport, |o| &o.2);
         RenderOutput {
             pda_bytes: self.pda.memory_bytes(),
             pda_pixels: (self.pda.width * self.pda.height) as usize,
@@ -524,8 +692,18 @@ fn merge_sorted(a: &[u32], b: &[u32]) -> Vec<u32> {
 }
 
 /// The room's patches and then the virtual objects' (None: no object).
-fn object_patches(scene: &Scene, room: &Patches, has_objects: bool, settings: &RenderSettings, times: &mut StageTimes) -> Option<Patches> {
-    has_objects.then(|| times.time("virtual mesh", || Patches::of_scene_from_room(room, scene, settings.virtual_patch_size)))
+fn object_patches(
+    scene: &Scene,
+    room: &Patches,
+    has_objects: bool,
+    settings: &RenderSettings,
+    times: &mut StageTimes,
+) -> Option<Patches> {
+    has_objects.then(|| {
+        times.time("virtual mesh", || {
+            Patches::of_scene_from_room(room, scene, settings.virtual_patch_size)
+        })
+    })
 }
 
 /// [`Changes`] but for the objects' patches, which the caller keeps while
@@ -539,8 +717,14 @@ struct Solved {
 
 impl Solved {
     fn with_patches(self, patches: Option<Patches>) -> Changes {
-        let own = patches.zip(self.own).map(|(p, (direct, transport))| (p, direct, transport));
-        Changes { own, reflectance: self.reflectance, indirect_with: self.indirect_with }
+        let own = patches
+            .zip(self.own)
+            .map(|(p, (direct, transport))| (p, direct, transport));
+        Changes {
+            own,
+            reflectance: self.reflectance,
+            indirect_with: self.indirect_with,
+        }
     }
 }
 
@@ -566,14 +750,29 @@ fn solve_changes(
     let has_virtual = objects.is_some();
     let own: Option<(&Patches, Vec<Vec<DVec3>>, Transport)> = objects.map(|patches| {
         let direct = times.time("direct light with objects", || {
-            direct_irradiance_with_objects(patches, lights, tracer, settings.model.light_level, &model.direct_per_light, bounds)
+            direct_irradiance_with_objects(
+                patches,
+                lights,
+                tracer,
+                settings.model.light_level,
+                &model.direct_per_light,
+                bounds,
+            )
         });
         let epsilon = match settings.model.transport {
             TransportMethod::Full => crate::radiosity::DEFAULT_LINK_EPSILON,
             TransportMethod::Hierarchical { epsilon } => epsilon,
         };
         // With final gathering the objects' light comes from the photo: they need no links to gather through.
-        let transport = times.time("form factors with objects", || model.transport.with_objects_using(patches, tracer, epsilon, settings.gather_rays == 0, Some(link_facts)));
+        let transport = times.time("form factors with objects", || {
+            model.transport.with_objects_using(
+                patches,
+                tracer,
+                epsilon,
+                settings.gather_rays == 0,
+                Some(link_facts),
+            )
+        });
         (patches, direct, transport)
     });
     let (patches, direct_per_light, transport) = match &own {
@@ -583,7 +782,13 @@ fn solve_changes(
     let virtual_rgb: HashMap<u32, DVec3> = scene.virtual_surface_rgb();
     let real_count = model.patches.patch_count();
     let reflectance: Vec<DVec3> = (0..patches.patch_count())
-        .map(|k| if k < real_count { model.estimate.reflectance[k] } else { virtual_rgb[&patches.patch(k).surface] })
+        .map(|k| {
+            if k < real_count {
+                model.estimate.reflectance[k]
+            } else {
+                virtual_rgb[&patches.patch(k).surface]
+            }
+        })
         .collect();
     let e = total_direct(scales_with, direct_per_light);
     let mut b: Vec<DVec3> = reflectance.iter().zip(&e).map(|(r, e)| *r * *e).collect();
@@ -591,13 +796,31 @@ fn solve_changes(
     let with = times.time("solve with changes", || {
         let mut guess = model.estimate.solution.radiosity.clone();
         guess.resize(patches.patch_count(), DVec3::ZERO);
-        solve_from(patches, transport, &reflectance, &b, Some(&guess), tolerance, 500)
+        solve_from(
+            patches,
+            transport,
+            &reflectance,
+            &b,
+            Some(&guess),
+            tolerance,
+            500,
+        )
     });
     let mut indirect_with = patches.vertex_values(&with.indirect_irradiance);
     if has_virtual && settings.gather_rays > 0 {
         let real_vertices = model.patches.vertices.len();
         let gathered = times.time("final gather on objects", || {
-            final_gather(scene, tracer, patches, real_vertices, photo, &with.radiosity, &model.estimate.solution.radiosity, settings.gather_rays, directions)
+            final_gather(
+                scene,
+                tracer,
+                patches,
+                real_vertices,
+                photo,
+                &with.radiosity,
+                &model.estimate.solution.radiosity,
+                settings.gather_rays,
+                directions,
+            )
         });
         for (v, h) in gathered {
             indirect_with[v] = h;
@@ -608,15 +831,31 @@ fn solve_changes(
         let again = times.time("solve with changes", || {
             for k in real_count..patches.patch_count() {
                 let corners = patches.patch_vertices[k].iter().filter(|&&v| v != u32::MAX);
-                let h = corners.clone().map(|&v| indirect_with[v as usize]).sum::<DVec3>() / corners.count().max(1) as f64;
+                let h = corners
+                    .clone()
+                    .map(|&v| indirect_with[v as usize])
+                    .sum::<DVec3>()
+                    / corners.count().max(1) as f64;
                 b[k] = reflectance[k] * (e[k] + h);
             }
-            solve_from(patches, transport, &reflectance, &b, Some(&with.radiosity), tolerance, 500)
+            solve_from(
+                patches,
+                transport,
+                &reflectance,
+                &b,
+                Some(&with.radiosity),
+                tolerance,
+                500,
+            )
         });
         let room = patches.vertex_values(&again.indirect_irradiance);
         indirect_with[..real_vertices].copy_from_slice(&room[..real_vertices]);
     }
-    Solved { own: own.map(|(_, d, t)| (d, t)), reflectance, indirect_with }
+    Solved {
+        own: own.map(|(_, d, t)| (d, t)),
+        reflectance,
+        indirect_with,
+    }
 }
 
 /// Indirect irradiance at the virtual objects' vertices gathered from the
@@ -644,7 +883,10 @@ fn final_gather(
     let mut normal_of: HashMap<u32, DVec3> = HashMap::new();
     for (k, ids) in patches.patch_vertices.iter().enumerate() {
         let el = patches.patch(k);
-        for &v in ids.iter().filter(|&&v| v != u32::MAX && v as usize >= real_vertices) {
+        for &v in ids
+            .iter()
+            .filter(|&&v| v != u32::MAX && v as usize >= real_vertices)
+        {
             normal_of.entry(v).or_insert(el.normal);
         }
     }
@@ -662,17 +904,40 @@ fn final_gather(
     let steady = |n: DVec3| ((n * 65536.0).round() / 65536.0).normalize();
     let mut vertices: Vec<(u32, DVec3, u32)> = normal_of
         .into_iter()
-        .map(|(v, n)| (v, steady(n), if n.dot(cam.position - patches.vertices[v as usize]) > 0.0 { side } else { hidden_side }))
+        .map(|(v, n)| {
+            (
+                v,
+                steady(n),
+                if n.dot(cam.position - patches.vertices[v as usize]) > 0.0 {
+                    side
+                } else {
+                    hidden_side
+                },
+            )
+        })
         .collect();
     vertices.sort_by_key(|(v, ..)| *v);
     // A ray leaving a face that its whole solid lies behind cannot meet
     // that solid (it starts in front of the plane and moves away): with no
     // other object, such a vertex traces the room alone.
-    let object_roots: Vec<&crate::patches::Element> =
-        patches.roots.iter().filter(|&&r| patches.is_virtual_element(r)).map(|&r| &patches.elements[r as usize]).collect();
-    let one_object = object_roots.windows(2).all(|w| w[0].surface == w[1].surface);
-    let corners: Vec<DVec3> = object_roots.iter().flat_map(|e| e.shape.corners().to_vec()).collect();
-    let clear_of_object = |p: DVec3, n: DVec3| one_object && vertices.len() * corners.len() <= CLEAR_TEST_LIMIT && crate::gather::clear_of_solid(&corners, p, n);
+    let object_roots: Vec<&crate::patches::Element> = patches
+        .roots
+        .iter()
+        .filter(|&&r| patches.is_virtual_element(r))
+        .map(|&r| &patches.elements[r as usize])
+        .collect();
+    let one_object = object_roots
+        .windows(2)
+        .all(|w| w[0].surface == w[1].surface);
+    let corners: Vec<DVec3> = object_roots
+        .iter()
+        .flat_map(|e| e.shape.corners().to_vec())
+        .collect();
+    let clear_of_object = |p: DVec3, n: DVec3| {
+        one_object
+            && vertices.len() * corners.len() <= CLEAR_TEST_LIMIT
+            && crate::gather::clear_of_solid(&corners, p, n)
+    };
     let pi = std::f64::consts::PI;
     directions.keep(&vertices);
     let directions = &*directions;
@@ -683,9 +948,20 @@ fn final_gather(
             // Faces are one-sided here (solids face out, open surfaces face the camera).
             let origin = offset_origin(p, n, p + n);
             let dirs = directions.of(v, n, side);
-            let traced: Vec<TraceRay> = dirs.iter().map(|d| TraceRay::new(origin.as_vec3(), d.as_vec3())).collect();
+            let traced: Vec<TraceRay> = dirs
+                .iter()
+                .map(|d| TraceRay::new(origin.as_vec3(), d.as_vec3()))
+                .collect();
             let mut hits = vec![None; traced.len()];
-            tracer.intersect_batch(&traced, if clear_of_object(p, n) { Layer::Real } else { Layer::All }, &mut hits);
+            tracer.intersect_batch(
+                &traced,
+                if clear_of_object(p, n) {
+                    Layer::Real
+                } else {
+                    Layer::All
+                },
+                &mut hits,
+            );
             // Where each ray lands and on which patch; the real points' photo radiance in one batch.
             let landed: Vec<Option<(DVec3, usize, bool)>> = dirs
                 .iter()
@@ -697,8 +973,14 @@ fn final_gather(
                     Some((y, at.patch as usize, hit.is_virtual))
                 })
                 .collect();
-            let real_points: Vec<DVec3> = landed.iter().flatten().filter(|l| !l.2).map(|l| l.0).collect();
-            let mut seen = crate::gather::photo_radiances(cam, tracer, photo, &real_points).into_iter();
+            let real_points: Vec<DVec3> = landed
+                .iter()
+                .flatten()
+                .filter(|l| !l.2)
+                .map(|l| l.0)
+                .collect();
+            let mut seen =
+                crate::gather::photo_radiances(cam, tracer, photo, &real_points).into_iter();
             let mut sum = DVec3::ZERO;
             for &(_, k, is_virtual) in landed.iter().flatten() {
                 let model = radiosity_with[k] / pi;
@@ -709,7 +991,9 @@ fn final_gather(
                 // Seen by the camera? Then the photo knows its radiance.
                 sum += match seen.next().flatten() {
                     Some(radiance) => {
-                        let ratio = (radiosity_with[k] / radiosity_without[k].max(DVec3::splat(1e-12))).min(DVec3::splat(4.0));
+                        let ratio = (radiosity_with[k]
+                            / radiosity_without[k].max(DVec3::splat(1e-12)))
+                        .min(DVec3::splat(4.0));
                         radiance * ratio
                     }
                     None => model,
@@ -733,8 +1017,13 @@ pub fn resolve_inputs(
     left_out: &mut Vec<String>,
 ) -> Result<(Option<Scene>, Image)> {
     let photo = if scene.photo_is_relative() {
-        match times.time("bracket scale", || bracket_scale_cached(scene, photo, tracer, settings, fine_patch_size(scene))) {
-            Some(s) => Image { pixels: photo.pixels.iter().map(|p| *p * s as f32).collect(), ..photo.clone() },
+        match times.time("bracket scale", || {
+            bracket_scale_cached(scene, photo, tracer, settings, fine_patch_size(scene))
+        }) {
+            Some(s) => Image {
+                pixels: photo.pixels.iter().map(|p| *p * s as f32).collect(),
+                ..photo.clone()
+            },
             None => {
                 left_out.push("absolute scale: the photo comes from brackets and no reflectance is known, so radiance is relative".to_string());
                 photo.clone()
@@ -752,7 +1041,13 @@ pub fn resolve_inputs(
 
 /// The diagonal of the real geometry's bounding box.
 fn room_diagonal(scene: &Scene) -> f64 {
-    let (lo, hi) = crate::geometry::bounds(scene.surfaces.iter().flat_map(|s| s.triangles.iter().flatten()).map(|p| p.as_dvec3()));
+    let (lo, hi) = crate::geometry::bounds(
+        scene
+            .surfaces
+            .iter()
+            .flat_map(|s| s.triangles.iter().flatten())
+            .map(|p| p.as_dvec3()),
+    );
     (hi - lo).length()
 }
 
@@ -764,7 +1059,11 @@ pub fn fine_patch_size(scene: &Scene) -> f64 {
 /// `scene` with its light to reconstruct recovered from `photo`
 /// ([`crate::gonio::reconstruct`]), through a cache next to the scene keyed
 /// by the scene file, its meshes, the photo's files and the settings.
-pub fn reconstruct_cached(scene: &Scene, photo: &Image, tracer: &crate::trace::Tracer) -> Result<Scene> {
+pub fn reconstruct_cached(
+    scene: &Scene,
+    photo: &Image,
+    tracer: &crate::trace::Tracer,
+) -> Result<Scene> {
     let settings = crate::gonio::GonioSettings::default();
     let mut files: Vec<std::path::PathBuf> = vec![scene.file.clone()];
     files.extend(scene.surfaces.iter().map(|s| s.mesh.clone()));
@@ -774,17 +1073,28 @@ pub fn reconstruct_cached(scene: &Scene, photo: &Image, tracer: &crate::trace::T
     }
     files.dedup();
     let mut hash = crate::hdr::ContentHash::default();
-    let readable = files.iter().all(|f| std::fs::read(f).map(|bytes| hash.feed(&bytes)).is_ok());
+    let readable = files
+        .iter()
+        .all(|f| std::fs::read(f).map(|bytes| hash.feed(&bytes)).is_ok());
     hash.feed(format!("{settings:?} {}", crate::gonio::ALGORITHM_VERSION).as_bytes());
-    let cache = scene.dir().join(".arlux-cache").join(format!("gonio-{:016x}.ies", hash.value()));
+    let cache = scene
+        .dir()
+        .join(".arlux-cache")
+        .join(format!("gonio-{:016x}.ies", hash.value()));
     if readable
-        && let Some((light, profile, colour)) =
-            std::fs::read_to_string(&cache).ok().and_then(|t| crate::gonio::from_cache_text(&t, &cache)).filter(|(l, _, _)| *l < scene.lights.len())
+        && let Some((light, profile, colour)) = std::fs::read_to_string(&cache)
+            .ok()
+            .and_then(|t| crate::gonio::from_cache_text(&t, &cache))
+            .filter(|(l, _, _)| *l < scene.lights.len())
     {
         return Ok(crate::gonio::apply_profile(scene, light, &profile, colour));
     }
     let rec = crate::gonio::reconstruct(scene, photo, tracer, &settings)?;
-    if readable && cache.parent().is_some_and(|d| std::fs::create_dir_all(d).is_ok()) {
+    if readable
+        && cache
+            .parent()
+            .is_some_and(|d| std::fs::create_dir_all(d).is_ok())
+    {
         let _ = crate::image_io::write_atomic(&cache, rec.to_cache_text().as_bytes());
     }
     Ok(rec.apply(scene))
@@ -797,7 +1107,13 @@ pub const BRACKET_SCALE_VERSION: u32 = 3;
 /// [`crate::model::bracket_scale`] on a fine mesh (the factor rests on a
 /// few surfaces' estimates, which coarse patches bias), cached next to the
 /// scene under a hash of the scene file, its meshes and the brackets.
-pub fn bracket_scale_cached(scene: &Scene, photo: &Image, tracer: &crate::trace::Tracer, settings: &ModelSettings, patch_size: f64) -> Option<f64> {
+pub fn bracket_scale_cached(
+    scene: &Scene,
+    photo: &Image,
+    tracer: &crate::trace::Tracer,
+    settings: &ModelSettings,
+    patch_size: f64,
+) -> Option<f64> {
     let mut hash = crate::hdr::ContentHash::default();
     let mut feed = |bytes: &[u8]| hash.feed(bytes);
     let mut files: Vec<std::path::PathBuf> = vec![scene.file.clone()];
@@ -812,11 +1128,21 @@ pub fn bracket_scale_cached(scene: &Scene, photo: &Image, tracer: &crate::trace:
     feed(&patch_size.to_le_bytes());
     // A change to how the factor is found, or to its settings, is a new entry.
     feed(format!("{BRACKET_SCALE_VERSION} {settings:?}").as_bytes());
-    let cache = scene.dir().join(".arlux-cache").join(format!("scale-{:016x}.txt", hash.value()));
-    if let Some(s) = std::fs::read_to_string(&cache).ok().and_then(|t| t.trim().parse::<f64>().ok()).filter(|s| s.is_finite() && *s > 0.0) {
+    let cache = scene
+        .dir()
+        .join(".arlux-cache")
+        .join(format!("scale-{:016x}.txt", hash.value()));
+    if let Some(s) = std::fs::read_to_string(&cache)
+        .ok()
+        .and_then(|t| t.trim().parse::<f64>().ok())
+        .filter(|s| s.is_finite() && *s > 0.0)
+    {
         return Some(s);
     }
-    let fine = ModelSettings { patch_size, ..*settings };
+    let fine = ModelSettings {
+        patch_size,
+        ..*settings
+    };
     let scale = crate::model::bracket_scale(scene, photo, tracer, &fine)?;
     if std::fs::create_dir_all(cache.parent()?).is_ok() {
         let _ = crate::image_io::write_atomic(&cache, format!("{scale}\n").as_bytes());
@@ -830,7 +1156,10 @@ mod tests {
 
     #[test]
     fn merging_sorted_lists_gives_their_union_sorted_once() {
-        assert_eq!(merge_sorted(&[1, 4, 9], &[2, 4, 10, 11]), vec![1, 2, 4, 9, 10, 11]);
+        assert_eq!(
+            merge_sorted(&[1, 4, 9], &[2, 4, 10, 11]),
+            vec![1, 2, 4, 9, 10, 11]
+        );
         assert_eq!(merge_sorted(&[], &[3, 3, 5]), vec![3, 5]);
         assert_eq!(merge_sorted(&[7], &[]), vec![7]);
         assert!(merge_sorted(&[], &[]).is_empty());

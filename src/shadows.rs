@@ -31,7 +31,9 @@ pub fn position_from_shadows(c: &ShadowConstraints) -> Result<ShadowFit, String>
     for (i, l) in c.lines.iter().enumerate() {
         let d = l.vertex - l.shadow;
         if d.length() < 1e-9 {
-            return Err(format!("shadow_lines[{i}]: the shadow point and the vertex coincide"));
+            return Err(format!(
+                "shadow_lines[{i}]: the shadow point and the vertex coincide"
+            ));
         }
         let d = d.normalize();
         // Projector onto the plane across the line: distance² = |P(x − p)|².
@@ -52,8 +54,16 @@ pub fn position_from_shadows(c: &ShadowConstraints) -> Result<ShadowFit, String>
     let largest = values.iter().copied().fold(0.0, f64::max);
     let smallest = values.iter().copied().fold(f64::INFINITY, f64::min);
     if largest <= 0.0 || smallest < CONDITION * largest {
-        let free = vectors[values.iter().enumerate().min_by(|x, y| x.1.total_cmp(y.1)).map(|(k, _)| k).unwrap_or(0)];
-        let free_count = values.iter().filter(|v| **v < CONDITION * largest.max(1e-300)).count();
+        let free = vectors[values
+            .iter()
+            .enumerate()
+            .min_by(|x, y| x.1.total_cmp(y.1))
+            .map(|(k, _)| k)
+            .unwrap_or(0)];
+        let free_count = values
+            .iter()
+            .filter(|v| **v < CONDITION * largest.max(1e-300))
+            .count();
         let what = match (lines.len(), planes.len()) {
             (0, 0) => "no shadow lines or planes".to_string(),
             (0, 1) => "one shadow plane fixes only the distance across it: add shadow lines, or two more planes".to_string(),
@@ -62,7 +72,10 @@ pub fn position_from_shadows(c: &ShadowConstraints) -> Result<ShadowFit, String>
             (_, 0) if free_count == 1 => "the shadow lines are parallel: add one in another direction, or a shadow plane".to_string(),
             _ => "the lines and planes do not cross at a point".to_string(),
         };
-        return Err(format!("{what} (free direction {:.3} {:.3} {:.3})", free.x, free.y, free.z));
+        return Err(format!(
+            "{what} (free direction {:.3} {:.3} {:.3})",
+            free.x, free.y, free.z
+        ));
     }
     let position = a.inverse() * b;
     let mut sum = 0.0;
@@ -136,7 +149,11 @@ fn symmetric_eigen(m: DMat3) -> ([f64; 3], [DVec3; 3]) {
         }
     }
     let values = [a[0][0], a[1][1], a[2][2]];
-    let vectors = [DVec3::new(v[0][0], v[1][0], v[2][0]), DVec3::new(v[0][1], v[1][1], v[2][1]), DVec3::new(v[0][2], v[1][2], v[2][2])];
+    let vectors = [
+        DVec3::new(v[0][0], v[1][0], v[2][0]),
+        DVec3::new(v[0][1], v[1][1], v[2][1]),
+        DVec3::new(v[0][2], v[1][2], v[2][2]),
+    ];
     (values, vectors)
 }
 
@@ -154,39 +171,84 @@ mod tests {
     }
 
     fn table_lines() -> Vec<ShadowLine> {
-        [DVec3::new(-1.0, 0.75, -1.05), DVec3::new(0.2, 0.75, -1.05), DVec3::new(-1.0, 0.75, -1.75), DVec3::new(0.2, 0.75, -1.75)]
-            .iter()
-            .map(|&vertex| ShadowLine { shadow: shadow_of(vertex), vertex })
-            .collect()
+        [
+            DVec3::new(-1.0, 0.75, -1.05),
+            DVec3::new(0.2, 0.75, -1.05),
+            DVec3::new(-1.0, 0.75, -1.75),
+            DVec3::new(0.2, 0.75, -1.75),
+        ]
+        .iter()
+        .map(|&vertex| ShadowLine {
+            shadow: shadow_of(vertex),
+            vertex,
+        })
+        .collect()
     }
 
     #[test]
     fn exact_shadow_lines_give_the_light_within_a_millimetre() {
-        let fit = position_from_shadows(&ShadowConstraints { lines: table_lines(), planes: vec![] }).unwrap();
+        let fit = position_from_shadows(&ShadowConstraints {
+            lines: table_lines(),
+            planes: vec![],
+        })
+        .unwrap();
         assert!((fit.position - LIGHT).length() < 1e-3, "{}", fit.position);
         assert!(fit.residual < 1e-9);
         // Planes alone: three edges of the table top and their shadows.
-        let c = [DVec3::new(-1.0, 0.75, -1.05), DVec3::new(0.2, 0.75, -1.05), DVec3::new(0.2, 0.75, -1.75), DVec3::new(-1.0, 0.75, -1.75)];
+        let c = [
+            DVec3::new(-1.0, 0.75, -1.05),
+            DVec3::new(0.2, 0.75, -1.05),
+            DVec3::new(0.2, 0.75, -1.75),
+            DVec3::new(-1.0, 0.75, -1.75),
+        ];
         let planes: Vec<ShadowPlane> = (0..3)
-            .map(|k| ShadowPlane { shadow: [shadow_of(c[k]), shadow_of(c[k + 1])], edge: [c[k], c[k + 1]] })
+            .map(|k| ShadowPlane {
+                shadow: [shadow_of(c[k]), shadow_of(c[k + 1])],
+                edge: [c[k], c[k + 1]],
+            })
             .collect();
-        let fit = position_from_shadows(&ShadowConstraints { lines: vec![], planes }).unwrap();
+        let fit = position_from_shadows(&ShadowConstraints {
+            lines: vec![],
+            planes,
+        })
+        .unwrap();
         assert!((fit.position - LIGHT).length() < 1e-3, "{}", fit.position);
     }
 
     #[test]
     fn noisy_lines_give_the_least_squares_optimum() {
         let mut state = 17u64;
-        let mut noise = || DVec3::new(crate::light::unit_random(&mut state), crate::light::unit_random(&mut state), crate::light::unit_random(&mut state)) * 0.02 - DVec3::splat(0.01);
-        let lines: Vec<ShadowLine> = table_lines().iter().map(|l| ShadowLine { shadow: l.shadow + noise(), vertex: l.vertex + noise() }).collect();
-        let c = ShadowConstraints { lines: lines.clone(), planes: vec![] };
+        let mut noise = || {
+            DVec3::new(
+                crate::light::unit_random(&mut state),
+                crate::light::unit_random(&mut state),
+                crate::light::unit_random(&mut state),
+            ) * 0.02
+                - DVec3::splat(0.01)
+        };
+        let lines: Vec<ShadowLine> = table_lines()
+            .iter()
+            .map(|l| ShadowLine {
+                shadow: l.shadow + noise(),
+                vertex: l.vertex + noise(),
+            })
+            .collect();
+        let c = ShadowConstraints {
+            lines: lines.clone(),
+            planes: vec![],
+        };
         let fit = position_from_shadows(&c).unwrap();
         // An independent solve: gradient descent on the same sum of squares.
-        let cost = |x: DVec3| lines.iter().map(|l| {
-            let d = (l.vertex - l.shadow).normalize();
-            let v = x - l.shadow;
-            (v - d * v.dot(d)).length_squared()
-        }).sum::<f64>();
+        let cost = |x: DVec3| {
+            lines
+                .iter()
+                .map(|l| {
+                    let d = (l.vertex - l.shadow).normalize();
+                    let v = x - l.shadow;
+                    (v - d * v.dot(d)).length_squared()
+                })
+                .sum::<f64>()
+        };
         let mut x = DVec3::new(0.0, 1.0, 0.0);
         let h = 1e-6;
         for _ in 0..20000 {
@@ -197,27 +259,76 @@ mod tests {
             );
             x -= g * 0.1;
         }
-        assert!((x - fit.position).length() < 1e-5, "descent {x} vs {}", fit.position);
-        println!("1 cm noise on every point: light estimated {:.4} m from the truth (residual {:.4} m)", (fit.position - LIGHT).length(), fit.residual);
+        assert!(
+            (x - fit.position).length() < 1e-5,
+            "descent {x} vs {}",
+            fit.position
+        );
+        println!(
+            "1 cm noise on every point: light estimated {:.4} m from the truth (residual {:.4} m)",
+            (fit.position - LIGHT).length(),
+            fit.residual
+        );
     }
 
     #[test]
     fn degenerate_sets_say_what_is_missing() {
         let l = table_lines();
-        let one = position_from_shadows(&ShadowConstraints { lines: vec![l[0]], planes: vec![] }).unwrap_err();
+        let one = position_from_shadows(&ShadowConstraints {
+            lines: vec![l[0]],
+            planes: vec![],
+        })
+        .unwrap_err();
         assert!(one.contains("one shadow line"), "{one}");
         let parallel = ShadowConstraints {
-            lines: vec![ShadowLine { shadow: DVec3::ZERO, vertex: DVec3::Y }, ShadowLine { shadow: DVec3::X, vertex: DVec3::X + DVec3::Y }],
+            lines: vec![
+                ShadowLine {
+                    shadow: DVec3::ZERO,
+                    vertex: DVec3::Y,
+                },
+                ShadowLine {
+                    shadow: DVec3::X,
+                    vertex: DVec3::X + DVec3::Y,
+                },
+            ],
             planes: vec![],
         };
-        assert!(position_from_shadows(&parallel).unwrap_err().contains("parallel"));
-        let plane = ShadowPlane { shadow: [DVec3::ZERO, DVec3::X], edge: [DVec3::Y, DVec3::new(1.0, 1.0, 0.0)] };
-        let e = position_from_shadows(&ShadowConstraints { lines: vec![], planes: vec![plane] }).unwrap_err();
+        assert!(
+            position_from_shadows(&parallel)
+                .unwrap_err()
+                .contains("parallel")
+        );
+        let plane = ShadowPlane {
+            shadow: [DVec3::ZERO, DVec3::X],
+            edge: [DVec3::Y, DVec3::new(1.0, 1.0, 0.0)],
+        };
+        let e = position_from_shadows(&ShadowConstraints {
+            lines: vec![],
+            planes: vec![plane],
+        })
+        .unwrap_err();
         assert!(e.contains("one shadow plane"), "{e}");
-        let plane2 = ShadowPlane { shadow: [DVec3::ZERO, DVec3::Z], edge: [DVec3::Y, DVec3::new(0.0, 1.0, 1.0)] };
-        let e = position_from_shadows(&ShadowConstraints { lines: vec![], planes: vec![plane, plane2] }).unwrap_err();
+        let plane2 = ShadowPlane {
+            shadow: [DVec3::ZERO, DVec3::Z],
+            edge: [DVec3::Y, DVec3::new(0.0, 1.0, 1.0)],
+        };
+        let e = position_from_shadows(&ShadowConstraints {
+            lines: vec![],
+            planes: vec![plane, plane2],
+        })
+        .unwrap_err();
         assert!(e.contains("two shadow planes"), "{e}");
-        let flat = ShadowPlane { shadow: [DVec3::ZERO, DVec3::X], edge: [DVec3::X * 2.0, DVec3::X * 3.0] };
-        assert!(position_from_shadows(&ShadowConstraints { lines: vec![], planes: vec![flat] }).unwrap_err().contains("one line"));
+        let flat = ShadowPlane {
+            shadow: [DVec3::ZERO, DVec3::X],
+            edge: [DVec3::X * 2.0, DVec3::X * 3.0],
+        };
+        assert!(
+            position_from_shadows(&ShadowConstraints {
+                lines: vec![],
+                planes: vec![flat]
+            })
+            .unwrap_err()
+            .contains("one line")
+        );
     }
 }

@@ -26,15 +26,28 @@ impl Shaft {
             }
         }
         let points = &unique[..];
-        let scale = points.iter().map(|p| p.abs().max_element()).fold(1.0, f64::max);
-        let extent = points.iter().map(|p| (*p - points[0]).length()).fold(0.0, f64::max).max(1e-12);
+        let scale = points
+            .iter()
+            .map(|p| p.abs().max_element())
+            .fold(1.0, f64::max);
+        let extent = points
+            .iter()
+            .map(|p| (*p - points[0]).length())
+            .fold(0.0, f64::max)
+            .max(1e-12);
         let tolerance = 1e-9 * scale.max(extent);
         let mut planes: Vec<(DVec3, f64)> = Vec::new();
         let n = points.len();
         for i in 0..n {
             for j in i + 1..n {
                 for k in j + 1..n {
-                    add_face(&mut planes, points, [points[i], points[j], points[k]], extent, tolerance);
+                    add_face(
+                        &mut planes,
+                        points,
+                        [points[i], points[j], points[k]],
+                        extent,
+                        tolerance,
+                    );
                 }
             }
         }
@@ -48,13 +61,26 @@ impl Shaft {
     /// and a corner of the other.
     pub fn between_polygons(p: &[DVec3], q: &[DVec3]) -> Shaft {
         let points: Vec<DVec3> = p.iter().chain(q).copied().collect();
-        let scale = points.iter().map(|x| x.abs().max_element()).fold(1.0, f64::max);
-        let extent = points.iter().map(|x| (*x - points[0]).length()).fold(0.0, f64::max).max(1e-12);
+        let scale = points
+            .iter()
+            .map(|x| x.abs().max_element())
+            .fold(1.0, f64::max);
+        let extent = points
+            .iter()
+            .map(|x| (*x - points[0]).length())
+            .fold(0.0, f64::max)
+            .max(1e-12);
         let tolerance = 1e-9 * scale.max(extent);
         let mut planes: Vec<(DVec3, f64)> = Vec::with_capacity(16);
         for poly in [p, q] {
             if poly.len() >= 3 {
-                add_face(&mut planes, &points, [poly[0], poly[1], poly[2]], extent, tolerance);
+                add_face(
+                    &mut planes,
+                    &points,
+                    [poly[0], poly[1], poly[2]],
+                    extent,
+                    tolerance,
+                );
             }
         }
         for (a, b) in [(p, q), (q, p)] {
@@ -78,14 +104,22 @@ impl Shaft {
     pub fn pyramid(apex: DVec3, base: &[DVec3]) -> Shaft {
         let n = base.len();
         let normal = (base[1] - base[0]).cross(base[2] - base[0]);
-        let extent = base.iter().map(|p| (*p - apex).length()).fold(0.0, f64::max).max(1e-12);
+        let extent = base
+            .iter()
+            .map(|p| (*p - apex).length())
+            .fold(0.0, f64::max)
+            .max(1e-12);
         let height = (apex - base[0]).dot(normal) / normal.length().max(1e-300);
         if normal.length() < 1e-12 * extent * extent || height.abs() < 1e-9 * extent {
             let mut all = base.to_vec();
             all.push(apex);
             return Shaft::hull(&all);
         }
-        let scale = base.iter().chain(std::iter::once(&apex)).map(|p| p.abs().max_element()).fold(1.0, f64::max);
+        let scale = base
+            .iter()
+            .chain(std::iter::once(&apex))
+            .map(|p| p.abs().max_element())
+            .fold(1.0, f64::max);
         let tolerance = 1e-9 * scale.max(extent);
         let centre = (base.iter().copied().sum::<DVec3>() + apex) / (n + 1) as f64;
         let outward = |m: DVec3, on: DVec3| -> (DVec3, f64) {
@@ -119,10 +153,16 @@ impl Shaft {
             planes.push((-n, -lo[k]));
         }
         // side 0: the min face, side 1: the max face of an axis.
-        let extent = |bx: (DVec3, DVec3), axis: usize, side: usize| if side == 0 { bx.0[axis] } else { bx.1[axis] };
+        let extent = |bx: (DVec3, DVec3), axis: usize, side: usize| {
+            if side == 0 { bx.0[axis] } else { bx.1[axis] }
+        };
         let owner = |axis: usize, side: usize| -> bool {
             // true: box a reaches that face of the union (ties go to a).
-            if side == 0 { a.0[axis] <= b.0[axis] } else { a.1[axis] >= b.1[axis] }
+            if side == 0 {
+                a.0[axis] <= b.0[axis]
+            } else {
+                a.1[axis] >= b.1[axis]
+            }
         };
         for i in 0..3 {
             for j in i + 1..3 {
@@ -133,7 +173,10 @@ impl Shaft {
                         }
                         // The edge of each box at (face i side si, face j side sj), as a
                         // point in the (i, j) plane; the plane holds both edges.
-                        let (pa, pb) = ((extent(a, i, si), extent(a, j, sj)), (extent(b, i, si), extent(b, j, sj)));
+                        let (pa, pb) = (
+                            (extent(a, i, si), extent(a, j, sj)),
+                            (extent(b, i, si), extent(b, j, sj)),
+                        );
                         let (di, dj) = (pb.0 - pa.0, pb.1 - pa.1);
                         let mut n = DVec3::ZERO;
                         n[i] = dj;
@@ -166,7 +209,9 @@ impl Shaft {
     /// (or only touches its boundary): all of them on or beyond one plane.
     /// May answer false for a hull that misses the shaft (conservative).
     pub fn excludes(&self, points: &[DVec3]) -> bool {
-        self.planes.iter().any(|(n, d)| points.iter().all(|p| n.dot(*p) - d >= -self.tolerance))
+        self.planes
+            .iter()
+            .any(|(n, d)| points.iter().all(|p| n.dot(*p) - d >= -self.tolerance))
     }
 
     pub fn plane_count(&self) -> usize {
@@ -189,7 +234,11 @@ pub struct ObjectBounds {
 impl ObjectBounds {
     pub fn around(points: &[DVec3]) -> ObjectBounds {
         let upright = UprightBox::around(points);
-        ObjectBounds { aabb: bounds(points.iter().copied()), upright, corners: upright.corners() }
+        ObjectBounds {
+            aabb: bounds(points.iter().copied()),
+            upright,
+            corners: upright.corners(),
+        }
     }
 
     /// Whether the segment a→b may meet the object.
@@ -205,7 +254,13 @@ impl ObjectBounds {
 
 /// Adds the plane through `abc` to `planes` (outward, once) when every
 /// point lies on one side of it, within `tolerance`: a face of their hull.
-fn add_face(planes: &mut Vec<(DVec3, f64)>, points: &[DVec3], [a, b, c]: [DVec3; 3], extent: f64, tolerance: f64) {
+fn add_face(
+    planes: &mut Vec<(DVec3, f64)>,
+    points: &[DVec3],
+    [a, b, c]: [DVec3; 3],
+    extent: f64,
+    tolerance: f64,
+) {
     let normal = (b - a).cross(c - a);
     let len = normal.length();
     if len < 1e-12 * extent * extent {
@@ -224,7 +279,10 @@ fn add_face(planes: &mut Vec<(DVec3, f64)>, points: &[DVec3], [a, b, c]: [DVec3;
         }
     }
     let plane = if above { (-normal, -d) } else { (normal, d) };
-    if !planes.iter().any(|(m, e)| (*m - plane.0).length() < 1e-9 && (e - plane.1).abs() <= tolerance) {
+    if !planes
+        .iter()
+        .any(|(m, e)| (*m - plane.0).length() < 1e-9 && (e - plane.1).abs() <= tolerance)
+    {
         planes.push(plane);
     }
 }
@@ -234,7 +292,12 @@ mod tests {
     use super::*;
 
     fn square(y: f64) -> Vec<DVec3> {
-        vec![DVec3::new(0.0, y, 0.0), DVec3::new(1.0, y, 0.0), DVec3::new(1.0, y, 1.0), DVec3::new(0.0, y, 1.0)]
+        vec![
+            DVec3::new(0.0, y, 0.0),
+            DVec3::new(1.0, y, 0.0),
+            DVec3::new(1.0, y, 1.0),
+            DVec3::new(0.0, y, 1.0),
+        ]
     }
 
     #[test]
@@ -243,12 +306,23 @@ mod tests {
         pts.extend(square(2.0));
         let s = Shaft::hull(&pts);
         assert_eq!(s.plane_count(), 6);
-        let blocker = vec![DVec3::new(0.4, 1.0, 0.4), DVec3::new(0.6, 1.0, 0.4), DVec3::new(0.5, 1.0, 0.6)];
+        let blocker = vec![
+            DVec3::new(0.4, 1.0, 0.4),
+            DVec3::new(0.6, 1.0, 0.4),
+            DVec3::new(0.5, 1.0, 0.6),
+        ];
         assert!(!s.excludes(&blocker));
-        let aside: Vec<DVec3> = blocker.iter().map(|p| *p + DVec3::new(2.0, 0.0, 0.0)).collect();
+        let aside: Vec<DVec3> = blocker
+            .iter()
+            .map(|p| *p + DVec3::new(2.0, 0.0, 0.0))
+            .collect();
         assert!(s.excludes(&aside));
         // A wall in the plane x = 1 only touches the shaft: it cannot block.
-        let wall = vec![DVec3::new(1.0, -1.0, -1.0), DVec3::new(1.0, 3.0, -1.0), DVec3::new(1.0, 3.0, 3.0)];
+        let wall = vec![
+            DVec3::new(1.0, -1.0, -1.0),
+            DVec3::new(1.0, 3.0, -1.0),
+            DVec3::new(1.0, 3.0, 3.0),
+        ];
         assert!(s.excludes(&wall));
     }
 
@@ -282,7 +356,11 @@ mod tests {
                 crate::light::unit_random(&mut state) * 3.0 - 0.5,
                 crate::light::unit_random(&mut state) * 3.0 - 1.0,
             );
-            let tri = [c, c + DVec3::new(0.1, 0.0, 0.0), c + DVec3::new(0.0, 0.1, 0.05)];
+            let tri = [
+                c,
+                c + DVec3::new(0.1, 0.0, 0.0),
+                c + DVec3::new(0.0, 0.1, 0.05),
+            ];
             assert_eq!(p.excludes(&tri), h.excludes(&tri), "{c}");
         }
     }
@@ -290,7 +368,12 @@ mod tests {
     #[test]
     fn a_shaft_between_perpendicular_squares_is_a_prism() {
         let floor = square(0.0);
-        let wall = vec![DVec3::new(0.0, 0.0, 0.0), DVec3::new(1.0, 0.0, 0.0), DVec3::new(1.0, 1.0, 0.0), DVec3::new(0.0, 1.0, 0.0)];
+        let wall = vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+        ];
         let mut pts = floor.clone();
         pts.extend(wall);
         let s = Shaft::hull(&pts);
@@ -313,7 +396,11 @@ mod random_tests {
             let origin = DVec3::new(r() * 4.0 - 2.0, r() * 3.0, r() * 4.0 - 2.0);
             let u = DVec3::new(r() - 0.5, r() - 0.5, r() - 0.5);
             let v = DVec3::new(r() - 0.5, r() - 0.5, r() - 0.5);
-            if r() < 0.5 { vec![origin, origin + u, origin + u + v, origin + v] } else { vec![origin, origin + u, origin + v] }
+            if r() < 0.5 {
+                vec![origin, origin + u, origin + u + v, origin + v]
+            } else {
+                vec![origin, origin + u, origin + v]
+            }
         };
         for case in 0..2000 {
             let p = polygon(&mut r);
@@ -329,9 +416,18 @@ mod random_tests {
             for _ in 0..50 {
                 // Near the hull's boundary: a point of it pushed in or out.
                 let weights: Vec<f64> = all.iter().map(|_| r().powi(4)).collect();
-                let x = all.iter().zip(&weights).map(|(p, w)| *p * *w).sum::<DVec3>() / weights.iter().sum::<f64>();
+                let x = all
+                    .iter()
+                    .zip(&weights)
+                    .map(|(p, w)| *p * *w)
+                    .sum::<DVec3>()
+                    / weights.iter().sum::<f64>();
                 let probe = vec![centre + (x - centre) * (0.7 + 0.6 * r())];
-                assert_eq!(general.excludes(&probe), fast.excludes(&probe), "case {case}");
+                assert_eq!(
+                    general.excludes(&probe),
+                    fast.excludes(&probe),
+                    "case {case}"
+                );
             }
         }
     }
@@ -358,13 +454,22 @@ mod random_tests {
             let shaft = Shaft::between_boxes(a, b);
             let mut pts: Vec<DVec3> = Vec::new();
             for bb in [a, b] {
-                pts.extend((0..8).map(|i| DVec3::new(if i & 1 == 0 { bb.0.x } else { bb.1.x }, if i & 2 == 0 { bb.0.y } else { bb.1.y }, if i & 4 == 0 { bb.0.z } else { bb.1.z })));
+                pts.extend((0..8).map(|i| {
+                    DVec3::new(
+                        if i & 1 == 0 { bb.0.x } else { bb.1.x },
+                        if i & 2 == 0 { bb.0.y } else { bb.1.y },
+                        if i & 4 == 0 { bb.0.z } else { bb.1.z },
+                    )
+                }));
             }
             for _ in 0..40 {
                 let w: Vec<f64> = (0..pts.len()).map(|_| r().powi(4)).collect();
                 let total: f64 = w.iter().sum();
                 let p = pts.iter().zip(&w).map(|(p, w)| *p * *w).sum::<DVec3>() / total;
-                assert!(!shaft.excludes(&[p]), "a {a:?} b {b:?} excludes its own hull's point {p}");
+                assert!(
+                    !shaft.excludes(&[p]),
+                    "a {a:?} b {b:?} excludes its own hull's point {p}"
+                );
             }
         }
     }

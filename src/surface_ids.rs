@@ -38,11 +38,18 @@ impl SurfaceIds {
         let w = camera.width as usize;
         let mut ids = vec![-1i32; camera.pixel_count()];
         ids.par_chunks_mut(w).enumerate().for_each(|(row, out)| {
-            for (o, h) in out.iter_mut().zip(row_hits(camera, tracer, layer, row as u32)) {
+            for (o, h) in out
+                .iter_mut()
+                .zip(row_hits(camera, tracer, layer, row as u32))
+            {
                 *o = h.map_or(-1, |h| h.surface as i32);
             }
         });
-        SurfaceIds { width: camera.width, height: camera.height, ids }
+        SurfaceIds {
+            width: camera.width,
+            height: camera.height,
+            ids,
+        }
     }
 
     /// How many pixels see some surface.
@@ -54,7 +61,8 @@ impl SurfaceIds {
     pub fn is_outline(&self, x: u32, y: u32) -> bool {
         let w = self.width as usize;
         let i = y as usize * w + x as usize;
-        (x + 1 < self.width && self.ids[i + 1] != self.ids[i]) || (y + 1 < self.height && self.ids[i + w] != self.ids[i])
+        (x + 1 < self.width && self.ids[i + 1] != self.ids[i])
+            || (y + 1 < self.height && self.ids[i + w] != self.ids[i])
     }
 
     /// The registration picture, 2·width × height, sRGB bytes: left, a colour
@@ -75,7 +83,9 @@ impl SurfaceIds {
                 let px = if self.is_outline(x, y) {
                     colour.map(|c| c.max(40))
                 } else {
-                    (photo.get(x, y) * gain).to_array().map(|c| (linear_to_srgb(c) * 255.0).round() as u8)
+                    (photo.get(x, y) * gain)
+                        .to_array()
+                        .map(|c| (linear_to_srgb(c) * 255.0).round() as u8)
                 };
                 out[right..right + 3].copy_from_slice(&px);
             }

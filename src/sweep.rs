@@ -56,10 +56,19 @@ impl SweepSettings {
     pub fn render_settings(&self) -> RenderSettings {
         let d = RenderSettings::default();
         RenderSettings {
-            model: crate::model::ModelSettings { transport: TransportMethod::Hierarchical { epsilon: self.epsilon }, ..d.model },
+            model: crate::model::ModelSettings {
+                transport: TransportMethod::Hierarchical {
+                    epsilon: self.epsilon,
+                },
+                ..d.model
+            },
             patch_size: self.patch_size.map_or(PatchSize::Auto, PatchSize::Metres),
             virtual_patch_size: self.virtual_patch_size,
-            pda: PdaSettings { min_level: self.min_level, penumbra_level: self.penumbra_level, supersample: self.supersample },
+            pda: PdaSettings {
+                min_level: self.min_level,
+                penumbra_level: self.penumbra_level,
+                supersample: self.supersample,
+            },
             ..d
         }
     }
@@ -100,12 +109,30 @@ pub fn grid(quick: bool, texture: bool) -> Vec<SweepSettings> {
     let d = SweepSettings::defaults();
     let texture_default = crate::relight::TextureSettings::default();
     if quick {
-        let mut out: Vec<SweepSettings> = [(0, 0, 1), (0, 2, 1), (1, 3, 2), (2, 4, 4), (3, 5, 3), (4, 6, 4)]
-            .into_iter()
-            .map(|(min_level, penumbra_level, supersample)| SweepSettings { min_level, penumbra_level, supersample, ..d })
-            .collect();
+        let mut out: Vec<SweepSettings> = [
+            (0, 0, 1),
+            (0, 2, 1),
+            (1, 3, 2),
+            (2, 4, 4),
+            (3, 5, 3),
+            (4, 6, 4),
+        ]
+        .into_iter()
+        .map(|(min_level, penumbra_level, supersample)| SweepSettings {
+            min_level,
+            penumbra_level,
+            supersample,
+            ..d
+        })
+        .collect();
         if texture {
-            out.push(SweepSettings { method: SweepMethod::Texture { min_leaf_pixels: texture_default.min_leaf_pixels }, supersample: 1, ..d });
+            out.push(SweepSettings {
+                method: SweepMethod::Texture {
+                    min_leaf_pixels: texture_default.min_leaf_pixels,
+                },
+                supersample: 1,
+                ..d
+            });
         }
         return out;
     }
@@ -114,7 +141,15 @@ pub fn grid(quick: bool, texture: bool) -> Vec<SweepSettings> {
         for supersample in 1..=4 {
             for patch_size in [None, Some(0.5), Some(0.25)] {
                 for epsilon in [0.008, d.epsilon] {
-                    out.push(SweepSettings { method: SweepMethod::Pda, min_level, penumbra_level, supersample, patch_size, epsilon, ..d });
+                    out.push(SweepSettings {
+                        method: SweepMethod::Pda,
+                        min_level,
+                        penumbra_level,
+                        supersample,
+                        patch_size,
+                        epsilon,
+                        ..d
+                    });
                 }
             }
         }
@@ -122,14 +157,24 @@ pub fn grid(quick: bool, texture: bool) -> Vec<SweepSettings> {
     for virtual_patch_size in [0.5 * d.virtual_patch_size, 2.0 * d.virtual_patch_size] {
         for patch_size in [None, Some(0.5)] {
             for epsilon in [0.008, d.epsilon] {
-                out.push(SweepSettings { virtual_patch_size, patch_size, epsilon, ..d });
+                out.push(SweepSettings {
+                    virtual_patch_size,
+                    patch_size,
+                    epsilon,
+                    ..d
+                });
             }
         }
     }
     if texture {
         for min_leaf_pixels in [1.5, 3.0, 6.0] {
             for patch_size in [None, Some(0.5)] {
-                out.push(SweepSettings { method: SweepMethod::Texture { min_leaf_pixels }, supersample: 1, patch_size, ..d });
+                out.push(SweepSettings {
+                    method: SweepMethod::Texture { min_leaf_pixels },
+                    supersample: 1,
+                    patch_size,
+                    ..d
+                });
             }
         }
     }
@@ -162,22 +207,39 @@ pub enum Target<'a> {
 
 /// Renders `target` of `scene` at every setting of `grid` (each `repeats`
 /// times, keeping the fastest), calling `progress` after each.
-pub fn run(scene: &Scene, target: &Target, grid: &[SweepSettings], repeats: usize, mut progress: impl FnMut(usize, &SweepRow)) -> Result<Vec<SweepRow>> {
+pub fn run(
+    scene: &Scene,
+    target: &Target,
+    grid: &[SweepSettings],
+    repeats: usize,
+    mut progress: impl FnMut(usize, &SweepRow),
+) -> Result<Vec<SweepRow>> {
     let photo = scene.load_photo()?;
     let references: Vec<Image> = match target {
         Target::Variant { name } => {
             let v = scene.variant(name)?;
             let Some(r) = &v.reference else {
-                return Err(Error::key(&scene.file, format!("variant '{name}'.reference"), "a sweep measures error: the variant needs a reference"));
+                return Err(Error::key(
+                    &scene.file,
+                    format!("variant '{name}'.reference"),
+                    "a sweep measures error: the variant needs a reference",
+                ));
             };
             vec![read_image(r)?]
         }
         Target::Motion { name } => {
             let m = scene.motion(name)?;
             if m.references.is_empty() {
-                return Err(Error::key(&scene.file, format!("motion '{name}'.references"), "a sweep measures error: the motion needs references"));
+                return Err(Error::key(
+                    &scene.file,
+                    format!("motion '{name}'.references"),
+                    "a sweep measures error: the motion needs references",
+                ));
             }
-            m.references.iter().map(|r| read_image(r)).collect::<Result<_>>()?
+            m.references
+                .iter()
+                .map(|r| read_image(r))
+                .collect::<Result<_>>()?
         }
     };
     for r in &references {
@@ -190,7 +252,12 @@ pub fn run(scene: &Scene, target: &Target, grid: &[SweepSettings], repeats: usiz
             Target::Variant { name } => scene.with_variant(name)?,
             Target::Motion { name } => scene.with_motion_pose(name, 0)?,
         };
-        render(&warm, &photo, &first.render_settings(), &mut StageTimes::default())?;
+        render(
+            &warm,
+            &photo,
+            &first.render_settings(),
+            &mut StageTimes::default(),
+        )?;
     }
     let mut rows = Vec::with_capacity(grid.len());
     for (i, s) in grid.iter().enumerate() {
@@ -208,14 +275,20 @@ pub fn run(scene: &Scene, target: &Target, grid: &[SweepSettings], repeats: usiz
                 Target::Variant { name } => {
                     let effective = scene.with_variant(name)?;
                     let out = match s.texture_settings() {
-                        Some(t) => crate::relight::render_texture(&effective, &photo, &t, &mut times)?,
+                        Some(t) => {
+                            crate::relight::render_texture(&effective, &photo, &t, &mut times)?
+                        }
                         None => render(&effective, &photo, &settings, &mut times)?,
                     };
                     images.push(out.composite.image);
                 }
                 Target::Motion { name } => {
                     if s.texture_settings().is_some() {
-                        return Err(Error::key(&scene.file, format!("motion '{name}'"), "the texture path renders variants; a motion sweeps the pixel path"));
+                        return Err(Error::key(
+                            &scene.file,
+                            format!("motion '{name}'"),
+                            "the texture path renders variants; a motion sweeps the pixel path",
+                        ));
                     }
                     let m = scene.motion(name)?;
                     let first = scene.with_motion_pose(name, 0)?;
@@ -232,7 +305,11 @@ pub fn run(scene: &Scene, target: &Target, grid: &[SweepSettings], repeats: usiz
             }
             let seconds = t0.elapsed().as_secs_f64();
             if comparisons.is_empty() {
-                comparisons = images.iter().zip(&references).map(|(img, r)| compare(img, r, None)).collect();
+                comparisons = images
+                    .iter()
+                    .zip(&references)
+                    .map(|(img, r)| compare(img, r, None))
+                    .collect();
             }
             if best.as_ref().is_none_or(|b| seconds < b.0) {
                 best = Some((seconds, times));
@@ -252,8 +329,16 @@ pub fn run(scene: &Scene, target: &Target, grid: &[SweepSettings], repeats: usiz
             stages,
             seconds,
             rmse: comparisons.iter().map(|c| c.rmse).sum::<f64>() / n,
-            relative_rmse: comparisons.iter().map(|c| c.relative_rmse).sum::<Option<f64>>().map(|s| s / n),
-            psnr_srgb_db: comparisons.iter().map(|c| c.psnr_srgb_db).sum::<Option<f64>>().map(|s| s / n),
+            relative_rmse: comparisons
+                .iter()
+                .map(|c| c.relative_rmse)
+                .sum::<Option<f64>>()
+                .map(|s| s / n),
+            psnr_srgb_db: comparisons
+                .iter()
+                .map(|c| c.psnr_srgb_db)
+                .sum::<Option<f64>>()
+                .map(|s| s / n),
             compared: comparisons.len(),
             pareto: false,
         };
@@ -267,7 +352,12 @@ pub fn run(scene: &Scene, target: &Target, grid: &[SweepSettings], repeats: usiz
 /// Marks the rows no other row beats on both time and error.
 pub fn mark_pareto(rows: &mut [SweepRow]) {
     let mut order: Vec<usize> = (0..rows.len()).collect();
-    order.sort_by(|&a, &b| rows[a].seconds.total_cmp(&rows[b].seconds).then(rows[a].rmse.total_cmp(&rows[b].rmse)));
+    order.sort_by(|&a, &b| {
+        rows[a]
+            .seconds
+            .total_cmp(&rows[b].seconds)
+            .then(rows[a].rmse.total_cmp(&rows[b].rmse))
+    });
     let mut best = f64::INFINITY;
     for i in order {
         rows[i].pareto = rows[i].rmse < best;
@@ -289,11 +379,15 @@ pub fn to_csv(rows: &[SweepRow], reference: &str) -> String {
             }
         }
     }
-    let mut out = String::from("method,min_level,penumbra_level,shadow_rays_min,shadow_rays_max,supersample,min_leaf_pixels,patch_size,virtual_patch_size,epsilon");
+    let mut out = String::from(
+        "method,min_level,penumbra_level,shadow_rays_min,shadow_rays_max,supersample,min_leaf_pixels,patch_size,virtual_patch_size,epsilon",
+    );
     for n in &names {
         out.push_str(&format!(",s_{}", n.replace([' ', ',', '+'], "_")));
     }
-    out.push_str(",total_seconds,rmse,relative_rmse,psnr_srgb_db,images_compared,reference,pareto\n");
+    out.push_str(
+        ",total_seconds,rmse,relative_rmse,psnr_srgb_db,images_compared,reference,pareto\n",
+    );
     for r in rows {
         let s = &r.settings;
         let patch = s.patch_size.map_or("auto".to_string(), |m| m.to_string());
@@ -309,13 +403,16 @@ pub fn to_csv(rows: &[SweepRow], reference: &str) -> String {
                 s.epsilon
             ),
             // Shadow rays and supersampling do not apply: its leaves take 2^4 rays per point.
-            SweepMethod::Texture { min_leaf_pixels } => format!("texture,,,,,,{min_leaf_pixels},{patch},,{}", s.epsilon),
+            SweepMethod::Texture { min_leaf_pixels } => {
+                format!("texture,,,,,,{min_leaf_pixels},{patch},,{}", s.epsilon)
+            }
         });
         for n in &names {
             let v = r.stages.iter().find(|(m, _)| m == n).map_or(0.0, |x| x.1);
             out.push_str(&format!(",{v:.6}"));
         }
-        let cell = |v: Option<f64>, digits: usize| v.map_or(String::new(), |v| format!("{v:.digits$}"));
+        let cell =
+            |v: Option<f64>, digits: usize| v.map_or(String::new(), |v| format!("{v:.digits$}"));
         out.push_str(&format!(
             ",{:.6},{:.8},{},{},{},{},{}\n",
             r.seconds,
@@ -358,14 +455,21 @@ pub fn plot(rows: &[SweepRow], title: &str, path: &Path) -> Result<()> {
             .margin(15)
             .x_label_area_size(45)
             .y_label_area_size(80)
-            .build_cartesian_2d(lt(t_min)..lt(t_max).max(lt(t_min) + 0.05), e_min.max(0.0)..e_max.max(e_min + 1e-9))
+            .build_cartesian_2d(
+                lt(t_min)..lt(t_max).max(lt(t_min) + 0.05),
+                e_min.max(0.0)..e_max.max(e_min + 1e-9),
+            )
             .map_err(|e| fail(e.to_string()))?;
         chart
             .configure_mesh()
             .x_desc("seconds (log scale)")
             .x_label_formatter(&|x| {
                 let t = 10f64.powf(*x);
-                if t < 1.0 { format!("{t:.3}") } else { format!("{t:.1}") }
+                if t < 1.0 {
+                    format!("{t:.3}")
+                } else {
+                    format!("{t:.1}")
+                }
             })
             .y_desc("RMSE against the reference")
             .label_style(("sans-serif", 14))
@@ -374,7 +478,11 @@ pub fn plot(rows: &[SweepRow], title: &str, path: &Path) -> Result<()> {
             .map_err(|e| fail(e.to_string()))?;
         chart
             .draw_series(
-                rows.iter().filter(|r| r.settings.method == SweepMethod::Pda).map(|r| Circle::new((lt(r.seconds), r.rmse), 3, RGBColor(120, 120, 120).filled())),
+                rows.iter()
+                    .filter(|r| r.settings.method == SweepMethod::Pda)
+                    .map(|r| {
+                        Circle::new((lt(r.seconds), r.rmse), 3, RGBColor(120, 120, 120).filled())
+                    }),
             )
             .map_err(|e| fail(e.to_string()))?
             .label("pixel path (pda)")
@@ -384,25 +492,56 @@ pub fn plot(rows: &[SweepRow], title: &str, path: &Path) -> Result<()> {
                 .draw_series(
                     rows.iter()
                         .filter(|r| r.settings.method != SweepMethod::Pda)
-                        .map(|r| Rectangle::new([(lt(r.seconds) - 0.006, r.rmse - (e_max - e_min) * 0.006), (lt(r.seconds) + 0.006, r.rmse + (e_max - e_min) * 0.006)], RGBColor(40, 140, 60).filled())),
+                        .map(|r| {
+                            Rectangle::new(
+                                [
+                                    (lt(r.seconds) - 0.006, r.rmse - (e_max - e_min) * 0.006),
+                                    (lt(r.seconds) + 0.006, r.rmse + (e_max - e_min) * 0.006),
+                                ],
+                                RGBColor(40, 140, 60).filled(),
+                            )
+                        }),
                 )
                 .map_err(|e| fail(e.to_string()))?
                 .label("texture path")
-                .legend(|(x, y)| Rectangle::new([(x + 6, y - 3), (x + 12, y + 3)], RGBColor(40, 140, 60).filled()));
+                .legend(|(x, y)| {
+                    Rectangle::new(
+                        [(x + 6, y - 3), (x + 12, y + 3)],
+                        RGBColor(40, 140, 60).filled(),
+                    )
+                });
         }
         let mut front: Vec<&SweepRow> = rows.iter().filter(|r| r.pareto).collect();
         front.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
         chart
-            .draw_series(LineSeries::new(front.iter().map(|r| (lt(r.seconds), r.rmse)), RGBColor(220, 90, 20).stroke_width(2)))
+            .draw_series(LineSeries::new(
+                front.iter().map(|r| (lt(r.seconds), r.rmse)),
+                RGBColor(220, 90, 20).stroke_width(2),
+            ))
             .map_err(|e| fail(e.to_string()))?
             .label("Pareto front")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(220, 90, 20).stroke_width(2)));
+            .legend(|(x, y)| {
+                PathElement::new(
+                    vec![(x, y), (x + 20, y)],
+                    RGBColor(220, 90, 20).stroke_width(2),
+                )
+            });
         chart
-            .draw_series(front.iter().map(|r| Circle::new((lt(r.seconds), r.rmse), 6, RGBColor(220, 90, 20).stroke_width(2))))
+            .draw_series(front.iter().map(|r| {
+                Circle::new(
+                    (lt(r.seconds), r.rmse),
+                    6,
+                    RGBColor(220, 90, 20).stroke_width(2),
+                )
+            }))
             .map_err(|e| fail(e.to_string()))?;
         let d = SweepSettings::defaults();
         chart
-            .draw_series(rows.iter().filter(|r| r.settings == d).map(|r| TriangleMarker::new((lt(r.seconds), r.rmse), 9, BLUE.filled())))
+            .draw_series(
+                rows.iter()
+                    .filter(|r| r.settings == d)
+                    .map(|r| TriangleMarker::new((lt(r.seconds), r.rmse), 9, BLUE.filled())),
+            )
             .map_err(|e| fail(e.to_string()))?
             .label("defaults")
             .legend(|(x, y)| TriangleMarker::new((x + 10, y), 6, BLUE.filled()));
@@ -427,11 +566,20 @@ mod tests {
         let d = SweepSettings::defaults();
         let full = grid(false, false);
         assert_eq!(full.len(), 128);
-        let other: Vec<&SweepSettings> = full.iter().filter(|s| s.virtual_patch_size != d.virtual_patch_size).collect();
+        let other: Vec<&SweepSettings> = full
+            .iter()
+            .filter(|s| s.virtual_patch_size != d.virtual_patch_size)
+            .collect();
         assert_eq!(other.len(), 8);
         for s in other {
-            assert_eq!((s.min_level, s.penumbra_level, s.supersample), (d.min_level, d.penumbra_level, d.supersample));
-            assert!(s.virtual_patch_size == 0.5 * d.virtual_patch_size || s.virtual_patch_size == 2.0 * d.virtual_patch_size);
+            assert_eq!(
+                (s.min_level, s.penumbra_level, s.supersample),
+                (d.min_level, d.penumbra_level, d.supersample)
+            );
+            assert!(
+                s.virtual_patch_size == 0.5 * d.virtual_patch_size
+                    || s.virtual_patch_size == 2.0 * d.virtual_patch_size
+            );
             // The setting reaches the renderer.
             assert_eq!(s.render_settings().virtual_patch_size, s.virtual_patch_size);
         }

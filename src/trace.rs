@@ -136,7 +136,11 @@ mod ffi {
 
     impl RTCIntersectContext {
         pub fn new() -> Self {
-            RTCIntersectContext { flags: 0, filter: null(), inst_id: [RTC_INVALID_GEOMETRY_ID] }
+            RTCIntersectContext {
+                flags: 0,
+                filter: null(),
+                inst_id: [RTC_INVALID_GEOMETRY_ID],
+            }
         }
     }
 
@@ -174,11 +178,30 @@ mod ffi {
         pub fn rtcCommitGeometry(geometry: RTCGeometry);
         pub fn rtcAttachGeometry(scene: RTCScene, geometry: RTCGeometry) -> u32;
         pub fn rtcReleaseGeometry(geometry: RTCGeometry);
-        pub fn rtcIntersect1(scene: RTCScene, ctx: *mut RTCIntersectContext, rayhit: *mut RTCRayHit);
+        pub fn rtcIntersect1(
+            scene: RTCScene,
+            ctx: *mut RTCIntersectContext,
+            rayhit: *mut RTCRayHit,
+        );
         pub fn rtcOccluded1(scene: RTCScene, ctx: *mut RTCIntersectContext, ray: *mut RTCRay);
-        pub fn rtcIntersect16(valid: *const i32, scene: RTCScene, ctx: *mut RTCIntersectContext, rayhit: *mut RTCRayHit16);
-        pub fn rtcOccluded16(valid: *const i32, scene: RTCScene, ctx: *mut RTCIntersectContext, ray: *mut RTCRayN<16>);
-        pub fn rtcOccluded4(valid: *const i32, scene: RTCScene, ctx: *mut RTCIntersectContext, ray: *mut RTCRayN<4>);
+        pub fn rtcIntersect16(
+            valid: *const i32,
+            scene: RTCScene,
+            ctx: *mut RTCIntersectContext,
+            rayhit: *mut RTCRayHit16,
+        );
+        pub fn rtcOccluded16(
+            valid: *const i32,
+            scene: RTCScene,
+            ctx: *mut RTCIntersectContext,
+            ray: *mut RTCRayN<16>,
+        );
+        pub fn rtcOccluded4(
+            valid: *const i32,
+            scene: RTCScene,
+            ctx: *mut RTCIntersectContext,
+            ray: *mut RTCRayN<4>,
+        );
     }
 }
 
@@ -202,7 +225,9 @@ unsafe extern "C" fn record_error(_user: *mut c_void, code: u32, message: *const
         String::new()
     } else {
         // SAFETY: Embree passes a NUL-terminated string valid for this call.
-        unsafe { CStr::from_ptr(message) }.to_string_lossy().into_owned()
+        unsafe { CStr::from_ptr(message) }
+            .to_string_lossy()
+            .into_owned()
     };
     if let Ok(mut last) = LAST_ERROR.lock() {
         *last = format!("error {code}: {text}");
@@ -214,7 +239,9 @@ fn device() -> Result<ffi::RTCDevice, TraceError> {
         // SAFETY: a null config asks for defaults; the result is checked.
         let d = unsafe { ffi::rtcNewDevice(null()) };
         if d.is_null() {
-            return Err(TraceError("could not create a device (is this CPU supported?)".into()));
+            return Err(TraceError(
+                "could not create a device (is this CPU supported?)".into(),
+            ));
         }
         // SAFETY: `record_error` matches RTCErrorFunction and needs no user data.
         unsafe { ffi::rtcSetDeviceErrorFunction(d, Some(record_error), null_mut()) };
@@ -268,13 +295,23 @@ pub struct TraceRay {
 impl TraceRay {
     /// A ray from `origin` along `direction`, unbounded.
     pub fn new(origin: Vec3, direction: Vec3) -> Self {
-        TraceRay { origin, direction, tnear: 0.0, tfar: f32::INFINITY }
+        TraceRay {
+            origin,
+            direction,
+            tnear: 0.0,
+            tfar: f32::INFINITY,
+        }
     }
 
     /// The open segment from `a` to `b`, shortened by `eps` (a fraction of
     /// its length) at both ends so that the surfaces at the ends do not count.
     pub fn segment(a: Vec3, b: Vec3, eps: f32) -> Self {
-        TraceRay { origin: a, direction: b - a, tnear: eps, tfar: 1.0 - eps }
+        TraceRay {
+            origin: a,
+            direction: b - a,
+            tnear: eps,
+            tfar: 1.0 - eps,
+        }
     }
 }
 
@@ -330,7 +367,12 @@ impl Geometry {
         // SAFETY: the device is valid; the result is checked.
         let scene = NonNull::new(unsafe { ffi::rtcNewScene(device) })
             .ok_or_else(|| TraceError("could not create a scene".into()))?;
-        let mut g = Geometry { scene, surface_of_geometry: Vec::new(), triangles: 0, is_virtual };
+        let mut g = Geometry {
+            scene,
+            surface_of_geometry: Vec::new(),
+            triangles: 0,
+            is_virtual,
+        };
         // SAFETY: the scene is valid and not yet committed.
         unsafe {
             ffi::rtcSetSceneBuildQuality(scene.as_ptr(), ffi::RTC_BUILD_QUALITY_MEDIUM);
@@ -346,10 +388,22 @@ impl Geometry {
                     check_device("creating a triangle mesh")?;
                     return Err(TraceError("could not create a triangle mesh".into()));
                 }
-                let vb = ffi::rtcSetNewGeometryBuffer(geom, ffi::RTC_BUFFER_TYPE_VERTEX, 0, ffi::RTC_FORMAT_FLOAT3, 12, 3 * n)
-                    as *mut [f32; 3];
-                let ib = ffi::rtcSetNewGeometryBuffer(geom, ffi::RTC_BUFFER_TYPE_INDEX, 0, ffi::RTC_FORMAT_UINT3, 12, n)
-                    as *mut [u32; 3];
+                let vb = ffi::rtcSetNewGeometryBuffer(
+                    geom,
+                    ffi::RTC_BUFFER_TYPE_VERTEX,
+                    0,
+                    ffi::RTC_FORMAT_FLOAT3,
+                    12,
+                    3 * n,
+                ) as *mut [f32; 3];
+                let ib = ffi::rtcSetNewGeometryBuffer(
+                    geom,
+                    ffi::RTC_BUFFER_TYPE_INDEX,
+                    0,
+                    ffi::RTC_FORMAT_UINT3,
+                    12,
+                    n,
+                ) as *mut [u32; 3];
                 if vb.is_null() || ib.is_null() {
                     ffi::rtcReleaseGeometry(geom);
                     check_device("allocating mesh buffers")?;
@@ -388,7 +442,16 @@ impl Geometry {
 
     // Embree's hit record, field by field, as its two ray layouts store it.
     #[allow(clippy::too_many_arguments)]
-    fn hit_from(&self, geom_id: u32, prim_id: u32, u: f32, v: f32, t: f32, ng: Vec3, dir: Vec3) -> Option<Hit> {
+    fn hit_from(
+        &self,
+        geom_id: u32,
+        prim_id: u32,
+        u: f32,
+        v: f32,
+        t: f32,
+        ng: Vec3,
+        dir: Vec3,
+    ) -> Option<Hit> {
         if geom_id == ffi::RTC_INVALID_GEOMETRY_ID {
             return None;
         }
@@ -427,7 +490,15 @@ impl Geometry {
         // SAFETY: the scene is committed; ray and context are valid for the call.
         unsafe { ffi::rtcIntersect1(self.scene.as_ptr(), &mut ctx, &mut rh) };
         let h = rh.hit;
-        self.hit_from(h.geom_id, h.prim_id, h.u, h.v, rh.ray.tfar, Vec3::from_array(h.ng), ray.direction)
+        self.hit_from(
+            h.geom_id,
+            h.prim_id,
+            h.u,
+            h.v,
+            rh.ray.tfar,
+            Vec3::from_array(h.ng),
+            ray.direction,
+        )
     }
 
     /// Whether anything lies on the ray between tnear and tfar.
@@ -452,7 +523,11 @@ impl Geometry {
     /// fresh packet would have. Built where it is used: building it
     /// elsewhere and moving it in (1 kB per packet, tens of thousands of
     /// packets per update) cost as much as the rest of the setup.
-    fn fill_packet<const N: usize>(p: &mut ffi::RTCRayN<N>, valid: &mut [i32; N], rays: &[TraceRay]) {
+    fn fill_packet<const N: usize>(
+        p: &mut ffi::RTCRayN<N>,
+        valid: &mut [i32; N],
+        rays: &[TraceRay],
+    ) {
         debug_assert!(rays.len() <= N);
         for (i, lane) in valid.iter_mut().enumerate() {
             let r = rays.get(i).unwrap_or(&EMPTY_LANE);
@@ -473,7 +548,10 @@ impl Geometry {
         assert_eq!(rays.len(), out.len());
         ensure_flush_denormals();
         let mut ctx = ffi::RTCIntersectContext::new();
-        let mut rh = ffi::RTCRayHit16 { ray: ffi::RTCRayN::EMPTY, hit: EMPTY_HIT16 };
+        let mut rh = ffi::RTCRayHit16 {
+            ray: ffi::RTCRayN::EMPTY,
+            hit: EMPTY_HIT16,
+        };
         let mut valid = [0i32; 16];
         for (chunk, res) in rays.chunks(16).zip(out.chunks_mut(16)) {
             Self::fill_packet(&mut rh.ray, &mut valid, chunk);
@@ -486,7 +564,15 @@ impl Geometry {
             let h = &rh.hit;
             for (i, o) in res.iter_mut().enumerate() {
                 let ng = Vec3::new(h.ng_x[i], h.ng_y[i], h.ng_z[i]);
-                *o = self.hit_from(h.geom_id[i], h.prim_id[i], h.u[i], h.v[i], rh.ray.tfar[i], ng, chunk[i].direction);
+                *o = self.hit_from(
+                    h.geom_id[i],
+                    h.prim_id[i],
+                    h.u[i],
+                    h.v[i],
+                    rh.ray.tfar[i],
+                    ng,
+                    chunk[i].direction,
+                );
             }
         }
     }
@@ -503,7 +589,9 @@ impl Geometry {
             Self::fill_packet(&mut packet, &mut valid, rays);
             // SAFETY: the packet is aligned as Embree requires; the scene
             // is committed; inactive lanes are masked off.
-            unsafe { ffi::rtcOccluded4(valid.as_ptr(), self.scene.as_ptr(), &mut ctx, &mut packet) };
+            unsafe {
+                ffi::rtcOccluded4(valid.as_ptr(), self.scene.as_ptr(), &mut ctx, &mut packet)
+            };
             for (i, o) in out.iter_mut().enumerate() {
                 *o = packet.tfar[i] == f32::NEG_INFINITY;
             }
@@ -514,7 +602,9 @@ impl Geometry {
         for (chunk, res) in rays.chunks(16).zip(out.chunks_mut(16)) {
             Self::fill_packet(&mut packet, &mut valid, chunk);
             // SAFETY: as in `intersect_batch`.
-            unsafe { ffi::rtcOccluded16(valid.as_ptr(), self.scene.as_ptr(), &mut ctx, &mut packet) };
+            unsafe {
+                ffi::rtcOccluded16(valid.as_ptr(), self.scene.as_ptr(), &mut ctx, &mut packet)
+            };
             for (i, o) in res.iter_mut().enumerate() {
                 *o = packet.tfar[i] == f32::NEG_INFINITY;
             }
@@ -523,7 +613,12 @@ impl Geometry {
 }
 
 /// An inactive lane of a packet.
-const EMPTY_LANE: TraceRay = TraceRay { origin: Vec3::ZERO, direction: Vec3::Z, tnear: 0.0, tfar: 0.0 };
+const EMPTY_LANE: TraceRay = TraceRay {
+    origin: Vec3::ZERO,
+    direction: Vec3::Z,
+    tnear: 0.0,
+    tfar: 0.0,
+};
 
 const EMPTY_HIT16: ffi::RTCHit16 = ffi::RTCHit16 {
     ng_x: [0.0; 16],
@@ -553,27 +648,50 @@ pub struct Tracer {
 impl Tracer {
     /// Builds the real scene, and the virtual one only if it has triangles
     /// (a scene without virtual objects builds no virtual geometry).
-    pub fn build(real: &[SurfaceTriangles], virtual_objects: &[SurfaceTriangles]) -> Result<Tracer, TraceError> {
+    pub fn build(
+        real: &[SurfaceTriangles],
+        virtual_objects: &[SurfaceTriangles],
+    ) -> Result<Tracer, TraceError> {
         let real = Geometry::build(real, false)?;
         let has_virtual = virtual_objects.iter().any(|s| !s.triangles.is_empty());
-        let virtual_objects = if has_virtual { Some(Geometry::build(virtual_objects, true)?) } else { None };
-        Ok(Tracer { real, virtual_objects })
+        let virtual_objects = if has_virtual {
+            Some(Geometry::build(virtual_objects, true)?)
+        } else {
+            None
+        };
+        Ok(Tracer {
+            real,
+            virtual_objects,
+        })
     }
 
     /// Replaces the virtual scene (after a move); the real scene is kept.
-    pub fn rebuild_virtual(&mut self, virtual_objects: &[SurfaceTriangles]) -> Result<(), TraceError> {
+    pub fn rebuild_virtual(
+        &mut self,
+        virtual_objects: &[SurfaceTriangles],
+    ) -> Result<(), TraceError> {
         let has_virtual = virtual_objects.iter().any(|s| !s.triangles.is_empty());
-        self.virtual_objects = if has_virtual { Some(Geometry::build(virtual_objects, true)?) } else { None };
+        self.virtual_objects = if has_virtual {
+            Some(Geometry::build(virtual_objects, true)?)
+        } else {
+            None
+        };
         Ok(())
     }
 
     /// The closest hit in the given layer.
     pub fn intersect(&self, ray: &TraceRay, layer: Layer) -> Option<Hit> {
-        let real = if layer != Layer::Virtual { self.real.intersect(ray) } else { None };
+        let real = if layer != Layer::Virtual {
+            self.real.intersect(ray)
+        } else {
+            None
+        };
         if layer == Layer::Real {
             return real;
         }
-        let Some(v) = &self.virtual_objects else { return real };
+        let Some(v) = &self.virtual_objects else {
+            return real;
+        };
         let mut shortened = *ray;
         if let Some(h) = &real {
             shortened.tfar = h.t;
@@ -583,7 +701,11 @@ impl Tracer {
 
     /// Whether anything in the given layer blocks the ray segment.
     pub fn occluded(&self, ray: &TraceRay, layer: Layer) -> bool {
-        let virt = || self.virtual_objects.as_ref().is_some_and(|v| v.occluded(ray));
+        let virt = || {
+            self.virtual_objects
+                .as_ref()
+                .is_some_and(|v| v.occluded(ray))
+        };
         match layer {
             Layer::Real => self.real.occluded(ray),
             Layer::Virtual => virt(),
@@ -593,14 +715,21 @@ impl Tracer {
 
     /// Closest hits of many rays in the given layer, in packets of 16.
     pub fn intersect_batch(&self, rays: &[TraceRay], layer: Layer, out: &mut [Option<Hit>]) {
-        let virt = self.virtual_objects.as_ref().filter(|_| layer != Layer::Real);
+        let virt = self
+            .virtual_objects
+            .as_ref()
+            .filter(|_| layer != Layer::Real);
         match (layer, virt) {
             (Layer::Virtual, None) => out.iter_mut().for_each(|o| *o = None),
             (Layer::Virtual, Some(v)) => v.intersect_batch(rays, out),
             (_, None) => self.real.intersect_batch(rays, out),
             (_, Some(_)) => {
                 self.real.intersect_batch(rays, out);
-                let before: Vec<f32> = rays.iter().zip(out.iter()).map(|(r, h)| h.map_or(r.tfar, |h| h.t)).collect();
+                let before: Vec<f32> = rays
+                    .iter()
+                    .zip(out.iter())
+                    .map(|(r, h)| h.map_or(r.tfar, |h| h.t))
+                    .collect();
                 self.put_virtual_in_front(rays, &before, out);
             }
         }
@@ -610,7 +739,12 @@ impl Tracer {
     /// virtual hit nearer than `before` (that hit's distance, or the ray's
     /// end), where there is one: the second half of a [`Layer::All`] query,
     /// for a caller that kept the first.
-    pub fn put_virtual_in_front(&self, rays: &[TraceRay], before: &[f32], hits: &mut [Option<Hit>]) {
+    pub fn put_virtual_in_front(
+        &self,
+        rays: &[TraceRay],
+        before: &[f32],
+        hits: &mut [Option<Hit>],
+    ) {
         let mut near = vec![None; rays.len()];
         self.intersect_virtual_before(rays, before, &mut near);
         for (h, n) in hits.iter_mut().zip(near) {
@@ -623,13 +757,22 @@ impl Tracer {
     /// The closest virtual hit of each ray nearer than `before` (its real
     /// hit's distance, or its own end): the second half of a
     /// [`Layer::All`] query, for a caller that kept the first.
-    pub fn intersect_virtual_before(&self, rays: &[TraceRay], before: &[f32], out: &mut [Option<Hit>]) {
+    pub fn intersect_virtual_before(
+        &self,
+        rays: &[TraceRay],
+        before: &[f32],
+        out: &mut [Option<Hit>],
+    ) {
         assert_eq!(rays.len(), before.len());
         let Some(v) = &self.virtual_objects else {
             out.iter_mut().for_each(|o| *o = None);
             return;
         };
-        let shortened: Vec<TraceRay> = rays.iter().zip(before).map(|(r, &t)| TraceRay { tfar: t, ..*r }).collect();
+        let shortened: Vec<TraceRay> = rays
+            .iter()
+            .zip(before)
+            .map(|(r, &t)| TraceRay { tfar: t, ..*r })
+            .collect();
         v.intersect_batch(&shortened, out);
     }
 
@@ -659,8 +802,12 @@ mod tests {
     use super::*;
 
     fn quad(z: f32, half: f32) -> Vec<Triangle> {
-        let (a, b, c, d) =
-            (Vec3::new(-half, -half, z), Vec3::new(half, -half, z), Vec3::new(half, half, z), Vec3::new(-half, half, z));
+        let (a, b, c, d) = (
+            Vec3::new(-half, -half, z),
+            Vec3::new(half, -half, z),
+            Vec3::new(half, half, z),
+            Vec3::new(-half, half, z),
+        );
         vec![[a, b, c], [a, c, d]]
     }
 
@@ -668,7 +815,16 @@ mod tests {
     fn closest_hit_reports_surface_triangle_barycentrics_and_facing_normal() {
         let (near, far) = (quad(1.0, 1.0), quad(2.0, 1.0));
         let g = Geometry::build(
-            &[SurfaceTriangles { surface: 7, triangles: &far }, SurfaceTriangles { surface: 3, triangles: &near }],
+            &[
+                SurfaceTriangles {
+                    surface: 7,
+                    triangles: &far,
+                },
+                SurfaceTriangles {
+                    surface: 3,
+                    triangles: &near,
+                },
+            ],
             false,
         )
         .unwrap();
@@ -676,23 +832,37 @@ mod tests {
         let h = g.intersect(&ray).unwrap();
         assert_eq!((h.surface, h.triangle), (3, 0));
         assert!((h.t - 1.0).abs() < 1e-6);
-        assert!((h.normal - Vec3::NEG_Z).length() < 1e-6, "faces the origin: {}", h.normal);
+        assert!(
+            (h.normal - Vec3::NEG_Z).length() < 1e-6,
+            "faces the origin: {}",
+            h.normal
+        );
         let t = &near[0];
         let p = t[0] * (1.0 - h.u - h.v) + t[1] * h.u + t[2] * h.v;
         assert!((p - Vec3::new(0.5, -0.25, 1.0)).length() < 1e-5);
-        assert!(g.intersect(&TraceRay::new(Vec3::new(3.0, 0.0, 0.0), Vec3::Z)).is_none());
+        assert!(
+            g.intersect(&TraceRay::new(Vec3::new(3.0, 0.0, 0.0), Vec3::Z))
+                .is_none()
+        );
     }
 
     #[test]
     fn batches_agree_with_single_rays_and_layers_stay_apart() {
         let (wall, blocker) = (quad(2.0, 10.0), quad(1.0, 0.5));
         let tracer = Tracer::build(
-            &[SurfaceTriangles { surface: 0, triangles: &wall }],
-            &[SurfaceTriangles { surface: 1, triangles: &blocker }],
+            &[SurfaceTriangles {
+                surface: 0,
+                triangles: &wall,
+            }],
+            &[SurfaceTriangles {
+                surface: 1,
+                triangles: &blocker,
+            }],
         )
         .unwrap();
-        let rays: Vec<TraceRay> =
-            (0..37).map(|i| TraceRay::new(Vec3::new(-1.0 + i as f32 * 0.055, 0.1, 0.0), Vec3::Z)).collect();
+        let rays: Vec<TraceRay> = (0..37)
+            .map(|i| TraceRay::new(Vec3::new(-1.0 + i as f32 * 0.055, 0.1, 0.0), Vec3::Z))
+            .collect();
         for layer in [Layer::Real, Layer::Virtual, Layer::All] {
             let mut hits = vec![None; rays.len()];
             tracer.intersect_batch(&rays, layer, &mut hits);
@@ -719,9 +889,23 @@ mod tests {
     fn queries_from_rayon_threads_agree() {
         use rayon::prelude::*;
         let wall = quad(2.0, 1.0);
-        let g = Geometry::build(&[SurfaceTriangles { surface: 0, triangles: &wall }], false).unwrap();
-        let hits: Vec<bool> =
-            (0..10_000).into_par_iter().map(|i| g.occluded(&TraceRay::new(Vec3::new(i as f32 * 2e-4 + 1e-5, 0.0, 0.0), Vec3::Z))).collect();
+        let g = Geometry::build(
+            &[SurfaceTriangles {
+                surface: 0,
+                triangles: &wall,
+            }],
+            false,
+        )
+        .unwrap();
+        let hits: Vec<bool> = (0..10_000)
+            .into_par_iter()
+            .map(|i| {
+                g.occluded(&TraceRay::new(
+                    Vec3::new(i as f32 * 2e-4 + 1e-5, 0.0, 0.0),
+                    Vec3::Z,
+                ))
+            })
+            .collect();
         assert_eq!(hits.iter().filter(|&&h| h).count(), 5000);
     }
 }

@@ -12,7 +12,11 @@ fn brackets() -> Vec<Exposure> {
     [-2.0, -1.0, 0.0, 1.0, 2.0]
         .iter()
         .map(|&ev| {
-            let name = if ev < 0.0 { format!("ev{ev}") } else { format!("ev+{ev}") };
+            let name = if ev < 0.0 {
+                format!("ev{ev}")
+            } else {
+                format!("ev+{ev}")
+            };
             Exposure::read(&Path::new(DESK).join(format!("brackets/{name}.png")), ev).unwrap()
         })
         .collect()
@@ -24,7 +28,11 @@ fn recovered_response_and_merged_map_match_the_truth() {
     let response = recover_response(&exposures, 64, 20.0).unwrap();
     // True response: code -> normalised exposure (response.csv).
     let csv = std::fs::read_to_string(Path::new(DESK).join("brackets/response.csv")).unwrap();
-    let truth: Vec<f64> = csv.lines().skip(1).map(|l| l.split(',').nth(1).unwrap().parse().unwrap()).collect();
+    let truth: Vec<f64> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
+        .collect();
     // Up to the method's scale: aligned at code 128 (g(128) = 0). Relative
     // error over codes 16..=250 (below 16 a code spans too wide a range of
     // exposures to pin the toe down), and over every code as a fraction of
@@ -40,7 +48,11 @@ fn recovered_response_and_merged_map_match_the_truth() {
             }
         }
     }
-    println!("response: worst relative error {:.2}% over codes 16..250; worst error {:.2}% of full scale over all codes", 100.0 * relative, 100.0 * absolute);
+    println!(
+        "response: worst relative error {:.2}% over codes 16..250; worst error {:.2}% of full scale over all codes",
+        100.0 * relative,
+        100.0 * absolute
+    );
     assert!(relative < 0.02 && absolute < 0.02, "{relative} {absolute}");
 
     let merged = merge(&exposures, &response).unwrap();
@@ -52,7 +64,10 @@ fn recovered_response_and_merged_map_match_the_truth() {
         den += m.as_dvec3().length_squared();
     }
     let s = num / den;
-    let longest = exposures.iter().max_by(|a, b| a.ev.total_cmp(&b.ev)).unwrap();
+    let longest = exposures
+        .iter()
+        .max_by(|a, b| a.ev.total_cmp(&b.ev))
+        .unwrap();
     let rel = |mask: &dyn Fn(usize) -> bool| {
         let (mut se, mut sum, mut n) = (0.0, 0.0, 0usize);
         for i in 0..photo.pixels.len() {
@@ -80,13 +95,26 @@ fn recovered_response_and_merged_map_match_the_truth() {
 fn bad_brackets_are_refused_clearly() {
     let mut e = brackets();
     let e1 = vec![e[0].clone()];
-    assert!(check_brackets(&e1).unwrap_err().to_string().contains("a single exposure"));
+    assert!(
+        check_brackets(&e1)
+            .unwrap_err()
+            .to_string()
+            .contains("a single exposure")
+    );
     e[1].ev = e[0].ev;
-    assert!(check_brackets(&e).unwrap_err().to_string().contains("same EV"));
+    assert!(
+        check_brackets(&e)
+            .unwrap_err()
+            .to_string()
+            .contains("same EV")
+    );
     let mut e = brackets();
     e[2].width = 256;
     let msg = check_brackets(&e).unwrap_err().to_string();
-    assert!(msg.contains("ev+0.png") && msg.contains("must be aligned"), "{msg}");
+    assert!(
+        msg.contains("ev+0.png") && msg.contains("must be aligned"),
+        "{msg}"
+    );
     let _ = PathBuf::new();
 }
 
@@ -106,14 +134,30 @@ fn the_box_rendered_from_brackets_is_within_a_quarter_of_the_exr_render() {
         let base = arlux::scene::Scene::load(dir.path().join(file)).unwrap();
         let scene = base.with_variant("box_floor_a").unwrap();
         let photo = scene.load_photo().unwrap();
-        let out = render(&scene, &photo, &RenderSettings::default(), &mut StageTimes::default()).unwrap();
+        let out = render(
+            &scene,
+            &photo,
+            &RenderSettings::default(),
+            &mut StageTimes::default(),
+        )
+        .unwrap();
         let truth = read_image(&dir.path().join("truth/box_floor_a.exr")).unwrap();
         arlux::compare::compare(&out.composite.image, &truth, None).rmse
     };
     let exr = error("scene.toml");
     let merged = error("scene_brackets.toml");
-    println!("box_floor_a from photo.exr: RMSE {exr:.5}; from the brackets: {merged:.5} ({:+.0}%)", 100.0 * (merged / exr - 1.0));
+    println!(
+        "box_floor_a from photo.exr: RMSE {exr:.5}; from the brackets: {merged:.5} ({:+.0}%)",
+        100.0 * (merged / exr - 1.0)
+    );
     assert!(merged <= 1.25 * exr, "{merged} vs {exr}");
-    let cached: Vec<String> = std::fs::read_dir(dir.path().join(".arlux-cache")).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
-    assert!(cached.iter().any(|f| f.starts_with("merged-")) && cached.iter().any(|f| f.starts_with("scale-")), "{cached:?}");
+    let cached: Vec<String> = std::fs::read_dir(dir.path().join(".arlux-cache"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(
+        cached.iter().any(|f| f.starts_with("merged-"))
+            && cached.iter().any(|f| f.starts_with("scale-")),
+        "{cached:?}"
+    );
 }

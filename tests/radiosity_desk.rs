@@ -18,7 +18,11 @@ use arlux::scene::Scene;
 use arlux::trace::{Layer, TraceRay};
 
 fn desk() -> Scene {
-    Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/desk/scene.toml")).unwrap()
+    Scene::load(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/desk/scene.toml"
+    ))
+    .unwrap()
 }
 
 /// The desk's room at 0.5 m patches, with the photo's direct light per patch.
@@ -27,7 +31,10 @@ fn desk_at_half_a_metre() -> (Scene, arlux::trace::Tracer, Patches, Vec<DVec3>) 
     let tracer = scene.build_tracer().unwrap();
     let lights = LightSource::all(&scene).unwrap();
     let patches = Patches::of_scene(&scene, false, 0.5);
-    let e = total_direct(&photo_scales(&lights), &direct_irradiance(&patches, &lights, &tracer, Layer::Real, 4));
+    let e = total_direct(
+        &photo_scales(&lights),
+        &direct_irradiance(&patches, &lights, &tracer, Layer::Real, 4),
+    );
     (scene, tracer, patches, e)
 }
 
@@ -42,8 +49,19 @@ fn hierarchical_agrees_with_the_full_matrix_within_one_percent_per_patch() {
     let t0 = Instant::now();
     let hier = Transport::hierarchical(&patches, &tracer, Layer::Real, DEFAULT_LINK_EPSILON);
     let hier_time = t0.elapsed();
-    let known: HashMap<u32, DVec3> = scene.reflectances.iter().map(|k| (k.surface as u32, k.rgb)).collect();
-    let est = estimate_reflectances(&patches, &full, &e, &measured, &known, EstimateSettings::default());
+    let known: HashMap<u32, DVec3> = scene
+        .reflectances
+        .iter()
+        .map(|k| (k.surface as u32, k.rgb))
+        .collect();
+    let est = estimate_reflectances(
+        &patches,
+        &full,
+        &e,
+        &measured,
+        &known,
+        EstimateSettings::default(),
+    );
     let rho = &est.reflectance;
     let emission: Vec<DVec3> = rho.iter().zip(&e).map(|(r, e)| *r * *e).collect();
     let a = solve(&patches, &full, rho, &emission, 1e-9, 500);
@@ -61,7 +79,11 @@ fn hierarchical_agrees_with_the_full_matrix_within_one_percent_per_patch() {
         hier.link_count(),
         100.0 * worst
     );
-    assert!(worst < 0.01, "hierarchical differs by {:.2}%", 100.0 * worst);
+    assert!(
+        worst < 0.01,
+        "hierarchical differs by {:.2}%",
+        100.0 * worst
+    );
 }
 
 #[test]
@@ -72,12 +94,22 @@ fn the_left_wall_reflectance_is_recovered_without_its_known_value() {
     let tracer = scene.build_tracer().unwrap();
     let lights = LightSource::all(&scene).unwrap();
     let patches = Patches::of_scene(&scene, false, 0.25);
-    let e = total_direct(&photo_scales(&lights), &direct_irradiance(&patches, &lights, &tracer, Layer::Real, 6));
+    let e = total_direct(
+        &photo_scales(&lights),
+        &direct_irradiance(&patches, &lights, &tracer, Layer::Real, 6),
+    );
     let photo = scene.load_photo().unwrap();
     let measured = PhotoPatches::measure(&scene.camera, &tracer, &patches, &photo);
     let t0 = Instant::now();
     let transport = Transport::hierarchical(&patches, &tracer, Layer::Real, DEFAULT_LINK_EPSILON);
-    let est = estimate_reflectances(&patches, &transport, &e, &measured, &HashMap::new(), EstimateSettings::default());
+    let est = estimate_reflectances(
+        &patches,
+        &transport,
+        &e,
+        &measured,
+        &HashMap::new(),
+        EstimateSettings::default(),
+    );
     let got = surface_mean(&patches, &est.reflectance, truth.surface as u32).unwrap();
     let error = ((got - truth.rgb) / truth.rgb).abs().max_element();
     println!(
@@ -90,7 +122,11 @@ fn the_left_wall_reflectance_is_recovered_without_its_known_value() {
         t0.elapsed()
     );
     assert!(error < 0.05);
-    assert!(est.reflectance.iter().all(|r| r.is_finite() && r.min_element() >= 0.0 && r.max_element() <= 0.99));
+    assert!(
+        est.reflectance
+            .iter()
+            .all(|r| r.is_finite() && r.min_element() >= 0.0 && r.max_element() <= 0.99)
+    );
 }
 
 #[test]
@@ -105,19 +141,48 @@ fn direct_light_with_objects_reuses_the_room_only_where_it_is_the_same() {
         let room = Patches::of_scene(&scene, false, 0.5);
         let with = Patches::of_scene_with(&scene, true, 0.5, 0.1);
         let room_direct = direct_irradiance(&room, &lights, &tracer, Layer::Real, 4);
-        let objects = arlux::pda::VirtualBounds::of(&scene.virtual_world_surfaces()).with_room(&room.real_root_polygons(), &lights);
-        let fast = arlux::radiosity::direct_irradiance_with_objects(&with, &lights, &tracer, 4, &room_direct, &objects);
+        let objects = arlux::pda::VirtualBounds::of(&scene.virtual_world_surfaces())
+            .with_room(&room.real_root_polygons(), &lights);
+        let fast = arlux::radiosity::direct_irradiance_with_objects(
+            &with,
+            &lights,
+            &tracer,
+            4,
+            &room_direct,
+            &objects,
+        );
         let known = (room.patch_count()..with.patch_count())
-            .filter(|&k| (0..lights.len()).any(|l| objects.only_own_blocks(with.patch(k).surface, with.patch(k).centre, with.patch(k).normal, l, &lights[l])))
+            .filter(|&k| {
+                (0..lights.len()).any(|l| {
+                    objects.only_own_blocks(
+                        with.patch(k).surface,
+                        with.patch(k).centre,
+                        with.patch(k).normal,
+                        l,
+                        &lights[l],
+                    )
+                })
+            })
             .count();
-        println!("{variant}: {known} of the object's {} patches know their rays", with.patch_count() - room.patch_count());
+        println!(
+            "{variant}: {known} of the object's {} patches know their rays",
+            with.patch_count() - room.patch_count()
+        );
         assert!(known > 0, "{variant}: every object patch traced");
         let traced = direct_irradiance(&with, &lights, &tracer, Layer::All, 4);
         assert_eq!(fast, traced, "{variant}");
         // And the objects do darken some room patch, so the test has teeth.
-        let darkened = (0..room.patch_count()).filter(|&k| (0..lights.len()).any(|l| traced[l][k] != room_direct[l][k])).count();
-        println!("{variant}: {darkened} of {} room patches shadowed by the object", room.patch_count());
-        assert!(darkened > 0, "{variant}: no room patch in the object's shadow");
+        let darkened = (0..room.patch_count())
+            .filter(|&k| (0..lights.len()).any(|l| traced[l][k] != room_direct[l][k]))
+            .count();
+        println!(
+            "{variant}: {darkened} of {} room patches shadowed by the object",
+            room.patch_count()
+        );
+        assert!(
+            darkened > 0,
+            "{variant}: no room patch in the object's shadow"
+        );
     }
 }
 
@@ -136,15 +201,28 @@ fn re_linking_objects_with_kept_room_facts_gives_the_same_links() {
     // between the box and much of the room).
     let under_table = DVec3::new(-0.35, 0.0, -1.4);
     let slide = base.motion("box_slide").unwrap().translations.clone();
-    for (pose, at) in [(3, slide[3]), (4, slide[4]), (3, slide[3]), (8, under_table), (5, slide[5]), (8, under_table)] {
+    for (pose, at) in [
+        (3, slide[3]),
+        (4, slide[4]),
+        (3, slide[3]),
+        (8, under_table),
+        (5, slide[5]),
+        (8, under_table),
+    ] {
         let mut scene = base.with_motion_pose("box_slide", 0).unwrap();
         scene.objects[0].pose.translate = at;
         let tracer = scene.build_tracer().unwrap();
         let with = Patches::of_scene_with(&scene, true, 0.25, 0.1);
         let fresh = transport.with_objects(&with, &tracer, DEFAULT_LINK_EPSILON, false);
-        let kept = transport.with_objects_using(&with, &tracer, DEFAULT_LINK_EPSILON, false, Some(&facts));
-        let Transport::Hierarchical { links, .. } = &fresh else { panic!("pose {pose}: not hierarchical") };
-        let from_box = links.iter().filter(|l| l.source as usize >= room.elements.len()).count();
+        let kept =
+            transport.with_objects_using(&with, &tracer, DEFAULT_LINK_EPSILON, false, Some(&facts));
+        let Transport::Hierarchical { links, .. } = &fresh else {
+            panic!("pose {pose}: not hierarchical")
+        };
+        let from_box = links
+            .iter()
+            .filter(|l| l.source as usize >= room.elements.len())
+            .count();
         println!("pose {pose}: {from_box} links from the box");
         assert!(from_box > 0, "pose {pose}: no link from the box");
         assert!(fresh == kept, "pose {pose}: kept facts changed the links");
@@ -172,15 +250,26 @@ fn what_each_patch_gathers_agrees_with_tracing_its_hemisphere() {
         let mut sum = 0.0;
         let mut rays = 0;
         for (i, (x, _)) in el.shape.quadrature(6).into_iter().enumerate() {
-            let dirs = arlux::gather::cosine_directions(el.normal, 32, arlux::light::hash2(k as u64, i as u64));
+            let dirs = arlux::gather::cosine_directions(
+                el.normal,
+                32,
+                arlux::light::hash2(k as u64, i as u64),
+            );
             let origin = arlux::light::offset_origin(x, el.normal, x + el.normal);
-            let traced: Vec<TraceRay> = dirs.iter().map(|d| TraceRay::new(origin.as_vec3(), d.as_vec3())).collect();
+            let traced: Vec<TraceRay> = dirs
+                .iter()
+                .map(|d| TraceRay::new(origin.as_vec3(), d.as_vec3()))
+                .collect();
             let mut hits = vec![None; traced.len()];
             tracer.intersect_batch(&traced, Layer::Real, &mut hits);
             for (d, hit) in dirs.iter().zip(&hits) {
                 rays += 1;
                 let Some(hit) = hit else { continue };
-                let Some(at) = patches.locate(hit.surface, hit.triangle, origin + *d * hit.t as f64) else { continue };
+                let Some(at) =
+                    patches.locate(hit.surface, hit.triangle, origin + *d * hit.t as f64)
+                else {
+                    continue;
+                };
                 let q = patches.patch(at.patch as usize);
                 if !(q.one_sided && d.dot(q.normal) >= 0.0) {
                     sum += b[at.patch as usize].x;
@@ -195,7 +284,11 @@ fn what_each_patch_gathers_agrees_with_tracing_its_hemisphere() {
         }
     }
     let (full_error, hier_error) = (full_error / count as f64, hier_error / count as f64);
-    println!("gathered irradiance against tracing, mean over {count} patches: full matrix {:.2}%, hierarchical {:.2}%", 100.0 * full_error, 100.0 * hier_error);
+    println!(
+        "gathered irradiance against tracing, mean over {count} patches: full matrix {:.2}%, hierarchical {:.2}%",
+        100.0 * full_error,
+        100.0 * hier_error
+    );
     assert!(full_error < 0.02 && hier_error < 0.02);
 }
 
@@ -209,7 +302,10 @@ fn the_objects_mesh_from_the_rooms_is_the_whole_scenes_mesh() {
         let room = Patches::of_scene(&scene, false, size);
         let whole = Patches::of_scene_with(&scene, true, size, 0.1);
         let from_room = Patches::of_scene_from_room(&room, &scene, 0.1);
-        assert!(whole.patch_count() > room.patch_count(), "{variant}: the object adds patches");
+        assert!(
+            whole.patch_count() > room.patch_count(),
+            "{variant}: the object adds patches"
+        );
         assert!(from_room == whole, "{variant}: the meshes differ");
     }
 }
@@ -225,16 +321,30 @@ fn a_moved_solid_keeps_its_mesh() {
     let poses = base.motion("box_slide").unwrap().translations.len();
     let meshes: Vec<(usize, usize)> = (0..poses)
         .map(|pose| {
-            let p = Patches::of_scene_from_room(&room, &base.with_motion_pose("box_slide", pose).unwrap(), 0.1);
-            (p.patch_count() - room.patch_count(), p.vertices.len() - room.vertices.len())
+            let p = Patches::of_scene_from_room(
+                &room,
+                &base.with_motion_pose("box_slide", pose).unwrap(),
+                0.1,
+            );
+            (
+                p.patch_count() - room.patch_count(),
+                p.vertices.len() - room.vertices.len(),
+            )
         })
         .collect();
-    assert!(meshes.iter().all(|m| *m == meshes[0]), "patches and vertices per pose: {meshes:?}");
-    assert_eq!(meshes[0].0, 96, "a 0.3 m box at 0.1 m: 6 faces of 4 × 4 patches");
+    assert!(
+        meshes.iter().all(|m| *m == meshes[0]),
+        "patches and vertices per pose: {meshes:?}"
+    );
+    assert_eq!(
+        meshes[0].0, 96,
+        "a 0.3 m box at 0.1 m: 6 faces of 4 × 4 patches"
+    );
 }
 
 #[test]
-fn gathering_rays_from_a_solids_faces_meet_through_the_room_alone_what_they_meet_through_both_layers() {
+fn gathering_rays_from_a_solids_faces_meet_through_the_room_alone_what_they_meet_through_both_layers()
+ {
     // The final gather traces the room alone from a vertex whose whole
     // solid lies behind its face (`gather::clear_of_solid`): it must find
     // every ray's hit as tracing both layers does.
@@ -245,10 +355,19 @@ fn gathering_rays_from_a_solids_faces_meet_through_the_room_alone_what_they_meet
         let tracer = scene.build_tracer().unwrap();
         let with = Patches::of_scene_with(&scene, true, 0.5, 0.1);
         let is_virtual = |s: u32| with.is_virtual_surface(s);
-        let corners: Vec<DVec3> = with.roots.iter().map(|&r| &with.elements[r as usize]).filter(|e| is_virtual(e.surface)).flat_map(|e| e.shape.corners().to_vec()).collect();
+        let corners: Vec<DVec3> = with
+            .roots
+            .iter()
+            .map(|&r| &with.elements[r as usize])
+            .filter(|e| is_virtual(e.surface))
+            .flat_map(|e| e.shape.corners().to_vec())
+            .collect();
         let trace = |p: DVec3, n: DVec3, layer: Layer| {
             let origin = offset_origin(p, n, p + n);
-            let rays: Vec<TraceRay> = cosine_directions(n, 12, 7).iter().map(|d| TraceRay::new(origin.as_vec3(), d.as_vec3())).collect();
+            let rays: Vec<TraceRay> = cosine_directions(n, 12, 7)
+                .iter()
+                .map(|d| TraceRay::new(origin.as_vec3(), d.as_vec3()))
+                .collect();
             let mut hits = vec![None; rays.len()];
             tracer.intersect_batch(&rays, layer, &mut hits);
             hits
@@ -259,16 +378,34 @@ fn gathering_rays_from_a_solids_faces_meet_through_the_room_alone_what_they_meet
             for &v in with.patch_vertices[k].iter().filter(|&&v| v != u32::MAX) {
                 let p = with.vertices[v as usize];
                 // A box: every face has the whole box behind it.
-                assert!(clear_of_solid(&corners, p, n), "{variant}: vertex {v} not clear of its own box");
-                assert_eq!(trace(p, n, Layer::Real), trace(p, n, Layer::All), "{variant}: vertex {v}");
+                assert!(
+                    clear_of_solid(&corners, p, n),
+                    "{variant}: vertex {v} not clear of its own box"
+                );
+                assert_eq!(
+                    trace(p, n, Layer::Real),
+                    trace(p, n, Layer::All),
+                    "{variant}: vertex {v}"
+                );
                 vertices += 1;
             }
         }
         assert!(vertices > 50, "{variant}: {vertices} vertices");
         // Facing into the box instead, the rule refuses, and rightly: the box is in the way.
-        let k = (0..with.patch_count()).find(|&k| is_virtual(with.patch(k).surface)).unwrap();
+        let k = (0..with.patch_count())
+            .find(|&k| is_virtual(with.patch(k).surface))
+            .unwrap();
         let (p, n) = (with.patch(k).centre, -with.patch(k).normal);
-        assert!(!clear_of_solid(&corners, p, n), "{variant}: clear facing into the box");
-        assert!(trace(p, n, Layer::All).iter().flatten().any(|h| h.is_virtual), "{variant}: no ray into the box met it");
+        assert!(
+            !clear_of_solid(&corners, p, n),
+            "{variant}: clear facing into the box"
+        );
+        assert!(
+            trace(p, n, Layer::All)
+                .iter()
+                .flatten()
+                .any(|h| h.is_virtual),
+            "{variant}: no ray into the box met it"
+        );
     }
 }

@@ -13,7 +13,11 @@ use arlux::scene::Scene;
 use arlux::trace::Layer;
 
 fn desk() -> Scene {
-    Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/desk/scene.toml")).unwrap()
+    Scene::load(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/desk/scene.toml"
+    ))
+    .unwrap()
 }
 
 fn luminance(p: glam::Vec3) -> f64 {
@@ -27,16 +31,34 @@ fn nothing_changed_reprojects_the_photo() {
     let photo = scene.load_photo().unwrap();
     let tracer = scene.build_tracer().unwrap();
     let mut times = StageTimes::default();
-    let path = TexturePath::prepare(&scene, &photo, &tracer, &TextureSettings::default(), &mut times).unwrap();
+    let path = TexturePath::prepare(
+        &scene,
+        &photo,
+        &tracer,
+        &TextureSettings::default(),
+        &mut times,
+    )
+    .unwrap();
     let scales: Vec<f64> = path.lights().iter().map(|l| l.photo_scale()).collect();
     let out = path.relight(&scales, &mut times);
     let c = compare(&out.image, &photo, None);
     // Pixels no real shadow touches come back as the photo (Steps 1 and 2
     // and B/D are all 1 there); in and near the shadows the reprojection
     // is the mesh's shadow against the photo's.
-    let exact = out.image.pixels.iter().zip(&photo.pixels).filter(|(a, b)| (**a - **b).abs().max_element() <= 1e-4 * b.max_element().max(1e-6)).count();
+    let exact = out
+        .image
+        .pixels
+        .iter()
+        .zip(&photo.pixels)
+        .filter(|(a, b)| (**a - **b).abs().max_element() <= 1e-4 * b.max_element().max(1e-6))
+        .count();
     let share = exact as f64 / photo.pixels.len() as f64;
-    println!("reprojection with nothing changed: RMSE {:.5} (relative {:.4}); {:.1}% of pixels equal the photo to 1e-4", c.rmse, c.relative_rmse.unwrap(), 100.0 * share);
+    println!(
+        "reprojection with nothing changed: RMSE {:.5} (relative {:.4}); {:.1}% of pixels equal the photo to 1e-4",
+        c.rmse,
+        c.relative_rmse.unwrap(),
+        100.0 * share
+    );
     assert!(c.rmse < 0.0026, "RMSE {}", c.rmse);
     assert!(share > 0.75, "{share}");
     assert_eq!(out.ratio_fallbacks, 0);
@@ -51,10 +73,26 @@ fn both(base: &Scene, variant: &str) -> (f64, f64, f64, Image, Image, Image) {
     let texture = render_texture(&scene, &photo, &TextureSettings::default(), &mut times).unwrap();
     let (_, _, change) = texture.texture.as_ref().unwrap();
     let change = change.as_secs_f64();
-    let pda = render(&scene, &photo, &RenderSettings::default(), &mut StageTimes::default()).unwrap();
-    let (t, p) = (compare(&texture.composite.image, &truth, None).rmse, compare(&pda.composite.image, &truth, None).rmse);
+    let pda = render(
+        &scene,
+        &photo,
+        &RenderSettings::default(),
+        &mut StageTimes::default(),
+    )
+    .unwrap();
+    let (t, p) = (
+        compare(&texture.composite.image, &truth, None).rmse,
+        compare(&pda.composite.image, &truth, None).rmse,
+    );
     println!("| {variant} | {t:.5} | {p:.5} | {change:.3} s |");
-    (t, p, change, texture.composite.image, pda.composite.image, truth)
+    (
+        t,
+        p,
+        change,
+        texture.composite.image,
+        pda.composite.image,
+        truth,
+    )
 }
 
 #[test]
@@ -62,7 +100,12 @@ fn variants_both_methods_against_truth() {
     let base = desk();
     println!("| variant | texture RMSE | pda RMSE | light change (texture) |");
     // box_floor_a: both methods take every variant, an inserted object too.
-    for (variant, texture_bound, pda_bound) in [("panel_off", 0.0030, 0.0025), ("spot_x2", 0.0055, 0.0040), ("virtual_light_only", 0.0085, 0.0075), ("box_floor_a", 0.0070, 0.0045)] {
+    for (variant, texture_bound, pda_bound) in [
+        ("panel_off", 0.0030, 0.0025),
+        ("spot_x2", 0.0055, 0.0040),
+        ("virtual_light_only", 0.0085, 0.0075),
+        ("box_floor_a", 0.0070, 0.0045),
+    ] {
         let (t, p, ..) = both(&base, variant);
         assert!(t < texture_bound, "{variant}: texture RMSE {t}");
         assert!(p < pda_bound, "{variant}: pda RMSE {p}");
@@ -79,10 +122,20 @@ fn shadows_of_a_switched_off_lamp_disappear() {
     let base = desk();
     let scene = base.with_variant("panel_off").unwrap();
     let photo = scene.load_photo().unwrap();
-    let truth = read_image(base.variant("panel_off").unwrap().reference.as_ref().unwrap()).unwrap();
+    let truth = read_image(
+        base.variant("panel_off")
+            .unwrap()
+            .reference
+            .as_ref()
+            .unwrap(),
+    )
+    .unwrap();
     let tracer = scene.build_tracer().unwrap();
     let lights = LightSource::all(&scene).unwrap();
-    let (panel, spot) = (lights.iter().position(|l| l.name == "panel").unwrap(), lights.iter().position(|l| l.name == "spot").unwrap());
+    let (panel, spot) = (
+        lights.iter().position(|l| l.name == "panel").unwrap(),
+        lights.iter().position(|l| l.name == "spot").unwrap(),
+    );
     let cam = &scene.camera;
     let (w, h) = (cam.width as usize, cam.height as usize);
     // Per pixel: surface, panel visibility (64 rays), spot visibility, and
@@ -90,7 +143,10 @@ fn shadows_of_a_switched_off_lamp_disappear() {
     let points: Vec<Option<(u32, f64, f64, f64)>> = (0..w * h)
         .map(|i| {
             let ray = cam.pixel_ray((i % w) as u32, (i / w) as u32);
-            let hit = tracer.intersect(&arlux::trace::TraceRay::new(ray.origin.as_vec3(), ray.direction.as_vec3()), Layer::Real)?;
+            let hit = tracer.intersect(
+                &arlux::trace::TraceRay::new(ray.origin.as_vec3(), ray.direction.as_vec3()),
+                Layer::Real,
+            )?;
             let x = ray.origin + ray.direction * hit.t as f64;
             let n = hit.normal.as_dvec3();
             let dp = lights[panel].direct(&tracer, Layer::Real, x, n, 6, i as u64);
@@ -99,7 +155,10 @@ fn shadows_of_a_switched_off_lamp_disappear() {
                 return None;
             }
             let ds = lights[spot].direct(&tracer, Layer::Real, x, n, 0, i as u64);
-            let (ep, es) = (dp.unoccluded.element_sum(), ds.unoccluded.element_sum() * ds.visibility);
+            let (ep, es) = (
+                dp.unoccluded.element_sum(),
+                ds.unoccluded.element_sum() * ds.visibility,
+            );
             Some((hit.surface, dp.visibility, ds.visibility, ep / (ep + es)))
         })
         .collect();
@@ -109,7 +168,9 @@ fn shadows_of_a_switched_off_lamp_disappear() {
     let mut pairs = Vec::new();
     for y in 0..h {
         for x in 0..w {
-            let Some((s, vp, vs, _)) = points[y * w + x] else { continue };
+            let Some((s, vp, vs, _)) = points[y * w + x] else {
+                continue;
+            };
             if vp > 0.3 {
                 continue;
             }
@@ -121,7 +182,9 @@ fn shadows_of_a_switched_off_lamp_disappear() {
                     }
                     let q = qy as usize * w + qx as usize;
                     match points[q] {
-                        Some((qs, qp, qv, share)) if qs == s && qp > 0.7 && (qv - vs).abs() < 0.01 && share > 0.3 => {
+                        Some((qs, qp, qv, share))
+                            if qs == s && qp > 0.7 && (qv - vs).abs() < 0.01 && share > 0.3 =>
+                        {
                             pairs.push((y * w + x, q));
                             break;
                         }
@@ -131,15 +194,32 @@ fn shadows_of_a_switched_off_lamp_disappear() {
             }
         }
     }
-    assert!(pairs.len() > 300, "{} pairs across the panel's shadow boundary", pairs.len());
+    assert!(
+        pairs.len() > 300,
+        "{} pairs across the panel's shadow boundary",
+        pairs.len()
+    );
     let ratio = |img: &Image| {
-        let (a, b) = pairs.iter().fold((0.0, 0.0), |(a, b), &(p, q)| (a + luminance(img.pixels[p]), b + luminance(img.pixels[q])));
+        let (a, b) = pairs.iter().fold((0.0, 0.0), |(a, b), &(p, q)| {
+            (a + luminance(img.pixels[p]), b + luminance(img.pixels[q]))
+        });
         a / b
     };
     let mut times = StageTimes::default();
     let texture = render_texture(&scene, &photo, &TextureSettings::default(), &mut times).unwrap();
-    let pda = render(&scene, &photo, &RenderSettings::default(), &mut StageTimes::default()).unwrap();
-    let (rt, rp, rd, rtruth) = (ratio(&texture.composite.image), ratio(&photo), ratio(&pda.composite.image), ratio(&truth));
+    let pda = render(
+        &scene,
+        &photo,
+        &RenderSettings::default(),
+        &mut StageTimes::default(),
+    )
+    .unwrap();
+    let (rt, rp, rd, rtruth) = (
+        ratio(&texture.composite.image),
+        ratio(&photo),
+        ratio(&pda.composite.image),
+        ratio(&truth),
+    );
     println!(
         "{} pixel pairs across the panel's former shadow boundary; inside/outside: truth {rtruth:.3}, texture {rt:.3} ({:+.1}%), pda {rd:.3} ({:+.1}%), photo {rp:.3} ({:+.1}%)",
         pairs.len(),
@@ -147,9 +227,18 @@ fn shadows_of_a_switched_off_lamp_disappear() {
         100.0 * (rd / rtruth - 1.0),
         100.0 * (rp / rtruth - 1.0)
     );
-    assert!((rt / rtruth - 1.0).abs() < 0.10, "texture: {rt} against {rtruth}");
-    assert!((rd / rtruth - 1.0).abs() < 0.10, "pda: {rd} against {rtruth}");
-    assert!((rp / rtruth - 1.0).abs() > 0.10, "the photo's shadow must be visible for this test to mean anything: {rp} against {rtruth}");
+    assert!(
+        (rt / rtruth - 1.0).abs() < 0.10,
+        "texture: {rt} against {rtruth}"
+    );
+    assert!(
+        (rd / rtruth - 1.0).abs() < 0.10,
+        "pda: {rd} against {rtruth}"
+    );
+    assert!(
+        (rp / rtruth - 1.0).abs() > 0.10,
+        "the photo's shadow must be visible for this test to mean anything: {rp} against {rtruth}"
+    );
 }
 
 /// D ≈ 0: where the photo's lights gave no light (here: none of the
@@ -165,15 +254,36 @@ fn d_near_zero_falls_back_to_radiosity() {
     let photo = scene.load_photo().unwrap();
     let tracer = scene.build_tracer().unwrap();
     let mut times = StageTimes::default();
-    let path = TexturePath::prepare(&scene, &photo, &tracer, &TextureSettings::default(), &mut times).unwrap();
+    let path = TexturePath::prepare(
+        &scene,
+        &photo,
+        &tracer,
+        &TextureSettings::default(),
+        &mut times,
+    )
+    .unwrap();
     let scales: Vec<f64> = scene.lights.iter().map(|l| l.scale).collect();
     let out = path.relight(&scales, &mut times);
     let real = out.image.pixels.len() - out.copied;
-    println!("{} of {real} pixels on real surfaces fell back to B/π", out.ratio_fallbacks);
+    println!(
+        "{} of {real} pixels on real surfaces fell back to B/π",
+        out.ratio_fallbacks
+    );
     assert_eq!(out.ratio_fallbacks, real);
-    assert!(out.image.pixels.iter().all(|p| p.is_finite() && p.min_element() >= 0.0));
+    assert!(
+        out.image
+            .pixels
+            .iter()
+            .all(|p| p.is_finite() && p.min_element() >= 0.0)
+    );
     // The bulb's light shows where it reaches.
-    let lit = out.image.pixels.iter().zip(&out.direct.pixels).filter(|(p, e)| e.max_element() > 0.1 && p.min_element() > 0.0).count();
+    let lit = out
+        .image
+        .pixels
+        .iter()
+        .zip(&out.direct.pixels)
+        .filter(|(p, e)| e.max_element() > 0.1 && p.min_element() > 0.0)
+        .count();
     assert!(lit > 50_000, "{lit}");
 }
 
@@ -186,9 +296,26 @@ fn one_preprocess_serves_every_light_change() {
     let scene = base.with_variant("virtual_light_only").unwrap();
     let photo = scene.load_photo().unwrap();
     let tracer = scene.build_tracer().unwrap();
-    let path = TexturePath::prepare(&scene, &photo, &tracer, &TextureSettings::default(), &mut StageTimes::default()).unwrap();
-    for (variant, bound) in [("panel_off", 0.0030), ("spot_x2", 0.0055), ("virtual_light_only", 0.0085)] {
-        let scales: Vec<f64> = base.with_variant(variant).unwrap().lights.iter().map(|l| l.scale).collect();
+    let path = TexturePath::prepare(
+        &scene,
+        &photo,
+        &tracer,
+        &TextureSettings::default(),
+        &mut StageTimes::default(),
+    )
+    .unwrap();
+    for (variant, bound) in [
+        ("panel_off", 0.0030),
+        ("spot_x2", 0.0055),
+        ("virtual_light_only", 0.0085),
+    ] {
+        let scales: Vec<f64> = base
+            .with_variant(variant)
+            .unwrap()
+            .lights
+            .iter()
+            .map(|l| l.scale)
+            .collect();
         let out = path.relight(&scales, &mut StageTimes::default());
         let truth = read_image(base.variant(variant).unwrap().reference.as_ref().unwrap()).unwrap();
         let e = compare(&out.image, &truth, None).rmse;
@@ -208,22 +335,68 @@ fn a_user_reference_serves_where_no_frontier_leaf_matches() {
     let mut scene = base.with_variant("panel_off").unwrap();
     let photo = scene.load_photo().unwrap();
     let tracer = scene.build_tracer().unwrap();
-    let floor = scene.surfaces.iter().position(|s| s.name == "floor").unwrap();
+    let floor = scene
+        .surfaces
+        .iter()
+        .position(|s| s.name == "floor")
+        .unwrap();
     let point = glam::DVec3::new(0.6, 0.0, 0.2);
     for light in LightSource::all(&scene).unwrap().iter().filter(|l| l.real) {
         let d = light.direct(&tracer, Layer::Real, point, glam::DVec3::Y, 6, 1);
-        assert!(d.unoccluded.element_sum() > 0.0 && d.visibility == 1.0, "{} must light the reference fully", light.name);
+        assert!(
+            d.unoccluded.element_sum() > 0.0 && d.visibility == 1.0,
+            "{} must light the reference fully",
+            light.name
+        );
     }
-    let settings = TextureSettings { reference_colour_threshold: 0.0, ..Default::default() };
-    let without = TexturePath::prepare(&scene, &photo, &tracer, &settings, &mut StageTimes::default()).unwrap().stats;
+    let settings = TextureSettings {
+        reference_colour_threshold: 0.0,
+        ..Default::default()
+    };
+    let without = TexturePath::prepare(
+        &scene,
+        &photo,
+        &tracer,
+        &settings,
+        &mut StageTimes::default(),
+    )
+    .unwrap()
+    .stats;
     assert_eq!((without.by_frontier, without.by_user_reference), (0, 0));
     assert_eq!(without.uncorrected, without.occluded);
-    scene.texture_references.push(TextureReference { surface: floor, point });
-    let with = TexturePath::prepare(&scene, &photo, &tracer, &settings, &mut StageTimes::default()).unwrap().stats;
-    println!("occluded seen leaves {}: {} from the floor's reference, {} uncorrected", with.occluded, with.by_user_reference, with.uncorrected);
+    scene.texture_references.push(TextureReference {
+        surface: floor,
+        point,
+    });
+    let with = TexturePath::prepare(
+        &scene,
+        &photo,
+        &tracer,
+        &settings,
+        &mut StageTimes::default(),
+    )
+    .unwrap()
+    .stats;
+    println!(
+        "occluded seen leaves {}: {} from the floor's reference, {} uncorrected",
+        with.occluded, with.by_user_reference, with.uncorrected
+    );
     assert!(with.by_user_reference > 50, "{with:?}");
     assert_eq!(with.by_user_reference + with.uncorrected, with.occluded);
     scene.texture_references[0].point = glam::DVec3::new(0.6, 0.5, 0.2);
-    let err = TexturePath::prepare(&scene, &photo, &tracer, &settings, &mut StageTimes::default()).err().expect("a point off the floor");
-    assert!(err.to_string().contains("texture_reference[0].point: [0.6, 0.5, 0.2] does not lie on surface 'floor'"), "{err}");
+    let err = TexturePath::prepare(
+        &scene,
+        &photo,
+        &tracer,
+        &settings,
+        &mut StageTimes::default(),
+    )
+    .err()
+    .expect("a point off the floor");
+    assert!(
+        err.to_string().contains(
+            "texture_reference[0].point: [0.6, 0.5, 0.2] does not lie on surface 'floor'"
+        ),
+        "{err}"
+    );
 }

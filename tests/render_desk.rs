@@ -9,14 +9,22 @@ use arlux::render::{RenderOutput, RenderSettings, render};
 use arlux::scene::Scene;
 
 fn desk() -> Scene {
-    Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/desk/scene.toml")).unwrap()
+    Scene::load(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/desk/scene.toml"
+    ))
+    .unwrap()
 }
 
 fn luminance(p: glam::Vec3) -> f32 {
     0.2126 * p.x + 0.7152 * p.y + 0.0722 * p.z
 }
 
-fn run(base: &Scene, variant: &str, settings: &RenderSettings) -> (RenderOutput, Image, Image, f64) {
+fn run(
+    base: &Scene,
+    variant: &str,
+    settings: &RenderSettings,
+) -> (RenderOutput, Image, Image, f64) {
     let scene = base.with_variant(variant).unwrap();
     let photo = scene.load_photo().unwrap();
     let truth = read_image(base.variant(variant).unwrap().reference.as_ref().unwrap()).unwrap();
@@ -44,9 +52,16 @@ fn breakdown(out: &RenderOutput, photo: &Image, truth: &Image) -> Breakdown {
     let shadow: Vec<bool> = (0..photo.pixels.len())
         .map(|i| !object[i] && luminance(truth.pixels[i]) < 0.95 * luminance(photo.pixels[i]))
         .collect();
-    let rest: Vec<bool> = (0..photo.pixels.len()).map(|i| !object[i] && !shadow[i]).collect();
+    let rest: Vec<bool> = (0..photo.pixels.len())
+        .map(|i| !object[i] && !shadow[i])
+        .collect();
     let mean = |img: &Image, m: &[bool]| {
-        let (s, n) = img.pixels.iter().zip(m).filter(|(_, m)| **m).fold((0.0, 0), |(s, n), (p, _)| (s + luminance(*p) as f64, n + 1));
+        let (s, n) = img
+            .pixels
+            .iter()
+            .zip(m)
+            .filter(|(_, m)| **m)
+            .fold((0.0, 0), |(s, n), (p, _)| (s + luminance(*p) as f64, n + 1));
         s / n.max(1) as f64
     };
     Breakdown {
@@ -82,11 +97,29 @@ fn every_variant_against_its_truth() {
             b.all, b.object, b.shadow, b.shadow_pixels, b.ratio_ours, b.ratio_truth, b.rest
         );
         assert!(b.all < bound, "{variant}: RMSE {} over {bound}", b.all);
-        assert!(out.composite.image.pixels.iter().all(|p| p.is_finite() && p.min_element() >= 0.0));
+        assert!(
+            out.composite
+                .image
+                .pixels
+                .iter()
+                .all(|p| p.is_finite() && p.min_element() >= 0.0)
+        );
         if variant.starts_with("box") {
-            assert!(b.shadow_pixels > 100, "{variant}: the box casts a shadow in the truth");
-            assert!((b.ratio_ours / b.ratio_truth - 1.0).abs() < 0.15, "{variant}: shadow ratio {} vs truth {}", b.ratio_ours, b.ratio_truth);
-            assert!(b.shadow < 0.015, "{variant}: RMSE in the shadow {}", b.shadow);
+            assert!(
+                b.shadow_pixels > 100,
+                "{variant}: the box casts a shadow in the truth"
+            );
+            assert!(
+                (b.ratio_ours / b.ratio_truth - 1.0).abs() < 0.15,
+                "{variant}: shadow ratio {} vs truth {}",
+                b.ratio_ours,
+                b.ratio_truth
+            );
+            assert!(
+                b.shadow < 0.015,
+                "{variant}: RMSE in the shadow {}",
+                b.shadow
+            );
         }
     }
 }
@@ -99,7 +132,13 @@ fn nothing_changed_returns_the_photo_bit_for_bit() {
         o.enabled = false;
     }
     let photo = scene.load_photo().unwrap();
-    let out = render(&scene, &photo, &RenderSettings::default(), &mut StageTimes::default()).unwrap();
+    let out = render(
+        &scene,
+        &photo,
+        &RenderSettings::default(),
+        &mut StageTimes::default(),
+    )
+    .unwrap();
     assert_eq!(out.composite.image, photo);
     assert_eq!(out.rays, 0, "no work is done for no change");
 }
@@ -109,12 +148,26 @@ fn one_and_two_threads_give_the_same_image() {
     let base = desk();
     let scene = base.with_variant("box_table").unwrap();
     let photo = scene.load_photo().unwrap();
-    let settings = RenderSettings { model: arlux::model::ModelSettings { patch_size: 0.5, ..Default::default() }, ..Default::default() };
+    let settings = RenderSettings {
+        model: arlux::model::ModelSettings {
+            patch_size: 0.5,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
     let images: Vec<Image> = [1, 2]
         .iter()
         .map(|&t| {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().unwrap();
-            pool.install(|| render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap().composite.image)
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(t)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                render(&scene, &photo, &settings, &mut StageTimes::default())
+                    .unwrap()
+                    .composite
+                    .image
+            })
         })
         .collect();
     assert!(images[0] == images[1], "thread count changed the image");
@@ -126,8 +179,21 @@ fn an_object_that_can_affect_nothing_leaves_every_pixel_bit_identical() {
     // Behind the back wall: no light reaches it, it shadows nothing in the room.
     scene.objects[0].pose.translate = glam::DVec3::new(0.0, 0.0, -3.0);
     let photo = scene.load_photo().unwrap();
-    let out = render(&scene, &photo, &RenderSettings::default(), &mut StageTimes::default()).unwrap();
-    let differing = out.composite.image.pixels.iter().zip(&photo.pixels).filter(|(a, b)| a.to_array().map(f32::to_bits) != b.to_array().map(f32::to_bits)).count();
+    let out = render(
+        &scene,
+        &photo,
+        &RenderSettings::default(),
+        &mut StageTimes::default(),
+    )
+    .unwrap();
+    let differing = out
+        .composite
+        .image
+        .pixels
+        .iter()
+        .zip(&photo.pixels)
+        .filter(|(a, b)| a.to_array().map(f32::to_bits) != b.to_array().map(f32::to_bits))
+        .count();
     assert_eq!(differing, 0, "{differing} pixels differ from the photo");
     assert_eq!(out.composite.copied, photo.pixels.len());
 }
@@ -139,8 +205,18 @@ fn real_pixels_whose_light_is_unchanged_are_the_photo() {
     let base = desk();
     let (out, photo, _, _) = run(&base, "box_table", &RenderSettings::default());
     let c = &out.composite;
-    let unchanged = c.image.pixels.iter().zip(&photo.pixels).filter(|(a, b)| a == b).count();
-    assert!(c.copied > 4000 && unchanged >= c.copied, "copied {} unchanged {unchanged}", c.copied);
+    let unchanged = c
+        .image
+        .pixels
+        .iter()
+        .zip(&photo.pixels)
+        .filter(|(a, b)| a == b)
+        .count();
+    assert!(
+        c.copied > 4000 && unchanged >= c.copied,
+        "copied {} unchanged {unchanged}",
+        c.copied
+    );
 }
 
 /// Pixels whose 4×4 sub-pixels mix real and virtual surfaces, by brute
@@ -155,13 +231,19 @@ fn mixed_pixels(scene: &Scene) -> Vec<u32> {
             let (col, row) = (pixel % cam.width, pixel / cam.width);
             let rays: Vec<TraceRay> = (0..n * n)
                 .map(|k| {
-                    let r = cam.ray(col as f64 + ((k % n) as f64 + 0.5) / n as f64, row as f64 + ((k / n) as f64 + 0.5) / n as f64);
+                    let r = cam.ray(
+                        col as f64 + ((k % n) as f64 + 0.5) / n as f64,
+                        row as f64 + ((k / n) as f64 + 0.5) / n as f64,
+                    );
                     TraceRay::new(r.origin.as_vec3(), r.direction.as_vec3())
                 })
                 .collect();
             let mut hits = vec![None; rays.len()];
             tracer.intersect_batch(&rays, Layer::All, &mut hits);
-            let virtual_count = hits.iter().filter(|h| h.is_some_and(|h| h.is_virtual)).count();
+            let virtual_count = hits
+                .iter()
+                .filter(|h| h.is_some_and(|h| h.is_virtual))
+                .count();
             virtual_count > 0 && virtual_count < hits.len()
         })
         .collect()
@@ -173,8 +255,14 @@ fn edge_pixels_are_exactly_those_whose_sub_pixels_mix() {
     // surface lies between the camera and the object; every pixel of its
     // image when one does (under the table), or when the floor cuts into it.
     let base = desk();
-    let mut scenes: Vec<(String, Scene)> = ["box_floor_a", "box_floor_b", "box_table"].iter().map(|v| (v.to_string(), base.with_variant(v).unwrap())).collect();
-    for (name, at) in [("under the table", glam::DVec3::new(-0.35, 0.0, -1.4)), ("sunk into the floor", glam::DVec3::new(0.35, -0.05, -0.25))] {
+    let mut scenes: Vec<(String, Scene)> = ["box_floor_a", "box_floor_b", "box_table"]
+        .iter()
+        .map(|v| (v.to_string(), base.with_variant(v).unwrap()))
+        .collect();
+    for (name, at) in [
+        ("under the table", glam::DVec3::new(-0.35, 0.0, -1.4)),
+        ("sunk into the floor", glam::DVec3::new(0.35, -0.05, -0.25)),
+    ] {
         let mut s = base.with_variant("box_floor_a").unwrap();
         s.objects[0].pose.translate = at;
         scenes.push((name.to_string(), s));
@@ -182,11 +270,20 @@ fn edge_pixels_are_exactly_those_whose_sub_pixels_mix() {
     let settings = RenderSettings::default();
     for (name, scene) in scenes {
         let photo = scene.load_photo().unwrap();
-        let session = arlux::render::Session::start(&scene, &photo, &settings, &mut StageTimes::default()).unwrap();
+        let session =
+            arlux::render::Session::start(&scene, &photo, &settings, &mut StageTimes::default())
+                .unwrap();
         let found: Vec<u32> = session.pda().edges.iter().map(|e| e.pixel).collect();
         let truth = mixed_pixels(&scene);
-        println!("{name}: {} edge pixels, brute force {}", found.len(), truth.len());
+        println!(
+            "{name}: {} edge pixels, brute force {}",
+            found.len(),
+            truth.len()
+        );
         assert!(truth.len() > 50, "{name}: the object shows no edge");
-        assert_eq!(found, truth, "{name}: edge pixels differ from the brute force");
+        assert_eq!(
+            found, truth,
+            "{name}: edge pixels differ from the brute force"
+        );
     }
 }

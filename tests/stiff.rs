@@ -8,24 +8,59 @@ use arlux::model::{Model, ModelSettings, ModelView, StageTimes};
 use arlux::scene::{KnownReflectance, LightPosition, Scene};
 
 fn desk() -> Scene {
-    Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/desk/scene.toml")).unwrap()
+    Scene::load(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/desk/scene.toml"
+    ))
+    .unwrap()
 }
 
 fn all_finite(img: &Image) -> bool {
-    img.pixels.iter().all(|p| p.is_finite() && p.min_element() >= 0.0)
+    img.pixels
+        .iter()
+        .all(|p| p.is_finite() && p.min_element() >= 0.0)
 }
 
 fn run(scene: &Scene) -> (Model, ModelView) {
     let photo = scene.load_photo().unwrap();
     let tracer = scene.build_tracer().unwrap();
-    let settings = ModelSettings { patch_size: 0.5, ..ModelSettings::default() };
-    let model = Model::build(scene, &photo, &tracer, &settings, &mut StageTimes::default()).unwrap();
+    let settings = ModelSettings {
+        patch_size: 0.5,
+        ..ModelSettings::default()
+    };
+    let model = Model::build(
+        scene,
+        &photo,
+        &tracer,
+        &settings,
+        &mut StageTimes::default(),
+    )
+    .unwrap();
     let view = ModelView::render(scene, &tracer, &model, 3);
     let est = &model.estimate;
-    assert!(est.reflectance.iter().all(|r| r.is_finite() && r.min_element() >= 0.0 && r.max_element() <= 0.99));
-    assert!(est.solution.radiosity.iter().all(|b| b.is_finite() && b.min_element() >= 0.0));
-    assert!(est.solution.indirect_irradiance.iter().all(|h| h.is_finite() && h.min_element() >= 0.0));
-    for (name, img) in [("radiance", &view.radiance), ("direct", &view.direct), ("indirect", &view.indirect), ("reflectance", &view.reflectance)] {
+    assert!(
+        est.reflectance
+            .iter()
+            .all(|r| r.is_finite() && r.min_element() >= 0.0 && r.max_element() <= 0.99)
+    );
+    assert!(
+        est.solution
+            .radiosity
+            .iter()
+            .all(|b| b.is_finite() && b.min_element() >= 0.0)
+    );
+    assert!(
+        est.solution
+            .indirect_irradiance
+            .iter()
+            .all(|h| h.is_finite() && h.min_element() >= 0.0)
+    );
+    for (name, img) in [
+        ("radiance", &view.radiance),
+        ("direct", &view.direct),
+        ("indirect", &view.indirect),
+        ("reflectance", &view.reflectance),
+    ] {
         assert!(all_finite(img), "{name} has a non-finite or negative pixel");
     }
     (model, view)
@@ -46,8 +81,16 @@ fn a_light_one_millimetre_above_the_floor() {
     bulb_at(&mut scene, DVec3::new(-0.5, 0.001, 0.5));
     let (_, view) = run(&scene);
     // The pixel under the bulb sees the singular-but-finite peak: E ≈ I/d² = 6e6.
-    let peak = view.direct.pixels.iter().map(|p| p.x).fold(0.0f32, f32::max);
-    assert!(peak.is_finite() && peak > 1e3, "peak direct irradiance {peak}");
+    let peak = view
+        .direct
+        .pixels
+        .iter()
+        .map(|p| p.x)
+        .fold(0.0f32, f32::max);
+    assert!(
+        peak.is_finite() && peak > 1e3,
+        "peak direct irradiance {peak}"
+    );
 }
 
 #[test]
@@ -62,13 +105,19 @@ fn a_light_grazing_a_wall() {
 fn zero_reflectance_of_a_known_surface() {
     let mut scene = desk();
     let floor = scene.surface_index("floor").unwrap();
-    scene.reflectances.push(KnownReflectance { surface: floor, rgb: DVec3::ZERO });
+    scene.reflectances.push(KnownReflectance {
+        surface: floor,
+        rgb: DVec3::ZERO,
+    });
     let (model, _) = run(&scene);
     let floor_b: Vec<DVec3> = (0..model.patches.patch_count())
         .filter(|&k| model.patches.patch(k).surface == floor as u32)
         .map(|k| model.estimate.solution.radiosity[k])
         .collect();
-    assert!(floor_b.iter().all(|b| *b == DVec3::ZERO), "a black floor reflects nothing");
+    assert!(
+        floor_b.iter().all(|b| *b == DVec3::ZERO),
+        "a black floor reflects nothing"
+    );
 }
 
 /// The texture path on the stiff cases: a virtual bulb 1 mm above the floor
@@ -78,28 +127,43 @@ fn zero_reflectance_of_a_known_surface() {
 #[test]
 fn the_texture_path_stays_finite_on_stiff_cases() {
     use arlux::relight::{TexturePath, TextureSettings};
-    let settings = TextureSettings { patch_size: Some(0.5), ..TextureSettings::default() };
+    let settings = TextureSettings {
+        patch_size: Some(0.5),
+        ..TextureSettings::default()
+    };
     type Edit = Box<dyn Fn(&mut Scene, &mut Image)>;
     let cases: Vec<(&str, Edit)> = vec![
-        ("virtual bulb 1 mm above the floor", Box::new(|s: &mut Scene, _: &mut Image| {
-            let bulb = s.light_index("bulb").unwrap();
-            s.lights[bulb].position = LightPosition::Known(DVec3::new(-0.5, 0.001, 0.5));
-            s.lights[bulb].scale = 1.0;
-        })),
-        ("virtual bulb grazing the left wall", Box::new(|s: &mut Scene, _: &mut Image| {
-            let bulb = s.light_index("bulb").unwrap();
-            s.lights[bulb].position = LightPosition::Known(DVec3::new(-1.999, 1.2, 0.0));
-            s.lights[bulb].scale = 1.0;
-        })),
-        ("reflectance 0.99", Box::new(|s: &mut Scene, _: &mut Image| {
-            s.reflectances[0].rgb = DVec3::splat(0.99);
-        })),
-        ("a photo spanning 1e6:1", Box::new(|_: &mut Scene, photo: &mut Image| {
-            let w = photo.width as usize;
-            for (i, p) in photo.pixels.iter_mut().enumerate() {
-                *p *= if (i % w) < w / 2 { 1e3 } else { 1e-3 };
-            }
-        })),
+        (
+            "virtual bulb 1 mm above the floor",
+            Box::new(|s: &mut Scene, _: &mut Image| {
+                let bulb = s.light_index("bulb").unwrap();
+                s.lights[bulb].position = LightPosition::Known(DVec3::new(-0.5, 0.001, 0.5));
+                s.lights[bulb].scale = 1.0;
+            }),
+        ),
+        (
+            "virtual bulb grazing the left wall",
+            Box::new(|s: &mut Scene, _: &mut Image| {
+                let bulb = s.light_index("bulb").unwrap();
+                s.lights[bulb].position = LightPosition::Known(DVec3::new(-1.999, 1.2, 0.0));
+                s.lights[bulb].scale = 1.0;
+            }),
+        ),
+        (
+            "reflectance 0.99",
+            Box::new(|s: &mut Scene, _: &mut Image| {
+                s.reflectances[0].rgb = DVec3::splat(0.99);
+            }),
+        ),
+        (
+            "a photo spanning 1e6:1",
+            Box::new(|_: &mut Scene, photo: &mut Image| {
+                let w = photo.width as usize;
+                for (i, p) in photo.pixels.iter_mut().enumerate() {
+                    *p *= if (i % w) < w / 2 { 1e3 } else { 1e-3 };
+                }
+            }),
+        ),
     ];
     for (name, edit) in cases {
         let mut scene = desk();
@@ -107,15 +171,39 @@ fn the_texture_path_stays_finite_on_stiff_cases() {
         let mut photo = scene.load_photo().unwrap();
         edit(&mut scene, &mut photo);
         let tracer = scene.build_tracer().unwrap();
-        let path = TexturePath::prepare(&scene, &photo, &tracer, &settings, &mut StageTimes::default()).unwrap();
-        assert!(all_finite(&path.unoccluded_texture()), "{name}: the unoccluded texture");
+        let path = TexturePath::prepare(
+            &scene,
+            &photo,
+            &tracer,
+            &settings,
+            &mut StageTimes::default(),
+        )
+        .unwrap();
+        assert!(
+            all_finite(&path.unoccluded_texture()),
+            "{name}: the unoccluded texture"
+        );
         let n = scene.lights.len();
-        for scales in [scene.lights.iter().map(|l| l.scale).collect::<Vec<f64>>(), vec![0.0; n], vec![1e3; n]] {
+        for scales in [
+            scene.lights.iter().map(|l| l.scale).collect::<Vec<f64>>(),
+            vec![0.0; n],
+            vec![1e3; n],
+        ] {
             let out = path.relight(&scales, &mut StageTimes::default());
-            for (layer, img) in [("image", &out.image), ("direct", &out.direct), ("indirect", &out.indirect)] {
-                assert!(all_finite(img), "{name}, scales {scales:?}: {layer} has a non-finite or negative pixel");
+            for (layer, img) in [
+                ("image", &out.image),
+                ("direct", &out.direct),
+                ("indirect", &out.indirect),
+            ] {
+                assert!(
+                    all_finite(img),
+                    "{name}, scales {scales:?}: {layer} has a non-finite or negative pixel"
+                );
             }
-            assert!(out.change.pixels.iter().all(|p| p.is_finite()), "{name}: change");
+            assert!(
+                out.change.pixels.iter().all(|p| p.is_finite()),
+                "{name}: change"
+            );
         }
     }
 }

@@ -12,8 +12,15 @@ fn quick_sweep(target: &[&str]) -> (tempfile::TempDir, String) {
     let mut args = vec!["sweep", scene.as_str()];
     args.extend_from_slice(target);
     args.extend(["-o", dir.path().to_str().unwrap(), "--quick"]);
-    let run = Command::new(env!("CARGO_BIN_EXE_arlux")).args(&args).output().unwrap();
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let run = Command::new(env!("CARGO_BIN_EXE_arlux"))
+        .args(&args)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
     let csv = std::fs::read_to_string(dir.path().join("sweep.csv")).unwrap();
     (dir, csv)
 }
@@ -23,11 +30,23 @@ fn a_quick_sweep_measures_every_row_and_its_front_falls_as_cost_rises() {
     let (dir, csv) = quick_sweep(&["--variant", "box_floor_a"]);
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let col = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
-    let rows: Vec<Vec<String>> = lines.map(|l| l.split(',').map(str::to_string).collect()).collect();
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| *h == name)
+            .unwrap_or_else(|| panic!("no column {name}"))
+    };
+    let rows: Vec<Vec<String>> = lines
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect();
     assert!(rows.len() >= 6, "{} rows", rows.len());
     // Both methods: the texture path's defaults join the quick grid of a variant.
-    assert_eq!(rows.iter().filter(|r| r[col("method")] == "texture").count(), 1);
+    assert_eq!(
+        rows.iter()
+            .filter(|r| r[col("method")] == "texture")
+            .count(),
+        1
+    );
     assert!(rows.iter().filter(|r| r[col("method")] == "pda").count() >= 6);
     let num = |r: &Vec<String>, name: &str| -> f64 { r[col(name)].parse().unwrap() };
     for r in &rows {
@@ -37,49 +56,108 @@ fn a_quick_sweep_measures_every_row_and_its_front_falls_as_cost_rises() {
         assert!(e.is_finite() && e > 0.0 && e < 0.01, "rmse {e}");
         assert!(num(r, "total_seconds") > 0.0);
     }
-    let mut front: Vec<(f64, f64)> = rows.iter().filter(|r| r[col("pareto")] == "1").map(|r| (num(r, "total_seconds"), num(r, "rmse"))).collect();
+    let mut front: Vec<(f64, f64)> = rows
+        .iter()
+        .filter(|r| r[col("pareto")] == "1")
+        .map(|r| (num(r, "total_seconds"), num(r, "rmse")))
+        .collect();
     front.sort_by(|a, b| a.0.total_cmp(&b.0));
     // The front's length depends on measured times, which on a loaded machine
     // can make the most accurate row also the fastest. What holds whatever the
     // timing: the fastest row and the most accurate row are both on it.
-    let fastest = rows.iter().map(|r| num(r, "total_seconds")).fold(f64::INFINITY, f64::min);
-    let best = rows.iter().map(|r| num(r, "rmse")).fold(f64::INFINITY, f64::min);
-    assert!(front.iter().any(|(t, _)| *t == fastest), "the fastest row ({fastest} s) is off the front {front:?}");
-    assert!(front.iter().any(|(_, e)| *e == best), "the most accurate row ({best}) is off the front {front:?}");
+    let fastest = rows
+        .iter()
+        .map(|r| num(r, "total_seconds"))
+        .fold(f64::INFINITY, f64::min);
+    let best = rows
+        .iter()
+        .map(|r| num(r, "rmse"))
+        .fold(f64::INFINITY, f64::min);
+    assert!(
+        front.iter().any(|(t, _)| *t == fastest),
+        "the fastest row ({fastest} s) is off the front {front:?}"
+    );
+    assert!(
+        front.iter().any(|(_, e)| *e == best),
+        "the most accurate row ({best}) is off the front {front:?}"
+    );
     for w in front.windows(2) {
-        assert!(w[1].1 < w[0].1, "the front's error rises with cost: {front:?}");
+        assert!(
+            w[1].1 < w[0].1,
+            "the front's error rises with cost: {front:?}"
+        );
     }
     // No row off the front may beat a front row on both counts.
     for r in rows.iter().filter(|r| r[col("pareto")] == "0") {
         let (t, e) = (num(r, "total_seconds"), num(r, "rmse"));
-        assert!(front.iter().any(|(ft, fe)| *ft <= t && *fe <= e), "row ({t}, {e}) is dominated by nothing on the front");
+        assert!(
+            front.iter().any(|(ft, fe)| *ft <= t && *fe <= e),
+            "row ({t}, {e}) is dominated by nothing on the front"
+        );
     }
 
     // The defaults' row against an independent render + compare (rendering is deterministic).
     let default_row = rows
         .iter()
-        .find(|r| r[col("min_level")] == "2" && r[col("penumbra_level")] == "4" && r[col("supersample")] == "4" && r[col("patch_size")] == "auto")
+        .find(|r| {
+            r[col("min_level")] == "2"
+                && r[col("penumbra_level")] == "4"
+                && r[col("supersample")] == "4"
+                && r[col("patch_size")] == "auto"
+        })
         .expect("the defaults are in the quick grid");
     // Errors are deterministic: the coarsest pixel-path row is worse than the defaults.
-    let coarsest = rows.iter().find(|r| r[col("method")] == "pda" && r[col("min_level")] == "0" && r[col("penumbra_level")] == "0").expect("the coarsest row");
-    assert!(num(coarsest, "rmse") > 1.05 * num(default_row, "rmse"), "coarsest {} vs defaults {}", num(coarsest, "rmse"), num(default_row, "rmse"));
+    let coarsest = rows
+        .iter()
+        .find(|r| {
+            r[col("method")] == "pda"
+                && r[col("min_level")] == "0"
+                && r[col("penumbra_level")] == "0"
+        })
+        .expect("the coarsest row");
+    assert!(
+        num(coarsest, "rmse") > 1.05 * num(default_row, "rmse"),
+        "coarsest {} vs defaults {}",
+        num(coarsest, "rmse"),
+        num(default_row, "rmse")
+    );
     // The objects' mesh is a pixel-path setting: the default's there, none on the texture path.
     assert_eq!(default_row[col("virtual_patch_size")], "0.1");
-    assert!(rows.iter().filter(|r| r[col("method")] == "texture").all(|r| r[col("virtual_patch_size")].is_empty()));
+    assert!(
+        rows.iter()
+            .filter(|r| r[col("method")] == "texture")
+            .all(|r| r[col("virtual_patch_size")].is_empty())
+    );
     let image = dir.path().join("default.exr");
     let render = Command::new(env!("CARGO_BIN_EXE_arlux"))
-        .args(["render", &format!("{DESK}/scene.toml"), "--variant", "box_floor_a", "-o", image.to_str().unwrap(), "--json"])
+        .args([
+            "render",
+            &format!("{DESK}/scene.toml"),
+            "--variant",
+            "box_floor_a",
+            "-o",
+            image.to_str().unwrap(),
+            "--json",
+        ])
         .output()
         .unwrap();
     assert!(render.status.success());
     let compare = Command::new(env!("CARGO_BIN_EXE_arlux"))
-        .args(["compare", image.to_str().unwrap(), &format!("{DESK}/truth/box_floor_a.exr"), "--json"])
+        .args([
+            "compare",
+            image.to_str().unwrap(),
+            &format!("{DESK}/truth/box_floor_a.exr"),
+            "--json",
+        ])
         .output()
         .unwrap();
     let c: serde_json::Value = serde_json::from_slice(&compare.stdout).unwrap();
     let independent = c["rmse"].as_f64().unwrap();
     let swept = num(default_row, "rmse");
-    assert!((independent - swept).abs() < 1e-6, "sweep {swept} vs render + compare {independent}");
+    assert!(
+        (independent - swept).abs() < 1e-6,
+        "sweep {swept} vs render + compare {independent}"
+    );
 
     let png = image::open(dir.path().join("sweep.png")).unwrap();
     assert_eq!((png.width(), png.height()), (900, 600));

@@ -7,11 +7,19 @@ use arlux::render::{RenderSettings, Session, render};
 use arlux::scene::Scene;
 
 fn desk() -> Scene {
-    Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/desk/scene.toml")).unwrap()
+    Scene::load(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/desk/scene.toml"
+    ))
+    .unwrap()
 }
 
 fn differing(a: &Image, b: &Image) -> usize {
-    a.pixels.iter().zip(&b.pixels).filter(|(x, y)| x.to_array().map(f32::to_bits) != y.to_array().map(f32::to_bits)).count()
+    a.pixels
+        .iter()
+        .zip(&b.pixels)
+        .filter(|(x, y)| x.to_array().map(f32::to_bits) != y.to_array().map(f32::to_bits))
+        .count()
 }
 
 #[test]
@@ -21,7 +29,8 @@ fn every_update_equals_a_full_render_of_its_pose() {
     let settings = RenderSettings::default();
     let first = base.with_motion_pose("box_slide", 0).unwrap();
     let photo = first.load_photo().unwrap();
-    let mut session = Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+    let mut session =
+        Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
     for pose in 1..motion.translations.len() {
         let scene = base.with_motion_pose("box_slide", pose).unwrap();
         let mut times = StageTimes::default();
@@ -43,7 +52,10 @@ fn every_update_equals_a_full_render_of_its_pose() {
         for (name, d) in &times.1 {
             println!("      | {name:<26} {:>7.1} ms", d.as_secs_f64() * 1e3);
         }
-        assert_eq!(direct, 0, "pose {pose}: direct light must match bit for bit");
+        assert_eq!(
+            direct, 0,
+            "pose {pose}: direct light must match bit for bit"
+        );
         assert_eq!(d, 0, "pose {pose}: the image must match");
     }
 }
@@ -60,12 +72,22 @@ fn moving_an_object_far_from_everything_recomputes_no_pixel_and_casts_no_ray() {
     // With the layers, and the image alone (whose composite reads a
     // pixel's band only where its patch's corners say it may keep the photo).
     for image_only in [false, true] {
-        let mut session = Session::start(&here, &photo, &RenderSettings::default(), &mut StageTimes::default()).unwrap();
+        let mut session = Session::start(
+            &here,
+            &photo,
+            &RenderSettings::default(),
+            &mut StageTimes::default(),
+        )
+        .unwrap();
         if image_only {
             session.image_only();
         }
         let stats = session.update(&there, &mut StageTimes::default()).unwrap();
-        assert_eq!((stats.pixels_recomputed, stats.pixels_retraced, stats.rays), (0, 0, 0), "{stats:?}");
+        assert_eq!(
+            (stats.pixels_recomputed, stats.pixels_retraced, stats.rays),
+            (0, 0, 0),
+            "{stats:?}"
+        );
         assert!(session.composite.image == photo, "the photo, untouched");
         assert_eq!(session.composite.copied, photo.pixels.len());
     }
@@ -85,14 +107,23 @@ fn updates_equal_full_renders_at_other_ray_budgets() {
     let mut first = base.with_motion_pose("box_slide", 0).unwrap();
     first.objects[0].pose.translate = glam::DVec3::new(-0.6, 0.0, -1.2);
     let photo = first.load_photo().unwrap();
-    let mut session = Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
-    for at in [glam::DVec3::new(-0.35, 0.0, -1.4), glam::DVec3::new(-0.1, 0.0, -0.9), glam::DVec3::new(-0.35, 0.0, -1.4)] {
+    let mut session =
+        Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+    for at in [
+        glam::DVec3::new(-0.35, 0.0, -1.4),
+        glam::DVec3::new(-0.1, 0.0, -0.9),
+        glam::DVec3::new(-0.35, 0.0, -1.4),
+    ] {
         let mut scene = first.clone();
         scene.objects[0].pose.translate = at;
         let stats = session.update(&scene, &mut StageTimes::default()).unwrap();
         assert!(stats.pixels_recomputed > 0 && stats.rays > 0, "{stats:?}");
         let full = render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap();
-        assert_eq!(differing(&session.composite.image, &full.composite.image), 0, "box at {at}: the image must match a full render");
+        assert_eq!(
+            differing(&session.composite.image, &full.composite.image),
+            0,
+            "box at {at}: the image must match a full render"
+        );
     }
 }
 
@@ -102,13 +133,24 @@ fn an_image_only_session_updates_the_image_a_full_render_gives_and_drops_the_oth
     let settings = RenderSettings::default();
     let first = base.with_motion_pose("box_slide", 2).unwrap();
     let photo = first.load_photo().unwrap();
-    let mut session = Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+    let mut session =
+        Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
     session.image_only();
     let scene = base.with_motion_pose("box_slide", 3).unwrap();
     session.update(&scene, &mut StageTimes::default()).unwrap();
     let full = render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap();
-    assert_eq!(differing(&session.composite.image, &full.composite.image), 0);
+    assert_eq!(
+        differing(&session.composite.image, &full.composite.image),
+        0
+    );
     assert!(session.composite.alpha == full.composite.alpha);
-    assert_eq!((session.composite.copied, session.composite.clamped), (full.composite.copied, full.composite.clamped));
-    assert!(session.composite.direct.pixels.is_empty() && session.composite.indirect.pixels.is_empty() && session.composite.change.pixels.is_empty());
+    assert_eq!(
+        (session.composite.copied, session.composite.clamped),
+        (full.composite.copied, full.composite.clamped)
+    );
+    assert!(
+        session.composite.direct.pixels.is_empty()
+            && session.composite.indirect.pixels.is_empty()
+            && session.composite.change.pixels.is_empty()
+    );
 }

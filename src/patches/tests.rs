@@ -7,14 +7,21 @@ fn gauss_legendre_is_exact_to_degree_2n_minus_1() {
         let (x, w) = gauss_legendre(n);
         for deg in 0..2 * n {
             let q: f64 = x.iter().zip(w).map(|(x, w)| w * x.powi(deg as i32)).sum();
-            assert!((q - 1.0 / (deg as f64 + 1.0)).abs() < 1e-13, "n {n} degree {deg}: {q}");
+            assert!(
+                (q - 1.0 / (deg as f64 + 1.0)).abs() < 1e-13,
+                "n {n} degree {deg}: {q}"
+            );
         }
     }
 }
 
 #[test]
 fn triangle_quadrature_integrates_linear_functions() {
-    let t = Shape::Tri([DVec3::ZERO, DVec3::new(2.0, 0.0, 0.0), DVec3::new(0.0, 1.0, 0.0)]);
+    let t = Shape::Tri([
+        DVec3::ZERO,
+        DVec3::new(2.0, 0.0, 0.0),
+        DVec3::new(0.0, 1.0, 0.0),
+    ]);
     for n in 1..6 {
         let q = t.quadrature(n);
         assert_eq!(q.len(), n * n);
@@ -25,7 +32,11 @@ fn triangle_quadrature_integrates_linear_functions() {
 }
 
 fn desk() -> Scene {
-    Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/desk/scene.toml")).unwrap()
+    Scene::load(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/desk/scene.toml"
+    ))
+    .unwrap()
 }
 
 fn desk_patches(scene: &Scene, size: f64) -> Patches {
@@ -33,7 +44,11 @@ fn desk_patches(scene: &Scene, size: f64) -> Patches {
         .surfaces
         .iter()
         .enumerate()
-        .map(|(i, s)| SurfaceInput { surface: i as u32, triangles: &s.triangles, is_virtual: false })
+        .map(|(i, s)| SurfaceInput {
+            surface: i as u32,
+            triangles: &s.triangles,
+            is_virtual: false,
+        })
         .collect();
     Patches::build(&inputs, size)
 }
@@ -42,14 +57,29 @@ fn desk_patches(scene: &Scene, size: f64) -> Patches {
 fn the_desk_meshes_into_quads_of_the_target_size_conserving_area() {
     let scene = desk();
     let p = desk_patches(&scene, 0.25);
-    assert_eq!(p.roots.len(), 34, "every triangle pair of the desk is a parallelogram");
-    assert!(p.roots.iter().all(|&r| matches!(p.elements[r as usize].shape, Shape::Quad { .. })));
+    assert_eq!(
+        p.roots.len(),
+        34,
+        "every triangle pair of the desk is a parallelogram"
+    );
+    assert!(
+        p.roots
+            .iter()
+            .all(|&r| matches!(p.elements[r as usize].shape, Shape::Quad { .. }))
+    );
     let area: f64 = (0..p.patch_count()).map(|k| p.patch(k).area).sum();
-    let input: f64 = scene.surfaces.iter().flat_map(|s| &s.triangles).map(|t| 0.5 * crate::geometry::double_area(t)).sum();
+    let input: f64 = scene
+        .surfaces
+        .iter()
+        .flat_map(|s| &s.triangles)
+        .map(|t| 0.5 * crate::geometry::double_area(t))
+        .sum();
     assert!((area - input).abs() < 1e-9 * input);
     assert!((0..p.patch_count()).all(|k| p.patch(k).shape.size() <= 0.25 + 1e-12));
     // The 4 m floor splits into 16 × 16 patches of 0.25 m, sharing 17 × 17 vertices.
-    let floor: Vec<usize> = (0..p.patch_count()).filter(|&k| p.patch(k).surface == 2).collect();
+    let floor: Vec<usize> = (0..p.patch_count())
+        .filter(|&k| p.patch(k).surface == 2)
+        .collect();
     assert_eq!(floor.len(), 256);
     let mut verts: Vec<u32> = floor.iter().flat_map(|&k| p.patch_vertices[k]).collect();
     verts.sort_unstable();
@@ -66,7 +96,10 @@ fn located_points_are_inside_their_patch_and_interpolate_back() {
     for (si, s) in scene.surfaces.iter().enumerate() {
         for (ti, t) in s.triangles.iter().enumerate() {
             for _ in 0..20 {
-                let (mut a, mut b) = (crate::light::unit_random(&mut state), crate::light::unit_random(&mut state));
+                let (mut a, mut b) = (
+                    crate::light::unit_random(&mut state),
+                    crate::light::unit_random(&mut state),
+                );
                 if a + b > 1.0 {
                     (a, b) = (1.0 - a, 1.0 - b);
                 }
@@ -74,7 +107,10 @@ fn located_points_are_inside_their_patch_and_interpolate_back() {
                 let x = p0 + (p1 - p0) * a + (p2 - p0) * b;
                 let at = p.locate(si as u32, ti as u32, x).unwrap();
                 let back = p.interpolate(&positions, &at);
-                assert!((back - x).length() < 1e-6, "surface {si} tri {ti}: {x} -> {back}");
+                assert!(
+                    (back - x).length() < 1e-6,
+                    "surface {si} tri {ti}: {x} -> {back}"
+                );
                 let el = p.patch(at.patch as usize);
                 assert_eq!(el.surface, si as u32);
                 assert!((x - el.centre).length() <= el.shape.size() * 0.75 + 1e-9);
@@ -85,8 +121,19 @@ fn located_points_are_inside_their_patch_and_interpolate_back() {
 
 #[test]
 fn lone_triangles_stay_triangles_and_bisect() {
-    let t = [[glam::Vec3::ZERO, glam::Vec3::new(1.0, 0.0, 0.0), glam::Vec3::new(0.0, 0.0, 1.0)]];
-    let p = Patches::build(&[SurfaceInput { surface: 0, triangles: &t, is_virtual: true }], 0.3);
+    let t = [[
+        glam::Vec3::ZERO,
+        glam::Vec3::new(1.0, 0.0, 0.0),
+        glam::Vec3::new(0.0, 0.0, 1.0),
+    ]];
+    let p = Patches::build(
+        &[SurfaceInput {
+            surface: 0,
+            triangles: &t,
+            is_virtual: true,
+        }],
+        0.3,
+    );
     assert!(matches!(p.elements[0].shape, Shape::Tri(_)));
     let area: f64 = (0..p.patch_count()).map(|k| p.patch(k).area).sum();
     assert!((area - 0.5).abs() < 1e-12);
@@ -94,7 +141,11 @@ fn lone_triangles_stay_triangles_and_bisect() {
     let back = p.interpolate(&p.vertices, &at);
     assert!((back - DVec3::new(0.2, 0.0, 0.3)).length() < 1e-9);
     let constant = p.vertex_values(&vec![DVec3::splat(2.5); p.patch_count()]);
-    assert!(constant.iter().all(|v| (*v - DVec3::splat(2.5)).length() < 1e-12));
+    assert!(
+        constant
+            .iter()
+            .all(|v| (*v - DVec3::splat(2.5)).length() < 1e-12)
+    );
 }
 
 #[test]
@@ -105,12 +156,22 @@ fn virtual_objects_are_meshed_after_the_real_surfaces_the_same_way() {
     let n = real.patch_count();
     assert!(both.patch_count() > n);
     for k in 0..n {
-        assert_eq!(both.patch(k).shape, real.patch(k).shape, "real patches keep their indices");
+        assert_eq!(
+            both.patch(k).shape,
+            real.patch(k).shape,
+            "real patches keep their indices"
+        );
     }
     let box_id = scene.surfaces.len() as u32;
-    assert!((n..both.patch_count()).all(|k| both.patch(k).surface == box_id && both.surface_is_virtual[&box_id]));
+    assert!(
+        (n..both.patch_count())
+            .all(|k| both.patch(k).surface == box_id && both.surface_is_virtual[&box_id])
+    );
     let area: f64 = (n..both.patch_count()).map(|k| both.patch(k).area).sum();
-    assert!((area - 6.0 * 0.09).abs() < 1e-6, "the 0.3 m box has 0.54 m² of faces: {area}");
+    assert!(
+        (area - 6.0 * 0.09).abs() < 1e-6,
+        "the 0.3 m box has 0.54 m² of faces: {area}"
+    );
 }
 
 /// The leaf [`Patches::locate_in_root`] finds by distances alone, at every level.
@@ -119,7 +180,11 @@ fn leaf_by_distances(patches: &Patches, root: u32, x: DVec3) -> u32 {
     let mut e = root;
     while let Some([a, b]) = patches.elements[e as usize].children {
         let da = distance_outside(&patches.elements[a as usize].region, st);
-        e = if da == 0.0 || da <= distance_outside(&patches.elements[b as usize].region, st) { a } else { b };
+        e = if da == 0.0 || da <= distance_outside(&patches.elements[b as usize].region, st) {
+            a
+        } else {
+            b
+        };
     }
     e
 }
@@ -140,11 +205,18 @@ fn a_quads_cut_sends_a_point_to_the_leaf_the_distances_choose() {
             let st = match k % 3 {
                 0 => DVec2::new(rng.random_range(0.0..=1.0), rng.random_range(0.0..=1.0)),
                 1 => DVec2::new(rng.random_range(-0.2..1.2), rng.random_range(-0.2..1.2)),
-                _ => DVec2::new(rng.random_range(0..=64) as f64 / 64.0, rng.random_range(0..=64) as f64 / 64.0),
+                _ => DVec2::new(
+                    rng.random_range(0..=64) as f64 / 64.0,
+                    rng.random_range(0..=64) as f64 / 64.0,
+                ),
             };
             let x = patches.root_point(root, st);
             let found = patches.locate_in_root(root, x);
-            assert_eq!(patches.patches[found.patch as usize], leaf_by_distances(&patches, root, x), "root {root} at {st}");
+            assert_eq!(
+                patches.patches[found.patch as usize],
+                leaf_by_distances(&patches, root, x),
+                "root {root} at {st}"
+            );
         }
     }
     assert!(quads > 10, "{quads} quad roots");

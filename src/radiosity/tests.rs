@@ -6,7 +6,14 @@ use glam::Vec3;
 use std::time::Instant;
 
 fn element(shape: Shape) -> Element {
-    let p = Patches::build(&[SurfaceInput { surface: 0, triangles: &quad_triangles(shape), is_virtual: false }], 10.0);
+    let p = Patches::build(
+        &[SurfaceInput {
+            surface: 0,
+            triangles: &quad_triangles(shape),
+            is_virtual: false,
+        }],
+        10.0,
+    );
     p.elements[0].clone()
 }
 
@@ -18,8 +25,16 @@ fn quad_triangles(shape: Shape) -> Vec<Triangle> {
 
 #[test]
 fn form_factor_of_parallel_unit_squares_at_distance_one() {
-    let p = element(Shape::Quad { origin: DVec3::ZERO, u: DVec3::X, v: DVec3::Z });
-    let q = element(Shape::Quad { origin: DVec3::Y, u: DVec3::X, v: DVec3::Z });
+    let p = element(Shape::Quad {
+        origin: DVec3::ZERO,
+        u: DVec3::X,
+        v: DVec3::Z,
+    });
+    let q = element(Shape::Quad {
+        origin: DVec3::Y,
+        u: DVec3::X,
+        v: DVec3::Z,
+    });
     let f = element_form_factor(&p, &q, None);
     let exact = 0.199825;
     println!("parallel unit squares: F = {f:.6} (analytic {exact})");
@@ -28,8 +43,16 @@ fn form_factor_of_parallel_unit_squares_at_distance_one() {
 
 #[test]
 fn form_factor_of_touching_perpendicular_unit_squares() {
-    let p = element(Shape::Quad { origin: DVec3::ZERO, u: DVec3::X, v: DVec3::Z });
-    let q = element(Shape::Quad { origin: DVec3::ZERO, u: DVec3::X, v: DVec3::Y });
+    let p = element(Shape::Quad {
+        origin: DVec3::ZERO,
+        u: DVec3::X,
+        v: DVec3::Z,
+    });
+    let q = element(Shape::Quad {
+        origin: DVec3::ZERO,
+        u: DVec3::X,
+        v: DVec3::Y,
+    });
     let f = element_form_factor(&p, &q, None);
     let exact = 0.200044;
     println!("touching perpendicular unit squares: F = {f:.6} (analytic {exact})");
@@ -54,9 +77,23 @@ fn box_faces(size: f32) -> Vec<Vec<Triangle>> {
 
 fn furnace(rho: f64) {
     let faces = box_faces(1.0);
-    let inputs: Vec<SurfaceInput> =
-        faces.iter().enumerate().map(|(i, t)| SurfaceInput { surface: i as u32, triangles: t, is_virtual: false }).collect();
-    let sets: Vec<SurfaceTriangles> = faces.iter().enumerate().map(|(i, t)| SurfaceTriangles { surface: i as u32, triangles: t }).collect();
+    let inputs: Vec<SurfaceInput> = faces
+        .iter()
+        .enumerate()
+        .map(|(i, t)| SurfaceInput {
+            surface: i as u32,
+            triangles: t,
+            is_virtual: false,
+        })
+        .collect();
+    let sets: Vec<SurfaceTriangles> = faces
+        .iter()
+        .enumerate()
+        .map(|(i, t)| SurfaceTriangles {
+            surface: i as u32,
+            triangles: t,
+        })
+        .collect();
     let tracer = Tracer::build(&sets, &[]).unwrap();
     let patches = Patches::build(&inputs, 0.125);
     let n = patches.patch_count();
@@ -65,21 +102,42 @@ fn furnace(rho: f64) {
     let expected = 1.0 / (1.0 - rho);
     for (name, transport) in [
         ("full", Transport::full(&patches, &tracer, Layer::All)),
-        ("hierarchical", Transport::hierarchical(&patches, &tracer, Layer::All, 0.01)),
+        (
+            "hierarchical",
+            Transport::hierarchical(&patches, &tracer, Layer::All, 0.01),
+        ),
     ] {
         let t0 = Instant::now();
         let s = solve(&patches, &transport, &reflectance, &emission, 1e-10, 500);
         let gmres_time = t0.elapsed();
-        let worst = s.radiosity.iter().map(|b| ((b.x - expected) / expected).abs()).fold(0.0, f64::max);
+        let worst = s
+            .radiosity
+            .iter()
+            .map(|b| ((b.x - expected) / expected).abs())
+            .fold(0.0, f64::max);
         let t0 = Instant::now();
         let plain = solve_by_iteration(&patches, &transport, &reflectance, &emission, 1e-6, 20_000);
-        let plain_worst = plain.radiosity.iter().map(|b| ((b.x - expected) / expected).abs()).fold(0.0, f64::max);
+        let plain_worst = plain
+            .radiosity
+            .iter()
+            .map(|b| ((b.x - expected) / expected).abs())
+            .fold(0.0, f64::max);
         println!(
             "furnace rho={rho} {name}: {n} patches, {} links; GMRES {} iterations {:.2?}, worst error {:.2e}; plain gather {} iterations {:.2?}, worst error {:.2e}",
-            transport.link_count(), s.iterations, gmres_time, worst, plain.iterations, t0.elapsed(), plain_worst
+            transport.link_count(),
+            s.iterations,
+            gmres_time,
+            worst,
+            plain.iterations,
+            t0.elapsed(),
+            plain_worst
         );
         assert!(worst < 0.005, "{name}: B off by {worst}");
-        assert!(s.residual < 1e-9, "{name}: GMRES stopped at residual {}", s.residual);
+        assert!(
+            s.residual < 1e-9,
+            "{name}: GMRES stopped at residual {}",
+            s.residual
+        );
         assert!(s.radiosity.iter().all(|b| b.is_finite()));
     }
 }
@@ -97,47 +155,130 @@ fn furnace_box_with_reflectance_099_converges() {
 #[test]
 fn zero_reflectance_and_zero_emission_give_zero_not_nan() {
     let faces = box_faces(1.0);
-    let inputs: Vec<SurfaceInput> =
-        faces.iter().enumerate().map(|(i, t)| SurfaceInput { surface: i as u32, triangles: t, is_virtual: false }).collect();
-    let sets: Vec<SurfaceTriangles> = faces.iter().enumerate().map(|(i, t)| SurfaceTriangles { surface: i as u32, triangles: t }).collect();
+    let inputs: Vec<SurfaceInput> = faces
+        .iter()
+        .enumerate()
+        .map(|(i, t)| SurfaceInput {
+            surface: i as u32,
+            triangles: t,
+            is_virtual: false,
+        })
+        .collect();
+    let sets: Vec<SurfaceTriangles> = faces
+        .iter()
+        .enumerate()
+        .map(|(i, t)| SurfaceTriangles {
+            surface: i as u32,
+            triangles: t,
+        })
+        .collect();
     let tracer = Tracer::build(&sets, &[]).unwrap();
     let patches = Patches::build(&inputs, 0.5);
     let t = Transport::full(&patches, &tracer, Layer::All);
     let n = patches.patch_count();
-    let s = solve(&patches, &t, &vec![DVec3::ZERO; n], &vec![DVec3::ONE; n], 1e-10, 100);
-    assert!(s.radiosity.iter().all(|b| (*b - DVec3::ONE).abs().max_element() < 1e-12), "B = E when nothing reflects");
-    let s = solve(&patches, &t, &vec![DVec3::splat(0.7); n], &vec![DVec3::ZERO; n], 1e-10, 100);
+    let s = solve(
+        &patches,
+        &t,
+        &vec![DVec3::ZERO; n],
+        &vec![DVec3::ONE; n],
+        1e-10,
+        100,
+    );
+    assert!(
+        s.radiosity
+            .iter()
+            .all(|b| (*b - DVec3::ONE).abs().max_element() < 1e-12),
+        "B = E when nothing reflects"
+    );
+    let s = solve(
+        &patches,
+        &t,
+        &vec![DVec3::splat(0.7); n],
+        &vec![DVec3::ZERO; n],
+        1e-10,
+        100,
+    );
     assert!(s.radiosity.iter().all(|b| *b == DVec3::ZERO) && s.residual == 0.0);
 }
-
 
 /// A unit cube [−1, 0]×[0, 1]×[0, 1] (one closed surface: one-sided faces)
 /// standing on a floor from x = `floor_start` to `floor_end` (an open surface).
 fn cube_on_floor(floor_start: f32, floor_end: f32, patch_size: f64) -> (Patches, Tracer) {
-    let cube: Vec<Triangle> = box_faces(1.0).into_iter().flatten().map(|t| t.map(|v| v - Vec3::X)).collect();
-    let (a, b, c, d) = (Vec3::new(floor_start, 0.0, 0.0), Vec3::new(floor_end, 0.0, 0.0), Vec3::new(floor_end, 0.0, 1.0), Vec3::new(floor_start, 0.0, 1.0));
+    let cube: Vec<Triangle> = box_faces(1.0)
+        .into_iter()
+        .flatten()
+        .map(|t| t.map(|v| v - Vec3::X))
+        .collect();
+    let (a, b, c, d) = (
+        Vec3::new(floor_start, 0.0, 0.0),
+        Vec3::new(floor_end, 0.0, 0.0),
+        Vec3::new(floor_end, 0.0, 1.0),
+        Vec3::new(floor_start, 0.0, 1.0),
+    );
     let floor: Vec<Triangle> = vec![[a, b, c], [a, c, d]];
-    let inputs = [SurfaceInput { surface: 0, triangles: &cube, is_virtual: false }, SurfaceInput { surface: 1, triangles: &floor, is_virtual: false }];
-    let sets = [SurfaceTriangles { surface: 0, triangles: &cube }, SurfaceTriangles { surface: 1, triangles: &floor }];
-    (Patches::build(&inputs, patch_size), Tracer::build(&sets, &[]).unwrap())
+    let inputs = [
+        SurfaceInput {
+            surface: 0,
+            triangles: &cube,
+            is_virtual: false,
+        },
+        SurfaceInput {
+            surface: 1,
+            triangles: &floor,
+            is_virtual: false,
+        },
+    ];
+    let sets = [
+        SurfaceTriangles {
+            surface: 0,
+            triangles: &cube,
+        },
+        SurfaceTriangles {
+            surface: 1,
+            triangles: &floor,
+        },
+    ];
+    (
+        Patches::build(&inputs, patch_size),
+        Tracer::build(&sets, &[]).unwrap(),
+    )
 }
 
 #[test]
 fn a_solid_s_own_faces_do_not_shadow_what_its_faces_exchange() {
     let (patches, tracer) = cube_on_floor(-3.0, 2.0, 10.0);
     // The cube's faces point out; the open floor may face either way.
-    let root_on = |surface: u32, along: fn(DVec3) -> bool| *patches.roots.iter().find(|&&r| patches.elements[r as usize].surface == surface && along(patches.elements[r as usize].normal)).unwrap();
+    let root_on = |surface: u32, along: fn(DVec3) -> bool| {
+        *patches
+            .roots
+            .iter()
+            .find(|&&r| {
+                patches.elements[r as usize].surface == surface
+                    && along(patches.elements[r as usize].normal)
+            })
+            .unwrap()
+    };
     let face = root_on(0, |n| n.x > 0.99);
     let floor = root_on(1, |n| n.y.abs() > 0.99);
-    let (f, q) = (&patches.elements[floor as usize], &patches.elements[face as usize]);
+    let (f, q) = (
+        &patches.elements[floor as usize],
+        &patches.elements[face as usize],
+    );
     assert!(q.one_sided && !f.one_sided);
     // The floor runs under the cube and beyond: segments from its hidden part to the
     // face cross the cube, but they carry no light (the face sends none
     // backwards), and from the part in front nothing of the cube is in the way.
     let occluders = occluders_between(&patches, Layer::All, f, q, &patches.roots);
-    assert!(occluders.is_empty(), "the cube's faces {occluders:?} taken for occluders");
+    assert!(
+        occluders.is_empty(),
+        "the cube's faces {occluders:?} taken for occluders"
+    );
     // As tracing says: rays from the floor in front of the face to the face pass.
-    let front = element(Shape::Quad { origin: DVec3::new(0.0, 0.0, 0.0), u: DVec3::X * 2.0, v: DVec3::Z });
+    let front = element(Shape::Quad {
+        origin: DVec3::new(0.0, 0.0, 0.0),
+        u: DVec3::X * 2.0,
+        v: DVec3::Z,
+    });
     assert_eq!(visibility(&front, q, &tracer, Layer::All), 1.0);
 }
 
@@ -146,10 +287,16 @@ fn a_receiver_partly_behind_a_one_sided_source_gathers_from_the_part_in_front() 
     // The floor reaches 0.1 past the cube's +x face: only that strip sees it.
     let (patches, tracer) = cube_on_floor(-1.0, 0.1, 0.125);
     let transport = Transport::hierarchical(&patches, &tracer, Layer::All, DEFAULT_LINK_EPSILON);
-    let face = |k: usize| patches.patch(k).surface == 0 && patches.patch(k).normal.dot(DVec3::X) > 0.99;
-    let b: Vec<DVec3> = (0..patches.patch_count()).map(|k| if face(k) { DVec3::ONE } else { DVec3::ZERO }).collect();
+    let face =
+        |k: usize| patches.patch(k).surface == 0 && patches.patch(k).normal.dot(DVec3::X) > 0.99;
+    let b: Vec<DVec3> = (0..patches.patch_count())
+        .map(|k| if face(k) { DVec3::ONE } else { DVec3::ZERO })
+        .collect();
     let gathered = transport.gather_rgb(&patches, &b);
-    let face_elements: Vec<&Element> = (0..patches.patch_count()).filter(|&k| face(k)).map(|k| patches.patch(k)).collect();
+    let face_elements: Vec<&Element> = (0..patches.patch_count())
+        .filter(|&k| face(k))
+        .map(|k| patches.patch(k))
+        .collect();
     let (mut got, mut exact, mut area) = (0.0, 0.0, 0.0);
     for k in (0..patches.patch_count()).filter(|&k| patches.patch(k).surface == 1) {
         let p = patches.patch(k);
@@ -160,12 +307,24 @@ fn a_receiver_partly_behind_a_one_sided_source_gathers_from_the_part_in_front() 
         if hi.x <= 0.0 {
             continue;
         }
-        let strip = element(Shape::Quad { origin: DVec3::new(lo.x.max(0.0), 0.0, lo.z), u: DVec3::X * (hi.x - lo.x.max(0.0)), v: DVec3::Z * (hi.z - lo.z) });
+        let strip = element(Shape::Quad {
+            origin: DVec3::new(lo.x.max(0.0), 0.0, lo.z),
+            u: DVec3::X * (hi.x - lo.x.max(0.0)),
+            v: DVec3::Z * (hi.z - lo.z),
+        });
         for (x, w) in strip.shape.quadrature(16) {
-            exact += strip.area * w * face_elements.iter().map(|q| point_factor(x, &strip, q, &q.shape.corners())).sum::<f64>();
+            exact += strip.area
+                * w
+                * face_elements
+                    .iter()
+                    .map(|q| point_factor(x, &strip, q, &q.shape.corners()))
+                    .sum::<f64>();
         }
     }
     let (got, exact) = (got / area, exact / area);
     println!("floor partly behind a cube's face: gathers {got:.5}, exact {exact:.5}");
-    assert!(exact > 0.0 && (got - exact).abs() < 0.05 * exact, "gathers {got}, exact {exact}");
+    assert!(
+        exact > 0.0 && (got - exact).abs() < 0.05 * exact,
+        "gathers {got}, exact {exact}"
+    );
 }

@@ -36,17 +36,30 @@ impl<'a> Fields<'a> {
         let path = path.into();
         match value {
             Value::Table(table) => Ok(Self::of_table(file, path, table)),
-            other => Err(Error::key(file, path, format!("must be a table, found {}", type_name(other)))),
+            other => Err(Error::key(
+                file,
+                path,
+                format!("must be a table, found {}", type_name(other)),
+            )),
         }
     }
 
     pub fn of_table(file: &'a Path, path: impl Into<String>, table: &'a Table) -> Self {
-        Fields { file, path: path.into(), table, known: RefCell::new(Vec::new()) }
+        Fields {
+            file,
+            path: path.into(),
+            table,
+            known: RefCell::new(Vec::new()),
+        }
     }
 
     /// The full key path of `key` in this table.
     pub fn key_path(&self, key: &str) -> String {
-        if self.path.is_empty() { key.to_string() } else { format!("{}.{}", self.path, key) }
+        if self.path.is_empty() {
+            key.to_string()
+        } else {
+            format!("{}.{}", self.path, key)
+        }
     }
 
     /// An error at `key` of this table.
@@ -77,7 +90,9 @@ impl<'a> Fields<'a> {
         match self.get(key) {
             None => Ok(None),
             Some(Value::String(s)) => Ok(Some(s.as_str())),
-            Some(other) => Err(self.error(key, format!("must be a string, found {}", type_name(other)))),
+            Some(other) => {
+                Err(self.error(key, format!("must be a string, found {}", type_name(other))))
+            }
         }
     }
 
@@ -90,7 +105,10 @@ impl<'a> Fields<'a> {
         match self.get(key) {
             None => Ok(None),
             Some(Value::Boolean(b)) => Ok(Some(*b)),
-            Some(other) => Err(self.error(key, format!("must be true or false, found {}", type_name(other)))),
+            Some(other) => Err(self.error(
+                key,
+                format!("must be true or false, found {}", type_name(other)),
+            )),
         }
     }
 
@@ -111,8 +129,13 @@ impl<'a> Fields<'a> {
     pub fn req_count(&self, key: &'static str) -> Result<u32> {
         match self.required(key)? {
             Value::Integer(i) if *i > 0 && *i <= u32::MAX as i64 => Ok(*i as u32),
-            Value::Integer(i) => Err(self.error(key, format!("must be a positive whole number, found {i}"))),
-            other => Err(self.error(key, format!("must be a whole number, found {}", type_name(other)))),
+            Value::Integer(i) => {
+                Err(self.error(key, format!("must be a positive whole number, found {i}")))
+            }
+            other => Err(self.error(
+                key,
+                format!("must be a whole number, found {}", type_name(other)),
+            )),
         }
     }
 
@@ -160,7 +183,10 @@ impl<'a> Fields<'a> {
                 .enumerate()
                 .map(|(i, v)| Fields::new(self.file, format!("{}[{i}]", self.key_path(key)), v))
                 .collect(),
-            Some(other) => Err(self.error(key, format!("must be an array of tables, found {}", type_name(other)))),
+            Some(other) => Err(self.error(
+                key,
+                format!("must be an array of tables, found {}", type_name(other)),
+            )),
         }
     }
 
@@ -169,9 +195,15 @@ impl<'a> Fields<'a> {
         match self.get(key) {
             None => Ok(None),
             Some(Value::Array(items)) => Ok(Some(
-                items.iter().enumerate().map(|(i, v)| (format!("{}[{i}]", self.key_path(key)), v)).collect(),
+                items
+                    .iter()
+                    .enumerate()
+                    .map(|(i, v)| (format!("{}[{i}]", self.key_path(key)), v))
+                    .collect(),
             )),
-            Some(other) => Err(self.error(key, format!("must be an array, found {}", type_name(other)))),
+            Some(other) => {
+                Err(self.error(key, format!("must be an array, found {}", type_name(other))))
+            }
         }
     }
 
@@ -189,7 +221,10 @@ impl<'a> Fields<'a> {
                 let mut expected: Vec<&str> = known.clone();
                 expected.sort_unstable();
                 expected.dedup();
-                return Err(self.error(key, format!("unknown key (expected one of: {})", expected.join(", "))));
+                return Err(self.error(
+                    key,
+                    format!("unknown key (expected one of: {})", expected.join(", ")),
+                ));
             }
         }
         Ok(())
@@ -203,16 +238,26 @@ pub(crate) fn number(v: &Value) -> std::result::Result<f64, String> {
         Value::Integer(i) => *i as f64,
         other => return Err(format!("must be a number, found {}", type_name(other))),
     };
-    if x.is_finite() { Ok(x) } else { Err(format!("must be finite, found {x}")) }
+    if x.is_finite() {
+        Ok(x)
+    } else {
+        Err(format!("must be finite, found {x}"))
+    }
 }
 
 /// Three finite numbers from a TOML array.
 pub(crate) fn vec3(v: &Value) -> std::result::Result<DVec3, String> {
     let Value::Array(items) = v else {
-        return Err(format!("must be an array of 3 numbers, found {}", type_name(v)));
+        return Err(format!(
+            "must be an array of 3 numbers, found {}",
+            type_name(v)
+        ));
     };
     if items.len() != 3 {
-        return Err(format!("must be an array of 3 numbers, found {} elements", items.len()));
+        return Err(format!(
+            "must be an array of 3 numbers, found {} elements",
+            items.len()
+        ));
     }
     let mut out = [0.0; 3];
     for (o, item) in out.iter_mut().zip(items) {

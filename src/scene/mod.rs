@@ -141,7 +141,10 @@ pub struct ShadowPlane {
 pub enum LightShape {
     Point,
     /// Spans position ± u/2 ± v/2 and emits on the side of u×v.
-    Rect { u: DVec3, v: DVec3 },
+    Rect {
+        u: DVec3,
+        v: DVec3,
+    },
 }
 
 /// Goniometric intensity I(direction), RGB in W/sr, before `scale`.
@@ -151,12 +154,26 @@ pub enum LightShape {
 pub enum Intensity {
     Uniform(DVec3),
     /// I0·max(cosθ, 0) about the unit `normal`.
-    Lambertian { normal: DVec3, rgb: DVec3 },
+    Lambertian {
+        normal: DVec3,
+        rgb: DVec3,
+    },
     /// Full inside `beam_deg` of the unit `direction`, linear in angle to 0 at `cutoff_deg`.
-    Spot { direction: DVec3, rgb: DVec3, beam_deg: f64, cutoff_deg: f64 },
+    Spot {
+        direction: DVec3,
+        rgb: DVec3,
+        beam_deg: f64,
+        cutoff_deg: f64,
+    },
     /// An IES LM-63 candela table times `rgb`; vertical 0 along `direction`,
     /// horizontal 0 towards `reference` (both unit, orthogonalised).
-    Ies { file: PathBuf, profile: IesProfile, rgb: DVec3, direction: DVec3, reference: DVec3 },
+    Ies {
+        file: PathBuf,
+        profile: IesProfile,
+        rgb: DVec3,
+        direction: DVec3,
+        reference: DVec3,
+    },
     /// To be recovered from the photo.
     Reconstruct,
 }
@@ -197,7 +214,11 @@ pub struct VirtualObject {
 impl VirtualObject {
     /// The triangles of surface `i` placed in the world.
     pub fn world_triangles(&self, i: usize) -> Vec<Triangle> {
-        self.surfaces[i].triangles.iter().map(|t| t.map(|p| self.pose.apply(p))).collect()
+        self.surfaces[i]
+            .triangles
+            .iter()
+            .map(|t| t.map(|p| self.pose.apply(p)))
+            .collect()
     }
 }
 
@@ -276,16 +297,27 @@ impl Scene {
     }
 
     pub fn variant(&self, name: &str) -> Result<&Variant> {
-        self.variants.iter().find(|v| v.name == name).ok_or_else(|| {
-            let have: Vec<&str> = self.variants.iter().map(|v| v.name.as_str()).collect();
-            Error::key(&self.file, "variant", format!("no variant named '{name}' (the scene has: {})", list(&have)))
-        })
+        self.variants
+            .iter()
+            .find(|v| v.name == name)
+            .ok_or_else(|| {
+                let have: Vec<&str> = self.variants.iter().map(|v| v.name.as_str()).collect();
+                Error::key(
+                    &self.file,
+                    "variant",
+                    format!("no variant named '{name}' (the scene has: {})", list(&have)),
+                )
+            })
     }
 
     pub fn motion(&self, name: &str) -> Result<&Motion> {
         self.motions.iter().find(|m| m.name == name).ok_or_else(|| {
             let have: Vec<&str> = self.motions.iter().map(|m| m.name.as_str()).collect();
-            Error::key(&self.file, "motion", format!("no motion named '{name}' (the scene has: {})", list(&have)))
+            Error::key(
+                &self.file,
+                "motion",
+                format!("no motion named '{name}' (the scene has: {})", list(&have)),
+            )
         })
     }
 
@@ -310,8 +342,15 @@ impl Scene {
         for &l in &variant.hide_lights {
             s.lights[l].scale = 0.0;
         }
-        let key = format!("variant[{}]", self.variants.iter().position(|v| v.name == name).unwrap_or(0));
-        s.check_light_clearance().map_err(|e| e.within(&self.file, key))?;
+        let key = format!(
+            "variant[{}]",
+            self.variants
+                .iter()
+                .position(|v| v.name == name)
+                .unwrap_or(0)
+        );
+        s.check_light_clearance()
+            .map_err(|e| e.within(&self.file, key))?;
         Ok(s)
     }
 
@@ -323,14 +362,18 @@ impl Scene {
             return Err(Error::key(
                 &self.file,
                 format!("motion '{name}'"),
-                format!("has {} poses, pose {index} asked for", motion.translations.len()),
+                format!(
+                    "has {} poses, pose {index} asked for",
+                    motion.translations.len()
+                ),
             ));
         };
         let mut s = self.clone();
         let o = &mut s.objects[motion.object];
         o.enabled = true;
         o.pose.translate = t;
-        s.check_light_clearance().map_err(|e| e.within(&self.file, format!("motion '{name}' pose {index}")))?;
+        s.check_light_clearance()
+            .map_err(|e| e.within(&self.file, format!("motion '{name}' pose {index}")))?;
         Ok(s)
     }
 
@@ -338,10 +381,18 @@ impl Scene {
     /// size differs from the camera's is an error, never resampled.
     pub fn load_photo(&self) -> Result<Image> {
         let (img, key) = match &self.photo {
-            Photo::Image(path) => (image_io::read_image(path).map_err(|e| e.within(&self.file, "photo.image"))?, "photo.image"),
+            Photo::Image(path) => (
+                image_io::read_image(path).map_err(|e| e.within(&self.file, "photo.image"))?,
+                "photo.image",
+            ),
             Photo::Brackets(brackets) => {
-                let list: Vec<(PathBuf, f64)> = brackets.iter().map(|b| (b.image.clone(), b.ev)).collect();
-                (crate::hdr::merge_cached(self.dir(), &list).map_err(|e| e.within(&self.file, "photo.brackets"))?, "photo.brackets")
+                let list: Vec<(PathBuf, f64)> =
+                    brackets.iter().map(|b| (b.image.clone(), b.ev)).collect();
+                (
+                    crate::hdr::merge_cached(self.dir(), &list)
+                        .map_err(|e| e.within(&self.file, "photo.brackets"))?,
+                    "photo.brackets",
+                )
             }
         };
         self.check_size(&img, key)?;
@@ -361,7 +412,10 @@ impl Scene {
             return Err(Error::key(
                 &self.file,
                 key,
-                format!("the image is {}x{} but the camera is {w}x{h}", img.width, img.height),
+                format!(
+                    "the image is {}x{} but the camera is {w}x{h}",
+                    img.width, img.height
+                ),
             ));
         }
         Ok(())
@@ -372,7 +426,10 @@ impl Scene {
         self.surfaces
             .iter()
             .enumerate()
-            .map(|(i, s)| SurfaceTriangles { surface: i as u32, triangles: &s.triangles })
+            .map(|(i, s)| SurfaceTriangles {
+                surface: i as u32,
+                triangles: &s.triangles,
+            })
             .collect()
     }
 
@@ -408,46 +465,73 @@ impl Scene {
     /// Whether this scene differs from what the photo shows: an enabled
     /// virtual object, a real light not at scale 1, or a virtual light on.
     pub fn changes_the_photo(&self) -> bool {
-        self.objects.iter().any(|o| o.enabled) || self.lights.iter().any(|l| l.scale != if l.real { 1.0 } else { 0.0 })
+        self.objects.iter().any(|o| o.enabled)
+            || self
+                .lights
+                .iter()
+                .any(|l| l.scale != if l.real { 1.0 } else { 0.0 })
     }
 
     /// Builds the tracer: the real surfaces, and the enabled virtual objects
     /// (none built when there are none).
     pub fn build_tracer(&self) -> Result<Tracer> {
         let virt = self.virtual_world_surfaces();
-        let sets: Vec<SurfaceTriangles> =
-            virt.iter().map(|(id, t)| SurfaceTriangles { surface: *id, triangles: t }).collect();
-        Tracer::build(&self.real_triangle_sets(), &sets).map_err(|e| Error::file(&self.file, e.to_string()))
+        let sets: Vec<SurfaceTriangles> = virt
+            .iter()
+            .map(|(id, t)| SurfaceTriangles {
+                surface: *id,
+                triangles: t,
+            })
+            .collect();
+        Tracer::build(&self.real_triangle_sets(), &sets)
+            .map_err(|e| Error::file(&self.file, e.to_string()))
     }
 
     /// Refuses a light whose centre lies on a surface or inside a closed
     /// solid (real, or an enabled virtual object): its light cannot reach the
     /// room, or its irradiance is singular.
     pub fn check_light_clearance(&self) -> Result<()> {
-        let mut solids: Vec<(String, Vec<Triangle>)> =
-            self.surfaces.iter().map(|s| (s.name.clone(), s.triangles.clone())).collect();
+        let mut solids: Vec<(String, Vec<Triangle>)> = self
+            .surfaces
+            .iter()
+            .map(|s| (s.name.clone(), s.triangles.clone()))
+            .collect();
         for o in self.objects.iter().filter(|o| o.enabled) {
             for i in 0..o.surfaces.len() {
-                solids.push((format!("{}/{}", o.name, o.surfaces[i].name), o.world_triangles(i)));
+                solids.push((
+                    format!("{}/{}", o.name, o.surfaces[i].name),
+                    o.world_triangles(i),
+                ));
             }
         }
         for (li, light) in self.lights.iter().enumerate() {
-            let Some(p) = light.known_position() else { continue };
+            let Some(p) = light.known_position() else {
+                continue;
+            };
             let key = format!("light[{li}].position");
             for (name, tris) in &solids {
-                let d = tris.iter().map(|t| geometry::distance_to_triangle(p, t)).fold(f64::INFINITY, f64::min);
+                let d = tris
+                    .iter()
+                    .map(|t| geometry::distance_to_triangle(p, t))
+                    .fold(f64::INFINITY, f64::min);
                 if d < MIN_LIGHT_CLEARANCE_M {
                     return Err(Error::key(
                         &self.file,
                         key,
-                        format!("light '{}' lies on surface '{name}' ({d:.2e} m away)", light.name),
+                        format!(
+                            "light '{}' lies on surface '{name}' ({d:.2e} m away)",
+                            light.name
+                        ),
                     ));
                 }
                 if geometry::is_closed(tris) && geometry::encloses(tris, p) {
                     return Err(Error::key(
                         &self.file,
                         key,
-                        format!("light '{}' lies inside the closed surface '{name}'", light.name),
+                        format!(
+                            "light '{}' lies inside the closed surface '{name}'",
+                            light.name
+                        ),
                     ));
                 }
             }
@@ -459,15 +543,28 @@ impl Scene {
 /// A table's `surface` key: the name and the index of the real surface it names.
 fn real_surface<'a>(r: &Fields<'a>, surfaces: &[Surface]) -> Result<(&'a str, usize)> {
     let name = r.req_str("surface")?;
-    let index = surfaces.iter().position(|s| s.name == name).ok_or_else(|| {
-        let names: Vec<&str> = surfaces.iter().map(|s| s.name.as_str()).collect();
-        r.error("surface", format!("no real surface named '{name}' (surfaces: {})", list(&names)))
-    })?;
+    let index = surfaces
+        .iter()
+        .position(|s| s.name == name)
+        .ok_or_else(|| {
+            let names: Vec<&str> = surfaces.iter().map(|s| s.name.as_str()).collect();
+            r.error(
+                "surface",
+                format!(
+                    "no real surface named '{name}' (surfaces: {})",
+                    list(&names)
+                ),
+            )
+        })?;
     Ok((name, index))
 }
 
 fn list(names: &[&str]) -> String {
-    if names.is_empty() { "none".into() } else { names.join(", ") }
+    if names.is_empty() {
+        "none".into()
+    } else {
+        names.join(", ")
+    }
 }
 
 /// Reads one scene file; holds what every part needs to resolve paths and
@@ -492,7 +589,12 @@ impl Loader<'_> {
         let top = Fields::of_table(self.file, "", table);
         let name = match top.opt_str("name")? {
             Some(n) => n.to_string(),
-            None => self.file.parent().and_then(|d| d.file_name()).map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
+            None => self
+                .file
+                .parent()
+                .and_then(|d| d.file_name())
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default(),
         };
         let camera = self.camera(&top.req_table("camera")?)?;
         let photo = self.photo(&top.req_table("photo")?)?;
@@ -501,13 +603,17 @@ impl Loader<'_> {
         let mut warnings = Vec::new();
         let reals = top.tables("real")?;
         if reals.is_empty() {
-            return Err(top.error("real", "missing: the scene needs at least one [[real]] mesh"));
+            return Err(top.error(
+                "real",
+                "missing: the scene needs at least one [[real]] mesh",
+            ));
         }
         for r in &reals {
             let rel = r.req_str("mesh")?;
             let path = self.existing_path(r, "mesh", rel)?;
             r.finish()?;
-            let mesh = geometry::load_obj(&path).map_err(|e| e.within(self.file, r.key_path("mesh")))?;
+            let mesh =
+                geometry::load_obj(&path).map_err(|e| e.within(self.file, r.key_path("mesh")))?;
             if mesh.dropped_triangles > 0 {
                 warnings.push(format!(
                     "{}: dropped {} degenerate or non-finite triangles",
@@ -519,10 +625,18 @@ impl Loader<'_> {
                 if let Some(other) = surfaces.iter().find(|o| o.name == s.name) {
                     return Err(r.error(
                         "mesh",
-                        format!("surface '{}' is also defined in {}; surface names must be unique", s.name, other.mesh.display()),
+                        format!(
+                            "surface '{}' is also defined in {}; surface names must be unique",
+                            s.name,
+                            other.mesh.display()
+                        ),
                     ));
                 }
-                surfaces.push(Surface { name: s.name, mesh: path.clone(), triangles: s.triangles });
+                surfaces.push(Surface {
+                    name: s.name,
+                    mesh: path.clone(),
+                    triangles: s.triangles,
+                });
             }
         }
 
@@ -533,7 +647,10 @@ impl Loader<'_> {
             if rgb.max_element() > 1.0 {
                 return Err(r.error("rgb", "a reflectance lies in [0, 1]"));
             }
-            if reflectances.iter().any(|k: &KnownReflectance| k.surface == surface) {
+            if reflectances
+                .iter()
+                .any(|k: &KnownReflectance| k.surface == surface)
+            {
                 return Err(r.error("surface", format!("'{sname}' is given twice")));
             }
             r.finish()?;
@@ -563,8 +680,13 @@ impl Loader<'_> {
         let mut objects: Vec<VirtualObject> = Vec::new();
         for v in top.tables("virtual")? {
             let object = self.object(&v, &mut warnings)?;
-            if objects.iter().any(|o| o.name == object.name) || lights.iter().any(|l| l.name == object.name) {
-                return Err(v.error("name", format!("'{}' already names a light or object", object.name)));
+            if objects.iter().any(|o| o.name == object.name)
+                || lights.iter().any(|l| l.name == object.name)
+            {
+                return Err(v.error(
+                    "name",
+                    format!("'{}' already names a light or object", object.name),
+                ));
             }
             objects.push(object);
         }
@@ -573,7 +695,10 @@ impl Loader<'_> {
         for v in top.tables("variant")? {
             let variant = self.variant(&v, &lights, &objects)?;
             if variants.iter().any(|o| o.name == variant.name) {
-                return Err(v.error("name", format!("variant name '{}' is used twice", variant.name)));
+                return Err(v.error(
+                    "name",
+                    format!("variant name '{}' is used twice", variant.name),
+                ));
             }
             variants.push(variant);
         }
@@ -581,7 +706,10 @@ impl Loader<'_> {
         for m in top.tables("motion")? {
             let motion = self.motion(&m, &objects)?;
             if motions.iter().any(|o| o.name == motion.name) {
-                return Err(m.error("name", format!("motion name '{}' is used twice", motion.name)));
+                return Err(m.error(
+                    "name",
+                    format!("motion name '{}' is used twice", motion.name),
+                ));
             }
             motions.push(motion);
         }
@@ -611,14 +739,19 @@ impl Loader<'_> {
         const MAX_SIDE: u32 = 1 << 15;
         for (key, v) in [("width", width), ("height", height)] {
             if v > MAX_SIDE {
-                return Err(c.error(key, format!("{v} pixels is more than arlux supports ({MAX_SIDE})")));
+                return Err(c.error(
+                    key,
+                    format!("{v} pixels is more than arlux supports ({MAX_SIDE})"),
+                ));
             }
         }
         let position = c.req_vec3("position")?;
         let look_at = c.req_vec3("look_at")?;
         let up = c.opt_vec3("up")?.unwrap_or(DVec3::Y);
         let projection = match (c.opt_f64("fov_y_deg")?, c.opt_table("intrinsics")?) {
-            (Some(_), Some(_)) => return Err(c.error("intrinsics", "give fov_y_deg or intrinsics, not both")),
+            (Some(_), Some(_)) => {
+                return Err(c.error("intrinsics", "give fov_y_deg or intrinsics, not both"));
+            }
             (None, None) => return Err(c.error("fov_y_deg", "missing (or give intrinsics)")),
             (Some(degrees), None) => Projection::FovY { degrees },
             (None, Some(i)) => {
@@ -633,7 +766,8 @@ impl Loader<'_> {
             }
         };
         c.finish()?;
-        Camera::new(width, height, position, look_at, up, projection).map_err(|(key, msg)| c.error(key, msg))
+        Camera::new(width, height, position, look_at, up, projection)
+            .map_err(|(key, msg)| c.error(key, msg))
     }
 
     fn photo(&self, p: &Fields) -> Result<Photo> {
@@ -647,7 +781,10 @@ impl Loader<'_> {
                     let image = self.existing_path(&b, "image", b.req_str("image")?)?;
                     let ev = b.req_f64("ev")?;
                     if brackets.iter().any(|o| o.ev == ev) {
-                        return Err(b.error("ev", format!("two brackets have ev = {ev}; each exposure needs its own")));
+                        return Err(b.error(
+                            "ev",
+                            format!("two brackets have ev = {ev}; each exposure needs its own"),
+                        ));
                     }
                     b.finish()?;
                     brackets.push(Bracket { image, ev });
@@ -655,7 +792,10 @@ impl Loader<'_> {
                 if brackets.len() < 2 {
                     return Err(p.error(
                         "brackets",
-                        format!("{} exposure(s): merging needs at least two different exposures", brackets.len()),
+                        format!(
+                            "{} exposure(s): merging needs at least two different exposures",
+                            brackets.len()
+                        ),
                     ));
                 }
                 Photo::Brackets(brackets)
@@ -690,31 +830,51 @@ impl Loader<'_> {
                 let (u, v) = (r.req_vec3("u")?, r.req_vec3("v")?);
                 r.finish()?;
                 if u.cross(v).length() < 1e-12 {
-                    return Err(r.error("v", "u and v must span a rectangle (non-zero, not parallel)"));
+                    return Err(r.error(
+                        "v",
+                        "u and v must span a rectangle (non-zero, not parallel)",
+                    ));
                 }
                 LightShape::Rect { u, v }
             }
         };
         let intensity = self.intensity(l, &shape, has_known_reflectance)?;
         l.finish()?;
-        Ok(Light { name, real, position, scale, shape, intensity })
+        Ok(Light {
+            name,
+            real,
+            position,
+            scale,
+            shape,
+            intensity,
+        })
     }
 
     fn shadow_constraints(&self, p: &Fields) -> Result<ShadowConstraints> {
         let mut c = ShadowConstraints::default();
         for line in p.tables("shadow_lines")? {
-            let sl = ShadowLine { shadow: line.req_vec3("shadow")?, vertex: line.req_vec3("vertex")? };
+            let sl = ShadowLine {
+                shadow: line.req_vec3("shadow")?,
+                vertex: line.req_vec3("vertex")?,
+            };
             if (sl.shadow - sl.vertex).length() < 1e-9 {
-                return Err(line.error("vertex", "coincides with the shadow point: the line has no direction"));
+                return Err(line.error(
+                    "vertex",
+                    "coincides with the shadow point: the line has no direction",
+                ));
             }
             line.finish()?;
             c.lines.push(sl);
         }
         for plane in p.tables("shadow_planes")? {
             let pair = |key: &'static str| -> Result<[DVec3; 2]> {
-                let items = plane.opt_array(key)?.ok_or_else(|| plane.error(key, "missing"))?;
+                let items = plane
+                    .opt_array(key)?
+                    .ok_or_else(|| plane.error(key, "missing"))?;
                 if items.len() != 2 {
-                    return Err(plane.error(key, format!("must be two points, found {}", items.len())));
+                    return Err(
+                        plane.error(key, format!("must be two points, found {}", items.len()))
+                    );
                 }
                 let mut out = [DVec3::ZERO; 2];
                 for (o, (path, v)) in out.iter_mut().zip(&items) {
@@ -722,17 +882,27 @@ impl Loader<'_> {
                 }
                 Ok(out)
             };
-            let sp = ShadowPlane { shadow: pair("shadow")?, edge: pair("edge")? };
+            let sp = ShadowPlane {
+                shadow: pair("shadow")?,
+                edge: pair("edge")?,
+            };
             plane.finish()?;
             c.planes.push(sp);
         }
         if c.lines.is_empty() && c.planes.is_empty() {
-            return Err(p.table_error("needs shadow_lines or shadow_planes to estimate the position from"));
+            return Err(
+                p.table_error("needs shadow_lines or shadow_planes to estimate the position from")
+            );
         }
         Ok(c)
     }
 
-    fn intensity(&self, l: &Fields, shape: &LightShape, has_known_reflectance: bool) -> Result<Intensity> {
+    fn intensity(
+        &self,
+        l: &Fields,
+        shape: &LightShape,
+        has_known_reflectance: bool,
+    ) -> Result<Intensity> {
         let unit = |f: &Fields, key: &'static str| -> Result<DVec3> {
             let d = f.req_vec3(key)?;
             if d.length() < 1e-12 {
@@ -751,9 +921,10 @@ impl Loader<'_> {
                 }
                 Ok(Intensity::Reconstruct)
             }
-            Some(toml::Value::String(s)) => {
-                Err(l.error("intensity", format!("'{s}' is not a kind of intensity (the only string is \"reconstruct\")")))
-            }
+            Some(toml::Value::String(s)) => Err(l.error(
+                "intensity",
+                format!("'{s}' is not a kind of intensity (the only string is \"reconstruct\")"),
+            )),
             Some(_) => {
                 let i = l.req_table("intensity")?;
                 let kinds = ["uniform", "lambertian", "spot", "ies"];
@@ -796,20 +967,32 @@ impl Loader<'_> {
                         let cutoff_deg = t.req_f64("cutoff_deg")?;
                         t.finish()?;
                         if !(0.0..180.0).contains(&beam_deg) {
-                            return Err(t.error("beam_deg", format!("must lie in [0, 180), found {beam_deg}")));
+                            return Err(t.error(
+                                "beam_deg",
+                                format!("must lie in [0, 180), found {beam_deg}"),
+                            ));
                         }
                         if cutoff_deg <= beam_deg {
                             return Err(t.error("cutoff_deg", "must be greater than beam_deg"));
                         }
                         if cutoff_deg > 180.0 {
-                            return Err(t.error("cutoff_deg", format!("must be at most 180, found {cutoff_deg}")));
+                            return Err(t.error(
+                                "cutoff_deg",
+                                format!("must be at most 180, found {cutoff_deg}"),
+                            ));
                         }
-                        Intensity::Spot { direction, rgb, beam_deg, cutoff_deg }
+                        Intensity::Spot {
+                            direction,
+                            rgb,
+                            beam_deg,
+                            cutoff_deg,
+                        }
                     }
                     _ => {
                         let rel = i.req_str("ies")?;
                         let file = self.existing_path(&i, "ies", rel)?;
-                        let profile = IesProfile::load(&file).map_err(|e| e.within(self.file, i.key_path("ies")))?;
+                        let profile = IesProfile::load(&file)
+                            .map_err(|e| e.within(self.file, i.key_path("ies")))?;
                         let rgb = i.req_rgb("rgb")?;
                         let direction = unit(&i, "direction")?;
                         let reference = unit(&i, "reference")?;
@@ -817,7 +1000,13 @@ impl Loader<'_> {
                         if reference.length() < 1e-6 {
                             return Err(i.error("reference", "must not be parallel to direction"));
                         }
-                        Intensity::Ies { file, profile, rgb, direction, reference: reference.normalize() }
+                        Intensity::Ies {
+                            file,
+                            profile,
+                            rgb,
+                            direction,
+                            reference: reference.normalize(),
+                        }
                     }
                 };
                 i.finish()?;
@@ -845,9 +1034,14 @@ impl Loader<'_> {
         }
         let enabled = v.opt_bool("enabled")?.unwrap_or(true);
         v.finish()?;
-        let mesh = geometry::load_obj(&path).map_err(|e| e.within(self.file, v.key_path("mesh")))?;
+        let mesh =
+            geometry::load_obj(&path).map_err(|e| e.within(self.file, v.key_path("mesh")))?;
         if mesh.dropped_triangles > 0 {
-            warnings.push(format!("{}: dropped {} degenerate or non-finite triangles", path.display(), mesh.dropped_triangles));
+            warnings.push(format!(
+                "{}: dropped {} degenerate or non-finite triangles",
+                path.display(),
+                mesh.dropped_triangles
+            ));
         }
         let mut surfaces = Vec::new();
         for s in mesh.surfaces {
@@ -857,29 +1051,53 @@ impl Loader<'_> {
                 (None, None) => {
                     return Err(v.error(
                         "rgb",
-                        format!("missing, and surface '{}' of {} has no material Kd to take it from", s.name, path.display()),
+                        format!(
+                            "missing, and surface '{}' of {} has no material Kd to take it from",
+                            s.name,
+                            path.display()
+                        ),
                     ));
                 }
             };
-            surfaces.push(ObjectSurface { name: s.name, triangles: s.triangles, rgb });
+            surfaces.push(ObjectSurface {
+                name: s.name,
+                triangles: s.triangles,
+                rgb,
+            });
         }
-        Ok(VirtualObject { name, mesh: path, surfaces, pose, enabled })
+        Ok(VirtualObject {
+            name,
+            mesh: path,
+            surfaces,
+            pose,
+            enabled,
+        })
     }
 
     fn variant(&self, v: &Fields, lights: &[Light], objects: &[VirtualObject]) -> Result<Variant> {
         let name = v.req_str("name")?.to_string();
-        let mut variant =
-            Variant { name, lights: vec![], objects: vec![], hide_objects: vec![], hide_lights: vec![], reference: None };
+        let mut variant = Variant {
+            name,
+            lights: vec![],
+            objects: vec![],
+            hide_objects: vec![],
+            hide_lights: vec![],
+            reference: None,
+        };
         if let Some(t) = v.opt_table("lights")? {
             for (lname, value) in t.entries() {
                 let key = t.key_path(lname);
-                let index = lights
-                    .iter()
-                    .position(|l| l.name == lname)
-                    .ok_or_else(|| Error::key(self.file, key.clone(), format!("no light named '{lname}'")))?;
-                let scale = fields::number(value).map_err(|m| Error::key(self.file, key.clone(), m))?;
+                let index = lights.iter().position(|l| l.name == lname).ok_or_else(|| {
+                    Error::key(self.file, key.clone(), format!("no light named '{lname}'"))
+                })?;
+                let scale =
+                    fields::number(value).map_err(|m| Error::key(self.file, key.clone(), m))?;
                 if scale < 0.0 {
-                    return Err(Error::key(self.file, key, "a light's scale must not be negative"));
+                    return Err(Error::key(
+                        self.file,
+                        key,
+                        "a light's scale must not be negative",
+                    ));
                 }
                 variant.lights.push((index, scale));
             }
@@ -890,7 +1108,13 @@ impl Loader<'_> {
                 let index = objects
                     .iter()
                     .position(|o| o.name == oname)
-                    .ok_or_else(|| Error::key(self.file, key.clone(), format!("no virtual object named '{oname}'")))?;
+                    .ok_or_else(|| {
+                        Error::key(
+                            self.file,
+                            key.clone(),
+                            format!("no virtual object named '{oname}'"),
+                        )
+                    })?;
                 let p = Fields::new(self.file, key, value)?;
                 let change = PoseChange {
                     translate: p.opt_vec3("translate")?,
@@ -907,20 +1131,36 @@ impl Loader<'_> {
         if let Some(items) = v.opt_array("hide")? {
             for (path, item) in items {
                 let toml::Value::String(n) = item else {
-                    return Err(Error::key(self.file, path, "must be the name of a virtual object or light"));
+                    return Err(Error::key(
+                        self.file,
+                        path,
+                        "must be the name of a virtual object or light",
+                    ));
                 };
                 if let Some(o) = objects.iter().position(|o| &o.name == n) {
                     if variant.objects.iter().any(|(i, _)| *i == o) {
-                        return Err(Error::key(self.file, path, format!("'{n}' is both posed and hidden")));
+                        return Err(Error::key(
+                            self.file,
+                            path,
+                            format!("'{n}' is both posed and hidden"),
+                        ));
                     }
                     variant.hide_objects.push(o);
                 } else if let Some(l) = lights.iter().position(|l| &l.name == n) {
                     if variant.lights.iter().any(|(i, _)| *i == l) {
-                        return Err(Error::key(self.file, path, format!("'{n}' is both given a scale and hidden")));
+                        return Err(Error::key(
+                            self.file,
+                            path,
+                            format!("'{n}' is both given a scale and hidden"),
+                        ));
                     }
                     variant.hide_lights.push(l);
                 } else {
-                    return Err(Error::key(self.file, path, format!("no virtual object or light named '{n}'")));
+                    return Err(Error::key(
+                        self.file,
+                        path,
+                        format!("no virtual object or light named '{n}'"),
+                    ));
                 }
             }
         }
@@ -938,20 +1178,28 @@ impl Loader<'_> {
             .iter()
             .position(|o| o.name == oname)
             .ok_or_else(|| m.error("object", format!("no virtual object named '{oname}'")))?;
-        let items = m.opt_array("translations")?.ok_or_else(|| m.error("translations", "missing"))?;
+        let items = m
+            .opt_array("translations")?
+            .ok_or_else(|| m.error("translations", "missing"))?;
         if items.is_empty() {
             return Err(m.error("translations", "needs at least one pose"));
         }
         let translations = items
             .iter()
-            .map(|(path, v)| fields::vec3(v).map_err(|msg| Error::key(self.file, path.clone(), msg)))
+            .map(|(path, v)| {
+                fields::vec3(v).map_err(|msg| Error::key(self.file, path.clone(), msg))
+            })
             .collect::<Result<Vec<_>>>()?;
         let mut references = Vec::new();
         if let Some(refs) = m.opt_array("references")? {
             if refs.len() != translations.len() {
                 return Err(m.error(
                     "references",
-                    format!("{} references for {} poses: give one per pose", refs.len(), translations.len()),
+                    format!(
+                        "{} references for {} poses: give one per pose",
+                        refs.len(),
+                        translations.len()
+                    ),
                 ));
             }
             for (path, v) in refs {
@@ -960,13 +1208,22 @@ impl Loader<'_> {
                 };
                 let p = self.dir.join(rel);
                 if !p.is_file() {
-                    return Err(Error::key(self.file, path, format!("file not found: {}", p.display())));
+                    return Err(Error::key(
+                        self.file,
+                        path,
+                        format!("file not found: {}", p.display()),
+                    ));
                 }
                 references.push(p);
             }
         }
         m.finish()?;
-        Ok(Motion { name, object, translations, references })
+        Ok(Motion {
+            name,
+            object,
+            translations,
+            references,
+        })
     }
 }
 
