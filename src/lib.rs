@@ -26,6 +26,7 @@ pub mod radiosity;
 pub mod relight;
 pub mod render;
 pub mod scene;
+pub mod settings;
 pub mod shadows;
 pub mod shaft;
 pub mod surface_ids;

@@ -1,0 +1,97 @@
+//! Helpers the commands share: loading a scene, the photo, formatting.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use serde_json::json;
+
+use arlux::image_io::{self, Image};
+use arlux::scene::{Photo, Scene};
+
+pub(crate) fn load(path: &Path, variant: Option<&str>) -> Result<Scene> {
+    let scene = Scene::load(path)?;
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(match variant {
+        Some(v) => scene.with_variant(v)?,
+        None => scene,
+    })
+}
+
+pub(crate) fn rel(scene: &Scene, p: &Path) -> String {
+    p.strip_prefix(scene.dir())
+        .unwrap_or(p)
+        .display()
+        .to_string()
+}
+
+pub(crate) fn fmt3(v: glam::DVec3) -> String {
+    format!("[{}, {}, {}]", v.x, v.y, v.z)
+}
+
+/// Range figures of the photo, per channel and over all.
+pub(crate) fn photo_range(img: &Image) -> serde_json::Value {
+    let mut min = [f32::INFINITY; 3];
+    let mut max = [f32::NEG_INFINITY; 3];
+    let mut min_positive = f32::INFINITY;
+    for p in &img.pixels {
+        for c in 0..3 {
+            min[c] = min[c].min(p[c]);
+            max[c] = max[c].max(p[c]);
+            if p[c] > 0.0 {
+                min_positive = min_positive.min(p[c]);
+            }
+        }
+    }
+    let peak = max.iter().copied().fold(0.0f32, f32::max);
+    json!({
+        "width": img.width, "height": img.height,
+        "min": min, "max": max, "mean": img.mean(),
+        "dynamic_range": if min_positive.is_finite() { Some(peak / min_positive) } else { None },
+    })
+}
+
+/// The photo to draw outlines on: the HDR photo, or for brackets the
+/// exposure nearest EV 0 (decoded from sRGB; only for looking at).
+pub(crate) fn display_photo(scene: &Scene) -> Result<Image> {
+    match &scene.photo {
+        Photo::Image(_) => Ok(scene.load_photo()?),
+        Photo::Brackets(bs) => {
+            let b = bs
+                .iter()
+                .min_by(|a, b| a.ev.abs().total_cmp(&b.ev.abs()))
+                .context("no brackets")?;
+            let img = image_io::read_image(&b.image)?;
+            scene.check_size(&img, "photo.brackets")?;
+            Ok(img)
+        }
+    }
+}
+
+/// The photo in the scene's units: merged brackets scaled by the known reflectances.
+pub(crate) fn photo_in_units(
+    scene: &Scene,
+    tracer: &arlux::trace::Tracer,
+    times: &mut arlux::model::StageTimes,
+) -> Result<Image> {
+    let mut photo = times.time("read photo", || scene.load_photo())?;
+    if scene.photo_is_relative() {
+        let base = arlux::model::ModelSettings::default();
+        match times.time("bracket scale", || {
+            arlux::render::bracket_scale_cached(
+                scene,
+                &photo,
+                tracer,
+                &base,
+                arlux::render::fine_patch_size(scene),
+            )
+        }) {
+            Some(s) => photo.pixels.iter_mut().for_each(|p| *p *= s as f32),
+            None => eprintln!(
+                "warning: the photo comes from brackets and no reflectance is known: radiance is relative"
+            ),
+        }
+    }
+    Ok(photo)
+}

@@ -1,0 +1,69 @@
+//! `arlux compare`: Error of an image against a reference: RMSE and relative RMSE in linear radiance, PSNR of the sRGB-encoded images, and their means.
+
+use std::path::PathBuf;
+
+use anyhow::{Result, bail};
+
+use arlux::compare::{Comparison, compare, read_mask};
+use arlux::image_io::{self, Image};
+
+use crate::timing::*;
+
+/// Arguments of `arlux compare`.
+#[derive(clap::Args)]
+pub struct Args {
+    pub image: PathBuf,
+    pub reference: PathBuf,
+    /// Compare only where this PNG is white (grey > 0.5).
+    #[arg(long)]
+    pub mask: Option<PathBuf>,
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let image = args.image.as_path();
+    let reference = args.reference.as_path();
+    let mask = args.mask.as_deref();
+    let as_json = args.json;
+    let (a, b) = stage("load", || -> Result<(Image, Image)> {
+        Ok((
+            image_io::read_image(image)?,
+            image_io::read_image(reference)?,
+        ))
+    })?;
+    if (a.width, a.height) != (b.width, b.height) {
+        bail!(arlux::Error::file(
+            image,
+            format!(
+                "is {}x{} but {} is {}x{}",
+                a.width,
+                a.height,
+                reference.display(),
+                b.width,
+                b.height
+            )
+        ));
+    }
+    let mask = mask.map(|m| read_mask(m, a.width, a.height)).transpose()?;
+    let c: Comparison = stage("compare", || compare(&a, &b, mask.as_deref()));
+    if as_json {
+        say!("{}", serde_json::to_string_pretty(&c)?);
+    } else {
+        say!("pixels         {}", c.pixels);
+        say!("rmse           {:.6}", c.rmse);
+        say!(
+            "relative rmse  {}",
+            c.relative_rmse
+                .map_or("n/a (black reference)".into(), |r| format!("{:.4}", r))
+        );
+        say!(
+            "psnr (sRGB)    {}",
+            c.psnr_srgb_db
+                .map_or("inf (identical)".into(), |p| format!("{p:.2} dB"))
+        );
+        say!("mean           {:.6}", c.mean);
+        say!("mean reference {:.6}", c.mean_reference);
+    }
+    Ok(())
+}

@@ -1,0 +1,88 @@
+//! `arlux ids`: Colour each pixel by the surface it sees, beside the photo with the surfaces' outlines: how to check that the model registers with the photo.
+
+use std::path::PathBuf;
+
+use anyhow::{Result, bail};
+
+use arlux::image_io::{self};
+use arlux::surface_ids::{SurfaceIds, id_colour};
+use arlux::trace::Layer;
+
+use crate::common::*;
+use crate::timing::*;
+
+/// Arguments of `arlux ids`.
+#[derive(clap::Args)]
+pub struct Args {
+    pub scene: PathBuf,
+    /// Output PNG (2·width × height: surface colours | photo with outlines).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Also write the ids as an EXR (channel Y: surface index, -1 for none).
+    #[arg(long)]
+    pub exr: Option<PathBuf>,
+    /// Include the enabled virtual objects (of the variant, if given).
+    #[arg(long)]
+    pub with_virtual: bool,
+    #[arg(long)]
+    pub variant: Option<String>,
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let path = args.scene.as_path();
+    let output = args.output.as_path();
+    let exr = args.exr.as_deref();
+    let with_virtual = args.with_virtual;
+    let variant = args.variant.as_deref();
+    let scene = stage("load", || load(path, variant))?;
+    let photo = stage("read photo", || display_photo(&scene))?;
+    let tracer = stage("tracer", || scene.build_tracer())?;
+    let layer = if with_virtual {
+        Layer::All
+    } else {
+        Layer::Real
+    };
+    let ids = stage("trace ids", || {
+        SurfaceIds::at_pixel_centres(&scene.camera, &tracer, layer)
+    });
+    if ids.covered() == 0 {
+        bail!(arlux::Error::key(
+            &scene.file,
+            "camera",
+            "the camera sees no surface: check position, look_at and the field of view"
+        ));
+    }
+    stage("write", || -> Result<()> {
+        let picture = ids.registration_picture(&photo);
+        image_io::write_png_rgb8(output, 2 * scene.camera.width, scene.camera.height, picture)?;
+        if let Some(exr) = exr {
+            let values: Vec<f32> = ids.ids.iter().map(|&i| i as f32).collect();
+            image_io::write_exr(
+                exr,
+                scene.camera.width,
+                scene.camera.height,
+                &[image_io::ExrLayer::Channel("Y", &values)],
+            )?;
+        }
+        Ok(())
+    })?;
+    let names = scene.surface_names();
+    let total = ids.ids.len() as f64;
+    say!(
+        "{} of {} pixels see a surface; wrote {}",
+        ids.covered(),
+        ids.ids.len(),
+        output.display()
+    );
+    for (i, name) in names.iter().enumerate() {
+        let n = ids.ids.iter().filter(|&&s| s == i as i32).count();
+        if n > 0 {
+            let [r, g, b] = id_colour(i as i32);
+            say!(
+                "  {i:>3} {name:<20} #{r:02x}{g:02x}{b:02x}  {:5.1}% of the image",
+                100.0 * n as f64 / total
+            );
+        }
+    }
+    Ok(())
+}

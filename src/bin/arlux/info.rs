@@ -1,0 +1,233 @@
+//! `arlux info`: Describe a scene: surfaces, triangles, lights, objects, variants, motions, the photo's range.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::Result;
+use serde_json::json;
+
+use arlux::scene::{Intensity, LightPosition, LightShape, Photo, Scene};
+
+use crate::common::*;
+use crate::timing::*;
+
+/// Arguments of `arlux info`.
+#[derive(clap::Args)]
+pub struct Args {
+    pub scene: PathBuf,
+    /// Apply this variant first.
+    #[arg(long)]
+    pub variant: Option<String>,
+    /// Print a JSON report instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let path = args.scene.as_path();
+    let variant = args.variant.as_deref();
+    let as_json = args.json;
+    let scene = stage("load", || load(path, variant))?;
+    let names = scene.surface_names();
+    let photo = match &scene.photo {
+        Photo::Image(p) => {
+            let img = stage("read photo", || scene.load_photo())?;
+            json!({ "image": rel(&scene, p), "range": stage("photo range", || photo_range(&img)) })
+        }
+        Photo::Brackets(bs) => json!({
+            "brackets": bs.iter().map(|b| json!({ "image": rel(&scene, &b.image), "ev": b.ev })).collect::<Vec<_>>(),
+        }),
+    };
+    stage("report", || info_report(&scene, &names, photo, as_json))
+}
+
+fn info_report(
+    scene: &Scene,
+    names: &[String],
+    photo: serde_json::Value,
+    as_json: bool,
+) -> Result<()> {
+    let surfaces: Vec<_> = scene
+        .surfaces
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            let known = scene.reflectances.iter().find(|k| k.surface == i).map(|k| k.rgb.to_array());
+            json!({ "id": i, "name": s.name, "triangles": s.triangles.len(), "mesh": rel(scene, &s.mesh), "known_reflectance": known })
+        })
+        .collect();
+    let lights: Vec<_> = scene
+        .lights
+        .iter()
+        .map(|l| {
+            let position = match &l.position {
+                LightPosition::Known(p) => fmt3(*p),
+                LightPosition::FromShadows(c) => {
+                    format!("from {} shadow lines and {} shadow planes", c.lines.len(), c.planes.len())
+                }
+            };
+            let shape = match l.shape {
+                LightShape::Point => "point".to_string(),
+                LightShape::Rect { u, v } => format!("rect {:.3} x {:.3} m", u.length(), v.length()),
+            };
+            let intensity = match &l.intensity {
+                Intensity::Uniform(rgb) => format!("uniform {}", fmt3(*rgb)),
+                Intensity::Lambertian { rgb, .. } => format!("lambertian {}", fmt3(*rgb)),
+                Intensity::Spot { rgb, beam_deg, cutoff_deg, .. } => {
+                    format!("spot {} beam {beam_deg}° cutoff {cutoff_deg}°", fmt3(*rgb))
+                }
+                Intensity::Ies { file, rgb, .. } => format!("ies {} x {}", rel(scene, file), fmt3(*rgb)),
+                Intensity::Reconstruct => "reconstruct from the photo".to_string(),
+            };
+            json!({ "name": l.name, "real": l.real, "scale": l.scale, "position": position, "shape": shape, "intensity": intensity })
+        })
+        .collect();
+    let objects: Vec<_> = scene
+        .objects
+        .iter()
+        .map(|o| {
+            json!({
+                "name": o.name, "mesh": rel(scene, &o.mesh), "enabled": o.enabled,
+                "triangles": o.surfaces.iter().map(|s| s.triangles.len()).sum::<usize>(),
+                "surfaces": o.surfaces.iter().map(|s| json!({ "name": s.name, "rgb": s.rgb.to_array() })).collect::<Vec<_>>(),
+                "translate": o.pose.translate.to_array(), "rotate_y_deg": o.pose.rotate_y_deg, "scale": o.pose.scale,
+            })
+        })
+        .collect();
+    let variants: Vec<_> = scene
+        .variants
+        .iter()
+        .map(|v| {
+            json!({
+                "name": v.name,
+                "lights": v.lights.iter().map(|(l, s)| json!({ "light": scene.lights[*l].name, "scale": s })).collect::<Vec<_>>(),
+                "objects": v.objects.iter().map(|(o, _)| scene.objects[*o].name.clone()).collect::<Vec<_>>(),
+                "hide": v.hide_objects.iter().map(|o| scene.objects[*o].name.clone())
+                    .chain(v.hide_lights.iter().map(|l| scene.lights[*l].name.clone())).collect::<Vec<_>>(),
+                "reference": v.reference.as_ref().map(|r| rel(scene, r)),
+            })
+        })
+        .collect();
+    let motions: Vec<_> = scene
+        .motions
+        .iter()
+        .map(|m| {
+            json!({ "name": m.name, "object": scene.objects[m.object].name, "poses": m.translations.len(), "references": m.references.len() })
+        })
+        .collect();
+    let c = &scene.camera;
+    let report = json!({
+        "name": scene.name, "file": scene.file.display().to_string(),
+        "camera": { "width": c.width, "height": c.height, "position": c.position.to_array(), "fx": c.fx, "fy": c.fy, "cx": c.cx, "cy": c.cy },
+        "photo": photo, "surfaces": surfaces, "triangles": scene.triangle_count(), "lights": lights,
+        "virtual_objects": objects, "variants": variants, "motions": motions, "warnings": scene.warnings,
+        "all_surface_names": names,
+    });
+    let mut out = std::io::stdout().lock();
+    if as_json {
+        writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?;
+        return Ok(());
+    }
+    writeln!(out, "scene '{}' ({})", scene.name, scene.file.display())?;
+    writeln!(
+        out,
+        "camera: {}x{} px, fx {:.2} fy {:.2}, principal point ({:.1}, {:.1})",
+        c.width, c.height, c.fx, c.fy, c.cx, c.cy
+    )?;
+    match &report["photo"]["range"] {
+        serde_json::Value::Null => writeln!(out, "photo: {}", report["photo"])?,
+        r => writeln!(
+            out,
+            "photo: {} {}x{}, min {} max {} mean {:.5}, dynamic range {}:1",
+            report["photo"]["image"].as_str().unwrap_or(""),
+            r["width"],
+            r["height"],
+            r["min"],
+            r["max"],
+            r["mean"].as_f64().unwrap_or(0.0),
+            r["dynamic_range"]
+                .as_f64()
+                .map_or("n/a".into(), |d| format!("{d:.0}")),
+        )?,
+    }
+    writeln!(
+        out,
+        "real surfaces: {} ({} triangles)",
+        scene.surfaces.len(),
+        scene.triangle_count()
+    )?;
+    for s in &surfaces {
+        let known = s["known_reflectance"]
+            .as_array()
+            .map(|k| {
+                format!(
+                    "  known reflectance {}",
+                    serde_json::Value::Array(k.clone())
+                )
+            })
+            .unwrap_or_default();
+        writeln!(
+            out,
+            "  {:>3} {:<16} {:>6} triangles  {}{}",
+            s["id"],
+            s["name"].as_str().unwrap_or(""),
+            s["triangles"],
+            s["mesh"].as_str().unwrap_or(""),
+            known
+        )?;
+    }
+    writeln!(out, "lights: {}", lights.len())?;
+    for l in &lights {
+        writeln!(
+            out,
+            "  {:<12} {:<7} scale {:<4} at {}  {}  {}",
+            l["name"].as_str().unwrap_or(""),
+            if l["real"].as_bool().unwrap_or(true) {
+                "real"
+            } else {
+                "virtual"
+            },
+            l["scale"],
+            l["position"].as_str().unwrap_or(""),
+            l["shape"].as_str().unwrap_or(""),
+            l["intensity"].as_str().unwrap_or("")
+        )?;
+    }
+    writeln!(out, "virtual objects: {}", objects.len())?;
+    for o in &objects {
+        writeln!(
+            out,
+            "  {:<12} {} triangles, {}, at {} rotated {}°",
+            o["name"].as_str().unwrap_or(""),
+            o["triangles"],
+            if o["enabled"].as_bool().unwrap_or(false) {
+                "enabled"
+            } else {
+                "disabled"
+            },
+            o["translate"],
+            o["rotate_y_deg"]
+        )?;
+    }
+    writeln!(out, "variants: {}", variants.len())?;
+    for v in &variants {
+        writeln!(
+            out,
+            "  {:<20} reference {}",
+            v["name"].as_str().unwrap_or(""),
+            v["reference"].as_str().unwrap_or("none")
+        )?;
+    }
+    writeln!(out, "motions: {}", motions.len())?;
+    for m in &motions {
+        writeln!(
+            out,
+            "  {:<20} moves {} through {} poses ({} references)",
+            m["name"].as_str().unwrap_or(""),
+            m["object"].as_str().unwrap_or(""),
+            m["poses"],
+            m["references"]
+        )?;
+    }
+    Ok(())
+}

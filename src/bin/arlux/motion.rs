@@ -1,0 +1,181 @@
+//! `arlux motion`: Render a motion: the first pose in full, then an incremental update per pose, writing DIR/NAME_000.exr, NAME_001.exr, ...
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use serde_json::json;
+
+use arlux::compare::compare;
+use arlux::image_io::{self, Image};
+
+use crate::common::*;
+use crate::timing::*;
+
+/// Arguments of `arlux motion`.
+#[derive(clap::Args)]
+pub struct Args {
+    pub scene: PathBuf,
+    #[arg(long)]
+    pub motion: String,
+    /// Output folder (created if missing).
+    #[arg(short, long, default_value = ".")]
+    pub output: PathBuf,
+    /// PNG of the blocks the last update skipped with one shaft test (first active light).
+    #[arg(long)]
+    pub debug_blocks: Option<PathBuf>,
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let path = args.scene.as_path();
+    let name = args.motion.as_str();
+    let dir = args.output.as_path();
+    let debug_blocks = args.debug_blocks.as_deref();
+    let as_json = args.json;
+    use arlux::model::StageTimes;
+    use arlux::render::{RenderSettings, Session};
+    let base = stage("load", || load(path, None))?;
+    let motion = base.motion(name)?.clone();
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("{}: could not create the folder", dir.display()))?;
+    let settings = RenderSettings::default();
+    let write = |pose: usize, img: &Image| -> Result<()> {
+        let file = dir.join(format!("{name}_{pose:03}.exr"));
+        image_io::write_exr(
+            &file,
+            img.width,
+            img.height,
+            &[image_io::ExrLayer::Rgb("", img)],
+        )?;
+        Ok(())
+    };
+    let error_at = |pose: usize, img: &Image| -> Result<Option<arlux::compare::Comparison>> {
+        match motion.references.get(pose) {
+            Some(r) => {
+                let truth = image_io::read_image(r)?;
+                base.check_size(&truth, "motion.references")?;
+                Ok(Some(compare(img, &truth, None)))
+            }
+            None => Ok(None),
+        }
+    };
+    let first = base.with_motion_pose(name, 0)?;
+    let photo = stage("read photo", || first.load_photo())?;
+    let mut times = StageTimes::default();
+    let mut session = Session::start(&first, &photo, &settings, &mut times)?;
+    session.prepare_updates(&mut times);
+    // Each pose writes its image only.
+    session.image_only();
+    keep(&times);
+    // Speed-ups compare with what re-rendering a pose costs: the photo's
+    // calibration and a light's reconstruction are done once per scene.
+    let once: f64 = times
+        .0
+        .iter()
+        .filter(|(n, _)| matches!(*n, "bracket scale" | "goniometric"))
+        .map(|(_, d)| d.as_secs_f64())
+        .sum();
+    let full_seconds = times.total().as_secs_f64() - once;
+    stage("write", || write(0, &session.composite.image))?;
+    let (pda_bytes, block_bytes) = session.memory_bytes();
+    let mut rows = vec![json!({
+        "pose": 0, "seconds": full_seconds, "full_render": true,
+        "error_against_reference": stage("compare", || error_at(0, &session.composite.image))?,
+    })];
+    if !as_json {
+        say!(
+            "pose 0: full render {:.1} ms; pixel data {:.1} MB, pixel blocks {:.1} MB{}",
+            full_seconds * 1e3,
+            pda_bytes as f64 / 1e6,
+            block_bytes as f64 / 1e6,
+            rows[0]["error_against_reference"]["rmse"]
+                .as_f64()
+                .map_or(String::new(), |e| format!(
+                    "; RMSE against its reference {e:.5}"
+                ))
+        );
+    }
+    let mut last_skipped = Vec::new();
+    for pose in 1..motion.translations.len() {
+        let scene = base.with_motion_pose(name, pose)?;
+        let mut times = StageTimes::default();
+        let stats = session.update(&scene, &mut times)?;
+        keep(&times);
+        let seconds = times.total().as_secs_f64();
+        stage("write", || write(pose, &session.composite.image))?;
+        let error = stage("compare", || error_at(pose, &session.composite.image))?;
+        if !as_json {
+            say!(
+                "pose {pose}: update {:.1} ms ({:.1}x faster than the full render); {} pixels recomputed, {} re-traced, {} shaft tests, {} rays{}",
+                seconds * 1e3,
+                full_seconds / seconds,
+                stats.pixels_recomputed,
+                stats.pixels_retraced,
+                stats.shaft_tests,
+                stats.rays,
+                error.map_or(String::new(), |e| format!(
+                    "; RMSE against its reference {:.5}",
+                    e.rmse
+                ))
+            );
+        }
+        rows.push(json!({
+            "pose": pose, "seconds": seconds, "full_render": false, "speedup": full_seconds / seconds,
+            "pixels_recomputed": stats.pixels_recomputed, "pixels_retraced": stats.pixels_retraced,
+            "shaft_tests": stats.shaft_tests, "rays": stats.rays, "error_against_reference": error,
+            "stages": stages_json(&times),
+        }));
+        last_skipped = stats.skipped_blocks;
+    }
+    if let (Some(png), Some(blocks)) = (debug_blocks, session.blocks()) {
+        let (w, h) = (blocks.width, blocks.height);
+        // The photo, dimmed, under the skipped blocks coloured by level (Grosch Fig. 6).
+        let mut bytes: Vec<u8> = photo
+            .pixels
+            .iter()
+            .flat_map(|p| {
+                (*p * (0.09 / photo.mean().max(1e-12) as f32))
+                    .to_array()
+                    .map(|c| (image_io::linear_to_srgb(c) * 255.0) as u8)
+            })
+            .collect();
+        if let Some(skipped) = last_skipped.iter().find(|s| !s.is_empty()) {
+            for &(level, bx, by) in skipped {
+                let (x0, y0, x1, y1) = blocks.block_pixels(level, bx, by);
+                let colour =
+                    arlux::surface_ids::id_colour(level as i32 + 3 * (bx as i32 + by as i32) % 2);
+                for y in y0..y1 {
+                    for x in x0..x1 {
+                        let i = ((y * w + x) * 3) as usize;
+                        let edge = x == x0 || y == y0;
+                        for c in 0..3 {
+                            bytes[i + c] = if edge {
+                                0
+                            } else {
+                                ((bytes[i + c] as u16 + colour[c] as u16) / 2) as u8
+                            };
+                        }
+                    }
+                }
+            }
+        }
+        image_io::write_png_rgb8(png, w, h, bytes)?;
+    }
+    // The hierarchy keeps the shafts its traversals built: what it holds at the end.
+    let block_bytes_end = session.memory_bytes().1;
+    if as_json {
+        say!(
+            "{}",
+            serde_json::to_string_pretty(
+                &json!({ "motion": name, "poses": rows, "pda_bytes": pda_bytes, "block_bytes": block_bytes, "block_bytes_end": block_bytes_end })
+            )?
+        );
+    } else {
+        say!(
+            "pixel blocks at the end: {:.1} MB",
+            block_bytes_end as f64 / 1e6
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,167 @@
+//! `arlux radiosity`: Re-render the photo from the model alone (reflectances estimated from the photo × (direct + indirect light)), with a mesh view; reports patches, links, iterations, residual and time per stage.
+
+use std::path::PathBuf;
+
+use anyhow::{Result, bail};
+use serde_json::json;
+
+use arlux::compare::compare;
+use arlux::image_io::{self};
+use arlux::surface_ids::SurfaceIds;
+
+use crate::common::*;
+use crate::timing::*;
+
+/// Arguments of `arlux radiosity`.
+#[derive(clap::Args)]
+pub struct Args {
+    pub scene: PathBuf,
+    /// Output EXR: the model's radiance, with layers direct, indirect
+    /// (irradiance) and reflectance.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Mesh view PNG (2·width × height: patch colours | render with patch outlines).
+    #[arg(long)]
+    pub mesh: Option<PathBuf>,
+    /// Largest patch edge in metres.
+    #[arg(long, default_value_t = 0.25)]
+    pub patch_size: f64,
+    /// Full patch-to-patch matrix instead of hierarchical radiosity.
+    #[arg(long)]
+    pub full: bool,
+    /// Refinement threshold of hierarchical radiosity.
+    #[arg(long, default_value_t = arlux::radiosity::DEFAULT_LINK_EPSILON)]
+    pub epsilon: f64,
+    /// 2^level shadow rays per point towards area lights.
+    #[arg(long, default_value_t = 4)]
+    pub light_level: usize,
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let path = args.scene.as_path();
+    let output = args.output.as_path();
+    let mesh = args.mesh.as_deref();
+    let patch_size = args.patch_size;
+    let full = args.full;
+    let epsilon = args.epsilon;
+    let light_level = args.light_level;
+    let as_json = args.json;
+    use arlux::model::{Model, ModelSettings, ModelView, StageTimes, TransportMethod};
+    if !(patch_size > 0.0 && patch_size.is_finite()) {
+        bail!("--patch-size must be a positive number of metres, not {patch_size}");
+    }
+    if !(epsilon > 0.0 && epsilon.is_finite()) {
+        bail!("--epsilon must be positive, not {epsilon}");
+    }
+    if light_level > arlux::light::MAX_GRID_LEVEL {
+        bail!(
+            "--light-level must be at most {}",
+            arlux::light::MAX_GRID_LEVEL
+        );
+    }
+    let mut times = StageTimes::default();
+    let scene = times.time("load", || load(path, None))?;
+    let tracer = times.time("tracer", || scene.build_tracer())?;
+    let photo = photo_in_units(&scene, &tracer, &mut times)?;
+    // A light to reconstruct is recovered first, as `render` does.
+    let scene = match arlux::gonio::light_to_reconstruct(&scene)? {
+        Some(_) => times.time("goniometric", || {
+            arlux::render::reconstruct_cached(&scene, &photo, &tracer)
+        })?,
+        None => scene,
+    };
+    let settings = ModelSettings {
+        patch_size,
+        transport: if full {
+            TransportMethod::Full
+        } else {
+            TransportMethod::Hierarchical { epsilon }
+        },
+        light_level,
+        ..ModelSettings::default()
+    };
+    let model = Model::build(&scene, &photo, &tracer, &settings, &mut times)?;
+    let view = times.time("render view", || {
+        ModelView::render(&scene, &tracer, &model, light_level)
+    });
+    let error = times.time("compare", || compare(&view.radiance, &photo, None));
+    times.time("write", || -> Result<()> {
+        let (w, h) = (scene.camera.width, scene.camera.height);
+        image_io::write_exr(
+            output,
+            w,
+            h,
+            &[
+                image_io::ExrLayer::Rgb("", &view.radiance),
+                image_io::ExrLayer::Rgb("direct", &view.direct),
+                image_io::ExrLayer::Rgb("indirect", &view.indirect),
+                image_io::ExrLayer::Rgb("reflectance", &view.reflectance),
+            ],
+        )?;
+        if let Some(mesh) = mesh {
+            let ids = SurfaceIds {
+                width: w,
+                height: h,
+                ids: view.patch_ids.clone(),
+            };
+            image_io::write_png_rgb8(mesh, 2 * w, h, ids.registration_picture(&view.radiance))?;
+        }
+        Ok(())
+    })?;
+    let est = &model.estimate;
+    keep(&times);
+    let report = json!({
+        "patches": model.patches.patch_count(),
+        "elements": model.patches.elements.len(),
+        "transport": if full { "full" } else { "hierarchical" },
+        "links": model.transport.link_count(),
+        "transport_bytes": model.transport.memory_bytes(),
+        "estimate_iterations": est.iterations,
+        "estimate_change": est.change,
+        "clamped_patches": est.clamped,
+        "unseen_patches": est.unseen,
+        "solver_iterations": est.solution.iterations,
+        "solver_residual": est.solution.residual,
+        "shadow_rays": view.rays,
+        "error_against_photo": error,
+        "stages": stages_json(&times),
+        "total_seconds": times.total().as_secs_f64(),
+    });
+    if as_json {
+        say!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    say!(
+        "{} patches ({} elements), {} transport with {} form factors ({:.1} MB)",
+        model.patches.patch_count(),
+        model.patches.elements.len(),
+        if full { "full" } else { "hierarchical" },
+        model.transport.link_count(),
+        model.transport.memory_bytes() as f64 / 1e6
+    );
+    say!(
+        "reflectances: {} fixed-point iterations (last change {:.1e}), {} patches clamped to [0, {}], {} unseen patches took their surface's mean",
+        est.iterations,
+        est.change,
+        est.clamped,
+        arlux::estimate::MAX_REFLECTANCE,
+        est.unseen
+    );
+    say!(
+        "radiosity: GMRES {} iterations, residual {:.1e}",
+        est.solution.iterations,
+        est.solution.residual
+    );
+    say!(
+        "model against the photo: RMSE {:.5}, relative {:.3}, PSNR {}",
+        error.rmse,
+        error.relative_rmse.unwrap_or(f64::NAN),
+        error
+            .psnr_srgb_db
+            .map_or("inf".into(), |p| format!("{p:.2} dB"))
+    );
+    print_stages(&times)?;
+    Ok(())
+}

@@ -1,0 +1,275 @@
+//! `arlux render`: The augmented photo of a variant: virtual objects inserted, lights changed or added, by per-pixel differential rendering (or, with --method texture, shadow-free textures × B/D).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use serde_json::json;
+
+use arlux::compare::{Comparison, compare};
+use arlux::image_io::{self};
+
+use arlux::composite::CompositeMode;
+use arlux::settings::{Method, RenderMethod, RenderOptions};
+
+use crate::common::*;
+use crate::timing::*;
+
+/// Arguments of `arlux render`.
+#[derive(clap::Args)]
+pub struct Args {
+    pub scene: PathBuf,
+    #[arg(long)]
+    pub variant: Option<String>,
+    /// Output EXR, with layers direct, indirect (irradiance), change and A (virtual coverage).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Also an 8-bit sRGB PNG.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// Also each layer as its own EXR in this folder.
+    #[arg(long)]
+    pub aov: Option<PathBuf>,
+    /// Rendering method: pda (per-pixel differential rendering, Grosch)
+    /// or texture (shadow-free textures × B/D, Loscos).
+    #[arg(long, value_enum, default_value_t = RenderOptions::default().method)]
+    pub method: RenderMethod,
+    /// How real pixels take the change: ratio (photo × L_with/L_without) or additive.
+    #[arg(long, value_enum, default_value_t = RenderOptions::default().composite)]
+    pub composite: CompositeMode,
+    /// The room's largest patch edge, metres (default: from what the
+    /// scene changes: the room's diagonal / 24 for light changes, / 6 for
+    /// added objects only).
+    #[arg(long)]
+    pub patch_size: Option<f64>,
+    /// Largest patch edge on virtual objects, metres.
+    #[arg(long, default_value_t = RenderOptions::default().virtual_patch_size)]
+    pub virtual_patch_size: f64,
+    /// Every patch against every other (the form-factor oracle) instead
+    /// of hierarchical radiosity; pixel path only.
+    #[arg(long)]
+    pub full: bool,
+    /// Hierarchical radiosity's link threshold (both methods).
+    #[arg(long, default_value_t = RenderOptions::default().epsilon)]
+    pub epsilon: f64,
+    /// 2^level shadow rays per rect light everywhere, 2^penumbra_level in penumbra.
+    #[arg(long, default_value_t = RenderOptions::default().min_level)]
+    pub min_level: usize,
+    #[arg(long, default_value_t = RenderOptions::default().penumbra_level)]
+    pub penumbra_level: usize,
+    /// n×n sub-pixels where real and virtual surfaces meet.
+    #[arg(long, default_value_t = RenderOptions::default().supersample)]
+    pub supersample: u32,
+    /// Texture path: CIELAB distance under which two leaves have similar colour (default 10).
+    #[arg(long)]
+    pub colour_threshold: Option<f64>,
+    /// Texture path: visibility difference (0..0.5) under which two leaves see a light alike (default 0.2).
+    #[arg(long)]
+    pub visibility_threshold: Option<f64>,
+    /// Texture path: CIELAB distance under which a frontier leaf may be a reference (default 10).
+    #[arg(long)]
+    pub reference_colour_threshold: Option<f64>,
+    /// Texture path: the smallest leaf, in pixel footprints (default 3).
+    #[arg(long)]
+    pub min_leaf_pixels: Option<f64>,
+    #[arg(long)]
+    pub json: bool,
+}
+
+impl Args {
+    fn options(&self) -> RenderOptions {
+        RenderOptions {
+            method: self.method,
+            composite: self.composite,
+            patch_size: self.patch_size,
+            virtual_patch_size: self.virtual_patch_size,
+            full: self.full,
+            epsilon: self.epsilon,
+            min_level: self.min_level,
+            penumbra_level: self.penumbra_level,
+            supersample: self.supersample,
+            colour_threshold: self.colour_threshold,
+            visibility_threshold: self.visibility_threshold,
+            reference_colour_threshold: self.reference_colour_threshold,
+            min_leaf_pixels: self.min_leaf_pixels,
+        }
+    }
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let method = args.options().resolve()?;
+    let method = &method;
+    let path = args.scene.as_path();
+    let variant = args.variant.as_deref();
+    let output = args.output.as_path();
+    let png = args.png.as_deref();
+    let aov = args.aov.as_deref();
+    let as_json = args.json;
+    use arlux::model::StageTimes;
+    let mut times = StageTimes::default();
+    let base = times.time("load", || load(path, None))?;
+    let scene = match variant {
+        Some(v) => base.with_variant(v)?,
+        None => base.clone(),
+    };
+    let reference = variant
+        .and_then(|v| base.variant(v).ok())
+        .and_then(|v| v.reference.clone());
+    let photo = times.time("read photo", || scene.load_photo())?;
+    let out = match method {
+        Method::Pda(settings) => arlux::render::render(&scene, &photo, settings, &mut times)?,
+        Method::Texture(settings) => {
+            arlux::relight::render_texture(&scene, &photo, settings, &mut times)?
+        }
+    };
+    let c = &out.composite;
+    times.time("write", || -> Result<()> {
+        let (w, h) = (photo.width, photo.height);
+        let layers = [
+            image_io::ExrLayer::Rgb("", &c.image),
+            image_io::ExrLayer::Rgb("direct", &c.direct),
+            image_io::ExrLayer::Rgb("indirect", &c.indirect),
+            image_io::ExrLayer::Rgb("change", &c.change),
+            image_io::ExrLayer::Channel("A", &c.alpha),
+        ];
+        image_io::write_exr(output, w, h, &layers)?;
+        if let Some(png) = png {
+            image_io::write_png(png, &c.image, 0.0)?;
+        }
+        if let Some(dir) = aov {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("{}: could not create the folder", dir.display()))?;
+            for (name, img) in [
+                ("direct", &c.direct),
+                ("indirect", &c.indirect),
+                ("change", &c.change),
+            ] {
+                image_io::write_exr(
+                    &dir.join(format!("{name}.exr")),
+                    w,
+                    h,
+                    &[image_io::ExrLayer::Rgb("", img)],
+                )?;
+            }
+            image_io::write_exr(
+                &dir.join("alpha.exr"),
+                w,
+                h,
+                &[image_io::ExrLayer::Channel("Y", &c.alpha)],
+            )?;
+            if let Some((_, unoccluded, _)) = &out.texture {
+                image_io::write_exr(
+                    &dir.join("unoccluded_texture.exr"),
+                    w,
+                    h,
+                    &[image_io::ExrLayer::Rgb("", unoccluded)],
+                )?;
+            }
+        }
+        Ok(())
+    })?;
+    let error = times.time("compare", || -> Result<Option<Comparison>> {
+        match &reference {
+            Some(r) => {
+                let truth = image_io::read_image(r)?;
+                scene.check_size(&truth, "variant.reference")?;
+                Ok(Some(compare(&c.image, &truth, None)))
+            }
+            None => Ok(None),
+        }
+    })?;
+    keep(&times);
+    let report = json!({
+        "variant": variant,
+        "pixels": out.pda_pixels,
+        "copied_from_photo": c.copied,
+        "ratio_fallbacks": c.ratio_fallbacks,
+        "clamped": c.clamped,
+        "patches": out.patches,
+        "patch_size_m": out.patch_size,
+        "links": out.links,
+        "method": if out.texture.is_some() { "texture" } else { "pda" },
+        "rays": out.texture.is_none().then_some(out.rays),
+        "pda_bytes": out.pda_bytes,
+        "pda_bytes_per_pixel": out.pda_bytes as f64 / out.pda_pixels.max(1) as f64,
+        "texture": out.texture.as_ref().map(|(s, _, change)| json!({
+            "refinement_rounds": s.rounds, "splits": s.splits, "splits_undone": s.undone, "leaves": s.leaves,
+            "occluded_leaves": s.occluded, "corrected_from_frontier": s.by_frontier,
+            "corrected_from_user_reference": s.by_user_reference, "uncorrected": s.uncorrected,
+            "texels": s.texels, "texture_bytes": s.texture_bytes, "light_change_seconds": change.as_secs_f64(),
+        })),
+        "error_against_reference": error,
+        "left_out": out.left_out,
+        "stages": stages_json(&times),
+        "total_seconds": times.total().as_secs_f64(),
+    });
+    if as_json {
+        say!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    match &out.texture {
+        None => say!(
+            "{} pixels, {} copied from the photo unchanged; {} patches ({:.2} m), {} form factors; {} rays; pixel data {:.1} MB ({:.0} bytes per pixel)",
+            out.pda_pixels,
+            c.copied,
+            out.patches,
+            out.patch_size,
+            out.links,
+            out.rays,
+            out.pda_bytes as f64 / 1e6,
+            out.pda_bytes as f64 / out.pda_pixels.max(1) as f64
+        ),
+        Some((s, _, change)) => {
+            say!(
+                "texture path: {} leaves from {:.2} m patches after {} refinement rounds ({} splits, {} undone: no visibility change); {} form factors",
+                out.patches,
+                out.patch_size,
+                s.rounds,
+                s.splits,
+                s.undone,
+                out.links
+            );
+            say!(
+                "{} seen leaves in some real shadow: {} corrected from a frontier leaf, {} from the user's [[texture_reference]], {} left as Step 1 made them",
+                s.occluded,
+                s.by_frontier,
+                s.by_user_reference,
+                s.uncorrected
+            );
+            say!(
+                "textures {:.1} MB ({} texels); the light change alone (radiosity step + display): {:.3} s (Loscos: 0.8 s)",
+                s.texture_bytes as f64 / 1e6,
+                s.texels,
+                change.as_secs_f64()
+            );
+        }
+    }
+    if c.ratio_fallbacks > 0 || c.clamped > 0 {
+        match out.texture {
+            None => say!(
+                "{} samples fell back from the ratio to the additive form (dark before), {} were clamped at zero",
+                c.ratio_fallbacks,
+                c.clamped
+            ),
+            Some(_) => say!(
+                "{} pixels show the radiosity B/π: the photo saw them unlit (D ≈ 0)",
+                c.ratio_fallbacks
+            ),
+        }
+    }
+    if let Some(e) = error {
+        say!(
+            "against the reference: RMSE {:.5}, relative {:.4}, PSNR {}, mean {:.5} (reference {:.5})",
+            e.rmse,
+            e.relative_rmse.unwrap_or(f64::NAN),
+            e.psnr_srgb_db
+                .map_or("inf".into(), |p| format!("{p:.2} dB")),
+            e.mean,
+            e.mean_reference
+        );
+    }
+    for l in &out.left_out {
+        say!("left out: {l}");
+    }
+    print_stages(&times)?;
+    Ok(())
+}
