@@ -20,7 +20,7 @@ use arlux::trace::Layer;
 fn bench(c: &mut Criterion) {
     let scene =
         Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/scene.toml")).unwrap();
-    let tracer = scene.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
     let lights = LightSource::all(&scene).unwrap();
     let mut g = c.benchmark_group("radiosity");
     g.sample_size(10);

@@ -17,7 +17,7 @@ fn bench(c: &mut Criterion) {
     // The bulb inserted (its forced refinement done), the box hidden: every light variant is a light change from here.
     let scene = base.with_variant("virtual_light_only").unwrap();
     let photo = scene.load_photo().unwrap();
-    let tracer = scene.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
     let settings = TextureSettings::default();
     let mut g = c.benchmark_group("relight");
     g.sample_size(10);

@@ -25,7 +25,7 @@ fn bench(c: &mut Criterion) {
         b.iter(|| render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap())
     });
 
-    let tracer = scene.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
     let model = Model::build(
         &scene,
         &photo,

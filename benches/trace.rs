@@ -21,7 +21,7 @@ struct Setup {
 fn setup() -> Setup {
     let scene =
         Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/scene.toml")).unwrap();
-    let tracer = scene.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
     let cam = &scene.camera;
     let primary: Vec<TraceRay> = (0..cam.height)
         .flat_map(|y| (0..cam.width).map(move |x| (x, y)))

@@ -72,7 +72,7 @@ fn bench(c: &mut Criterion) {
     // The lower bound per pose: pixels whose direct light really changed
     // between poses × the rays the update cast per pixel it recomputed, at
     // the occlusion throughput of this machine.
-    let tracer = first.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&first).unwrap();
     let rays = probe_rays(200_000);
     let t0 = Instant::now();
     let blocked: usize = rays
@@ -136,7 +136,7 @@ fn parts_on_one_thread(base: &Scene, photo: &arlux::image_io::Image, settings: &
         base.with_motion_pose("box_slide", 3).unwrap(),
         base.with_motion_pose("box_slide", 4).unwrap(),
     );
-    let tracer = p3.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&p3).unwrap();
     let rays = probe_rays(100_000);
     // Timed between the updates below, as this machine's speed drifts.
     let mut out = vec![false; rays.len()];

@@ -5,8 +5,8 @@ use glam::DVec3;
 
 use crate::camera::Camera;
 use crate::image_io::Image;
-use crate::light::unit_random;
 use crate::trace::{Layer, TraceRay, Tracer};
+use crate::util::rng::unit_random;
 
 /// `side`² cosine-distributed directions about unit `n`, one per cell of a
 /// `side` × `side` stratification, from the random `state`. Cells come in

@@ -15,6 +15,7 @@ use glam::Vec3;
 
 use crate::error::{Error, Result};
 use crate::image_io::Image;
+use crate::util::cache::ContentHash;
 
 /// One 8-bit exposure: codes per pixel and channel, and its EV offset.
 #[derive(Debug, Clone, PartialEq)]
@@ -134,7 +135,7 @@ pub fn recover_response(exposures: &[Exposure], samples: usize, lambda: f64) -> 
             let hi = ((k + 1) * 256 / samples).max(lo + 1);
             let pool: Vec<usize> = (lo..hi).flat_map(|z| by_code[z].iter().copied()).collect();
             if !pool.is_empty() {
-                let r = crate::light::unit_random(&mut state);
+                let r = crate::util::rng::unit_random(&mut state);
                 picked.push(pool[(r * pool.len() as f64) as usize % pool.len()]);
             }
         }
@@ -282,28 +283,6 @@ pub fn merge(exposures: &[Exposure], response: &Response) -> Result<Merged> {
     })
 }
 
-/// FNV-1a over bytes: names cache files after what they were made from.
-#[derive(Debug, Clone, Copy)]
-pub struct ContentHash(u64);
-
-impl Default for ContentHash {
-    fn default() -> Self {
-        ContentHash(0xcbf2_9ce4_8422_2325)
-    }
-}
-
-impl ContentHash {
-    pub fn feed(&mut self, bytes: &[u8]) {
-        for b in bytes {
-            self.0 = (self.0 ^ *b as u64).wrapping_mul(0x0100_0000_01b3);
-        }
-    }
-
-    pub fn value(&self) -> u64 {
-        self.0
-    }
-}
-
 /// Merges a scene's brackets, through a cache next to the scene: the merge
 /// is redone only when a bracket's bytes or EV change.
 pub fn merge_cached(scene_dir: &Path, brackets: &[(PathBuf, f64)]) -> Result<Image> {
@@ -316,9 +295,7 @@ pub fn merge_cached(scene_dir: &Path, brackets: &[(PathBuf, f64)]) -> Result<Ima
         feed(&ev.to_le_bytes());
         exposures.push((path, *ev));
     }
-    let cache = scene_dir
-        .join(".arlux-cache")
-        .join(format!("merged-{:016x}.exr", hash.value()));
+    let cache = hash.entry(scene_dir, "merged", "exr");
     if cache.is_file()
         && let Ok(img) = crate::image_io::read_image(&cache)
     {

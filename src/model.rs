@@ -14,12 +14,13 @@ use rayon::prelude::*;
 use crate::error::Result;
 use crate::estimate::{Estimate, EstimateSettings, PhotoPatches, estimate_reflectances};
 use crate::image_io::Image;
-use crate::light::{LightSource, hash2};
+use crate::light::LightSource;
 use crate::patches::Patches;
 use crate::radiosity::{DEFAULT_LINK_EPSILON, Transport, direct_irradiance, total_direct};
 use crate::scene::Scene;
 use crate::surface_ids::row_hits;
 use crate::trace::{Layer, Tracer};
+use crate::util::rng::hash2;
 
 /// How light transport is computed.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -21,8 +21,8 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::light::{LightSource, offset_origin, segment};
+use crate::objects::VirtualBounds;
 use crate::patches::{Element, Patches};
-use crate::pda::VirtualBounds;
 use crate::shaft::Shaft;
 use crate::trace::{Layer, TraceRay, Tracer};
 
@@ -1049,7 +1049,7 @@ pub fn direct_irradiance_with_objects(
                         return patch_direct_by(patches, k, |x, n, seed| {
                             light.direct_by(x, n, level, seed, |targets, _, blocked| {
                                 for (b, t) in blocked.iter_mut().zip(targets) {
-                                    *b = crate::pda::own_blocks(x, n, light.position, *t);
+                                    *b = crate::objects::own_blocks(x, n, light.position, *t);
                                 }
                             })
                         });
@@ -1088,7 +1088,7 @@ fn patch_direct_by(
         .iter()
         .enumerate()
         .map(|(i, (x, w))| {
-            let seed = crate::light::hash2(k as u64, i as u64);
+            let seed = crate::util::rng::hash2(k as u64, i as u64);
             let d = direct(*x, el.normal, seed);
             d.unoccluded * d.visibility * *w
         })

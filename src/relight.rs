@@ -39,12 +39,14 @@ use crate::composite::{Composite, PixelShade};
 use crate::error::Result;
 use crate::estimate::{PhotoPatches, estimate_reflectances};
 use crate::image_io::Image;
-use crate::light::{LightSource, hash2};
+use crate::light::LightSource;
 use crate::model::StageTimes;
+pub use crate::output::TextureStats;
 use crate::patches::{Element, Location, Patches, Shape, SplitMarks, region_centre, split};
 use crate::radiosity::{DEFAULT_LINK_EPSILON, Transport, solve_from};
 use crate::scene::Scene;
 use crate::trace::{Layer, Tracer};
+use crate::util::rng::hash2;
 
 /// Settings of the texture path.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -85,25 +87,6 @@ impl Default for TextureSettings {
             link_epsilon: DEFAULT_LINK_EPSILON,
         }
     }
-}
-
-/// What the preprocess did.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct TextureStats {
-    pub rounds: usize,
-    /// Leaves split by the refinement, and splits undone (no visibility change).
-    pub splits: usize,
-    pub undone: usize,
-    pub leaves: usize,
-    pub links: usize,
-    /// Seen leaves occluded from some real light, and how each was corrected.
-    pub occluded: usize,
-    pub by_frontier: usize,
-    pub by_user_reference: usize,
-    pub uncorrected: usize,
-    pub texels: usize,
-    pub texture_bytes: usize,
-    pub patch_size: f64,
 }
 
 /// One root polygon's texture over the part of it the camera sees.
@@ -404,7 +387,7 @@ impl TexturePath {
         let has_objects = tracer.virtual_objects.is_some();
         let patch_size = settings
             .patch_size
-            .unwrap_or_else(|| crate::render::fine_patch_size(scene));
+            .unwrap_or_else(|| crate::inputs::fine_patch_size(scene));
         let virtual_size = 0.1f64.min(patch_size);
         let criteria = Criteria {
             texture: (0..lights.len())
@@ -1023,10 +1006,10 @@ pub fn render_texture(
     photo: &Image,
     settings: &TextureSettings,
     times: &mut StageTimes,
-) -> Result<crate::render::RenderOutput> {
-    let tracer = times.time("tracer", || scene.build_tracer())?;
+) -> Result<crate::output::RenderOutput> {
+    let tracer = times.time("tracer", || crate::scene_tracer::build_tracer(scene))?;
     let mut left_out = Vec::new();
-    let (resolved, photo) = crate::render::resolve_inputs(
+    let (resolved, photo) = crate::inputs::resolve_inputs(
         scene,
         photo,
         &tracer,
@@ -1044,7 +1027,7 @@ pub fn render_texture(
     let composite = path.relight(&scales, times);
     let light_change = times.total() - before;
     let unoccluded = times.time("unoccluded texture", || path.unoccluded_texture());
-    let out = crate::render::RenderOutput {
+    let out = crate::output::RenderOutput {
         composite,
         left_out,
         pda_bytes: path.memory_bytes(),

@@ -14,6 +14,8 @@ use crate::error::Result;
 use crate::image_io::Image;
 use crate::model::{Model, ModelSettings, StageTimes, TransportMethod};
 
+use crate::inputs::{fine_patch_size, resolve_inputs, room_diagonal};
+pub use crate::output::RenderOutput;
 use crate::patches::Patches;
 use crate::pda::{CLEAR_TEST_LIMIT, PdaInput, PdaSettings, PixelDataArray, VirtualBounds};
 use crate::radiosity::{Transport, direct_irradiance_with_objects, solve_from, total_direct};
@@ -65,23 +67,6 @@ impl Default for RenderSettings {
             gather_rays: 144,
         }
     }
-}
-
-/// What a render produced and what it did.
-pub struct RenderOutput {
-    pub composite: Composite,
-    /// Stages that ran are in the timings; these were left out, with why.
-    pub left_out: Vec<String>,
-    pub pda_bytes: usize,
-    pub pda_pixels: usize,
-    pub rays: u64,
-    pub patches: usize,
-    pub links: usize,
-    /// The room's patch size used, metres.
-    pub patch_size: f64,
-    /// `--method texture`: what the preprocess did, the shadow-free texture
-    /// seen from the camera, and the time of the light change alone.
-    pub texture: Option<(crate::relight::TextureStats, Image, std::time::Duration)>,
 }
 
 /// Renders `scene` (an effective scene: a variant or motion pose of the
@@ -205,7 +190,7 @@ impl GatherDirections {
                     crate::gather::cosine_directions(
                         n,
                         side,
-                        crate::light::hash2(v as u64, 0x6A7E),
+                        crate::util::rng::hash2(v as u64, 0x6A7E),
                     ),
                 )
             })
@@ -272,7 +257,7 @@ impl Session {
             },
             ..*settings
         };
-        let tracer = times.time("tracer", || scene.build_tracer())?;
+        let tracer = times.time("tracer", || crate::scene_tracer::build_tracer(scene))?;
         let given_lights = scene.lights.clone();
         let (resolved, photo) =
             resolve_inputs(scene, photo, &tracer, &settings.model, times, &mut left_out)?;
@@ -1002,152 +987,6 @@ fn final_gather(
             (v as usize, sum * (pi / dirs.len() as f64))
         })
         .collect()
-}
-
-/// What every method needs before it starts: the photo in absolute units
-/// (merged brackets are radiance up to a factor, fixed from the known
-/// reflectances) and a light to reconstruct recovered from it (Grosch
-/// §2.3). Returns the scene with the recovered light, if there was one.
-pub fn resolve_inputs(
-    scene: &Scene,
-    photo: &Image,
-    tracer: &crate::trace::Tracer,
-    settings: &ModelSettings,
-    times: &mut StageTimes,
-    left_out: &mut Vec<String>,
-) -> Result<(Option<Scene>, Image)> {
-    let photo = if scene.photo_is_relative() {
-        match times.time("bracket scale", || {
-            bracket_scale_cached(scene, photo, tracer, settings, fine_patch_size(scene))
-        }) {
-            Some(s) => Image {
-                pixels: photo.pixels.iter().map(|p| *p * s as f32).collect(),
-                ..photo.clone()
-            },
-            None => {
-                left_out.push("absolute scale: the photo comes from brackets and no reflectance is known, so radiance is relative".to_string());
-                photo.clone()
-            }
-        }
-    } else {
-        photo.clone()
-    };
-    let resolved = match crate::gonio::light_to_reconstruct(scene)? {
-        Some(_) => Some(times.time("goniometric", || reconstruct_cached(scene, &photo, tracer))?),
-        None => None,
-    };
-    Ok((resolved, photo))
-}
-
-/// The diagonal of the real geometry's bounding box.
-fn room_diagonal(scene: &Scene) -> f64 {
-    let (lo, hi) = crate::geometry::bounds(
-        scene
-            .surfaces
-            .iter()
-            .flat_map(|s| s.triangles.iter().flatten())
-            .map(|p| p.as_dvec3()),
-    );
-    (hi - lo).length()
-}
-
-/// The patch size at which the room's radiosity is accurate per patch.
-pub fn fine_patch_size(scene: &Scene) -> f64 {
-    room_diagonal(scene) / 24.0
-}
-
-/// `scene` with its light to reconstruct recovered from `photo`
-/// ([`crate::gonio::reconstruct`]), through a cache next to the scene keyed
-/// by the scene file, its meshes, the photo's files and the settings.
-pub fn reconstruct_cached(
-    scene: &Scene,
-    photo: &Image,
-    tracer: &crate::trace::Tracer,
-) -> Result<Scene> {
-    let settings = crate::gonio::GonioSettings::default();
-    let mut files: Vec<std::path::PathBuf> = vec![scene.file.clone()];
-    files.extend(scene.surfaces.iter().map(|s| s.mesh.clone()));
-    match &scene.photo {
-        crate::scene::Photo::Image(p) => files.push(p.clone()),
-        crate::scene::Photo::Brackets(b) => files.extend(b.iter().map(|b| b.image.clone())),
-    }
-    files.dedup();
-    let mut hash = crate::hdr::ContentHash::default();
-    let readable = files
-        .iter()
-        .all(|f| std::fs::read(f).map(|bytes| hash.feed(&bytes)).is_ok());
-    hash.feed(format!("{settings:?} {}", crate::gonio::ALGORITHM_VERSION).as_bytes());
-    let cache = scene
-        .dir()
-        .join(".arlux-cache")
-        .join(format!("gonio-{:016x}.ies", hash.value()));
-    if readable
-        && let Some((light, profile, colour)) = std::fs::read_to_string(&cache)
-            .ok()
-            .and_then(|t| crate::gonio::from_cache_text(&t, &cache))
-            .filter(|(l, _, _)| *l < scene.lights.len())
-    {
-        return Ok(crate::gonio::apply_profile(scene, light, &profile, colour));
-    }
-    let rec = crate::gonio::reconstruct(scene, photo, tracer, &settings)?;
-    if readable
-        && cache
-            .parent()
-            .is_some_and(|d| std::fs::create_dir_all(d).is_ok())
-    {
-        let _ = crate::image_io::write_atomic(&cache, rec.to_cache_text().as_bytes());
-    }
-    Ok(rec.apply(scene))
-}
-
-/// Bumped when [`crate::model::bracket_scale`] changes what it returns, so
-/// that caches written by an older arlux are not read.
-pub const BRACKET_SCALE_VERSION: u32 = 3;
-
-/// [`crate::model::bracket_scale`] on a fine mesh (the factor rests on a
-/// few surfaces' estimates, which coarse patches bias), cached next to the
-/// scene under a hash of the scene file, its meshes and the brackets.
-pub fn bracket_scale_cached(
-    scene: &Scene,
-    photo: &Image,
-    tracer: &crate::trace::Tracer,
-    settings: &ModelSettings,
-    patch_size: f64,
-) -> Option<f64> {
-    let mut hash = crate::hdr::ContentHash::default();
-    let mut feed = |bytes: &[u8]| hash.feed(bytes);
-    let mut files: Vec<std::path::PathBuf> = vec![scene.file.clone()];
-    files.extend(scene.surfaces.iter().map(|s| s.mesh.clone()));
-    if let crate::scene::Photo::Brackets(b) = &scene.photo {
-        files.extend(b.iter().map(|b| b.image.clone()));
-    }
-    files.dedup();
-    for f in &files {
-        feed(&std::fs::read(f).ok()?);
-    }
-    feed(&patch_size.to_le_bytes());
-    // A change to how the factor is found, or to its settings, is a new entry.
-    feed(format!("{BRACKET_SCALE_VERSION} {settings:?}").as_bytes());
-    let cache = scene
-        .dir()
-        .join(".arlux-cache")
-        .join(format!("scale-{:016x}.txt", hash.value()));
-    if let Some(s) = std::fs::read_to_string(&cache)
-        .ok()
-        .and_then(|t| t.trim().parse::<f64>().ok())
-        .filter(|s| s.is_finite() && *s > 0.0)
-    {
-        return Some(s);
-    }
-    let fine = ModelSettings {
-        patch_size,
-        ..*settings
-    };
-    let scale = crate::model::bracket_scale(scene, photo, tracer, &fine)?;
-    if std::fs::create_dir_all(cache.parent()?).is_ok() {
-        let _ = crate::image_io::write_atomic(&cache, format!("{scale}\n").as_bytes());
-    }
-    Some(scale)
 }
 
 #[cfg(test)]

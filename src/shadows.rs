@@ -220,9 +220,9 @@ mod tests {
         let mut state = 17u64;
         let mut noise = || {
             DVec3::new(
-                crate::light::unit_random(&mut state),
-                crate::light::unit_random(&mut state),
-                crate::light::unit_random(&mut state),
+                crate::util::rng::unit_random(&mut state),
+                crate::util::rng::unit_random(&mut state),
+                crate::util::rng::unit_random(&mut state),
             ) * 0.02
                 - DVec3::splat(0.01)
         };

@@ -352,9 +352,9 @@ mod tests {
         let mut state = 3u64;
         for _ in 0..2000 {
             let c = DVec3::new(
-                crate::light::unit_random(&mut state) * 3.0 - 1.0,
-                crate::light::unit_random(&mut state) * 3.0 - 0.5,
-                crate::light::unit_random(&mut state) * 3.0 - 1.0,
+                crate::util::rng::unit_random(&mut state) * 3.0 - 1.0,
+                crate::util::rng::unit_random(&mut state) * 3.0 - 0.5,
+                crate::util::rng::unit_random(&mut state) * 3.0 - 1.0,
             );
             let tri = [
                 c,
@@ -391,7 +391,7 @@ mod random_tests {
     #[test]
     fn polygon_shafts_equal_the_general_hull() {
         let mut state = 7u64;
-        let mut r = || crate::light::unit_random(&mut state);
+        let mut r = || crate::util::rng::unit_random(&mut state);
         let polygon = |r: &mut dyn FnMut() -> f64| -> Vec<DVec3> {
             let origin = DVec3::new(r() * 4.0 - 2.0, r() * 3.0, r() * 4.0 - 2.0);
             let u = DVec3::new(r() - 0.5, r() - 0.5, r() - 0.5);
@@ -439,7 +439,7 @@ mod random_tests {
     #[test]
     fn box_shafts_never_exclude_a_point_of_the_true_hull() {
         let mut state = 99u64;
-        let mut r = || crate::light::unit_random(&mut state);
+        let mut r = || crate::util::rng::unit_random(&mut state);
         for _ in 0..3000 {
             let mut bx = || {
                 let lo = DVec3::new(r() * 4.0 - 2.0, r() * 3.0, r() * 4.0 - 2.0);

@@ -22,7 +22,7 @@ fn scene(name: &str) -> Scene {
 
 /// Per real surface, the area mean of reflectances estimated with the true lights on a fine mesh.
 fn reference_reflectances(scene: &Scene) -> HashMap<u32, DVec3> {
-    let tracer = scene.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(scene).unwrap();
     let lights = LightSource::all(scene).unwrap();
     let patches = Patches::of_scene(scene, false, 0.25);
     let scales: Vec<f64> = lights.iter().map(|l| l.photo_scale()).collect();
@@ -59,7 +59,7 @@ fn reference_reflectances(scene: &Scene) -> HashMap<u32, DVec3> {
 fn the_desk_spot_is_recovered_within_ten_percent_where_the_photo_sees_it() {
     let truth_scene = scene("scene.toml");
     let rec_scene = scene("scene_reconstruct.toml");
-    let tracer = rec_scene.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&rec_scene).unwrap();
     let photo = rec_scene.load_photo().unwrap();
     let rec = reconstruct(&rec_scene, &photo, &tracer, &GonioSettings::default()).unwrap();
     let spot = LightSource::from_scene(&truth_scene, rec.light).unwrap();

@@ -28,7 +28,7 @@ fn surface_ids_agree_with_the_independent_ray_caster() {
         );
     }
 
-    let tracer = scene.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
     let ids = SurfaceIds::at_pixel_centres(&scene.camera, &tracer, Layer::Real);
     let (w, h, truth) = read_exr_channel(&desk().join("truth/ids.exr"), "Y").unwrap();
     assert_eq!((w, h), (scene.camera.width, scene.camera.height));

@@ -28,7 +28,7 @@ fn desk() -> Scene {
 /// The desk's room at 0.5 m patches, with the photo's direct light per patch.
 fn desk_at_half_a_metre() -> (Scene, arlux::trace::Tracer, Patches, Vec<DVec3>) {
     let scene = desk();
-    let tracer = scene.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
     let lights = LightSource::all(&scene).unwrap();
     let patches = Patches::of_scene(&scene, false, 0.5);
     let e = total_direct(
@@ -91,7 +91,7 @@ fn the_left_wall_reflectance_is_recovered_without_its_known_value() {
     let mut scene = desk();
     let truth = scene.reflectances[0].clone();
     scene.reflectances.clear();
-    let tracer = scene.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
     let lights = LightSource::all(&scene).unwrap();
     let patches = Patches::of_scene(&scene, false, 0.25);
     let e = total_direct(
@@ -136,7 +136,7 @@ fn direct_light_with_objects_reuses_the_room_only_where_it_is_the_same() {
     // can shadow traces no ray: the result must equal tracing every patch.
     for variant in ["box_floor_a", "box_table"] {
         let scene = desk().with_variant(variant).unwrap();
-        let tracer = scene.build_tracer().unwrap();
+        let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
         let lights = LightSource::all(&scene).unwrap();
         let room = Patches::of_scene(&scene, false, 0.5);
         let with = Patches::of_scene_with(&scene, true, 0.5, 0.1);
@@ -192,7 +192,7 @@ fn re_linking_objects_with_kept_room_facts_gives_the_same_links() {
     // kept for the next, must give the links plain refinement gives.
     let base = desk();
     let room_scene = base.with_variant("panel_off").unwrap();
-    let tracer = room_scene.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&room_scene).unwrap();
     // Patches fine enough that links above the leaves are split around the box.
     let room = Patches::of_scene(&room_scene, false, 0.25);
     let transport = Transport::hierarchical(&room, &tracer, Layer::Real, DEFAULT_LINK_EPSILON);
@@ -211,7 +211,7 @@ fn re_linking_objects_with_kept_room_facts_gives_the_same_links() {
     ] {
         let mut scene = base.with_motion_pose("box_slide", 0).unwrap();
         scene.objects[0].pose.translate = at;
-        let tracer = scene.build_tracer().unwrap();
+        let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
         let with = Patches::of_scene_with(&scene, true, 0.25, 0.1);
         let fresh = transport.with_objects(&with, &tracer, DEFAULT_LINK_EPSILON, false);
         let kept =
@@ -253,7 +253,7 @@ fn what_each_patch_gathers_agrees_with_tracing_its_hemisphere() {
             let dirs = arlux::gather::cosine_directions(
                 el.normal,
                 32,
-                arlux::light::hash2(k as u64, i as u64),
+                arlux::util::rng::hash2(k as u64, i as u64),
             );
             let origin = arlux::light::offset_origin(x, el.normal, x + el.normal);
             let traced: Vec<TraceRay> = dirs
@@ -352,7 +352,7 @@ fn gathering_rays_from_a_solids_faces_meet_through_the_room_alone_what_they_meet
     use arlux::light::offset_origin;
     for variant in ["box_floor_a", "box_table"] {
         let scene = desk().with_variant(variant).unwrap();
-        let tracer = scene.build_tracer().unwrap();
+        let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
         let with = Patches::of_scene_with(&scene, true, 0.5, 0.1);
         let is_virtual = |s: u32| with.is_virtual_surface(s);
         let corners: Vec<DVec3> = with

@@ -29,7 +29,7 @@ fn nothing_changed_reprojects_the_photo() {
     let mut scene = desk();
     scene.objects.iter_mut().for_each(|o| o.enabled = false);
     let photo = scene.load_photo().unwrap();
-    let tracer = scene.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
     let mut times = StageTimes::default();
     let path = TexturePath::prepare(
         &scene,
@@ -130,7 +130,7 @@ fn shadows_of_a_switched_off_lamp_disappear() {
             .unwrap(),
     )
     .unwrap();
-    let tracer = scene.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
     let lights = LightSource::all(&scene).unwrap();
     let (panel, spot) = (
         lights.iter().position(|l| l.name == "panel").unwrap(),
@@ -252,7 +252,7 @@ fn d_near_zero_falls_back_to_radiosity() {
         l.real = false;
     }
     let photo = scene.load_photo().unwrap();
-    let tracer = scene.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
     let mut times = StageTimes::default();
     let path = TexturePath::prepare(
         &scene,
@@ -295,7 +295,7 @@ fn one_preprocess_serves_every_light_change() {
     let base = desk();
     let scene = base.with_variant("virtual_light_only").unwrap();
     let photo = scene.load_photo().unwrap();
-    let tracer = scene.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
     let path = TexturePath::prepare(
         &scene,
         &photo,
@@ -334,7 +334,7 @@ fn a_user_reference_serves_where_no_frontier_leaf_matches() {
     let base = desk();
     let mut scene = base.with_variant("panel_off").unwrap();
     let photo = scene.load_photo().unwrap();
-    let tracer = scene.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
     let floor = scene
         .surfaces
         .iter()

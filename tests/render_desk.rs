@@ -223,7 +223,7 @@ fn real_pixels_whose_light_is_unchanged_are_the_photo() {
 /// force: every sub-ray of every pixel traced against everything.
 fn mixed_pixels(scene: &Scene) -> Vec<u32> {
     use arlux::trace::{Layer, TraceRay};
-    let tracer = scene.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(scene).unwrap();
     let cam = &scene.camera;
     let n = 4;
     (0..cam.width * cam.height)

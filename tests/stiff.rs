@@ -23,7 +23,7 @@ fn all_finite(img: &Image) -> bool {
 
 fn run(scene: &Scene) -> (Model, ModelView) {
     let photo = scene.load_photo().unwrap();
-    let tracer = scene.build_tracer().unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(scene).unwrap();
     let settings = ModelSettings {
         patch_size: 0.5,
         ..ModelSettings::default()
@@ -170,7 +170,7 @@ fn the_texture_path_stays_finite_on_stiff_cases() {
         scene.objects.iter_mut().for_each(|o| o.enabled = false);
         let mut photo = scene.load_photo().unwrap();
         edit(&mut scene, &mut photo);
-        let tracer = scene.build_tracer().unwrap();
+        let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
         let path = TexturePath::prepare(
             &scene,
             &photo,

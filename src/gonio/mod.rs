@@ -40,12 +40,13 @@ use crate::error::{Error, Result};
 use crate::estimate::{EstimateSettings, PhotoPatches, estimate_reflectances};
 use crate::ies::{IesProfile, PhotometricType};
 use crate::image_io::Image;
-use crate::light::{Distribution, LightSource, hash2};
+use crate::light::{Distribution, LightSource};
 use crate::patches::Patches;
 use crate::radiosity::{DEFAULT_LINK_EPSILON, Transport, direct_irradiance};
 use crate::scene::{Intensity, Scene};
 use crate::surface_ids::row_hits;
 use crate::trace::{Layer, Tracer};
+use crate::util::rng::hash2;
 
 mod evidence;
 mod grid;

@@ -97,8 +97,8 @@ fn located_points_are_inside_their_patch_and_interpolate_back() {
         for (ti, t) in s.triangles.iter().enumerate() {
             for _ in 0..20 {
                 let (mut a, mut b) = (
-                    crate::light::unit_random(&mut state),
-                    crate::light::unit_random(&mut state),
+                    crate::util::rng::unit_random(&mut state),
+                    crate::util::rng::unit_random(&mut state),
                 );
                 if a + b > 1.0 {
                     (a, b) = (1.0 - a, 1.0 - b);

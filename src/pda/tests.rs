@@ -1,5 +1,6 @@
 use super::*;
 use crate::light::{test_panel, test_spot};
+use crate::objects::clear_sides;
 use crate::trace::SurfaceTriangles;
 use glam::Vec3;
 

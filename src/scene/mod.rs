@@ -18,7 +18,6 @@ use crate::error::{Error, Result};
 use crate::geometry::{self, Triangle};
 use crate::ies::IesProfile;
 use crate::image_io::{self, Image};
-use crate::trace::{SurfaceTriangles, Tracer};
 use fields::Fields;
 
 /// Lights closer than this to a surface are refused: irradiance ~1/d² has no
@@ -421,18 +420,6 @@ impl Scene {
         Ok(())
     }
 
-    /// The real surfaces as tracer input, each with its id.
-    pub fn real_triangle_sets(&self) -> Vec<SurfaceTriangles<'_>> {
-        self.surfaces
-            .iter()
-            .enumerate()
-            .map(|(i, s)| SurfaceTriangles {
-                surface: i as u32,
-                triangles: &s.triangles,
-            })
-            .collect()
-    }
-
     /// World-space triangles of every enabled virtual object's surfaces, with
     /// their ids (numbered after the real surfaces, as [`Scene::surface_names`]).
     pub fn virtual_world_surfaces(&self) -> Vec<(u32, Vec<Triangle>)> {
@@ -470,21 +457,6 @@ impl Scene {
                 .lights
                 .iter()
                 .any(|l| l.scale != if l.real { 1.0 } else { 0.0 })
-    }
-
-    /// Builds the tracer: the real surfaces, and the enabled virtual objects
-    /// (none built when there are none).
-    pub fn build_tracer(&self) -> Result<Tracer> {
-        let virt = self.virtual_world_surfaces();
-        let sets: Vec<SurfaceTriangles> = virt
-            .iter()
-            .map(|(id, t)| SurfaceTriangles {
-                surface: *id,
-                triangles: t,
-            })
-            .collect();
-        Tracer::build(&self.real_triangle_sets(), &sets)
-            .map_err(|e| Error::file(&self.file, e.to_string()))
     }
 
     /// Refuses a light whose centre lies on a surface or inside a closed

@@ -79,12 +79,12 @@ pub(crate) fn photo_in_units(
     if scene.photo_is_relative() {
         let base = arlux::model::ModelSettings::default();
         match times.time("bracket scale", || {
-            arlux::render::bracket_scale_cached(
+            arlux::inputs::bracket_scale_cached(
                 scene,
                 &photo,
                 tracer,
                 &base,
-                arlux::render::fine_patch_size(scene),
+                arlux::inputs::fine_patch_size(scene),
             )
         }) {
             Some(s) => photo.pixels.iter_mut().for_each(|p| *p *= s as f32),

@@ -54,7 +54,7 @@ pub fn run(args: &Args) -> Result<()> {
             path.display()
         );
     }
-    let tracer = times.time("tracer", || scene.build_tracer())?;
+    let tracer = times.time("tracer", || arlux::scene_tracer::build_tracer(&scene))?;
     let photo = photo_in_units(&scene, &tracer, &mut times)?;
     let settings = GonioSettings {
         vertical_step_deg: vertical_step,

@@ -36,7 +36,7 @@ pub fn run(args: &Args) -> Result<()> {
     let variant = args.variant.as_deref();
     let scene = stage("load", || load(path, variant))?;
     let photo = stage("read photo", || display_photo(&scene))?;
-    let tracer = stage("tracer", || scene.build_tracer())?;
+    let tracer = stage("tracer", || arlux::scene_tracer::build_tracer(&scene))?;
     let layer = if with_virtual {
         Layer::All
     } else {

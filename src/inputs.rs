@@ -1,0 +1,148 @@
+//! What every render needs before it starts, whichever the method: the
+//! photo in absolute units and a light to reconstruct recovered, each
+//! through a cache next to the scene; and the room's patch sizes.
+
+use crate::error::Result;
+use crate::image_io::Image;
+use crate::model::{ModelSettings, StageTimes};
+use crate::scene::Scene;
+
+/// What every method needs before it starts: the photo in absolute units
+/// (merged brackets are radiance up to a factor, fixed from the known
+/// reflectances) and a light to reconstruct recovered from it (Grosch
+/// §2.3). Returns the scene with the recovered light, if there was one.
+pub fn resolve_inputs(
+    scene: &Scene,
+    photo: &Image,
+    tracer: &crate::trace::Tracer,
+    settings: &ModelSettings,
+    times: &mut StageTimes,
+    left_out: &mut Vec<String>,
+) -> Result<(Option<Scene>, Image)> {
+    let photo = if scene.photo_is_relative() {
+        match times.time("bracket scale", || {
+            bracket_scale_cached(scene, photo, tracer, settings, fine_patch_size(scene))
+        }) {
+            Some(s) => Image {
+                pixels: photo.pixels.iter().map(|p| *p * s as f32).collect(),
+                ..photo.clone()
+            },
+            None => {
+                left_out.push("absolute scale: the photo comes from brackets and no reflectance is known, so radiance is relative".to_string());
+                photo.clone()
+            }
+        }
+    } else {
+        photo.clone()
+    };
+    let resolved = match crate::gonio::light_to_reconstruct(scene)? {
+        Some(_) => Some(times.time("goniometric", || reconstruct_cached(scene, &photo, tracer))?),
+        None => None,
+    };
+    Ok((resolved, photo))
+}
+
+/// The diagonal of the real geometry's bounding box.
+pub(crate) fn room_diagonal(scene: &Scene) -> f64 {
+    let (lo, hi) = crate::geometry::bounds(
+        scene
+            .surfaces
+            .iter()
+            .flat_map(|s| s.triangles.iter().flatten())
+            .map(|p| p.as_dvec3()),
+    );
+    (hi - lo).length()
+}
+
+/// The patch size at which the room's radiosity is accurate per patch.
+pub fn fine_patch_size(scene: &Scene) -> f64 {
+    room_diagonal(scene) / 24.0
+}
+
+/// `scene` with its light to reconstruct recovered from `photo`
+/// ([`crate::gonio::reconstruct`]), through a cache next to the scene keyed
+/// by the scene file, its meshes, the photo's files and the settings.
+pub fn reconstruct_cached(
+    scene: &Scene,
+    photo: &Image,
+    tracer: &crate::trace::Tracer,
+) -> Result<Scene> {
+    let settings = crate::gonio::GonioSettings::default();
+    let mut files: Vec<std::path::PathBuf> = vec![scene.file.clone()];
+    files.extend(scene.surfaces.iter().map(|s| s.mesh.clone()));
+    match &scene.photo {
+        crate::scene::Photo::Image(p) => files.push(p.clone()),
+        crate::scene::Photo::Brackets(b) => files.extend(b.iter().map(|b| b.image.clone())),
+    }
+    files.dedup();
+    let mut hash = crate::util::cache::ContentHash::default();
+    let readable = files
+        .iter()
+        .all(|f| std::fs::read(f).map(|bytes| hash.feed(&bytes)).is_ok());
+    hash.feed(format!("{settings:?} {}", crate::gonio::ALGORITHM_VERSION).as_bytes());
+    let cache = hash.entry(scene.dir(), "gonio", "ies");
+    if readable
+        && let Some((light, profile, colour)) = std::fs::read_to_string(&cache)
+            .ok()
+            .and_then(|t| crate::gonio::from_cache_text(&t, &cache))
+            .filter(|(l, _, _)| *l < scene.lights.len())
+    {
+        return Ok(crate::gonio::apply_profile(scene, light, &profile, colour));
+    }
+    let rec = crate::gonio::reconstruct(scene, photo, tracer, &settings)?;
+    if readable
+        && cache
+            .parent()
+            .is_some_and(|d| std::fs::create_dir_all(d).is_ok())
+    {
+        let _ = crate::image_io::write_atomic(&cache, rec.to_cache_text().as_bytes());
+    }
+    Ok(rec.apply(scene))
+}
+
+/// Bumped when [`crate::model::bracket_scale`] changes what it returns, so
+/// that caches written by an older arlux are not read.
+pub const BRACKET_SCALE_VERSION: u32 = 3;
+
+/// [`crate::model::bracket_scale`] on a fine mesh (the factor rests on a
+/// few surfaces' estimates, which coarse patches bias), cached next to the
+/// scene under a hash of the scene file, its meshes and the brackets.
+pub fn bracket_scale_cached(
+    scene: &Scene,
+    photo: &Image,
+    tracer: &crate::trace::Tracer,
+    settings: &ModelSettings,
+    patch_size: f64,
+) -> Option<f64> {
+    let mut hash = crate::util::cache::ContentHash::default();
+    let mut feed = |bytes: &[u8]| hash.feed(bytes);
+    let mut files: Vec<std::path::PathBuf> = vec![scene.file.clone()];
+    files.extend(scene.surfaces.iter().map(|s| s.mesh.clone()));
+    if let crate::scene::Photo::Brackets(b) = &scene.photo {
+        files.extend(b.iter().map(|b| b.image.clone()));
+    }
+    files.dedup();
+    for f in &files {
+        feed(&std::fs::read(f).ok()?);
+    }
+    feed(&patch_size.to_le_bytes());
+    // A change to how the factor is found, or to its settings, is a new entry.
+    feed(format!("{BRACKET_SCALE_VERSION} {settings:?}").as_bytes());
+    let cache = hash.entry(scene.dir(), "scale", "txt");
+    if let Some(s) = std::fs::read_to_string(&cache)
+        .ok()
+        .and_then(|t| t.trim().parse::<f64>().ok())
+        .filter(|s| s.is_finite() && *s > 0.0)
+    {
+        return Some(s);
+    }
+    let fine = ModelSettings {
+        patch_size,
+        ..*settings
+    };
+    let scale = crate::model::bracket_scale(scene, photo, tracer, &fine)?;
+    if std::fs::create_dir_all(cache.parent()?).is_ok() {
+        let _ = crate::image_io::write_atomic(&cache, format!("{scale}\n").as_bytes());
+    }
+    Some(scale)
+}

@@ -1,0 +1,41 @@
+//! What a render produced and what it did, whichever method made it (the
+//! pixel path of `render` or the texture path of `relight`).
+
+use crate::composite::Composite;
+use crate::image_io::Image;
+
+/// What a render produced and what it did.
+pub struct RenderOutput {
+    pub composite: Composite,
+    /// Stages that ran are in the timings; these were left out, with why.
+    pub left_out: Vec<String>,
+    pub pda_bytes: usize,
+    pub pda_pixels: usize,
+    pub rays: u64,
+    pub patches: usize,
+    pub links: usize,
+    /// The room's patch size used, metres.
+    pub patch_size: f64,
+    /// `--method texture`: what the preprocess did, the shadow-free texture
+    /// seen from the camera, and the time of the light change alone.
+    pub texture: Option<(TextureStats, Image, std::time::Duration)>,
+}
+
+/// What the preprocess did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TextureStats {
+    pub rounds: usize,
+    /// Leaves split by the refinement, and splits undone (no visibility change).
+    pub splits: usize,
+    pub undone: usize,
+    pub leaves: usize,
+    pub links: usize,
+    /// Seen leaves occluded from some real light, and how each was corrected.
+    pub occluded: usize,
+    pub by_frontier: usize,
+    pub by_user_reference: usize,
+    pub uncorrected: usize,
+    pub texels: usize,
+    pub texture_bytes: usize,
+    pub patch_size: f64,
+}
