@@ -64,6 +64,94 @@ pub fn compare(image: &Image, reference: &Image, mask: Option<&[bool]>) -> Compa
     }
 }
 
+/// How much of a change a result gets right, over the pixels the change
+/// touches: 1 is perfect, 0 no better than leaving the photo alone,
+/// negative worse.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Skill {
+    /// Pixels the change touches: where the 5×5 box-filtered |truth − photo|
+    /// (mean of channels) exceeds 3% of the 5×5 box-filtered photo plus
+    /// [`SKILL_FLOOR`] (edges clamped), so that the mask follows the change
+    /// and not a reference's Monte Carlo noise.
+    pub changed_pixels: usize,
+    /// RMSE of the result against the truth over the changed pixels.
+    pub rmse_changed: f64,
+    /// RMSE of the unchanged photo against the truth over them.
+    pub rmse_photo_changed: f64,
+    /// 1 − rmse_changed / rmse_photo_changed (`None` when nothing changed).
+    pub skill: Option<f64>,
+}
+
+/// The relative change under which a pixel counts as untouched, and the
+/// absolute floor added to it (radiance units).
+pub const SKILL_RELATIVE: f64 = 0.03;
+pub const SKILL_FLOOR: f64 = 0.002;
+
+/// Mean over a (2r+1)² window of an image-sized field, the window clamped
+/// at the image's edges (edge values repeated), by a summed-area table.
+fn box_filter(values: &[f64], width: usize, height: usize, r: usize) -> Vec<f64> {
+    let (pw, ph) = (width + 2 * r, height + 2 * r);
+    let at = |x: usize, y: usize| {
+        let cx = x.saturating_sub(r).min(width - 1);
+        let cy = y.saturating_sub(r).min(height - 1);
+        values[cy * width + cx]
+    };
+    let mut sat = vec![0.0f64; (pw + 1) * (ph + 1)];
+    for y in 0..ph {
+        for x in 0..pw {
+            sat[(y + 1) * (pw + 1) + x + 1] =
+                at(x, y) + sat[y * (pw + 1) + x + 1] + sat[(y + 1) * (pw + 1) + x]
+                    - sat[y * (pw + 1) + x];
+        }
+    }
+    let k = 2 * r + 1;
+    let area = (k * k) as f64;
+    let mut out = vec![0.0; width * height];
+    for y in 0..height {
+        for x in 0..width {
+            let (x1, y1) = (x + k, y + k);
+            out[y * width + x] =
+                (sat[y1 * (pw + 1) + x1] - sat[y * (pw + 1) + x1] - sat[y1 * (pw + 1) + x]
+                    + sat[y * (pw + 1) + x])
+                    / area;
+        }
+    }
+    out
+}
+
+/// The skill of `result` at reproducing the change from `photo` to
+/// `truth` (all three the same size).
+pub fn skill(result: &Image, truth: &Image, photo: &Image) -> Skill {
+    let (w, h) = (truth.width as usize, truth.height as usize);
+    let mean = |p: glam::Vec3| (p.x as f64 + p.y as f64 + p.z as f64) / 3.0;
+    let diff: Vec<f64> = truth
+        .pixels
+        .iter()
+        .zip(&photo.pixels)
+        .map(|(t, p)| mean((*t - *p).abs()))
+        .collect();
+    let level: Vec<f64> = photo.pixels.iter().map(|p| mean(*p)).collect();
+    let (diff, level) = (box_filter(&diff, w, h, 2), box_filter(&level, w, h, 2));
+    let changed: Vec<bool> = diff
+        .iter()
+        .zip(&level)
+        .map(|(d, l)| *d > SKILL_RELATIVE * l + SKILL_FLOOR)
+        .collect();
+    let ours = compare(result, truth, Some(&changed));
+    let photo_error = compare(photo, truth, Some(&changed));
+    let (rmse_changed, rmse_photo_changed) = if ours.pixels == 0 {
+        (0.0, 0.0)
+    } else {
+        (ours.rmse, photo_error.rmse)
+    };
+    Skill {
+        changed_pixels: ours.pixels,
+        rmse_changed,
+        rmse_photo_changed,
+        skill: (rmse_photo_changed > 0.0).then(|| 1.0 - rmse_changed / rmse_photo_changed),
+    }
+}
+
 /// Reads a mask image: a pixel is inside where its grey value is above one half.
 pub fn read_mask(path: &Path, width: u32, height: u32) -> Result<Vec<bool>> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
@@ -106,5 +194,50 @@ mod tests {
             (masked.pixels, masked.rmse, masked.psnr_srgb_db),
             (1, 0.0, None)
         );
+    }
+
+    #[test]
+    fn box_filter_clamps_at_the_edges() {
+        // 3×1 row [0, 3, 6], radius 1: windows of 3×3 with edges repeated.
+        let f = box_filter(&[0.0, 3.0, 6.0], 3, 1, 1);
+        let expect = [(0.0 + 0.0 + 3.0) / 3.0, 3.0, (3.0 + 6.0 + 6.0) / 3.0];
+        for (a, b) in f.iter().zip(expect) {
+            assert!((a - b).abs() < 1e-12, "{f:?}");
+        }
+    }
+
+    #[test]
+    fn skill_is_one_for_the_truth_zero_for_the_photo_and_half_halfway() {
+        let (w, h) = (20u32, 10u32);
+        let photo = Image {
+            width: w,
+            height: h,
+            pixels: vec![Vec3::splat(0.5); (w * h) as usize],
+        };
+        let mut truth = photo.clone();
+        // A 6×4 patch darkened by 40%: well above the 3% threshold.
+        for y in 3..7 {
+            for x in 5..11 {
+                truth.pixels[(y * w + x) as usize] = Vec3::splat(0.3);
+            }
+        }
+        let halfway = Image {
+            pixels: photo
+                .pixels
+                .iter()
+                .zip(&truth.pixels)
+                .map(|(p, t)| (*p + *t) * 0.5)
+                .collect(),
+            ..photo.clone()
+        };
+        let s = skill(&truth, &truth, &photo);
+        assert_eq!(s.skill, Some(1.0));
+        // Changed: the pixels whose 5×5 window holds at least 3 of the
+        // patch's (3 × 0.2 / 25 > 0.03 × 0.5 + 0.002), 68 by brute force.
+        assert_eq!(s.changed_pixels, 68);
+        assert_eq!(skill(&photo, &truth, &photo).skill, Some(0.0));
+        let half = skill(&halfway, &truth, &photo).skill.unwrap();
+        assert!((half - 0.5).abs() < 1e-6, "{half}");
+        assert_eq!(skill(&photo, &photo, &photo).skill, None);
     }
 }

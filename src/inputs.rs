@@ -4,8 +4,10 @@
 
 use crate::error::Result;
 use crate::image_io::Image;
+use crate::lamps::LampPixels;
 use crate::model::{ModelSettings, StageTimes};
 use crate::scene::Scene;
+use crate::trace::Tracer;
 
 /// What every method needs before it starts: the photo in absolute units
 /// (merged brackets are radiance up to a factor, fixed from the known
@@ -145,4 +147,32 @@ pub fn bracket_scale_cached(
         let _ = crate::image_io::write_atomic(&cache, format!("{scale}\n").as_bytes());
     }
     Some(scale)
+}
+
+/// The pixels that see a lamp, with the photo the stages read (those
+/// pixels filled from around them), and the lamps with the photo as shot;
+/// the photo unchanged when no lamp is in view. `supersample` is the edge
+/// supersampling: a lamp is sampled [`crate::lamps::LAMP_SUPERSAMPLE_FACTOR`]
+/// times as finely per side.
+pub fn lamps_in_view(
+    scene: &Scene,
+    photo: Image,
+    tracer: &Tracer,
+    supersample: u32,
+    times: &mut StageTimes,
+) -> Result<(Image, Option<(LampPixels, Image)>)> {
+    let lights = crate::light::LightSource::all(scene)?;
+    let found = times.time("lamps in view", || {
+        LampPixels::find(
+            &scene.camera,
+            &lights,
+            tracer,
+            supersample * crate::lamps::LAMP_SUPERSAMPLE_FACTOR,
+        )
+        .map(|l| (l.photo_without_lamps(&photo), l))
+    });
+    Ok(match found {
+        Some((filled, lamps)) => (filled, Some((lamps, photo))),
+        None => (photo, None),
+    })
 }

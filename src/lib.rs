@@ -19,6 +19,7 @@ pub mod hdr;
 pub mod ies;
 pub mod image_io;
 pub mod inputs;
+pub mod lamps;
 pub mod light;
 pub mod model;
 pub mod objects;

@@ -1021,10 +1021,20 @@ pub fn render_texture(
     if tracer.virtual_objects.is_none() {
         left_out.push("virtual geometry: no virtual object".to_string());
     }
+    let supersample = crate::pda::PdaSettings::default().supersample;
+    let (photo, lamps) = crate::inputs::lamps_in_view(scene, photo, &tracer, supersample, times)?;
+    if lamps.is_none() {
+        left_out.push("lamps in view: no rect light is seen".to_string());
+    }
     let path = TexturePath::prepare(scene, &photo, &tracer, settings, times)?;
     let scales: Vec<f64> = scene.lights.iter().map(|l| l.scale).collect();
     let before = times.total();
-    let composite = path.relight(&scales, times);
+    let mut composite = path.relight(&scales, times);
+    if let Some((lamps, shot)) = &lamps {
+        times.time("lamps in view", || {
+            lamps.apply(&mut composite, shot, &photo, &scales, &tracer)
+        });
+    }
     let light_change = times.total() - before;
     let unoccluded = times.time("unoccluded texture", || path.unoccluded_texture());
     let out = crate::output::RenderOutput {

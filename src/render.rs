@@ -12,9 +12,10 @@ use glam::DVec3;
 use crate::composite::{Composite, CompositeInput, CompositeMode, RealPixels, composite_into};
 use crate::error::Result;
 use crate::image_io::Image;
+use crate::lamps::LampPixels;
 use crate::model::{Model, ModelSettings, StageTimes, TransportMethod};
 
-use crate::inputs::{fine_patch_size, resolve_inputs, room_diagonal};
+use crate::inputs::{fine_patch_size, lamps_in_view, resolve_inputs, room_diagonal};
 pub use crate::output::RenderOutput;
 use crate::patches::Patches;
 use crate::pda::{CLEAR_TEST_LIMIT, PdaInput, PdaSettings, PixelDataArray, VirtualBounds};
@@ -120,7 +121,10 @@ pub struct Session {
     scene: Scene,
     /// The lights as the caller gave them: updates must keep them.
     given_lights: Vec<crate::scene::Light>,
+    /// The photo as the stages read it: lamps in view filled from around them.
     photo: Image,
+    /// The lamps in view, and the photo as shot (when there are any).
+    lamps: Option<(LampPixels, Image)>,
     settings: RenderSettings,
     tracer: crate::trace::Tracer,
     model: Model,
@@ -262,6 +266,10 @@ impl Session {
         let (resolved, photo) =
             resolve_inputs(scene, photo, &tracer, &settings.model, times, &mut left_out)?;
         let scene = resolved.as_ref().unwrap_or(scene);
+        let (photo, lamps) = lamps_in_view(scene, photo, &tracer, settings.pda.supersample, times)?;
+        if lamps.is_none() {
+            left_out.push("lamps in view: no rect light is seen".to_string());
+        }
         let model = Model::build(scene, &photo, &tracer, &settings.model, times)?;
         let scales_without: Vec<f64> = model.lights.iter().map(|l| l.photo_scale()).collect();
         let scales_with: Vec<f64> = model.lights.iter().map(|l| l.scale).collect();
@@ -323,6 +331,7 @@ impl Session {
             scene: scene.clone(),
             given_lights,
             photo,
+            lamps,
             settings,
             tracer,
             model,
@@ -395,6 +404,11 @@ impl Session {
             );
             Some(known)
         });
+        if let Some((lamps, shot)) = &self.lamps {
+            times.time("lamps in view", || {
+                lamps.apply(&mut out, shot, &self.photo, &self.scales_with, &self.tracer)
+            });
+        }
         self.composite = out;
         self.known = known;
     }

@@ -3,6 +3,8 @@
 //! spot of scene.toml, and the reflectances found on the way against those
 //! estimated with the true spot.
 
+mod common;
+
 use std::collections::HashMap;
 
 use glam::DVec3;
@@ -17,7 +19,7 @@ use arlux::surface_ids::row_hits;
 use arlux::trace::Layer;
 
 fn scene(name: &str) -> Scene {
-    Scene::load(format!("{}/scenes/desk/{name}", env!("CARGO_MANIFEST_DIR"))).unwrap()
+    common::load("desk", name)
 }
 
 /// Per real surface, the area mean of reflectances estimated with the true lights on a fine mesh.

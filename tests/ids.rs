@@ -1,7 +1,7 @@
 //! The surface seen at each pixel centre of `scenes/desk` against the
 //! dataset's independent ray caster (`truth/ids.exr`, channel Y).
 
-use std::path::Path;
+mod common;
 
 use arlux::image_io::read_exr_channel;
 use arlux::scene::Scene;
@@ -9,7 +9,7 @@ use arlux::surface_ids::SurfaceIds;
 use arlux::trace::Layer;
 
 fn desk() -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk")
+    common::scene_dir("desk")
 }
 
 #[test]

@@ -1,6 +1,9 @@
 //! Radiosity and estimation on `scenes/desk`: hierarchical against the
 //! full-matrix oracle, and a known reflectance recovered without being told.
 
+mod common;
+use common::desk;
+
 use std::collections::HashMap;
 use std::time::Instant;
 
@@ -16,14 +19,6 @@ use arlux::patches::Patches;
 use arlux::radiosity::{DEFAULT_LINK_EPSILON, Transport, direct_irradiance, solve, total_direct};
 use arlux::scene::Scene;
 use arlux::trace::{Layer, TraceRay};
-
-fn desk() -> Scene {
-    Scene::load(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/scenes/desk/scene.toml"
-    ))
-    .unwrap()
-}
 
 /// The desk's room at 0.5 m patches, with the photo's direct light per patch.
 fn desk_at_half_a_metre() -> (Scene, arlux::trace::Tracer, Patches, Vec<DVec3>) {

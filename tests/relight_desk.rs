@@ -3,6 +3,9 @@
 //! their truth next to the pixel path, real shadows of a switched-off lamp
 //! gone, and D ≈ 0.
 
+mod common;
+use common::desk;
+
 use arlux::compare::compare;
 use arlux::image_io::{Image, read_image};
 use arlux::light::LightSource;
@@ -11,14 +14,6 @@ use arlux::relight::{TexturePath, TextureSettings, render_texture};
 use arlux::render::{RenderSettings, render};
 use arlux::scene::Scene;
 use arlux::trace::Layer;
-
-fn desk() -> Scene {
-    Scene::load(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/scenes/desk/scene.toml"
-    ))
-    .unwrap()
-}
 
 fn luminance(p: glam::Vec3) -> f64 {
     (0.2126 * p.x + 0.7152 * p.y + 0.0722 * p.z) as f64

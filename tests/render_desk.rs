@@ -2,19 +2,14 @@
 //! error overall, on the virtual object, in its shadow and elsewhere; the
 //! shadow's darkening against the truth's; and what must stay the photo.
 
+mod common;
+use common::desk;
+
 use arlux::compare::compare;
 use arlux::image_io::{Image, read_image};
 use arlux::model::StageTimes;
 use arlux::render::{RenderOutput, RenderSettings, render};
 use arlux::scene::Scene;
-
-fn desk() -> Scene {
-    Scene::load(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/scenes/desk/scene.toml"
-    ))
-    .unwrap()
-}
 
 fn luminance(p: glam::Vec3) -> f32 {
     0.2126 * p.x + 0.7152 * p.y + 0.0722 * p.z

@@ -1,19 +1,14 @@
 //! Stiff and extreme cases through the whole model (estimation, radiosity,
 //! per-pixel view): no NaN or Inf leaves any stage, nothing is negative.
 
+mod common;
+use common::desk;
+
 use glam::DVec3;
 
 use arlux::image_io::Image;
 use arlux::model::{Model, ModelSettings, ModelView, StageTimes};
 use arlux::scene::{KnownReflectance, LightPosition, Scene};
-
-fn desk() -> Scene {
-    Scene::load(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/scenes/desk/scene.toml"
-    ))
-    .unwrap()
-}
 
 fn all_finite(img: &Image) -> bool {
     img.pixels

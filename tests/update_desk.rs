@@ -1,18 +1,12 @@
 //! Incremental updates along the desk's `box_slide` motion: each update
 //! gives the image a full render of that pose gives.
 
+mod common;
+use common::desk;
+
 use arlux::image_io::Image;
 use arlux::model::StageTimes;
 use arlux::render::{RenderSettings, Session, render};
-use arlux::scene::Scene;
-
-fn desk() -> Scene {
-    Scene::load(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/scenes/desk/scene.toml"
-    ))
-    .unwrap()
-}
 
 fn differing(a: &Image, b: &Image) -> usize {
     a.pixels

@@ -95,3 +95,14 @@ pub(crate) fn photo_in_units(
     }
     Ok(photo)
 }
+
+/// The skill figures on one line.
+pub(crate) fn skill_line(s: &arlux::compare::Skill) -> String {
+    match s.skill {
+        Some(k) => format!(
+            "skill {k:.3} over the {} pixels the change touches (RMSE {:.5} there; the unchanged photo's {:.5})",
+            s.changed_pixels, s.rmse_changed, s.rmse_photo_changed
+        ),
+        None => "skill: n/a (the reference does not differ from the photo)".to_string(),
+    }
+}

@@ -4,9 +4,10 @@ use std::path::PathBuf;
 
 use anyhow::{Result, bail};
 
-use arlux::compare::{Comparison, compare, read_mask};
+use arlux::compare::{Comparison, compare, read_mask, skill};
 use arlux::image_io::{self, Image};
 
+use crate::common::skill_line;
 use crate::timing::*;
 
 /// Arguments of `arlux compare`.
@@ -17,6 +18,11 @@ pub struct Args {
     /// Compare only where this PNG is white (grey > 0.5).
     #[arg(long)]
     pub mask: Option<PathBuf>,
+    /// The photo the image changed: also report the skill over the pixels
+    /// the change from the photo to the reference touches (1 perfect, 0 no
+    /// better than the photo, negative worse).
+    #[arg(long)]
+    pub photo: Option<PathBuf>,
     #[arg(long)]
     pub json: bool,
 }
@@ -26,29 +32,43 @@ pub fn run(args: &Args) -> Result<()> {
     let reference = args.reference.as_path();
     let mask = args.mask.as_deref();
     let as_json = args.json;
-    let (a, b) = stage("load", || -> Result<(Image, Image)> {
+    let (a, b, photo) = stage("load", || -> Result<(Image, Image, Option<Image>)> {
+        let photo = args
+            .photo
+            .as_deref()
+            .map(image_io::read_image)
+            .transpose()?;
         Ok((
             image_io::read_image(image)?,
             image_io::read_image(reference)?,
+            photo,
         ))
     })?;
-    if (a.width, a.height) != (b.width, b.height) {
-        bail!(arlux::Error::file(
-            image,
-            format!(
-                "is {}x{} but {} is {}x{}",
-                a.width,
-                a.height,
-                reference.display(),
-                b.width,
-                b.height
-            )
-        ));
+    let others = [(reference, &b)]
+        .into_iter()
+        .chain(args.photo.as_deref().zip(photo.as_ref()));
+    for (path, other) in others {
+        if (a.width, a.height) != (other.width, other.height) {
+            bail!(arlux::Error::file(
+                image,
+                format!(
+                    "is {}x{} but {} is {}x{}",
+                    a.width,
+                    a.height,
+                    path.display(),
+                    other.width,
+                    other.height
+                )
+            ));
+        }
     }
     let mask = mask.map(|m| read_mask(m, a.width, a.height)).transpose()?;
     let c: Comparison = stage("compare", || compare(&a, &b, mask.as_deref()));
+    let s = photo.map(|p| stage("skill", || skill(&a, &b, &p)));
     if as_json {
-        say!("{}", serde_json::to_string_pretty(&c)?);
+        let mut report = serde_json::to_value(c)?;
+        report["skill"] = serde_json::to_value(s)?;
+        say!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         say!("pixels         {}", c.pixels);
         say!("rmse           {:.6}", c.rmse);
@@ -64,6 +84,9 @@ pub fn run(args: &Args) -> Result<()> {
         );
         say!("mean           {:.6}", c.mean);
         say!("mean reference {:.6}", c.mean_reference);
+        if let Some(s) = &s {
+            say!("{}", skill_line(s));
+        }
     }
     Ok(())
 }

@@ -5,8 +5,10 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use serde_json::json;
 
-use arlux::compare::{Comparison, compare};
+use arlux::compare::{Comparison, Skill, compare, skill};
 use arlux::image_io::{self};
+use arlux::model::StageTimes;
+use arlux::output::RenderOutput;
 
 use arlux::composite::CompositeMode;
 use arlux::settings::{Method, RenderMethod, RenderOptions};
@@ -97,16 +99,9 @@ impl Args {
 
 pub fn run(args: &Args) -> Result<()> {
     let method = args.options().resolve()?;
-    let method = &method;
-    let path = args.scene.as_path();
-    let variant = args.variant.as_deref();
-    let output = args.output.as_path();
-    let png = args.png.as_deref();
-    let aov = args.aov.as_deref();
-    let as_json = args.json;
-    use arlux::model::StageTimes;
     let mut times = StageTimes::default();
-    let base = times.time("load", || load(path, None))?;
+    let base = times.time("load", || load(&args.scene, None))?;
+    let variant = args.variant.as_deref();
     let scene = match variant {
         Some(v) => base.with_variant(v)?,
         None => base.clone(),
@@ -115,70 +110,77 @@ pub fn run(args: &Args) -> Result<()> {
         .and_then(|v| base.variant(v).ok())
         .and_then(|v| v.reference.clone());
     let photo = times.time("read photo", || scene.load_photo())?;
-    let out = match method {
+    let out = match &method {
         Method::Pda(settings) => arlux::render::render(&scene, &photo, settings, &mut times)?,
         Method::Texture(settings) => {
             arlux::relight::render_texture(&scene, &photo, settings, &mut times)?
         }
     };
-    let c = &out.composite;
-    times.time("write", || -> Result<()> {
-        let (w, h) = (photo.width, photo.height);
-        let layers = [
-            image_io::ExrLayer::Rgb("", &c.image),
-            image_io::ExrLayer::Rgb("direct", &c.direct),
-            image_io::ExrLayer::Rgb("indirect", &c.indirect),
-            image_io::ExrLayer::Rgb("change", &c.change),
-            image_io::ExrLayer::Channel("A", &c.alpha),
-        ];
-        image_io::write_exr(output, w, h, &layers)?;
-        if let Some(png) = png {
-            image_io::write_png(png, &c.image, 0.0)?;
-        }
-        if let Some(dir) = aov {
-            std::fs::create_dir_all(dir)
-                .with_context(|| format!("{}: could not create the folder", dir.display()))?;
-            for (name, img) in [
-                ("direct", &c.direct),
-                ("indirect", &c.indirect),
-                ("change", &c.change),
-            ] {
-                image_io::write_exr(
-                    &dir.join(format!("{name}.exr")),
-                    w,
-                    h,
-                    &[image_io::ExrLayer::Rgb("", img)],
-                )?;
-            }
-            image_io::write_exr(
-                &dir.join("alpha.exr"),
-                w,
-                h,
-                &[image_io::ExrLayer::Channel("Y", &c.alpha)],
-            )?;
-            if let Some((_, unoccluded, _)) = &out.texture {
-                image_io::write_exr(
-                    &dir.join("unoccluded_texture.exr"),
-                    w,
-                    h,
-                    &[image_io::ExrLayer::Rgb("", unoccluded)],
-                )?;
-            }
-        }
-        Ok(())
-    })?;
-    let error = times.time("compare", || -> Result<Option<Comparison>> {
-        match &reference {
-            Some(r) => {
-                let truth = image_io::read_image(r)?;
-                scene.check_size(&truth, "variant.reference")?;
-                Ok(Some(compare(&c.image, &truth, None)))
-            }
-            None => Ok(None),
-        }
+    times.time("write", || write_outputs(args, &out))?;
+    let error = times.time("compare", || -> Result<Option<(Comparison, Skill)>> {
+        let Some(r) = &reference else { return Ok(None) };
+        let truth = image_io::read_image(r)?;
+        scene.check_size(&truth, "variant.reference")?;
+        let image = &out.composite.image;
+        Ok(Some((
+            compare(image, &truth, None),
+            skill(image, &truth, &photo),
+        )))
     })?;
     keep(&times);
-    let report = json!({
+    if args.json {
+        let report = report_json(variant, &out, error.as_ref(), &times);
+        say!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    print_report(&out, error.as_ref())?;
+    print_stages(&times)?;
+    Ok(())
+}
+
+/// The EXR with its layers, and the PNG and AOV files asked for.
+fn write_outputs(args: &Args, out: &RenderOutput) -> Result<()> {
+    let c = &out.composite;
+    let (w, h) = (c.image.width, c.image.height);
+    let layers = [
+        image_io::ExrLayer::Rgb("", &c.image),
+        image_io::ExrLayer::Rgb("direct", &c.direct),
+        image_io::ExrLayer::Rgb("indirect", &c.indirect),
+        image_io::ExrLayer::Rgb("change", &c.change),
+        image_io::ExrLayer::Channel("A", &c.alpha),
+    ];
+    image_io::write_exr(&args.output, w, h, &layers)?;
+    if let Some(png) = &args.png {
+        image_io::write_png(png, &c.image, 0.0)?;
+    }
+    let Some(dir) = &args.aov else { return Ok(()) };
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("{}: could not create the folder", dir.display()))?;
+    let mut files = vec![
+        ("direct", &c.direct),
+        ("indirect", &c.indirect),
+        ("change", &c.change),
+    ];
+    if let Some((_, unoccluded, _)) = &out.texture {
+        files.push(("unoccluded_texture", unoccluded));
+    }
+    for (name, img) in files {
+        let layer = [image_io::ExrLayer::Rgb("", img)];
+        image_io::write_exr(&dir.join(format!("{name}.exr")), w, h, &layer)?;
+    }
+    let alpha = [image_io::ExrLayer::Channel("Y", &c.alpha)];
+    image_io::write_exr(&dir.join("alpha.exr"), w, h, &alpha)?;
+    Ok(())
+}
+
+fn report_json(
+    variant: Option<&str>,
+    out: &RenderOutput,
+    error: Option<&(Comparison, Skill)>,
+    times: &StageTimes,
+) -> serde_json::Value {
+    let c = &out.composite;
+    json!({
         "variant": variant,
         "pixels": out.pda_pixels,
         "copied_from_photo": c.copied,
@@ -197,15 +199,16 @@ pub fn run(args: &Args) -> Result<()> {
             "corrected_from_user_reference": s.by_user_reference, "uncorrected": s.uncorrected,
             "texels": s.texels, "texture_bytes": s.texture_bytes, "light_change_seconds": change.as_secs_f64(),
         })),
-        "error_against_reference": error,
+        "error_against_reference": error.map(|e| e.0),
+        "skill_against_reference": error.map(|e| e.1),
         "left_out": out.left_out,
-        "stages": stages_json(&times),
+        "stages": stages_json(times),
         "total_seconds": times.total().as_secs_f64(),
-    });
-    if as_json {
-        say!("{}", serde_json::to_string_pretty(&report)?);
-        return Ok(());
-    }
+    })
+}
+
+fn print_report(out: &RenderOutput, error: Option<&(Comparison, Skill)>) -> Result<()> {
+    let c = &out.composite;
     match &out.texture {
         None => say!(
             "{} pixels, {} copied from the photo unchanged; {} patches ({:.2} m), {} form factors; {} rays; pixel data {:.1} MB ({:.0} bytes per pixel)",
@@ -256,7 +259,7 @@ pub fn run(args: &Args) -> Result<()> {
             ),
         }
     }
-    if let Some(e) = error {
+    if let Some((e, s)) = error {
         say!(
             "against the reference: RMSE {:.5}, relative {:.4}, PSNR {}, mean {:.5} (reference {:.5})",
             e.rmse,
@@ -266,10 +269,10 @@ pub fn run(args: &Args) -> Result<()> {
             e.mean,
             e.mean_reference
         );
+        say!("{}", skill_line(s));
     }
     for l in &out.left_out {
         say!("left out: {l}");
     }
-    print_stages(&times)?;
     Ok(())
 }
