@@ -323,10 +323,19 @@ fn plan_hull(points: &[DVec3]) -> Vec<glam::DVec2> {
     hull
 }
 
+/// The largest coordinate a vertex may have, metres. Rays are traced in
+/// single precision: at 1e6 m a float steps by 6 cm, coarser than the
+/// offsets that keep a shadow ray off its own surface (and Embree aborts
+/// on rays near 1e15).
+pub const MAX_COORDINATE: f32 = 1e6;
+
 /// Loads an OBJ file. Every `o`/`g` name is one surface; repeated names
-/// (a group split by `usemtl`, or reopened later) are merged.
+/// (a group split by `usemtl`, or reopened later) are merged. The file is
+/// read as bytes: a comment or name in another encoding than UTF-8 (an
+/// exporter's Latin-1) is kept with its unknown bytes replaced.
 pub fn load_obj(path: &Path) -> Result<Mesh> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, &e))?;
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
+    let text = String::from_utf8_lossy(&bytes);
     check_obj_lines(path, &text)?;
     let options = tobj::LoadOptions {
         triangulate: true,
@@ -421,6 +430,15 @@ fn check_obj_lines(path: &Path, text: &str) -> Result<()> {
         match tag {
             "v" => {
                 floats(3, "vertex")?;
+                if let Some(far) = args[..3]
+                    .iter()
+                    .filter_map(|a| a.parse::<f32>().ok())
+                    .find(|c| c.abs() > MAX_COORDINATE)
+                {
+                    return Err(bad(format!(
+                        "vertex coordinate {far} lies beyond ±{MAX_COORDINATE} m: single-precision rays cannot resolve a room there (move the model near the origin)"
+                    )));
+                }
                 positions += 1;
             }
             "vt" => {

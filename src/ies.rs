@@ -157,7 +157,11 @@ impl<'a> Tokens<'a> {
                 return Err(Error::line(
                     self.path,
                     line,
-                    format!("{what} must increase, but {v} follows {}", values[i - 1]),
+                    format!(
+                        "{what} {} of {n} is {v} after {}: angles must increase (does the header's count of {n} match the angles listed? a count too high reads the next list's first value as one of these)",
+                        i + 1,
+                        values[i - 1]
+                    ),
                 ));
             }
             values.push(v);

@@ -290,6 +290,18 @@ pub fn write_png_rgb8(path: &Path, width: u32, height: u32, bytes: Vec<u8>) -> R
     write_atomic(path, out.get_ref())
 }
 
+/// With `ARLUX_TEST_WRITE_PAUSE_MS` set, waits that long with a temporary
+/// file written and not yet renamed: how the tests send a signal at that
+/// moment, deterministically.
+fn pause_for_tests() {
+    if let Some(ms) = std::env::var("ARLUX_TEST_WRITE_PAUSE_MS")
+        .ok()
+        .and_then(|v| v.parse::<u64>().ok())
+    {
+        std::thread::sleep(std::time::Duration::from_millis(ms));
+    }
+}
+
 /// Writes `bytes` to `path` through a temporary file in the same folder and
 /// a rename, so that `path` holds either its old content or the new, whole.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
@@ -305,14 +317,20 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         name.to_string_lossy(),
         std::process::id()
     ));
+    crate::util::cleanup::register(&tmp);
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
         f.write_all(bytes)?;
         f.sync_all()?;
+        pause_for_tests();
         std::fs::rename(&tmp, path)
     })();
+    if result.is_ok() {
+        crate::util::cleanup::unregister(&tmp);
+    }
     result.map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
+        crate::util::cleanup::unregister(&tmp);
         // Writing, "not found" means the folder: say so.
         if e.kind() == std::io::ErrorKind::NotFound && !dir.is_dir() {
             return Error::file(

@@ -108,6 +108,34 @@ pub struct Model {
     pub estimate: Estimate,
 }
 
+/// Patches above which a mesh is refused before it is built: the
+/// hierarchical links and the form factors grow faster than the patches,
+/// and at this count they would take gigabytes and hours.
+pub const MAX_PATCHES: f64 = 500_000.0;
+
+/// Refuses a patch size that would mesh the real surfaces into more than
+/// [`MAX_PATCHES`] patches (each surface splits into halves until no edge
+/// exceeds the size, so a patch covers at least half of size²).
+pub fn check_patch_count(scene: &Scene, patch_size: f64) -> Result<()> {
+    let area: f64 = scene
+        .surfaces
+        .iter()
+        .flat_map(|s| &s.triangles)
+        .map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length() as f64)
+        .sum();
+    let estimate = area / (0.5 * patch_size * patch_size);
+    if estimate > MAX_PATCHES {
+        return Err(crate::Error::file(
+            &scene.file,
+            format!(
+                "a patch size of {patch_size} m would mesh the room's {area:.0} m² into up to {estimate:.0} patches (at most {MAX_PATCHES} are built: links and form factors would take gigabytes); give a larger --patch-size, at least {:.3} m",
+                (2.0 * area / MAX_PATCHES).sqrt()
+            ),
+        ));
+    }
+    Ok(())
+}
+
 impl Model {
     /// Builds the model of `scene`'s real surfaces under its lights as the
     /// photo shows them (real lights at scale 1, virtual lights off).
@@ -119,6 +147,7 @@ impl Model {
         times: &mut StageTimes,
     ) -> Result<Model> {
         let lights = LightSource::all(scene)?;
+        check_patch_count(scene, settings.patch_size)?;
         let patches = times.time("mesh", || {
             Patches::of_scene(scene, false, settings.patch_size)
         });

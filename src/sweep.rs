@@ -207,15 +207,10 @@ pub enum Target<'a> {
 
 /// Renders `target` of `scene` at every setting of `grid` (each `repeats`
 /// times, keeping the fastest), calling `progress` after each.
-pub fn run(
-    scene: &Scene,
-    target: &Target,
-    grid: &[SweepSettings],
-    repeats: usize,
-    mut progress: impl FnMut(usize, &SweepRow),
-) -> Result<Vec<SweepRow>> {
-    let photo = scene.load_photo()?;
-    let references: Vec<Image> = match target {
+/// The references a sweep of `target` measures against; an error naming
+/// the key when the variant or motion is missing or has none.
+pub fn reference_files(scene: &Scene, target: &Target) -> Result<Vec<std::path::PathBuf>> {
+    match target {
         Target::Variant { name } => {
             let v = scene.variant(name)?;
             let Some(r) = &v.reference else {
@@ -225,7 +220,7 @@ pub fn run(
                     "a sweep measures error: the variant needs a reference",
                 ));
             };
-            vec![read_image(r)?]
+            Ok(vec![r.clone()])
         }
         Target::Motion { name } => {
             let m = scene.motion(name)?;
@@ -236,12 +231,23 @@ pub fn run(
                     "a sweep measures error: the motion needs references",
                 ));
             }
-            m.references
-                .iter()
-                .map(|r| read_image(r))
-                .collect::<Result<_>>()?
+            Ok(m.references.clone())
         }
-    };
+    }
+}
+
+pub fn run(
+    scene: &Scene,
+    target: &Target,
+    grid: &[SweepSettings],
+    repeats: usize,
+    mut progress: impl FnMut(usize, &SweepRow),
+) -> Result<Vec<SweepRow>> {
+    let photo = scene.load_photo()?;
+    let references: Vec<Image> = reference_files(scene, target)?
+        .iter()
+        .map(|r| read_image(r))
+        .collect::<Result<_>>()?;
     for r in &references {
         scene.check_size(r, "reference")?;
     }

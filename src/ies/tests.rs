@@ -235,7 +235,7 @@ fn malformed_files_are_reported_with_their_line() {
             "0 45 90",
             "0 90 45",
             6,
-            "vertical angle must increase, but 45 follows 90",
+            "vertical angle 3 of 3 is 45 after 90: angles must increase (does the header's count of 3 match",
         ),
         ("10 20 30", "10 -20 30", 8, "candela value -20 is negative"),
         (

@@ -146,6 +146,19 @@ impl<'a> Fields<'a> {
         }
     }
 
+    /// A point or offset in the world, within [`crate::geometry::MAX_COORDINATE`].
+    pub fn opt_place(&self, key: &'static str) -> Result<Option<DVec3>> {
+        match self.get(key) {
+            None => Ok(None),
+            Some(v) => place(v).map(Some).map_err(|m| self.error(key, m)),
+        }
+    }
+
+    pub fn req_place(&self, key: &'static str) -> Result<DVec3> {
+        self.required(key)?;
+        Ok(self.opt_place(key)?.expect("checked present"))
+    }
+
     pub fn req_vec3(&self, key: &'static str) -> Result<DVec3> {
         self.required(key)?;
         Ok(self.opt_vec3(key)?.expect("checked present"))
@@ -243,6 +256,20 @@ pub(crate) fn number(v: &Value) -> std::result::Result<f64, String> {
     } else {
         Err(format!("must be finite, found {x}"))
     }
+}
+
+/// A point or offset in the world: three numbers within
+/// ±[`crate::geometry::MAX_COORDINATE`] metres.
+pub(crate) fn place(v: &Value) -> std::result::Result<DVec3, String> {
+    let p = vec3(v)?;
+    let max = crate::geometry::MAX_COORDINATE as f64;
+    if p.abs().max_element() > max {
+        return Err(format!(
+            "{} lies beyond ±{max} m: single-precision rays cannot resolve a room there (move the scene near the origin)",
+            p.abs().max_element()
+        ));
+    }
+    Ok(p)
 }
 
 /// Three finite numbers from a TOML array.

@@ -268,6 +268,28 @@ impl Scene {
         Loader { file, dir }.scene(&table)
     }
 
+    /// Every file this scene reads: the manifest, meshes, photo or
+    /// brackets, IES files, references. An output must be none of them.
+    pub fn input_files(&self) -> Vec<PathBuf> {
+        let mut files = vec![self.file.clone()];
+        files.extend(self.surfaces.iter().map(|s| s.mesh.clone()));
+        files.extend(self.objects.iter().map(|o| o.mesh.clone()));
+        match &self.photo {
+            Photo::Image(p) => files.push(p.clone()),
+            Photo::Brackets(b) => files.extend(b.iter().map(|b| b.image.clone())),
+        }
+        for l in &self.lights {
+            if let Intensity::Ies { file, .. } = &l.intensity {
+                files.push(file.clone());
+            }
+        }
+        files.extend(self.variants.iter().filter_map(|v| v.reference.clone()));
+        for m in &self.motions {
+            files.extend(m.references.iter().cloned());
+        }
+        files
+    }
+
     /// The folder relative paths of this scene are resolved against.
     pub fn dir(&self) -> &Path {
         self.file.parent().unwrap_or(Path::new(""))
@@ -376,13 +398,16 @@ impl Scene {
         Ok(s)
     }
 
-    /// Reads the photograph and checks it against the camera: a photo whose
-    /// size differs from the camera's is an error, never resampled.
-    pub fn load_photo(&self) -> Result<Image> {
-        let (img, key) = match &self.photo {
+    /// The photo (or the merged brackets), with its negative pixels
+    /// clamped to zero (a photo's radiance cannot be negative: they come from
+    /// a merge's or a denoiser's ringing) and their count. Non-finite pixels
+    /// are an error, as is a photo whose size is not the camera's.
+    pub fn read_photo(&self) -> Result<(Image, usize)> {
+        let (mut img, key, file) = match &self.photo {
             Photo::Image(path) => (
                 image_io::read_image(path).map_err(|e| e.within(&self.file, "photo.image"))?,
                 "photo.image",
+                path.clone(),
             ),
             Photo::Brackets(brackets) => {
                 let list: Vec<(PathBuf, f64)> =
@@ -391,11 +416,39 @@ impl Scene {
                     crate::hdr::merge_cached(self.dir(), &list)
                         .map_err(|e| e.within(&self.file, "photo.brackets"))?,
                     "photo.brackets",
+                    brackets
+                        .first()
+                        .map(|b| b.image.clone())
+                        .unwrap_or_default(),
                 )
             }
         };
-        self.check_size(&img, key)?;
-        Ok(img)
+        let (w, h) = (self.camera.width, self.camera.height);
+        if (img.width, img.height) != (w, h) {
+            return Err(Error::key(
+                &self.file,
+                key,
+                format!(
+                    "{} is {}x{} but the camera is {w}x{h}",
+                    file.display(),
+                    img.width,
+                    img.height
+                ),
+            ));
+        }
+        let mut negative = 0;
+        for p in &mut img.pixels {
+            if p.min_element() < 0.0 {
+                negative += 1;
+                *p = p.max(glam::Vec3::ZERO);
+            }
+        }
+        Ok((img, negative))
+    }
+
+    /// [`Scene::read_photo`]'s image.
+    pub fn load_photo(&self) -> Result<Image> {
+        self.read_photo().map(|(img, _)| img)
     }
 
     /// Whether the photo's radiance is known only up to a global factor
@@ -717,8 +770,8 @@ impl Loader<'_> {
                 ));
             }
         }
-        let position = c.req_vec3("position")?;
-        let look_at = c.req_vec3("look_at")?;
+        let position = c.req_place("position")?;
+        let look_at = c.req_place("look_at")?;
         let up = c.opt_vec3("up")?.unwrap_or(DVec3::Y);
         let projection = match (c.opt_f64("fov_y_deg")?, c.opt_table("intrinsics")?) {
             (Some(_), Some(_)) => {
@@ -792,20 +845,23 @@ impl Loader<'_> {
                 p.finish()?;
                 LightPosition::FromShadows(c)
             }
-            Some(_) => LightPosition::Known(l.req_vec3("position")?),
+            Some(_) => LightPosition::Known(l.req_place("position")?),
         };
         let shape = match l.opt_table("shape")? {
             None => LightShape::Point,
             Some(s) => {
                 let r = s.req_table("rect")?;
                 s.finish()?;
-                let (u, v) = (r.req_vec3("u")?, r.req_vec3("v")?);
+                let (u, v) = (r.req_place("u")?, r.req_place("v")?);
                 r.finish()?;
+                // Name the vector at fault: a zero one, else v (parallel to u).
+                for (key, side) in [("u", u), ("v", v)] {
+                    if side.length() < 1e-9 {
+                        return Err(r.error(key, "must not be zero: a rect light needs a side"));
+                    }
+                }
                 if u.cross(v).length() < 1e-12 {
-                    return Err(r.error(
-                        "v",
-                        "u and v must span a rectangle (non-zero, not parallel)",
-                    ));
+                    return Err(r.error("v", "is parallel to u: u and v must span a rectangle"));
                 }
                 LightShape::Rect { u, v }
             }
@@ -997,7 +1053,7 @@ impl Loader<'_> {
             return Err(v.error("rgb", "a reflectance lies in [0, 1]"));
         }
         let pose = Pose {
-            translate: v.opt_vec3("translate")?.unwrap_or(DVec3::ZERO),
+            translate: v.opt_place("translate")?.unwrap_or(DVec3::ZERO),
             rotate_y_deg: v.opt_f64("rotate_y_deg")?.unwrap_or(0.0),
             scale: v.opt_f64("scale")?.unwrap_or(1.0),
         };
@@ -1089,7 +1145,7 @@ impl Loader<'_> {
                     })?;
                 let p = Fields::new(self.file, key, value)?;
                 let change = PoseChange {
-                    translate: p.opt_vec3("translate")?,
+                    translate: p.opt_place("translate")?,
                     rotate_y_deg: p.opt_f64("rotate_y_deg")?,
                     scale: p.opt_f64("scale")?,
                 };
@@ -1159,7 +1215,7 @@ impl Loader<'_> {
         let translations = items
             .iter()
             .map(|(path, v)| {
-                fields::vec3(v).map_err(|msg| Error::key(self.file, path.clone(), msg))
+                fields::place(v).map_err(|msg| Error::key(self.file, path.clone(), msg))
             })
             .collect::<Result<Vec<_>>>()?;
         let mut references = Vec::new();

@@ -243,7 +243,7 @@ fn bad_values_name_the_key_path() {
         ),
         (
             &[("v = [0.0, 0.0, 0.6]", "v = [1.2, 0.0, 0.0]")],
-            "light[0].shape.rect.v: u and v must span a rectangle",
+            "light[0].shape.rect.v: is parallel to u: u and v must span a rectangle",
         ),
         (
             &[("scale = 0.0\nintensity", "scale = -1.0\nintensity")],

@@ -1,5 +1,6 @@
 //! Helpers every stage may use, depending on none of them: deterministic
-//! randomness and content-hashed caches.
+//! randomness, content-hashed caches, and the temporary files a signal must remove.
 
 pub mod cache;
+pub mod cleanup;
 pub mod rng;

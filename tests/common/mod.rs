@@ -4,6 +4,7 @@
 #![allow(dead_code)] // each test binary uses its own part of this module
 
 use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
 
 use arlux::image_io::{Image, read_image};
 use arlux::scene::Scene;
@@ -28,4 +29,51 @@ pub fn desk() -> Scene {
 /// An image of an example scene, by its path inside the scene's folder.
 pub fn image(name: &str, file: &str) -> Image {
     read_image(&scene_dir(name).join(file)).unwrap()
+}
+
+pub const DESK: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/desk");
+
+/// A writable copy of the desk (scene.toml, geometry, photo) in a temporary folder.
+pub struct Desk {
+    pub dir: tempfile::TempDir,
+}
+
+impl Desk {
+    pub fn new() -> Desk {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("geometry")).unwrap();
+        for f in [
+            "scene.toml",
+            "photo.exr",
+            "geometry/room.obj",
+            "geometry/furniture.obj",
+            "geometry/box.obj",
+        ] {
+            std::fs::copy(Path::new(DESK).join(f), dir.path().join(f)).unwrap();
+        }
+        std::os::unix::fs::symlink(Path::new(DESK).join("truth"), dir.path().join("truth"))
+            .unwrap();
+        Desk { dir }
+    }
+
+    pub fn path(&self, rel: &str) -> PathBuf {
+        self.dir.path().join(rel)
+    }
+
+    pub fn edit(&self, rel: &str, old: &str, new: &str) {
+        let text = std::fs::read_to_string(self.path(rel)).unwrap();
+        assert!(text.contains(old), "{rel} has no '{old}'");
+        std::fs::write(self.path(rel), text.replacen(old, new, 1)).unwrap();
+    }
+
+    pub fn scene(&self) -> String {
+        self.path("scene.toml").display().to_string()
+    }
+}
+
+pub fn arlux(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_arlux"))
+        .args(args)
+        .output()
+        .unwrap()
 }

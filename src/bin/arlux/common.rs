@@ -10,6 +10,7 @@ use arlux::scene::{Photo, Scene};
 
 pub(crate) fn load(path: &Path, variant: Option<&str>) -> Result<Scene> {
     let scene = Scene::load(path)?;
+    crate::outputs::refuse_inputs(&scene.input_files())?;
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
@@ -17,6 +18,18 @@ pub(crate) fn load(path: &Path, variant: Option<&str>) -> Result<Scene> {
         Some(v) => scene.with_variant(v)?,
         None => scene,
     })
+}
+
+/// The scene's photo, saying how many negative pixels it had (clamped to 0).
+pub(crate) fn read_photo(scene: &Scene) -> Result<Image> {
+    let (img, negative) = scene.read_photo()?;
+    if negative > 0 {
+        eprintln!(
+            "warning: {}: {negative} pixels of the photo are negative; they are taken as 0",
+            scene.file.display()
+        );
+    }
+    Ok(img)
 }
 
 pub(crate) fn rel(scene: &Scene, p: &Path) -> String {
@@ -56,7 +69,7 @@ pub(crate) fn photo_range(img: &Image) -> serde_json::Value {
 /// exposure nearest EV 0 (decoded from sRGB; only for looking at).
 pub(crate) fn display_photo(scene: &Scene) -> Result<Image> {
     match &scene.photo {
-        Photo::Image(_) => Ok(scene.load_photo()?),
+        Photo::Image(_) => read_photo(scene),
         Photo::Brackets(bs) => {
             let b = bs
                 .iter()
@@ -75,7 +88,7 @@ pub(crate) fn photo_in_units(
     tracer: &arlux::trace::Tracer,
     times: &mut arlux::model::StageTimes,
 ) -> Result<Image> {
-    let mut photo = times.time("read photo", || scene.load_photo())?;
+    let mut photo = times.time("read photo", || read_photo(scene))?;
     if scene.photo_is_relative() {
         let base = arlux::model::ModelSettings::default();
         match times.time("bracket scale", || {

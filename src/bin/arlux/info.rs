@@ -31,7 +31,7 @@ pub fn run(args: &Args) -> Result<()> {
     let names = scene.surface_names();
     let photo = match &scene.photo {
         Photo::Image(p) => {
-            let img = stage("read photo", || scene.load_photo())?;
+            let img = stage("read photo", || read_photo(&scene))?;
             json!({ "image": rel(&scene, p), "range": stage("photo range", || photo_range(&img)) })
         }
         Photo::Brackets(bs) => json!({

@@ -1,9 +1,8 @@
 //! The `arlux` command line: parses arguments and calls the library.
 
-use std::path::Path;
 use std::process::ExitCode;
 
-use anyhow::{Result, bail};
+use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 /// Prints a line to stdout, failing (not panicking) when the reader has
@@ -22,11 +21,13 @@ mod hdr;
 mod ids;
 mod info;
 mod motion;
+mod outputs;
 mod radiosity;
 mod render;
 mod sweep;
 mod timing;
 
+use outputs::Output;
 use timing::{report_timings, stage};
 
 #[derive(Parser)]
@@ -66,8 +67,24 @@ enum Command {
     Compare(compare::Args),
 }
 
+/// On SIGINT, SIGTERM or SIGHUP: removes the run's temporary files and
+/// exits with 128 + the signal's number, as a shell reports a killed command.
+fn remove_temporaries_on_signals() {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) else {
+        return;
+    };
+    std::thread::spawn(move || {
+        if let Some(signal) = signals.forever().next() {
+            arlux::util::cleanup::remove_all();
+            std::process::exit(128 + signal);
+        }
+    });
+}
+
 fn main() -> ExitCode {
     let start = std::time::Instant::now();
+    remove_temporaries_on_signals();
     let cli = stage("arguments", Cli::parse);
     let timings = cli.timings;
     let result = run(cli);
@@ -93,34 +110,55 @@ fn main() -> ExitCode {
     }
 }
 
-/// The files a command will write (folders it creates itself are not here).
-fn output_files(command: &Command) -> Vec<&Path> {
+/// An optional output file.
+fn optional<'a>(
+    path: &'a Option<std::path::PathBuf>,
+    flag: &'static str,
+    extensions: &'static [&'static str],
+) -> Option<Output<'a>> {
+    path.as_deref().map(|p| Output::file(p, flag, extensions))
+}
+
+/// The files and folders a command will write.
+fn outputs(command: &Command) -> Vec<Output<'_>> {
+    const EXR: &[&str] = &["exr"];
+    const PNG: &[&str] = &["png"];
     let files = match command {
-        Command::Ids(a) => vec![Some(&a.output), a.exr.as_ref()],
-        Command::Render(a) => vec![Some(&a.output), a.png.as_ref()],
-        Command::Hdr(a) => vec![Some(&a.output), a.response.as_ref()],
-        Command::Radiosity(a) => vec![Some(&a.output), a.mesh.as_ref()],
-        Command::Gonio(a) => vec![Some(&a.output), a.plot.as_ref()],
-        Command::Motion(a) => vec![a.debug_blocks.as_ref()],
-        Command::Info(_) | Command::Compare(_) | Command::Sweep(_) => vec![],
+        Command::Ids(a) => vec![
+            Some(Output::file(&a.output, "-o", PNG)),
+            optional(&a.exr, "--exr", EXR),
+        ],
+        Command::Render(a) => vec![
+            Some(Output::file(&a.output, "-o", EXR)),
+            optional(&a.png, "--png", PNG),
+            a.aov.as_deref().map(|p| Output::folder(p, "--aov")),
+        ],
+        Command::Hdr(a) => vec![
+            Some(Output::file(&a.output, "-o", EXR)),
+            optional(&a.response, "--response", &["csv"]),
+        ],
+        Command::Radiosity(a) => vec![
+            Some(Output::file(&a.output, "-o", EXR)),
+            optional(&a.mesh, "--mesh", PNG),
+        ],
+        Command::Gonio(a) => vec![
+            Some(Output::file(&a.output, "-o", &["ies"])),
+            optional(&a.plot, "--plot", PNG),
+        ],
+        Command::Motion(a) => vec![
+            Some(Output::folder(&a.output, "-o")),
+            optional(&a.debug_blocks, "--debug-blocks", PNG),
+        ],
+        Command::Sweep(a) => vec![Some(Output::folder(&a.output, "-o"))],
+        Command::Info(_) | Command::Compare(_) => vec![],
     };
-    files.into_iter().flatten().map(|p| p.as_path()).collect()
+    files.into_iter().flatten().collect()
 }
 
 fn run(cli: Cli) -> Result<()> {
-    // Refuse an output whose folder is missing before any work, not after it.
-    for file in output_files(&cli.command) {
-        let dir = file
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        if !dir.is_dir() {
-            bail!(arlux::Error::file(
-                file,
-                format!("cannot write: the folder {} does not exist", dir.display())
-            ));
-        }
-    }
+    // Refuse outputs that cannot be written, or would overwrite each
+    // other, before any work, not after it.
+    outputs::check(&outputs(&cli.command))?;
     match &cli.command {
         Command::Info(a) => info::run(a),
         Command::Ids(a) => ids::run(a),

@@ -61,7 +61,7 @@ pub fn run(args: &Args) -> Result<()> {
         }
     };
     let first = base.with_motion_pose(name, 0)?;
-    let photo = stage("read photo", || first.load_photo())?;
+    let photo = stage("read photo", || read_photo(&first))?;
     let mut times = StageTimes::default();
     let mut session = Session::start(&first, &photo, &settings, &mut times)?;
     session.prepare_updates(&mut times);

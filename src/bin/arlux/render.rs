@@ -109,7 +109,7 @@ pub fn run(args: &Args) -> Result<()> {
     let reference = variant
         .and_then(|v| base.variant(v).ok())
         .and_then(|v| v.reference.clone());
-    let photo = times.time("read photo", || scene.load_photo())?;
+    let photo = times.time("read photo", || read_photo(&scene))?;
     let out = match &method {
         Method::Pda(settings) => arlux::render::render(&scene, &photo, settings, &mut times)?,
         Method::Texture(settings) => {

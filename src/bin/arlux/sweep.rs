@@ -49,6 +49,8 @@ pub fn run(args: &Args) -> Result<()> {
         (Some(v), None) => (Target::Variant { name: v }, format!("variant {v}")),
         (None, None) => bail!("give --variant or --motion"),
     };
+    // Known good before the folder is made: a failed run leaves nothing behind.
+    arlux::sweep::reference_files(&scene, &target)?;
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: could not create the folder", dir.display()))?;
     let settings = grid(quick, matches!(target, Target::Variant { .. }));
