@@ -157,6 +157,12 @@ pub fn estimate_reflectances(
 
     let (mut iterations, mut change, mut clamped) = (0, f64::INFINITY, 0);
     let mut previous: Option<Vec<DVec3>> = None;
+    // Each step moves the reflectances by `step` of the way EQ2 asks. In a
+    // white room the unseen patches (which take their surface's mean) feed
+    // back on the seen ones' indirect light with a gain above one, and the
+    // full step oscillates for ever: the step halves whenever the largest
+    // change grows instead of shrinking.
+    let mut step = 1.0f64;
     while iterations < settings.max_iterations && change > settings.tolerance {
         iterations += 1;
         let emission: Vec<DVec3> = rho.iter().zip(direct).map(|(r, e)| *r * *e).collect();
@@ -203,11 +209,20 @@ pub fn estimate_reflectances(
             estimated[k] = true;
         }
         fill_unseen(patches, &mut next, &estimated, known);
-        change = next
+        let asked = next
             .iter()
             .zip(&rho)
             .map(|(a, b)| (*a - *b).abs().max_element())
             .fold(0.0, f64::max);
+        if asked > change {
+            step = (step * 0.5).max(1.0 / 64.0);
+        }
+        change = asked;
+        if step < 1.0 {
+            for (n, r) in next.iter_mut().zip(&rho) {
+                *n = *r + (*n - *r) * step;
+            }
+        }
         rho = next;
     }
     let emission: Vec<DVec3> = rho.iter().zip(direct).map(|(r, e)| *r * *e).collect();

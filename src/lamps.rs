@@ -119,6 +119,11 @@ fn model_radiance(light: &LightSource, dir: DVec3) -> DVec3 {
     light.intensity(-dir) / (u.cross(v).length() * cos)
 }
 
+/// How far, in pixels, [`LampPixels::photo_without_lamps`] looks for the
+/// surface around a lamp: beyond the ring of pixels at the lamp's outline,
+/// which on a lamp seen edge-on may all lie in the lamp's own hot spot.
+const FILL_REACH: i64 = 3;
+
 /// Sub-pixels per side sampled for a lamp's coverage of a pixel, as a
 /// multiple of the edge supersampling: a lamp is thousands of times
 /// brighter than the wall beside it, so the share of a pixel it covers
@@ -227,8 +232,8 @@ impl LampPixels {
     }
 
     /// The photo as the stages should read it: each pixel that sees a real
-    /// lamp takes the darkest of its neighbours that see none (per channel),
-    /// filled in from the lamp's outline inwards. The darkest, not the mean:
+    /// lamp takes the darkest pixel (per channel) that sees none within
+    /// [`FILL_REACH`] pixels, filled in from the lamp's outline inwards. The darkest, not the mean:
     /// what lies behind an emitting face is what the lamp itself does not
     /// light (its back is towards it), while the neighbours on the other
     /// side of its outline may lie in its brightest spot.
@@ -252,16 +257,11 @@ impl LampPixels {
             for &i in &todo {
                 let (x, y) = ((i as i64) % w, (i as i64) / w);
                 let mut darkest: Option<Vec3> = None;
-                for (dx, dy) in [
-                    (-1, 0),
-                    (1, 0),
-                    (0, -1),
-                    (0, 1),
-                    (-1, -1),
-                    (1, -1),
-                    (-1, 1),
-                    (1, 1),
-                ] {
+                let reach = -FILL_REACH..=FILL_REACH;
+                for (dx, dy) in reach
+                    .clone()
+                    .flat_map(|dx| reach.clone().map(move |dy| (dx, dy)))
+                {
                     let (nx, ny) = (x + dx, y + dy);
                     if nx < 0 || ny < 0 || nx >= w || ny >= h {
                         continue;

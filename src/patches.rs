@@ -74,6 +74,35 @@ impl Shape {
         }
     }
 
+    /// A composite rule for integrands that peak inside the shape (a lamp
+    /// close to it): the shape split into m×m parts, each with 2×2 Gauss
+    /// points (triangles: the centroids of a 2m×2m split); weights sum to 1.
+    /// `m` = 1 is [`Shape::quadrature`] of order 2.
+    pub fn split_quadrature(&self, m: usize) -> Vec<(DVec3, f64)> {
+        let m = m.max(1);
+        match *self {
+            Shape::Quad { origin, u, v } if m > 1 => {
+                let (du, dv) = (u / m as f64, v / m as f64);
+                let cell = Shape::Quad {
+                    origin,
+                    u: du,
+                    v: dv,
+                }
+                .quadrature(2);
+                let w = 1.0 / (m * m) as f64;
+                let mut out = Vec::with_capacity(4 * m * m);
+                for i in 0..m {
+                    for j in 0..m {
+                        let shift = du * i as f64 + dv * j as f64;
+                        out.extend(cell.iter().map(|(x, cw)| (*x + shift, cw * w)));
+                    }
+                }
+                out
+            }
+            _ => self.quadrature(if m > 1 { 2 * m } else { 2 }),
+        }
+    }
+
     /// Quadrature of order `n`: points with weights summing to 1. Quads:
     /// n×n Gauss-Legendre; triangles: centroids of an n×n regular split.
     pub fn quadrature(&self, n: usize) -> Vec<(DVec3, f64)> {

@@ -1046,7 +1046,7 @@ pub fn direct_irradiance_with_objects(
                             return room[k];
                         }
                     } else if objects.only_own_blocks(el.surface, el.centre, el.normal, l, light) {
-                        return patch_direct_by(patches, k, |x, n, seed| {
+                        return patch_direct_by(patches, k, light, |x, n, seed| {
                             light.direct_by(x, n, level, seed, |targets, _, blocked| {
                                 for (b, t) in blocked.iter_mut().zip(targets) {
                                     *b = crate::objects::own_blocks(x, n, light.position, *t);
@@ -1061,7 +1061,8 @@ pub fn direct_irradiance_with_objects(
         .collect()
 }
 
-/// Patch k's direct irradiance from `light`: the mean over 2×2 points.
+/// Patch k's direct irradiance from `light`: the mean over 2×2 points, or
+/// over a split of the patch near the light ([`direct_split`]).
 fn patch_direct(
     patches: &Patches,
     k: usize,
@@ -1070,9 +1071,26 @@ fn patch_direct(
     layer: Layer,
     level: usize,
 ) -> DVec3 {
-    patch_direct_by(patches, k, |x, n, seed| {
+    patch_direct_by(patches, k, light, |x, n, seed| {
         light.direct(tracer, layer, x, n, level, seed)
     })
+}
+
+/// Parts per side a patch is split into to integrate a light's direct
+/// irradiance over it: 1 (2×2 points) when the light is further from the
+/// patch than the patch is wide; closer, the irradiance peaks within the
+/// patch (1/d² under a lamp a few centimetres away holds much of the
+/// light the patch receives) and 2×2 points would catch or miss the peak
+/// by chance, so the patch is split until each part is about as wide as
+/// the gap to the light (at most 16 per side).
+fn direct_split(el: &crate::patches::Element, light: &LightSource) -> usize {
+    let (lo, hi) = light.bounds();
+    let nearest = el.centre.clamp(lo, hi);
+    let gap = ((el.centre - nearest).length() - 0.5 * el.size).max(0.0);
+    if gap >= el.size {
+        return 1;
+    }
+    ((el.size / gap.max(el.size / 16.0)).ceil() as usize).clamp(2, 16)
 }
 
 /// [`patch_direct`], with `direct(point, normal, seed)` giving each point's
@@ -1080,11 +1098,12 @@ fn patch_direct(
 fn patch_direct_by(
     patches: &Patches,
     k: usize,
+    light: &LightSource,
     direct: impl Fn(DVec3, DVec3, u64) -> crate::light::DirectLight,
 ) -> DVec3 {
     let el = patches.patch(k);
     el.shape
-        .quadrature(2)
+        .split_quadrature(direct_split(el, light))
         .iter()
         .enumerate()
         .map(|(i, (x, w))| {

@@ -82,6 +82,10 @@ pub fn run(args: &Args) -> Result<()> {
         light_level,
         ..ModelSettings::default()
     };
+    // The model reads the photo with its lamps filled from around them,
+    // as a render does, and is compared with that photo.
+    let supersample = arlux::pda::PdaSettings::default().supersample;
+    let (photo, _) = arlux::inputs::lamps_in_view(&scene, photo, &tracer, supersample, &mut times)?;
     let model = Model::build(&scene, &photo, &tracer, &settings, &mut times)?;
     let view = times.time("render view", || {
         ModelView::render(&scene, &tracer, &model, light_level)
