@@ -166,6 +166,5 @@ pub fn run(args: &Args) -> Result<()> {
             .psnr_srgb_db
             .map_or("inf".into(), |p| format!("{p:.2} dB"))
     );
-    print_stages(&times)?;
     Ok(())
 }

@@ -134,7 +134,6 @@ pub fn run(args: &Args) -> Result<()> {
         return Ok(());
     }
     print_report(&out, error.as_ref())?;
-    print_stages(&times)?;
     Ok(())
 }
 
@@ -168,7 +167,7 @@ fn write_outputs(args: &Args, out: &RenderOutput) -> Result<()> {
         let layer = [image_io::ExrLayer::Rgb("", img)];
         image_io::write_exr(&dir.join(format!("{name}.exr")), w, h, &layer)?;
     }
-    let alpha = [image_io::ExrLayer::Channel("Y", &c.alpha)];
+    let alpha = [image_io::ExrLayer::Channel("A", &c.alpha)];
     image_io::write_exr(&dir.join("alpha.exr"), w, h, &alpha)?;
     Ok(())
 }

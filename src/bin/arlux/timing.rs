@@ -1,6 +1,5 @@
 //! One timing mechanism for every command: stages of this run, reported by `--timings`.
 
-use anyhow::Result;
 use serde_json::json;
 
 /// Stages timed anywhere in this run, in order, for `--timings`.
@@ -91,22 +90,3 @@ pub(crate) fn stages_json(times: &arlux::model::StageTimes) -> serde_json::Value
         .collect()
 }
 
-pub(crate) fn print_stages(times: &arlux::model::StageTimes) -> Result<()> {
-    say!("time per stage:");
-    for (name, d) in &times.0 {
-        say!("  {name:<26} {:>9.1} ms", d.as_secs_f64() * 1e3);
-    }
-    for (name, d) in &times.1 {
-        say!(
-            "  {:<26} {:>9.1} ms",
-            format!("{SIDE_BY_SIDE}{name}"),
-            d.as_secs_f64() * 1e3
-        );
-    }
-    say!(
-        "  {:<26} {:>9.1} ms",
-        "total",
-        times.total().as_secs_f64() * 1e3
-    );
-    Ok(())
-}
