@@ -89,4 +89,3 @@ pub(crate) fn stages_json(times: &arlux::model::StageTimes) -> serde_json::Value
         .chain(side_by_side)
         .collect()
 }
-
