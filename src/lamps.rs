@@ -122,7 +122,7 @@ fn model_radiance(light: &LightSource, dir: DVec3) -> DVec3 {
 /// How far, in pixels, [`LampPixels::photo_without_lamps`] looks for the
 /// surface around a lamp: beyond the ring of pixels at the lamp's outline,
 /// which on a lamp seen edge-on may all lie in the lamp's own hot spot.
-const FILL_REACH: i64 = 3;
+pub const FILL_REACH: i64 = 3;
 
 /// Sub-pixels per side sampled for a lamp's coverage of a pixel, as a
 /// multiple of the edge supersampling: a lamp is thousands of times
