@@ -1,0 +1,138 @@
+//! Direct irradiance per patch from each light, through the room or the
+//! room and the objects.
+
+use super::*;
+
+/// Direct irradiance per patch from each light (before the light's scale):
+/// the mean over 2×2 points of unoccluded irradiance × visibility, with
+/// `2^level` shadow rays per point to rect lights. Indexed `[light][patch]`.
+pub fn direct_irradiance(
+    patches: &Patches,
+    lights: &[LightSource],
+    tracer: &Tracer,
+    layer: Layer,
+    level: usize,
+) -> Vec<Vec<DVec3>> {
+    lights
+        .iter()
+        .map(|light| {
+            (0..patches.patch_count())
+                .into_par_iter()
+                .map(|k| patch_direct(patches, k, light, tracer, layer, level))
+                .collect()
+        })
+        .collect()
+}
+
+/// [`direct_irradiance`] through real and virtual geometry, where `room`
+/// holds the room's own values (through real geometry, for the first
+/// patches): those are taken wherever the shaft from a patch to the
+/// light excludes every one of the objects — no ray can meet an object
+/// there, so the numbers are the same — and only the rest are traced.
+/// An object's patch whose light only its own solid can block
+/// ([`VirtualBounds::only_own_blocks`]) knows its rays without tracing.
+pub fn direct_irradiance_with_objects(
+    patches: &Patches,
+    lights: &[LightSource],
+    tracer: &Tracer,
+    level: usize,
+    room: &[Vec<DVec3>],
+    objects: &VirtualBounds,
+) -> Vec<Vec<DVec3>> {
+    lights
+        .iter()
+        .zip(room)
+        .enumerate()
+        .map(|(l, (light, room))| {
+            let light_box = light.bounds();
+            (0..patches.patch_count())
+                .into_par_iter()
+                .map(|k| {
+                    let el = patches.patch(k);
+                    if k < room.len() {
+                        let shaft = Shaft::between_boxes(el.bounds, light_box);
+                        if objects.objects.iter().all(|o| o.outside(&shaft)) {
+                            return room[k];
+                        }
+                    } else if objects.only_own_blocks(el.surface, el.centre, el.normal, l, light) {
+                        return patch_direct_by(patches, k, light, |x, n, seed| {
+                            light.direct_by(x, n, level, seed, |targets, _, blocked| {
+                                for (b, t) in blocked.iter_mut().zip(targets) {
+                                    *b = crate::objects::own_blocks(x, n, light.position, *t);
+                                }
+                            })
+                        });
+                    }
+                    patch_direct(patches, k, light, tracer, Layer::All, level)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Patch k's direct irradiance from `light`: the mean over 2×2 points, or
+/// over a split of the patch near the light ([`direct_split`]).
+pub(super) fn patch_direct(
+    patches: &Patches,
+    k: usize,
+    light: &LightSource,
+    tracer: &Tracer,
+    layer: Layer,
+    level: usize,
+) -> DVec3 {
+    patch_direct_by(patches, k, light, |x, n, seed| {
+        light.direct(tracer, layer, x, n, level, seed)
+    })
+}
+
+/// Parts per side a patch is split into to integrate a light's direct
+/// irradiance over it: 1 (2×2 points) when the light is further from the
+/// patch than the patch is wide; closer, the irradiance peaks within the
+/// patch (1/d² under a lamp a few centimetres away holds much of the
+/// light the patch receives) and 2×2 points would catch or miss the peak
+/// by chance, so the patch is split until each part is about as wide as
+/// the gap to the light (at most 16 per side).
+pub(super) fn direct_split(el: &crate::patches::Element, light: &LightSource) -> usize {
+    let (lo, hi) = light.bounds();
+    let nearest = el.centre.clamp(lo, hi);
+    let gap = ((el.centre - nearest).length() - 0.5 * el.size).max(0.0);
+    if gap >= el.size {
+        return 1;
+    }
+    ((el.size / gap.max(el.size / 16.0)).ceil() as usize).clamp(2, 16)
+}
+
+/// [`patch_direct`], with `direct(point, normal, seed)` giving each point's
+/// direct light (see [`LightSource::direct_by`]).
+pub(super) fn patch_direct_by(
+    patches: &Patches,
+    k: usize,
+    light: &LightSource,
+    direct: impl Fn(DVec3, DVec3, u64) -> crate::light::DirectLight,
+) -> DVec3 {
+    let el = patches.patch(k);
+    el.shape
+        .split_quadrature(direct_split(el, light))
+        .iter()
+        .enumerate()
+        .map(|(i, (x, w))| {
+            let seed = crate::util::rng::hash2(k as u64, i as u64);
+            let d = direct(*x, el.normal, seed);
+            d.unoccluded * d.visibility * *w
+        })
+        .sum()
+}
+
+/// Total direct irradiance per patch: Σ scale × per-light irradiance.
+pub fn total_direct(scales: &[f64], per_light: &[Vec<DVec3>]) -> Vec<DVec3> {
+    let n = per_light.first().map_or(0, |v| v.len());
+    let mut e = vec![DVec3::ZERO; n];
+    for (&scale, values) in scales.iter().zip(per_light) {
+        if scale > 0.0 {
+            for (e, v) in e.iter_mut().zip(values) {
+                *e += *v * scale;
+            }
+        }
+    }
+    e
+}
