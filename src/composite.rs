@@ -334,6 +334,7 @@ impl RealPixel {
             direct: Vec3::ZERO,
             indirect: h.into(),
             alpha: 0.0,
+            object: Vec3::ZERO,
             copied,
             fallback: !copied && self.affine.fallback(),
             clamped,
@@ -460,6 +461,9 @@ pub struct Composite {
     pub indirect: Image,
     /// image − photo (may be negative: a shadow).
     pub change: Image,
+    /// The virtual objects alone, premultiplied by their coverage (zero
+    /// where only real surfaces show): what a compositor merges "over".
+    pub object: Image,
     /// Coverage of virtual surfaces per pixel, in [0, 1].
     pub alpha: Vec<f32>,
     /// Pixels copied from the photo unchanged.
@@ -572,6 +576,8 @@ pub struct PixelShade {
     pub direct: Vec3,
     pub indirect: Vec3,
     pub alpha: f32,
+    /// The virtual objects' part of `value`, premultiplied by `alpha`.
+    pub object: Vec3,
     pub copied: bool,
     pub fallback: bool,
     pub clamped: bool,
@@ -616,25 +622,46 @@ impl Composite {
             rows.zip(self.direct.pixels.par_chunks_mut(w))
                 .zip(self.indirect.pixels.par_chunks_mut(w))
                 .zip(self.change.pixels.par_chunks_mut(w))
-                .map(|((((row, (image, alpha)), direct), indirect), change)| {
-                    let mut counts = (0, 0, 0);
-                    for x in 0..image.len() {
-                        let i = row * w + x;
-                        let s = shade(i);
-                        image[x] = s.value;
-                        direct[x] = s.direct;
-                        indirect[x] = s.indirect;
-                        change[x] = s.value - photo.pixels[i];
-                        alpha[x] = s.alpha;
-                        count(&mut counts, &s);
-                    }
-                    counts
-                })
+                .zip(self.object.pixels.par_chunks_mut(w))
+                .map(
+                    |(((((row, (image, alpha)), direct), indirect), change), object)| {
+                        let mut counts = (0, 0, 0);
+                        for x in 0..image.len() {
+                            let i = row * w + x;
+                            let s = shade(i);
+                            image[x] = s.value;
+                            direct[x] = s.direct;
+                            indirect[x] = s.indirect;
+                            change[x] = s.value - photo.pixels[i];
+                            object[x] = s.object;
+                            alpha[x] = s.alpha;
+                            count(&mut counts, &s);
+                        }
+                        counts
+                    },
+                )
                 .reduce(|| (0, 0, 0), sum)
         };
         self.copied = copied;
         self.ratio_fallbacks = fallbacks;
         self.clamped = clamped;
+    }
+
+    /// The shadow-catcher layer: what the change did to the real surfaces,
+    /// as a factor on the photo, (image − object) / photo, 1 where nothing
+    /// changed (and where the photo is black), 0 under an opaque object.
+    /// A compositor rebuilds the image as photo × shadow + object.
+    pub fn shadow(&self, photo: &Image) -> Image {
+        let mut out = Image::new(self.image.width, self.image.height);
+        let object = |i: usize| self.object.pixels.get(i).copied().unwrap_or(Vec3::ZERO);
+        for (i, s) in out.pixels.iter_mut().enumerate() {
+            let (value, p) = (self.image.pixels[i] - object(i), photo.pixels[i]);
+            *s = Vec3::select(p.cmpgt(Vec3::ZERO), value / p, Vec3::ONE);
+            if !s.is_finite() {
+                *s = Vec3::ONE;
+            }
+        }
+        out
     }
 
     /// No pixels yet.
@@ -644,6 +671,7 @@ impl Composite {
             direct: Image::new(0, 0),
             indirect: Image::new(0, 0),
             change: Image::new(0, 0),
+            object: Image::new(0, 0),
             alpha: Vec::new(),
             copied: 0,
             ratio_fallbacks: 0,
@@ -713,9 +741,10 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
         }
     };
     if (out.direct.pixels.len() == n) != input.layers {
-        (out.direct, out.indirect, out.change) = (layer(), layer(), layer());
+        (out.direct, out.indirect, out.change, out.object) = (layer(), layer(), layer(), layer());
     }
-    let shade = |i: usize| -> (Shade, f32) {
+    // A pixel's shade, its virtual coverage and the objects' part of it.
+    let shade = |i: usize| -> (Shade, f32, DVec3) {
         let photo = input.photo.pixels[i].as_dvec3();
         if let Some(e) = edge_at(i) {
             let mut sum = Shade {
@@ -727,6 +756,7 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                 clamped: false,
             };
             let mut virtual_count = 0;
+            let mut object = DVec3::ZERO;
             for k in e.start..e.start + e.count {
                 let p = &pda.edge_samples.points[k as usize];
                 let terms = match pda.real_index[i] {
@@ -737,7 +767,9 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                 };
                 let s = if p.is_virtual {
                     virtual_count += 1;
-                    input.shade_virtual(p, terms)
+                    let s = input.shade_virtual(p, terms);
+                    object += s.value;
+                    s
                 } else {
                     let direct = input.irradiance(terms, input.scales_with, true);
                     input.real_pixel(p, terms, photo, floor).shade(
@@ -763,17 +795,17 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                     ..sum
                 },
                 virtual_count as f32 / total as f32,
+                object / total,
             );
         }
         if pda.virtual_index[i] != u32::MAX {
             let k = pda.virtual_index[i] as usize;
-            return (
-                input.shade_virtual(
-                    &pda.virtual_samples.points[k],
-                    &pda.virtual_samples.terms[k * lights..(k + 1) * lights],
-                ),
-                1.0,
+            let s = input.shade_virtual(
+                &pda.virtual_samples.points[k],
+                &pda.virtual_samples.terms[k * lights..(k + 1) * lights],
             );
+            let object = s.value;
+            return (s, 1.0, object);
         }
         (
             Shade {
@@ -785,6 +817,7 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
                 clamped: false,
             },
             0.0,
+            DVec3::ZERO,
         )
     };
     let photo = &input.photo.pixels;
@@ -824,7 +857,7 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
         Some(s)
     };
     let other = |i: usize| -> PixelShade {
-        let (s, a) = shade(i);
+        let (s, a, object) = shade(i);
         // Copied pixels keep the photo's exact bits.
         let value: Vec3 = if s.copied {
             photo[i]
@@ -836,6 +869,7 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
             direct: s.direct.as_vec3(),
             indirect: s.indirect.as_vec3(),
             alpha: a,
+            object: object.as_vec3(),
             copied: s.copied,
             fallback: s.fallback,
             clamped: s.clamped,

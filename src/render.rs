@@ -85,6 +85,7 @@ pub fn render(
             direct: Image::new(photo.width, photo.height),
             indirect: Image::new(photo.width, photo.height),
             change: Image::new(photo.width, photo.height),
+            object: Image::new(photo.width, photo.height),
             alpha: vec![0.0; n],
             copied: n,
             ratio_fallbacks: 0,

@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use serde_json::json;
 
 use arlux::compare::{Comparison, Skill, compare, skill};
-use arlux::image_io::{self};
+use arlux::image_io::{self, Image};
 use arlux::model::StageTimes;
 use arlux::output::RenderOutput;
 
@@ -116,7 +116,7 @@ pub fn run(args: &Args) -> Result<()> {
             arlux::relight::render_texture(&scene, &photo, settings, &mut times)?
         }
     };
-    times.time("write", || write_outputs(args, &out))?;
+    times.time("write", || write_outputs(args, &out, &photo))?;
     let error = times.time("compare", || -> Result<Option<(Comparison, Skill)>> {
         let Some(r) = &reference else { return Ok(None) };
         let truth = image_io::read_image(r)?;
@@ -137,16 +137,26 @@ pub fn run(args: &Args) -> Result<()> {
     Ok(())
 }
 
-/// The EXR with its layers, and the PNG and AOV files asked for.
-fn write_outputs(args: &Args, out: &RenderOutput) -> Result<()> {
+/// The EXR with the layers a compositor expects (the final `RGBA`;
+/// `object.RGBA`, the virtual objects premultiplied by their coverage;
+/// `shadow.RGB`, the photo's factor where real surfaces show, so that
+/// photo × shadow + object is the image; `change.RGB` = image − photo; the
+/// `photo`; the irradiance layers `direct` and `indirect`), and the PNG and
+/// AOV files asked for.
+fn write_outputs(args: &Args, out: &RenderOutput, photo: &Image) -> Result<()> {
     let c = &out.composite;
     let (w, h) = (c.image.width, c.image.height);
+    let shadow = c.shadow(photo);
     let layers = [
         image_io::ExrLayer::Rgb("", &c.image),
+        image_io::ExrLayer::Channel("A", &c.alpha),
+        image_io::ExrLayer::Rgb("object", &c.object),
+        image_io::ExrLayer::Channel("object.A", &c.alpha),
+        image_io::ExrLayer::Rgb("shadow", &shadow),
+        image_io::ExrLayer::Rgb("change", &c.change),
+        image_io::ExrLayer::Rgb("photo", photo),
         image_io::ExrLayer::Rgb("direct", &c.direct),
         image_io::ExrLayer::Rgb("indirect", &c.indirect),
-        image_io::ExrLayer::Rgb("change", &c.change),
-        image_io::ExrLayer::Channel("A", &c.alpha),
     ];
     image_io::write_exr(&args.output, w, h, &layers)?;
     if let Some(png) = &args.png {

@@ -1,0 +1,77 @@
+//! The layers a compositor reads from `arlux render`'s EXR: the final
+//! `RGBA`, `object.RGBA` (the virtual objects premultiplied by their
+//! coverage), `shadow.RGB` (the photo's factor where real surfaces show),
+//! `change.RGB` and the `photo`. The recipe of docs/compositing.md,
+//! photo × shadow + object, rebuilds the image.
+
+mod common;
+
+use arlux::image_io::read_exr_channel;
+
+#[test]
+fn photo_times_shadow_plus_object_rebuilds_the_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("box.exr");
+    let scene = common::scene_dir("desk").join("scene.toml");
+    let run = common::arlux(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--variant",
+        "box_floor_a",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(
+        run.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let channel = |name: &str| read_exr_channel(&out, name).unwrap().2;
+    let rgb = |layer: &str| -> [Vec<f32>; 3] {
+        let prefix = if layer.is_empty() {
+            String::new()
+        } else {
+            format!("{layer}.")
+        };
+        ["R", "G", "B"].map(|c| channel(&format!("{prefix}{c}")))
+    };
+    let (image, object, shadow, photo, change) = (
+        rgb(""),
+        rgb("object"),
+        rgb("shadow"),
+        rgb("photo"),
+        rgb("change"),
+    );
+    let (alpha, object_alpha) = (channel("A"), channel("object.A"));
+    assert_eq!(alpha, object_alpha);
+    let (mut opaque, mut untouched, mut shadowed) = (0, 0, 0);
+    for i in 0..alpha.len() {
+        for c in 0..3 {
+            let rebuilt = photo[c][i] * shadow[c][i] + object[c][i];
+            let tolerance = 1e-6 * image[c][i].abs().max(1.0);
+            assert!(
+                (rebuilt - image[c][i]).abs() <= tolerance,
+                "pixel {i}: {rebuilt} against {}",
+                image[c][i]
+            );
+            assert!((change[c][i] - (image[c][i] - photo[c][i])).abs() <= tolerance);
+        }
+        if alpha[i] == 1.0 {
+            opaque += 1;
+            assert_eq!(shadow[0][i], 0.0, "an opaque object hides the photo");
+        } else if alpha[i] == 0.0 {
+            assert_eq!(object[0][i], 0.0, "no object where none shows");
+            if change[0][i] == 0.0 && photo[0][i] > 0.0 {
+                untouched += 1;
+                assert_eq!(shadow[0][i], 1.0);
+            }
+            shadowed += (shadow[0][i] < 0.8) as usize;
+        }
+    }
+    // The box covers ~1900 pixels and darkens ~300 of the floor by over 20%.
+    assert!(opaque > 1000, "{opaque} opaque pixels");
+    assert!(shadowed > 200, "{shadowed} shadowed pixels");
+    // Few pixels keep the photo's bits: the box's indirect light reaches nearly all.
+    assert!(untouched > 100, "{untouched} untouched pixels");
+}
