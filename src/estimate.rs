@@ -98,6 +98,12 @@ pub struct Estimate {
     /// Fixed-point iterations run, and the last largest change of a reflectance.
     pub iterations: usize,
     pub change: f64,
+    /// The share of the photo's pixels on estimated patches whose estimate
+    /// hit the upper clamp, and by how much (the pixel-weighted median of
+    /// raw ρ / the clamp): when the lights given are too weak for the photo
+    /// the estimates pile up there, by about the lights' shortfall.
+    pub pinned_share: f64,
+    pub pinned_factor: f64,
 }
 
 /// Settings of the estimation.
@@ -156,6 +162,8 @@ pub fn estimate_reflectances(
     fill_unseen(patches, &mut rho, &estimated, known);
 
     let (mut iterations, mut change, mut clamped) = (0, f64::INFINITY, 0);
+    // Per pinned patch of the last round: its pixels and raw ρ / clamp.
+    let mut pinned: Vec<(u32, f64)> = Vec::new();
     let mut previous: Option<Vec<DVec3>> = None;
     // Each step moves the reflectances by `step` of the way EQ2 asks. In a
     // white room the unseen patches (which take their surface's mean) feed
@@ -191,6 +199,7 @@ pub fn estimate_reflectances(
         let floor = direct.iter().copied().sum::<DVec3>() / n.max(1) as f64 * 1e-5;
         let mut next = rho.clone();
         clamped = 0;
+        pinned.clear();
         for k in 0..n {
             estimated[k] = false;
             if !seen[k] {
@@ -204,6 +213,9 @@ pub fn estimate_reflectances(
             let r = raw.clamp(DVec3::ZERO, DVec3::splat(MAX_REFLECTANCE));
             if r != raw {
                 clamped += 1;
+                if raw.max_element() > MAX_REFLECTANCE {
+                    pinned.push((photo.pixels[k], raw.max_element() / MAX_REFLECTANCE));
+                }
             }
             next[k] = r;
             estimated[k] = true;
@@ -238,6 +250,20 @@ pub fn estimate_reflectances(
     let unseen = (0..n)
         .filter(|&k| !estimated[k] && !known.contains_key(&surface(k)))
         .count();
+    let seen_pixels: u64 = (0..n)
+        .filter(|&k| seen[k])
+        .map(|k| photo.pixels[k] as u64)
+        .sum();
+    let pinned_pixels: u64 = pinned.iter().map(|p| p.0 as u64).sum();
+    pinned.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let mut below = 0u64;
+    let pinned_factor = pinned
+        .iter()
+        .find(|p| {
+            below += p.0 as u64;
+            2 * below >= pinned_pixels
+        })
+        .map_or(1.0, |p| p.1);
     Estimate {
         reflectance: rho,
         solution,
@@ -245,6 +271,8 @@ pub fn estimate_reflectances(
         unseen,
         iterations,
         change,
+        pinned_share: pinned_pixels as f64 / seen_pixels.max(1) as f64,
+        pinned_factor,
     }
 }
 

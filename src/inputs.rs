@@ -176,3 +176,45 @@ pub fn lamps_in_view(
         None => (photo, None),
     })
 }
+
+/// Share of pixels above which a photo counts as clipped.
+pub const CLIPPED_SHARE: f64 = 0.01;
+/// Share of the seen area above which pinned reflectances say the lights
+/// do not fit the photo.
+pub const PINNED_SHARE: f64 = 0.03;
+
+/// Warnings about the photo and what the estimate made of it: a photo whose
+/// brightest value is shared by more than [`CLIPPED_SHARE`] of its pixels
+/// (a sensor or an 8-bit encoding clipped it: radiance there is unknown),
+/// and reflectances pinned at the clamp on more than [`PINNED_SHARE`] of
+/// the seen area (the lights are too weak for the photo).
+pub fn input_warnings(photo: &Image, estimate: Option<&crate::estimate::Estimate>) -> Vec<String> {
+    let mut out = Vec::new();
+    let peak = photo
+        .pixels
+        .iter()
+        .map(|p| p.max_element())
+        .fold(0.0f32, f32::max);
+    if peak > 0.0 {
+        let at_peak = photo
+            .pixels
+            .iter()
+            .filter(|p| p.max_element() >= peak * (1.0 - 1e-6))
+            .count();
+        let share = at_peak as f64 / photo.pixels.len().max(1) as f64;
+        if share > CLIPPED_SHARE {
+            out.push(format!(
+                "{:.1}% of the photo's pixels sit at its brightest value {peak}: the photo is clipped there, and their radiance is unknown (use an HDR photo or brackets)",
+                100.0 * share
+            ));
+        }
+    }
+    if let Some(estimate) = estimate.filter(|e| e.pinned_share > PINNED_SHARE) {
+        out.push(format!(
+            "the reflectances estimated on {:.0}% of the seen area are pinned at the clamp: the lights given are too weak for the photo by at least {:.1}x (or the photo is that much too bright)",
+            100.0 * estimate.pinned_share,
+            estimate.pinned_factor
+        ));
+    }
+    out
+}

@@ -7,6 +7,9 @@ use crate::image_io::Image;
 /// What a render produced and what it did.
 pub struct RenderOutput {
     pub composite: Composite,
+    /// What is likely wrong with the inputs, with numbers (the lights do
+    /// not explain the photo, the photo is clipped): the render went on.
+    pub warnings: Vec<String>,
     /// Stages that ran are in the timings; these were left out, with why.
     pub left_out: Vec<String>,
     pub pda_bytes: usize,

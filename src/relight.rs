@@ -799,6 +799,7 @@ pub fn render_texture(
     let light_change = times.total() - before;
     let unoccluded = times.time("unoccluded texture", || path.unoccluded_texture());
     let out = crate::output::RenderOutput {
+        warnings: crate::inputs::input_warnings(&photo, None),
         composite,
         left_out,
         pda_bytes: path.memory_bytes(),

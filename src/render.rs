@@ -94,6 +94,7 @@ pub fn render(
         let left_out = vec!["everything: the scene shows the photo's state (no virtual object, lights as photographed)".to_string()];
         return Ok(RenderOutput {
             composite,
+            warnings: crate::inputs::input_warnings(photo, None),
             left_out,
             pda_bytes: 0,
             pda_pixels: n,
@@ -126,6 +127,8 @@ pub struct Session {
     photo: Image,
     /// The lamps in view, and the photo as shot (when there are any).
     lamps: Option<(LampPixels, Image)>,
+    /// What is likely wrong with the inputs ([`crate::inputs::input_warnings`]).
+    warnings: Vec<String>,
     settings: RenderSettings,
     tracer: crate::trace::Tracer,
     model: Model,
@@ -329,6 +332,7 @@ impl Session {
         let mut session = Session {
             scene: scene.clone(),
             given_lights,
+            warnings: crate::inputs::input_warnings(&photo, Some(&model.estimate)),
             photo,
             lamps,
             settings,
@@ -663,6 +667,7 @@ impl Session {
             links: transport.link_count(),
             patch_size: self.settings.model.patch_size,
             composite: self.composite,
+            warnings: self.warnings,
             left_out: self.left_out,
             texture: None,
         }

@@ -119,3 +119,19 @@ pub(crate) fn skill_line(s: &arlux::compare::Skill) -> String {
         None => "skill: n/a (the reference does not differ from the photo)".to_string(),
     }
 }
+
+static STRICT: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+
+/// `--strict`: warnings about likely wrong inputs become errors.
+pub(crate) fn set_strict(strict: bool) {
+    let _ = STRICT.set(strict);
+}
+
+/// Reports a likely wrong input on stderr, or refuses it under `--strict`.
+pub(crate) fn warn(scene: &Scene, message: &str) -> Result<()> {
+    if STRICT.get().copied().unwrap_or(false) {
+        anyhow::bail!("{}: {message} (--strict)", scene.file.display());
+    }
+    eprintln!("warning: {}: {message}", scene.file.display());
+    Ok(())
+}

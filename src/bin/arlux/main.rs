@@ -43,6 +43,10 @@ struct Cli {
     /// pixel data array, composite, write, ...) and peak memory, on stderr.
     #[arg(long, global = true)]
     timings: bool,
+    /// Make the warnings about likely wrong inputs (lights that do not fit
+    /// the photo, a clipped photo) errors: nothing is written.
+    #[arg(long, global = true)]
+    strict: bool,
 }
 
 #[derive(Subcommand)]
@@ -87,6 +91,7 @@ fn main() -> ExitCode {
     remove_temporaries_on_signals();
     let cli = stage("arguments", Cli::parse);
     let timings = cli.timings;
+    common::set_strict(cli.strict);
     let result = run(cli);
     if timings {
         report_timings(start.elapsed());

@@ -116,6 +116,9 @@ pub fn run(args: &Args) -> Result<()> {
             arlux::relight::render_texture(&scene, &photo, settings, &mut times)?
         }
     };
+    for w in &out.warnings {
+        warn(&scene, w)?;
+    }
     times.time("write", || write_outputs(args, &out, &photo))?;
     let error = times.time("compare", || -> Result<Option<(Comparison, Skill)>> {
         let Some(r) = &reference else { return Ok(None) };

@@ -1,0 +1,87 @@
+//! Inputs that render but are likely wrong get a warning with numbers
+//! (and an error under `--strict`, writing nothing); the desk gets none.
+
+mod common;
+
+use common::{Desk, arlux};
+
+fn render(desk: &Desk, strict: bool) -> (Option<i32>, String) {
+    let out = desk.path("a.exr");
+    let mut args = vec![
+        "render".to_string(),
+        desk.scene(),
+        "--variant".into(),
+        "box_floor_a".into(),
+        "-o".into(),
+        out.display().to_string(),
+    ];
+    if strict {
+        args.push("--strict".into());
+    }
+    let args: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
+    let run = arlux(&args);
+    (
+        run.status.code(),
+        String::from_utf8_lossy(&run.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn the_desk_renders_without_a_warning() {
+    let (code, stderr) = render(&Desk::new(), true);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(!stderr.contains("warning"), "{stderr}");
+}
+
+#[test]
+fn lights_ten_times_too_weak_are_reported_with_their_shortfall() {
+    let desk = Desk::new();
+    desk.edit(
+        "scene.toml",
+        "rgb = [4.32, 4.32, 3.96]",
+        "rgb = [0.432, 0.432, 0.396]",
+    );
+    desk.edit(
+        "scene.toml",
+        "rgb = [20.0, 17.0, 13.0]",
+        "rgb = [2.0, 1.7, 1.3]",
+    );
+    let (code, stderr) = render(&desk, false);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("pinned at the clamp")
+            && stderr.contains("too weak for the photo by at least"),
+        "{stderr}"
+    );
+    std::fs::remove_file(desk.path("a.exr")).unwrap();
+    let (code, stderr) = render(&desk, true);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("(--strict)"), "{stderr}");
+    assert!(!desk.path("a.exr").exists(), "--strict wrote the output");
+}
+
+#[test]
+fn a_clipped_photo_is_reported() {
+    let desk = Desk::new();
+    let mut img = arlux::image_io::read_image(&desk.path("photo.exr")).unwrap();
+    // Clip at the 90th percentile of brightness: a tenth of the pixels saturate.
+    let mut levels: Vec<f32> = img.pixels.iter().map(|p| p.max_element()).collect();
+    levels.sort_by(f32::total_cmp);
+    let clip = levels[levels.len() * 9 / 10];
+    for p in &mut img.pixels {
+        *p = p.min(glam::Vec3::splat(clip));
+    }
+    arlux::image_io::write_exr(
+        &desk.path("photo.exr"),
+        512,
+        384,
+        &[arlux::image_io::ExrLayer::Rgb("", &img)],
+    )
+    .unwrap();
+    let (code, stderr) = render(&desk, false);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("of the photo's pixels sit at its brightest value"),
+        "{stderr}"
+    );
+}
