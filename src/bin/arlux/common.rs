@@ -135,3 +135,39 @@ pub(crate) fn warn(scene: &Scene, message: &str) -> Result<()> {
     eprintln!("warning: {}: {message}", scene.file.display());
     Ok(())
 }
+
+/// A shard `i/n` (0-based i), or `auto/n` with i read from the job array's
+/// index: SLURM_ARRAY_TASK_ID (Slurm) or JOB_COMPLETION_INDEX (Kubernetes
+/// Indexed Jobs).
+pub(crate) fn shard(text: &str) -> Result<(usize, usize)> {
+    let bad = |why: String| anyhow::anyhow!("--shard {text}: {why}");
+    let (i, n) = text
+        .split_once('/')
+        .ok_or_else(|| bad("give i/n or auto/n".into()))?;
+    let n: usize = n
+        .trim()
+        .parse()
+        .ok()
+        .filter(|n| *n > 0)
+        .ok_or_else(|| bad("n must be a positive whole number".into()))?;
+    let i = if i.trim() == "auto" {
+        let (var, value) = ["SLURM_ARRAY_TASK_ID", "JOB_COMPLETION_INDEX"]
+            .iter()
+            .find_map(|v| std::env::var(v).ok().map(|x| (*v, x)))
+            .ok_or_else(|| {
+                bad("auto: neither SLURM_ARRAY_TASK_ID nor JOB_COMPLETION_INDEX is set".into())
+            })?;
+        value
+            .trim()
+            .parse::<usize>()
+            .map_err(|_| bad(format!("{var}={value} is not a whole number")))?
+    } else {
+        i.trim()
+            .parse::<usize>()
+            .map_err(|_| bad("i must be a whole number".into()))?
+    };
+    if i >= n {
+        return Err(bad(format!("i must be below n ({i} >= {n})")));
+    }
+    Ok((i, n))
+}

@@ -23,6 +23,16 @@ pub struct Args {
     /// PNG of the blocks the last update skipped with one shaft test (first active light).
     #[arg(long)]
     pub debug_blocks: Option<PathBuf>,
+    /// Only these poses, `A..B` (B excluded): the first in full, the rest
+    /// by updates. Each frame equals the whole run's bit for bit, so a
+    /// motion splits over machines.
+    #[arg(long, conflicts_with = "shard")]
+    pub frames: Option<String>,
+    /// The i-th of n contiguous shares of the poses (`i/n`, 0-based), or
+    /// `auto/n` to read i from SLURM_ARRAY_TASK_ID or JOB_COMPLETION_INDEX
+    /// (a Slurm array or a Kubernetes Indexed Job).
+    #[arg(long)]
+    pub shard: Option<String>,
     #[arg(long)]
     pub json: bool,
 }
@@ -37,6 +47,7 @@ pub fn run(args: &Args) -> Result<()> {
     use arlux::render::{RenderSettings, Session};
     let base = stage("load", || load(path, None))?;
     let motion = base.motion(name)?.clone();
+    let poses = pose_range(args, motion.translations.len())?;
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: could not create the folder", dir.display()))?;
     let settings = RenderSettings::default();
@@ -60,7 +71,7 @@ pub fn run(args: &Args) -> Result<()> {
             None => Ok(None),
         }
     };
-    let first = base.with_motion_pose(name, 0)?;
+    let first = base.with_motion_pose(name, poses.start)?;
     let photo = stage("read photo", || read_photo(&first))?;
     let mut times = StageTimes::default();
     let mut session = Session::start(&first, &photo, &settings, &mut times)?;
@@ -77,15 +88,16 @@ pub fn run(args: &Args) -> Result<()> {
         .map(|(_, d)| d.as_secs_f64())
         .sum();
     let full_seconds = times.total().as_secs_f64() - once;
-    stage("write", || write(0, &session.composite.image))?;
+    stage("write", || write(poses.start, &session.composite.image))?;
     let (pda_bytes, block_bytes) = session.memory_bytes();
     let mut rows = vec![json!({
-        "pose": 0, "seconds": full_seconds, "full_render": true,
-        "error_against_reference": stage("compare", || error_at(0, &session.composite.image))?,
+        "pose": poses.start, "seconds": full_seconds, "full_render": true,
+        "error_against_reference": stage("compare", || error_at(poses.start, &session.composite.image))?,
     })];
     if !as_json {
         say!(
-            "pose 0: full render {:.1} ms; pixel data {:.1} MB, pixel blocks {:.1} MB{}",
+            "pose {}: full render {:.1} ms; pixel data {:.1} MB, pixel blocks {:.1} MB{}",
+            poses.start,
             full_seconds * 1e3,
             pda_bytes as f64 / 1e6,
             block_bytes as f64 / 1e6,
@@ -97,7 +109,7 @@ pub fn run(args: &Args) -> Result<()> {
         );
     }
     let mut last_skipped = Vec::new();
-    for pose in 1..motion.translations.len() {
+    for pose in poses.start + 1..poses.end {
         let scene = base.with_motion_pose(name, pose)?;
         let mut times = StageTimes::default();
         let stats = session.update(&scene, &mut times)?;
@@ -178,4 +190,32 @@ pub fn run(args: &Args) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The poses to render: all, `--frames A..B`, or a `--shard`'s share.
+fn pose_range(args: &Args, count: usize) -> Result<std::ops::Range<usize>> {
+    if let Some(frames) = &args.frames {
+        let bad = || anyhow::anyhow!("--frames {frames}: give A..B with A < B <= {count}");
+        let (a, b) = frames.split_once("..").ok_or_else(bad)?;
+        let (a, b): (usize, usize) = (
+            a.trim().parse().map_err(|_| bad())?,
+            b.trim().parse().map_err(|_| bad())?,
+        );
+        if a >= b || b > count {
+            return Err(bad());
+        }
+        return Ok(a..b);
+    }
+    let Some(shard) = &args.shard else {
+        return Ok(0..count);
+    };
+    let (i, n) = crate::common::shard(shard)?;
+    // Contiguous shares, the first ones one pose longer when it does not divide.
+    let (base, extra) = (count / n, count % n);
+    let start = i * base + i.min(extra);
+    let end = start + base + usize::from(i < extra);
+    if start >= end {
+        anyhow::bail!("--shard {shard}: shard {i} of {n} has no pose ({count} in the motion)");
+    }
+    Ok(start..end)
 }
