@@ -1,0 +1,704 @@
+//! `scene.toml` read key by key into a [`Scene`]: each value checked where
+//! it is read, each error naming the key.
+
+use super::*;
+
+/// A table's `surface` key: the name and the index of the real surface it names.
+pub(super) fn real_surface<'a>(r: &Fields<'a>, surfaces: &[Surface]) -> Result<(&'a str, usize)> {
+    let name = r.req_str("surface")?;
+    let index = surfaces
+        .iter()
+        .position(|s| s.name == name)
+        .ok_or_else(|| {
+            let names: Vec<&str> = surfaces.iter().map(|s| s.name.as_str()).collect();
+            r.error(
+                "surface",
+                format!(
+                    "no real surface named '{name}' (surfaces: {})",
+                    list(&names)
+                ),
+            )
+        })?;
+    Ok((name, index))
+}
+
+pub(super) fn list(names: &[&str]) -> String {
+    if names.is_empty() {
+        "none".into()
+    } else {
+        names.join(", ")
+    }
+}
+
+/// Reads one scene file; holds what every part needs to resolve paths and
+/// report errors.
+pub(super) struct Loader<'a> {
+    pub(super) file: &'a Path,
+    pub(super) dir: PathBuf,
+}
+
+impl Loader<'_> {
+    /// A path from the file, resolved and checked to exist.
+    pub(super) fn existing_path(
+        &self,
+        f: &Fields,
+        key: &'static str,
+        rel: &str,
+    ) -> Result<PathBuf> {
+        let p = self.dir.join(rel);
+        match std::fs::metadata(&p) {
+            Ok(m) if m.is_file() => Ok(p),
+            Ok(_) => Err(f.error(key, format!("{} is not a file", p.display()))),
+            Err(_) => Err(f.error(key, format!("file not found: {}", p.display()))),
+        }
+    }
+
+    pub(super) fn scene(&self, table: &toml::Table) -> Result<Scene> {
+        let top = Fields::of_table(self.file, "", table);
+        let name = match top.opt_str("name")? {
+            Some(n) => n.to_string(),
+            None => self
+                .file
+                .parent()
+                .and_then(|d| d.file_name())
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+        };
+        let camera = self.camera(&top.req_table("camera")?)?;
+        let photo = self.photo(&top.req_table("photo")?)?;
+
+        let mut surfaces: Vec<Surface> = Vec::new();
+        let mut warnings = Vec::new();
+        let reals = top.tables("real")?;
+        if reals.is_empty() {
+            return Err(top.error(
+                "real",
+                "missing: the scene needs at least one [[real]] mesh",
+            ));
+        }
+        for r in &reals {
+            let rel = r.req_str("mesh")?;
+            let path = self.existing_path(r, "mesh", rel)?;
+            r.finish()?;
+            let mesh =
+                geometry::load_obj(&path).map_err(|e| e.within(self.file, r.key_path("mesh")))?;
+            if mesh.dropped_triangles > 0 {
+                warnings.push(format!(
+                    "{}: dropped {} degenerate or non-finite triangles",
+                    path.display(),
+                    mesh.dropped_triangles
+                ));
+            }
+            for s in mesh.surfaces {
+                if let Some(other) = surfaces.iter().find(|o| o.name == s.name) {
+                    return Err(r.error(
+                        "mesh",
+                        format!(
+                            "surface '{}' is also defined in {}; surface names must be unique",
+                            s.name,
+                            other.mesh.display()
+                        ),
+                    ));
+                }
+                surfaces.push(Surface {
+                    name: s.name,
+                    mesh: path.clone(),
+                    triangles: s.triangles,
+                });
+            }
+        }
+
+        let mut reflectances = Vec::new();
+        for r in top.tables("reflectance")? {
+            let (sname, surface) = real_surface(&r, &surfaces)?;
+            let rgb = r.req_rgb("rgb")?;
+            if rgb.max_element() > 1.0 {
+                return Err(r.error("rgb", "a reflectance lies in [0, 1]"));
+            }
+            if reflectances
+                .iter()
+                .any(|k: &KnownReflectance| k.surface == surface)
+            {
+                return Err(r.error("surface", format!("'{sname}' is given twice")));
+            }
+            r.finish()?;
+            reflectances.push(KnownReflectance { surface, rgb });
+        }
+
+        let mut texture_references: Vec<TextureReference> = Vec::new();
+        for r in top.tables("texture_reference")? {
+            let (sname, surface) = real_surface(&r, &surfaces)?;
+            let point = r.req_vec3("point")?;
+            if texture_references.iter().any(|k| k.surface == surface) {
+                return Err(r.error("surface", format!("'{sname}' is given twice")));
+            }
+            r.finish()?;
+            texture_references.push(TextureReference { surface, point });
+        }
+
+        let mut lights: Vec<Light> = Vec::new();
+        for l in top.tables("light")? {
+            let light = self.light(&l, !reflectances.is_empty())?;
+            if lights.iter().any(|o| o.name == light.name) {
+                return Err(l.error("name", format!("light name '{}' is used twice", light.name)));
+            }
+            lights.push(light);
+        }
+
+        let mut objects: Vec<VirtualObject> = Vec::new();
+        for v in top.tables("virtual")? {
+            let object = self.object(&v, &mut warnings)?;
+            if objects.iter().any(|o| o.name == object.name)
+                || lights.iter().any(|l| l.name == object.name)
+            {
+                return Err(v.error(
+                    "name",
+                    format!("'{}' already names a light or object", object.name),
+                ));
+            }
+            objects.push(object);
+        }
+
+        let mut variants: Vec<Variant> = Vec::new();
+        for v in top.tables("variant")? {
+            let variant = self.variant(&v, &lights, &objects)?;
+            if variants.iter().any(|o| o.name == variant.name) {
+                return Err(v.error(
+                    "name",
+                    format!("variant name '{}' is used twice", variant.name),
+                ));
+            }
+            variants.push(variant);
+        }
+        let mut motions: Vec<Motion> = Vec::new();
+        for m in top.tables("motion")? {
+            let motion = self.motion(&m, &objects)?;
+            if motions.iter().any(|o| o.name == motion.name) {
+                return Err(m.error(
+                    "name",
+                    format!("motion name '{}' is used twice", motion.name),
+                ));
+            }
+            motions.push(motion);
+        }
+        top.finish()?;
+
+        let scene = Scene {
+            name,
+            file: self.file.to_path_buf(),
+            camera,
+            photo,
+            surfaces,
+            reflectances,
+            texture_references,
+            lights,
+            objects,
+            variants,
+            motions,
+            warnings,
+        };
+        scene.check_light_clearance()?;
+        Ok(scene)
+    }
+
+    pub(super) fn camera(&self, c: &Fields) -> Result<Camera> {
+        let width = c.req_count("width")?;
+        let height = c.req_count("height")?;
+        const MAX_SIDE: u32 = 1 << 15;
+        for (key, v) in [("width", width), ("height", height)] {
+            if v > MAX_SIDE {
+                return Err(c.error(
+                    key,
+                    format!("{v} pixels is more than arlux supports ({MAX_SIDE})"),
+                ));
+            }
+        }
+        let position = c.req_place("position")?;
+        let look_at = c.req_place("look_at")?;
+        let up = c.opt_vec3("up")?.unwrap_or(DVec3::Y);
+        let projection = match (c.opt_f64("fov_y_deg")?, c.opt_table("intrinsics")?) {
+            (Some(_), Some(_)) => {
+                return Err(c.error("intrinsics", "give fov_y_deg or intrinsics, not both"));
+            }
+            (None, None) => return Err(c.error("fov_y_deg", "missing (or give intrinsics)")),
+            (Some(degrees), None) => Projection::FovY { degrees },
+            (None, Some(i)) => {
+                let p = Projection::Intrinsics {
+                    fx: i.req_f64("fx")?,
+                    fy: i.req_f64("fy")?,
+                    cx: i.req_f64("cx")?,
+                    cy: i.req_f64("cy")?,
+                };
+                i.finish()?;
+                p
+            }
+        };
+        c.finish()?;
+        Camera::new(width, height, position, look_at, up, projection)
+            .map_err(|(key, msg)| c.error(key, msg))
+    }
+
+    pub(super) fn photo(&self, p: &Fields) -> Result<Photo> {
+        let photo = match (p.opt_str("image")?, p.has("brackets")) {
+            (Some(_), true) => return Err(p.error("brackets", "give image or brackets, not both")),
+            (None, false) => return Err(p.error("image", "missing (or give brackets)")),
+            (Some(rel), false) => Photo::Image(self.existing_path(p, "image", rel)?),
+            (None, true) => {
+                let mut brackets: Vec<Bracket> = Vec::new();
+                for b in p.tables("brackets")? {
+                    let image = self.existing_path(&b, "image", b.req_str("image")?)?;
+                    let ev = b.req_f64("ev")?;
+                    if brackets.iter().any(|o| o.ev == ev) {
+                        return Err(b.error(
+                            "ev",
+                            format!("two brackets have ev = {ev}; each exposure needs its own"),
+                        ));
+                    }
+                    b.finish()?;
+                    brackets.push(Bracket { image, ev });
+                }
+                if brackets.len() < 2 {
+                    return Err(p.error(
+                        "brackets",
+                        format!(
+                            "{} exposure(s): merging needs at least two different exposures",
+                            brackets.len()
+                        ),
+                    ));
+                }
+                Photo::Brackets(brackets)
+            }
+        };
+        p.finish()?;
+        Ok(photo)
+    }
+
+    pub(super) fn light(&self, l: &Fields, has_known_reflectance: bool) -> Result<Light> {
+        let name = l.req_str("name")?.to_string();
+        let real = l.opt_bool("real")?.unwrap_or(true);
+        let scale = l.opt_f64("scale")?.unwrap_or(1.0);
+        if scale < 0.0 {
+            return Err(l.error("scale", "must not be negative"));
+        }
+        let position = match l.get("position") {
+            None => return Err(l.error("position", "missing")),
+            Some(toml::Value::Table(_)) => {
+                let p = l.req_table("position")?;
+                let c = self.shadow_constraints(&p)?;
+                p.finish()?;
+                LightPosition::FromShadows(c)
+            }
+            Some(_) => LightPosition::Known(l.req_place("position")?),
+        };
+        let shape = match l.opt_table("shape")? {
+            None => LightShape::Point,
+            Some(s) => {
+                let r = s.req_table("rect")?;
+                s.finish()?;
+                let (u, v) = (r.req_place("u")?, r.req_place("v")?);
+                r.finish()?;
+                // Name the vector at fault: a zero one, else v (parallel to u).
+                for (key, side) in [("u", u), ("v", v)] {
+                    if side.length() < 1e-9 {
+                        return Err(r.error(key, "must not be zero: a rect light needs a side"));
+                    }
+                }
+                if u.cross(v).length() < 1e-12 {
+                    return Err(r.error("v", "is parallel to u: u and v must span a rectangle"));
+                }
+                LightShape::Rect { u, v }
+            }
+        };
+        let intensity = self.intensity(l, &shape, has_known_reflectance)?;
+        l.finish()?;
+        Ok(Light {
+            name,
+            real,
+            position,
+            scale,
+            shape,
+            intensity,
+        })
+    }
+
+    pub(super) fn shadow_constraints(&self, p: &Fields) -> Result<ShadowConstraints> {
+        let mut c = ShadowConstraints::default();
+        for line in p.tables("shadow_lines")? {
+            let sl = ShadowLine {
+                shadow: line.req_vec3("shadow")?,
+                vertex: line.req_vec3("vertex")?,
+            };
+            if (sl.shadow - sl.vertex).length() < 1e-9 {
+                return Err(line.error(
+                    "vertex",
+                    "coincides with the shadow point: the line has no direction",
+                ));
+            }
+            line.finish()?;
+            c.lines.push(sl);
+        }
+        for plane in p.tables("shadow_planes")? {
+            let pair = |key: &'static str| -> Result<[DVec3; 2]> {
+                let items = plane
+                    .opt_array(key)?
+                    .ok_or_else(|| plane.error(key, "missing"))?;
+                if items.len() != 2 {
+                    return Err(
+                        plane.error(key, format!("must be two points, found {}", items.len()))
+                    );
+                }
+                let mut out = [DVec3::ZERO; 2];
+                for (o, (path, v)) in out.iter_mut().zip(&items) {
+                    *o = fields::vec3(v).map_err(|m| Error::key(self.file, path.clone(), m))?;
+                }
+                Ok(out)
+            };
+            let sp = ShadowPlane {
+                shadow: pair("shadow")?,
+                edge: pair("edge")?,
+            };
+            plane.finish()?;
+            c.planes.push(sp);
+        }
+        if c.lines.is_empty() && c.planes.is_empty() {
+            return Err(
+                p.table_error("needs shadow_lines or shadow_planes to estimate the position from")
+            );
+        }
+        Ok(c)
+    }
+
+    pub(super) fn intensity(
+        &self,
+        l: &Fields,
+        shape: &LightShape,
+        has_known_reflectance: bool,
+    ) -> Result<Intensity> {
+        let unit = |f: &Fields, key: &'static str| -> Result<DVec3> {
+            let d = f.req_vec3(key)?;
+            if d.length() < 1e-12 {
+                return Err(f.error(key, "must not be zero"));
+            }
+            Ok(d.normalize())
+        };
+        match l.get("intensity") {
+            None => Err(l.error("intensity", "missing")),
+            Some(toml::Value::String(s)) if s == "reconstruct" => {
+                if !has_known_reflectance {
+                    return Err(l.error(
+                        "intensity",
+                        "\"reconstruct\" needs at least one [[reflectance]] to fix the scale of light against reflectance",
+                    ));
+                }
+                Ok(Intensity::Reconstruct)
+            }
+            Some(toml::Value::String(s)) => Err(l.error(
+                "intensity",
+                format!("'{s}' is not a kind of intensity (the only string is \"reconstruct\")"),
+            )),
+            Some(_) => {
+                let i = l.req_table("intensity")?;
+                let kinds = ["uniform", "lambertian", "spot", "ies"];
+                let given: Vec<&str> = kinds.iter().copied().filter(|k| i.has(k)).collect();
+                if given.len() != 1 {
+                    for k in kinds {
+                        i.get(k);
+                    }
+                    i.finish()?;
+                    return Err(i.table_error(format!(
+                        "must have exactly one of uniform, lambertian, spot, ies (found {})",
+                        list(&given)
+                    )));
+                }
+                let out = match given[0] {
+                    "uniform" => {
+                        let rgb = i.req_rgb("uniform")?;
+                        Intensity::Uniform(rgb)
+                    }
+                    "lambertian" => {
+                        let t = i.req_table("lambertian")?;
+                        let normal = unit(&t, "normal")?;
+                        let rgb = t.req_rgb("rgb")?;
+                        t.finish()?;
+                        if let LightShape::Rect { u, v } = shape
+                            && normal.dot(u.cross(*v).normalize()) < 0.99
+                        {
+                            return Err(t.error(
+                                "normal",
+                                "disagrees with the shape: a rect emits on the side of u×v, which must be the lambertian normal",
+                            ));
+                        }
+                        Intensity::Lambertian { normal, rgb }
+                    }
+                    "spot" => {
+                        let t = i.req_table("spot")?;
+                        let direction = unit(&t, "direction")?;
+                        let rgb = t.req_rgb("rgb")?;
+                        let beam_deg = t.req_f64("beam_deg")?;
+                        let cutoff_deg = t.req_f64("cutoff_deg")?;
+                        t.finish()?;
+                        if !(0.0..180.0).contains(&beam_deg) {
+                            return Err(t.error(
+                                "beam_deg",
+                                format!("must lie in [0, 180), found {beam_deg}"),
+                            ));
+                        }
+                        if cutoff_deg <= beam_deg {
+                            return Err(t.error("cutoff_deg", "must be greater than beam_deg"));
+                        }
+                        if cutoff_deg > 180.0 {
+                            return Err(t.error(
+                                "cutoff_deg",
+                                format!("must be at most 180, found {cutoff_deg}"),
+                            ));
+                        }
+                        Intensity::Spot {
+                            direction,
+                            rgb,
+                            beam_deg,
+                            cutoff_deg,
+                        }
+                    }
+                    _ => {
+                        let rel = i.req_str("ies")?;
+                        let file = self.existing_path(&i, "ies", rel)?;
+                        let profile = IesProfile::load(&file)
+                            .map_err(|e| e.within(self.file, i.key_path("ies")))?;
+                        let rgb = i.req_rgb("rgb")?;
+                        let direction = unit(&i, "direction")?;
+                        let reference = unit(&i, "reference")?;
+                        let reference = reference - direction * reference.dot(direction);
+                        if reference.length() < 1e-6 {
+                            return Err(i.error("reference", "must not be parallel to direction"));
+                        }
+                        Intensity::Ies {
+                            file,
+                            profile,
+                            rgb,
+                            direction,
+                            reference: reference.normalize(),
+                        }
+                    }
+                };
+                i.finish()?;
+                Ok(out)
+            }
+        }
+    }
+
+    pub(super) fn object(&self, v: &Fields, warnings: &mut Vec<String>) -> Result<VirtualObject> {
+        let name = v.req_str("name")?.to_string();
+        let path = self.existing_path(v, "mesh", v.req_str("mesh")?)?;
+        let rgb = v.opt_vec3("rgb")?;
+        if let Some(rgb) = rgb
+            && (rgb.min_element() < 0.0 || rgb.max_element() > 1.0)
+        {
+            return Err(v.error("rgb", "a reflectance lies in [0, 1]"));
+        }
+        let pose = Pose {
+            translate: v.opt_place("translate")?.unwrap_or(DVec3::ZERO),
+            rotate_y_deg: v.opt_f64("rotate_y_deg")?.unwrap_or(0.0),
+            scale: v.opt_f64("scale")?.unwrap_or(1.0),
+        };
+        if pose.scale <= 0.0 {
+            return Err(v.error("scale", "must be positive"));
+        }
+        let enabled = v.opt_bool("enabled")?.unwrap_or(true);
+        v.finish()?;
+        let mesh =
+            geometry::load_obj(&path).map_err(|e| e.within(self.file, v.key_path("mesh")))?;
+        if mesh.dropped_triangles > 0 {
+            warnings.push(format!(
+                "{}: dropped {} degenerate or non-finite triangles",
+                path.display(),
+                mesh.dropped_triangles
+            ));
+        }
+        let mut surfaces = Vec::new();
+        for s in mesh.surfaces {
+            let rgb = match (rgb, s.material_rgb) {
+                (Some(rgb), _) => rgb,
+                (None, Some(kd)) => kd.as_dvec3().clamp(DVec3::ZERO, DVec3::ONE),
+                (None, None) => {
+                    return Err(v.error(
+                        "rgb",
+                        format!(
+                            "missing, and surface '{}' of {} has no material Kd to take it from",
+                            s.name,
+                            path.display()
+                        ),
+                    ));
+                }
+            };
+            surfaces.push(ObjectSurface {
+                name: s.name,
+                triangles: s.triangles,
+                rgb,
+            });
+        }
+        Ok(VirtualObject {
+            name,
+            mesh: path,
+            surfaces,
+            pose,
+            enabled,
+        })
+    }
+
+    pub(super) fn variant(
+        &self,
+        v: &Fields,
+        lights: &[Light],
+        objects: &[VirtualObject],
+    ) -> Result<Variant> {
+        let name = v.req_str("name")?.to_string();
+        let mut variant = Variant {
+            name,
+            lights: vec![],
+            objects: vec![],
+            hide_objects: vec![],
+            hide_lights: vec![],
+            reference: None,
+        };
+        if let Some(t) = v.opt_table("lights")? {
+            for (lname, value) in t.entries() {
+                let key = t.key_path(lname);
+                let index = lights.iter().position(|l| l.name == lname).ok_or_else(|| {
+                    Error::key(self.file, key.clone(), format!("no light named '{lname}'"))
+                })?;
+                let scale =
+                    fields::number(value).map_err(|m| Error::key(self.file, key.clone(), m))?;
+                if scale < 0.0 {
+                    return Err(Error::key(
+                        self.file,
+                        key,
+                        "a light's scale must not be negative",
+                    ));
+                }
+                variant.lights.push((index, scale));
+            }
+        }
+        if let Some(t) = v.opt_table("objects")? {
+            for (oname, value) in t.entries() {
+                let key = t.key_path(oname);
+                let index = objects
+                    .iter()
+                    .position(|o| o.name == oname)
+                    .ok_or_else(|| {
+                        Error::key(
+                            self.file,
+                            key.clone(),
+                            format!("no virtual object named '{oname}'"),
+                        )
+                    })?;
+                let p = Fields::new(self.file, key, value)?;
+                let change = PoseChange {
+                    translate: p.opt_place("translate")?,
+                    rotate_y_deg: p.opt_f64("rotate_y_deg")?,
+                    scale: p.opt_f64("scale")?,
+                };
+                if change.scale.is_some_and(|s| s <= 0.0) {
+                    return Err(p.error("scale", "must be positive"));
+                }
+                p.finish()?;
+                variant.objects.push((index, change));
+            }
+        }
+        if let Some(items) = v.opt_array("hide")? {
+            for (path, item) in items {
+                let toml::Value::String(n) = item else {
+                    return Err(Error::key(
+                        self.file,
+                        path,
+                        "must be the name of a virtual object or light",
+                    ));
+                };
+                if let Some(o) = objects.iter().position(|o| &o.name == n) {
+                    if variant.objects.iter().any(|(i, _)| *i == o) {
+                        return Err(Error::key(
+                            self.file,
+                            path,
+                            format!("'{n}' is both posed and hidden"),
+                        ));
+                    }
+                    variant.hide_objects.push(o);
+                } else if let Some(l) = lights.iter().position(|l| &l.name == n) {
+                    if variant.lights.iter().any(|(i, _)| *i == l) {
+                        return Err(Error::key(
+                            self.file,
+                            path,
+                            format!("'{n}' is both given a scale and hidden"),
+                        ));
+                    }
+                    variant.hide_lights.push(l);
+                } else {
+                    return Err(Error::key(
+                        self.file,
+                        path,
+                        format!("no virtual object or light named '{n}'"),
+                    ));
+                }
+            }
+        }
+        if let Some(rel) = v.opt_str("reference")? {
+            variant.reference = Some(self.existing_path(v, "reference", rel)?);
+        }
+        v.finish()?;
+        Ok(variant)
+    }
+
+    pub(super) fn motion(&self, m: &Fields, objects: &[VirtualObject]) -> Result<Motion> {
+        let name = m.req_str("name")?.to_string();
+        let oname = m.req_str("object")?;
+        let object = objects
+            .iter()
+            .position(|o| o.name == oname)
+            .ok_or_else(|| m.error("object", format!("no virtual object named '{oname}'")))?;
+        let items = m
+            .opt_array("translations")?
+            .ok_or_else(|| m.error("translations", "missing"))?;
+        if items.is_empty() {
+            return Err(m.error("translations", "needs at least one pose"));
+        }
+        let translations = items
+            .iter()
+            .map(|(path, v)| {
+                fields::place(v).map_err(|msg| Error::key(self.file, path.clone(), msg))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let mut references = Vec::new();
+        if let Some(refs) = m.opt_array("references")? {
+            if refs.len() != translations.len() {
+                return Err(m.error(
+                    "references",
+                    format!(
+                        "{} references for {} poses: give one per pose",
+                        refs.len(),
+                        translations.len()
+                    ),
+                ));
+            }
+            for (path, v) in refs {
+                let toml::Value::String(rel) = v else {
+                    return Err(Error::key(self.file, path, "must be a file name"));
+                };
+                let p = self.dir.join(rel);
+                if !p.is_file() {
+                    return Err(Error::key(
+                        self.file,
+                        path,
+                        format!("file not found: {}", p.display()),
+                    ));
+                }
+                references.push(p);
+            }
+        }
+        m.finish()?;
+        Ok(Motion {
+            name,
+            object,
+            translations,
+            references,
+        })
+    }
+}
