@@ -1,0 +1,375 @@
+//! What the virtual objects change in the room's radiosity: their mesh,
+//! their direct light, the room's links re-refined with them, the solves,
+//! and their own light gathered from the photo.
+
+use super::*;
+
+/// The radiosity of the augmented scene.
+pub(super) struct Changes {
+    /// The room's patches and then the objects' (None: no object, the room's are used).
+    pub(super) own: Option<(Patches, Vec<Vec<DVec3>>, Transport)>,
+    pub(super) reflectance: Vec<DVec3>,
+    pub(super) indirect_with: Vec<DVec3>,
+}
+
+/// Final gathering's directions per virtual vertex (its number, normal
+/// and strata per side): they depend on nothing else, so a moved object's
+/// vertices, numbered and facing as before, reuse them (computing them
+/// took about a tenth of the gather).
+#[derive(Debug, Default)]
+pub(super) struct GatherDirections {
+    pub(super) of: HashMap<(u32, [u64; 3], u32), Vec<DVec3>>,
+}
+
+impl GatherDirections {
+    pub(super) fn key(v: u32, n: DVec3, side: u32) -> (u32, [u64; 3], u32) {
+        (v, n.to_array().map(f64::to_bits), side)
+    }
+
+    /// Makes the directions of `vertices` (vertex, normal, side) that are
+    /// missing. Others are kept for later poses (a face turning to or from
+    /// the camera changes its vertices' side back when it turns back), up to
+    /// four sets per vertex: an object that turns gives new normals every
+    /// pose, and those are dropped then.
+    pub(super) fn keep(&mut self, vertices: &[(u32, DVec3, u32)]) {
+        use rayon::prelude::*;
+        if self.of.len() > 4 * vertices.len() {
+            self.of.clear();
+        }
+        let missing: Vec<_> = vertices
+            .iter()
+            .filter(|&&(v, n, side)| !self.of.contains_key(&GatherDirections::key(v, n, side)))
+            .collect();
+        let made: Vec<_> = missing
+            .into_par_iter()
+            .map(|&(v, n, side)| {
+                (
+                    GatherDirections::key(v, n, side),
+                    crate::gather::cosine_directions(
+                        n,
+                        side,
+                        crate::util::rng::hash2(v as u64, 0x6A7E),
+                    ),
+                )
+            })
+            .collect();
+        self.of.extend(made);
+    }
+
+    pub(super) fn of(&self, v: u32, n: DVec3, side: u32) -> &[DVec3] {
+        &self.of[&GatherDirections::key(v, n, side)]
+    }
+}
+
+/// The room's patches and then the virtual objects' (None: no object).
+pub(super) fn object_patches(
+    scene: &Scene,
+    room: &Patches,
+    has_objects: bool,
+    settings: &RenderSettings,
+    times: &mut StageTimes,
+) -> Option<Patches> {
+    has_objects.then(|| {
+        times.time("virtual mesh", || {
+            Patches::of_scene_from_room(room, scene, settings.virtual_patch_size)
+        })
+    })
+}
+
+/// [`Changes`] but for the objects' patches, which the caller keeps while
+/// it is solved (an update builds the Pixel Data Array's virtual part on
+/// them meanwhile).
+pub(super) struct Solved {
+    pub(super) own: Option<(Vec<Vec<DVec3>>, Transport)>,
+    pub(super) reflectance: Vec<DVec3>,
+    pub(super) indirect_with: Vec<DVec3>,
+}
+
+impl Solved {
+    pub(super) fn with_patches(self, patches: Option<Patches>) -> Changes {
+        let own = patches
+            .zip(self.own)
+            .map(|(p, (direct, transport))| (p, direct, transport));
+        Changes {
+            own,
+            reflectance: self.reflectance,
+            indirect_with: self.indirect_with,
+        }
+    }
+}
+
+/// Radiosity with the changes: the virtual objects' patches (`objects`,
+/// from [`object_patches`]) join the room's with their own reflectance and
+/// shadow its exchanges; lights at their new scales; the objects' own
+/// indirect light gathered from the photo.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn solve_changes(
+    scene: &Scene,
+    photo: &Image,
+    tracer: &crate::trace::Tracer,
+    model: &Model,
+    scales_with: &[f64],
+    settings: &RenderSettings,
+    bounds: &VirtualBounds,
+    link_facts: &crate::radiosity::RoomLinkFacts,
+    objects: Option<&Patches>,
+    directions: &mut GatherDirections,
+    times: &mut StageTimes,
+) -> Solved {
+    let lights = &model.lights;
+    let has_virtual = objects.is_some();
+    let own: Option<(&Patches, Vec<Vec<DVec3>>, Transport)> = objects.map(|patches| {
+        let direct = times.time("direct light with objects", || {
+            direct_irradiance_with_objects(
+                patches,
+                lights,
+                tracer,
+                settings.model.light_level,
+                &model.direct_per_light,
+                bounds,
+            )
+        });
+        let epsilon = match settings.model.transport {
+            TransportMethod::Full => crate::radiosity::DEFAULT_LINK_EPSILON,
+            TransportMethod::Hierarchical { epsilon } => epsilon,
+        };
+        // With final gathering the objects' light comes from the photo: they need no links to gather through.
+        let transport = times.time("form factors with objects", || {
+            model.transport.with_objects_using(
+                patches,
+                tracer,
+                epsilon,
+                settings.gather_rays == 0,
+                Some(link_facts),
+            )
+        });
+        (patches, direct, transport)
+    });
+    let (patches, direct_per_light, transport) = match &own {
+        Some((p, d, t)) => (*p, d, t),
+        None => (&model.patches, &model.direct_per_light, &model.transport),
+    };
+    let virtual_rgb: HashMap<u32, DVec3> = scene.virtual_surface_rgb();
+    let real_count = model.patches.patch_count();
+    let reflectance: Vec<DVec3> = (0..patches.patch_count())
+        .map(|k| {
+            if k < real_count {
+                model.estimate.reflectance[k]
+            } else {
+                virtual_rgb[&patches.patch(k).surface]
+            }
+        })
+        .collect();
+    let e = total_direct(scales_with, direct_per_light);
+    let mut b: Vec<DVec3> = reflectance.iter().zip(&e).map(|(r, e)| *r * *e).collect();
+    let tolerance = settings.model.estimate.solve_tolerance;
+    let with = times.time("solve with changes", || {
+        let mut guess = model.estimate.solution.radiosity.clone();
+        guess.resize(patches.patch_count(), DVec3::ZERO);
+        solve_from(
+            patches,
+            transport,
+            &reflectance,
+            &b,
+            Some(&guess),
+            tolerance,
+            500,
+        )
+    });
+    let mut indirect_with = patches.vertex_values(&with.indirect_irradiance);
+    if has_virtual && settings.gather_rays > 0 {
+        let real_vertices = model.patches.vertices.len();
+        let gathered = times.time("final gather on objects", || {
+            final_gather(
+                scene,
+                tracer,
+                patches,
+                real_vertices,
+                photo,
+                &with.radiosity,
+                &model.estimate.solution.radiosity,
+                settings.gather_rays,
+                directions,
+            )
+        });
+        for (v, h) in gathered {
+            indirect_with[v] = h;
+        }
+        // The objects have no links to gather through: their radiosity is
+        // their direct light plus what they gathered, and the room takes it
+        // from there in a second solve (from the first: a few iterations).
+        let again = times.time("solve with changes", || {
+            for k in real_count..patches.patch_count() {
+                let corners = patches.patch_vertices[k].iter().filter(|&&v| v != u32::MAX);
+                let h = corners
+                    .clone()
+                    .map(|&v| indirect_with[v as usize])
+                    .sum::<DVec3>()
+                    / corners.count().max(1) as f64;
+                b[k] = reflectance[k] * (e[k] + h);
+            }
+            solve_from(
+                patches,
+                transport,
+                &reflectance,
+                &b,
+                Some(&with.radiosity),
+                tolerance,
+                500,
+            )
+        });
+        let room = patches.vertex_values(&again.indirect_irradiance);
+        indirect_with[..real_vertices].copy_from_slice(&room[..real_vertices]);
+    }
+    Solved {
+        own: own.map(|(_, d, t)| (d, t)),
+        reflectance,
+        indirect_with,
+    }
+}
+
+/// Indirect irradiance at the virtual objects' vertices gathered from the
+/// photograph (final gathering, Grosch §4 after Loscos): `rays` cosine-
+/// distributed rays per vertex; where one meets a real surface the camera
+/// sees, the light leaving it is the photo's pixel there, times the change
+/// the objects make to that patch's radiosity (with / without); elsewhere
+/// the radiosity solution's B/π. Returns (vertex, irradiance) pairs.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn final_gather(
+    scene: &Scene,
+    tracer: &crate::trace::Tracer,
+    patches: &Patches,
+    real_vertices: usize,
+    photo: &Image,
+    radiosity_with: &[DVec3],
+    radiosity_without: &[DVec3],
+    rays: u32,
+    directions: &mut GatherDirections,
+) -> Vec<(usize, DVec3)> {
+    use crate::light::offset_origin;
+    use crate::trace::TraceRay;
+    use rayon::prelude::*;
+    // Each virtual vertex with the normal of the plane it lies in.
+    let mut normal_of: HashMap<u32, DVec3> = HashMap::new();
+    for (k, ids) in patches.patch_vertices.iter().enumerate() {
+        let el = patches.patch(k);
+        for &v in ids
+            .iter()
+            .filter(|&&v| v != u32::MAX && v as usize >= real_vertices)
+        {
+            normal_of.entry(v).or_insert(el.normal);
+        }
+    }
+    let cam = &scene.camera;
+    // A vertex on a face turned from the camera shows in no pixel: its
+    // light reaches the image only through what it sends the room, a small
+    // part of the room's own indirect light, and a quarter of the rays
+    // estimate it well enough (the box's hidden faces: half its vertices).
+    let side = (rays as f64).sqrt().ceil() as u32;
+    let hidden_side = side.div_ceil(2);
+    // Normals rounded to 2^-16: a moved object's are recomputed from its
+    // moved single-precision corners and differ by ~1e-7 from pose to pose,
+    // and the directions (kept per vertex and normal) would never be found
+    // again. The rounding turns the hemisphere by at most ~1e-5 rad.
+    let steady = |n: DVec3| ((n * 65536.0).round() / 65536.0).normalize();
+    let mut vertices: Vec<(u32, DVec3, u32)> = normal_of
+        .into_iter()
+        .map(|(v, n)| {
+            (
+                v,
+                steady(n),
+                if n.dot(cam.position - patches.vertices[v as usize]) > 0.0 {
+                    side
+                } else {
+                    hidden_side
+                },
+            )
+        })
+        .collect();
+    vertices.sort_by_key(|(v, ..)| *v);
+    // A ray leaving a face that its whole solid lies behind cannot meet
+    // that solid (it starts in front of the plane and moves away): with no
+    // other object, such a vertex traces the room alone.
+    let object_roots: Vec<&crate::patches::Element> = patches
+        .roots
+        .iter()
+        .filter(|&&r| patches.is_virtual_element(r))
+        .map(|&r| &patches.elements[r as usize])
+        .collect();
+    let one_object = object_roots
+        .windows(2)
+        .all(|w| w[0].surface == w[1].surface);
+    let corners: Vec<DVec3> = object_roots
+        .iter()
+        .flat_map(|e| e.shape.corners().to_vec())
+        .collect();
+    let clear_of_object = |p: DVec3, n: DVec3| {
+        one_object
+            && vertices.len() * corners.len() <= CLEAR_TEST_LIMIT
+            && crate::gather::clear_of_solid(&corners, p, n)
+    };
+    let pi = std::f64::consts::PI;
+    directions.keep(&vertices);
+    let directions = &*directions;
+    vertices
+        .par_iter()
+        .map(|&(v, n, side)| {
+            let p = patches.vertices[v as usize];
+            // Faces are one-sided here (solids face out, open surfaces face the camera).
+            let origin = offset_origin(p, n, p + n);
+            let dirs = directions.of(v, n, side);
+            let traced: Vec<TraceRay> = dirs
+                .iter()
+                .map(|d| TraceRay::new(origin.as_vec3(), d.as_vec3()))
+                .collect();
+            let mut hits = vec![None; traced.len()];
+            tracer.intersect_batch(
+                &traced,
+                if clear_of_object(p, n) {
+                    Layer::Real
+                } else {
+                    Layer::All
+                },
+                &mut hits,
+            );
+            // Where each ray lands and on which patch; the real points' photo radiance in one batch.
+            let landed: Vec<Option<(DVec3, usize, bool)>> = dirs
+                .iter()
+                .zip(&hits)
+                .map(|(d, hit)| {
+                    let hit = hit.as_ref()?;
+                    let y = origin + *d * hit.t as f64;
+                    let at = patches.locate(hit.surface, hit.triangle, y)?;
+                    Some((y, at.patch as usize, hit.is_virtual))
+                })
+                .collect();
+            let real_points: Vec<DVec3> = landed
+                .iter()
+                .flatten()
+                .filter(|l| !l.2)
+                .map(|l| l.0)
+                .collect();
+            let mut seen =
+                crate::gather::photo_radiances(cam, tracer, photo, &real_points).into_iter();
+            let mut sum = DVec3::ZERO;
+            for &(_, k, is_virtual) in landed.iter().flatten() {
+                let model = radiosity_with[k] / pi;
+                if is_virtual {
+                    sum += model;
+                    continue;
+                }
+                // Seen by the camera? Then the photo knows its radiance.
+                sum += match seen.next().flatten() {
+                    Some(radiance) => {
+                        let ratio = (radiosity_with[k]
+                            / radiosity_without[k].max(DVec3::splat(1e-12)))
+                        .min(DVec3::splat(4.0));
+                        radiance * ratio
+                    }
+                    None => model,
+                };
+            }
+            (v as usize, sum * (pi / dirs.len() as f64))
+        })
+        .collect()
+}
