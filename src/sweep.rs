@@ -244,12 +244,10 @@ pub fn run(
     mut progress: impl FnMut(usize, &SweepRow),
 ) -> Result<Vec<SweepRow>> {
     let photo = scene.load_photo()?;
-    let references: Vec<Image> = reference_files(scene, target)?
-        .iter()
-        .map(|r| read_image(r))
-        .collect::<Result<_>>()?;
-    for r in &references {
-        scene.check_size(r, "reference")?;
+    let files = reference_files(scene, target)?;
+    let references: Vec<Image> = files.iter().map(|r| read_image(r)).collect::<Result<_>>()?;
+    for (r, file) in references.iter().zip(&files) {
+        scene.check_size(r, "reference", file)?;
     }
     // One untimed render first: the thread pool and the page cache warm up
     // there, not in whichever setting happens to come first.

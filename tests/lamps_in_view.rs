@@ -8,33 +8,7 @@ use arlux::compare::skill;
 use arlux::image_io::Image;
 use arlux::lamps::{LAMP_SUPERSAMPLE_FACTOR, LampPixels};
 use arlux::light::LightSource;
-use arlux::model::StageTimes;
-use arlux::render::{RenderSettings, render};
-use arlux::scene::Scene;
-
-/// The variant rendered with the defaults, its truth and the photo.
-fn rendered(base: &Scene, variant: &str) -> (Image, Image, Image) {
-    let scene = base.with_variant(variant).unwrap();
-    let photo = scene.load_photo().unwrap();
-    let out = render(
-        &scene,
-        &photo,
-        &RenderSettings::default(),
-        &mut StageTimes::default(),
-    )
-    .unwrap();
-    let reference = base.variant(variant).unwrap().reference.clone().unwrap();
-    let truth = arlux::image_io::read_image(&reference).unwrap();
-    let image = out.composite.image;
-    assert!(
-        image
-            .pixels
-            .iter()
-            .all(|p| p.is_finite() && p.min_element() >= 0.0),
-        "{variant}: a pixel is negative or not finite"
-    );
-    (image, truth, photo)
-}
+use arlux::render::RenderSettings;
 
 #[test]
 fn whitebox_lamp_pixels_match_the_truth_in_every_variant() {
@@ -52,7 +26,7 @@ fn whitebox_lamp_pixels_match_the_truth_in_every_variant() {
         "light_x4_cube_near",
         "light_x0.25_cube_far",
     ] {
-        let (image, truth, photo) = rendered(&base, variant);
+        let (image, truth, photo) = common::rendered(&base, variant);
         let mean = |img: &Image| {
             lamps
                 .pixel_indices()
@@ -78,7 +52,7 @@ fn whitebox_lamp_pixels_match_the_truth_in_every_variant() {
 fn lounge_a_panel_switched_off_in_view_goes_dark() {
     let base = common::load("lounge", "scene.toml");
     for (variant, bound) in [("panel_1_off", 0.95), ("bulb_only", 0.9)] {
-        let (image, truth, photo) = rendered(&base, variant);
+        let (image, truth, photo) = common::rendered(&base, variant);
         let s = skill(&image, &truth, &photo).skill.unwrap();
         // Measured: 0.987 and 0.952 (0.47 and -1.15 while the panels'
         // pixels were shaded as the ceiling behind them).

@@ -8,7 +8,6 @@ mod common;
 
 use arlux::compare::skill;
 use arlux::model::{Model, ModelSettings, StageTimes};
-use arlux::render::{RenderSettings, render};
 
 #[test]
 fn reflectances_near_one_are_estimated_and_converge() {
@@ -68,17 +67,8 @@ fn a_cube_inserted_near_the_lamp_darkens_the_white_room() {
         ("cube_far", 0.75),
         ("cube_close", 0.68),
     ] {
-        let scene = base.with_variant(variant).unwrap();
-        let photo = scene.load_photo().unwrap();
-        let out = render(
-            &scene,
-            &photo,
-            &RenderSettings::default(),
-            &mut StageTimes::default(),
-        )
-        .unwrap();
-        let truth = common::image("whitebox", &format!("truth/{variant}.exr"));
-        let s = skill(&out.composite.image, &truth, &photo).skill.unwrap();
+        let (image, truth, photo) = common::rendered(&base, variant);
+        let s = skill(&image, &truth, &photo).skill.unwrap();
         assert!(s >= bound, "{variant}: skill {s:.3}");
     }
 }

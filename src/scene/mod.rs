@@ -424,19 +424,7 @@ impl Scene {
                 )
             }
         };
-        let (w, h) = (self.camera.width, self.camera.height);
-        if (img.width, img.height) != (w, h) {
-            return Err(Error::key(
-                &self.file,
-                key,
-                format!(
-                    "{} is {}x{} but the camera is {w}x{h}",
-                    file.display(),
-                    img.width,
-                    img.height
-                ),
-            ));
-        }
+        self.check_size(&img, key, &file)?;
         let mut negative = 0;
         for p in &mut img.pixels {
             if p.min_element() < 0.0 {
@@ -458,16 +446,19 @@ impl Scene {
         matches!(self.photo, Photo::Brackets(_))
     }
 
-    /// Errors unless `img` has the camera's size; `key` names where it came from.
-    pub fn check_size(&self, img: &Image, key: &str) -> Result<()> {
+    /// Errors unless `img`, read from `file`, has the camera's size; `key`
+    /// names where the scene gave it.
+    pub fn check_size(&self, img: &Image, key: &str, file: &Path) -> Result<()> {
         let (w, h) = (self.camera.width, self.camera.height);
         if (img.width, img.height) != (w, h) {
             return Err(Error::key(
                 &self.file,
                 key,
                 format!(
-                    "the image is {}x{} but the camera is {w}x{h}",
-                    img.width, img.height
+                    "{} is {}x{} but the camera is {w}x{h}",
+                    file.display(),
+                    img.width,
+                    img.height
                 ),
             ));
         }

@@ -77,3 +77,28 @@ pub fn arlux(args: &[&str]) -> Output {
         .output()
         .unwrap()
 }
+
+/// A variant rendered with the defaults (every pixel checked finite and not
+/// negative), its truth and the photo.
+pub fn rendered(base: &Scene, variant: &str) -> (Image, Image, Image) {
+    let scene = base.with_variant(variant).unwrap();
+    let photo = scene.load_photo().unwrap();
+    let out = arlux::render::render(
+        &scene,
+        &photo,
+        &arlux::render::RenderSettings::default(),
+        &mut arlux::model::StageTimes::default(),
+    )
+    .unwrap();
+    let reference = base.variant(variant).unwrap().reference.clone().unwrap();
+    let truth = arlux::image_io::read_image(&reference).unwrap();
+    let image = out.composite.image;
+    assert!(
+        image
+            .pixels
+            .iter()
+            .all(|p| p.is_finite() && p.min_element() >= 0.0),
+        "{variant}: a pixel is negative or not finite"
+    );
+    (image, truth, photo)
+}

@@ -65,7 +65,7 @@ pub fn run(args: &Args) -> Result<()> {
         match motion.references.get(pose) {
             Some(r) => {
                 let truth = image_io::read_image(r)?;
-                base.check_size(&truth, "motion.references")?;
+                base.check_size(&truth, "motion.references", r)?;
                 Ok(Some(compare(img, &truth, None)))
             }
             None => Ok(None),

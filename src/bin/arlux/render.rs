@@ -123,7 +123,7 @@ pub fn run(args: &Args) -> Result<()> {
     let error = times.time("compare", || -> Result<Option<(Comparison, Skill)>> {
         let Some(r) = &reference else { return Ok(None) };
         let truth = image_io::read_image(r)?;
-        scene.check_size(&truth, "variant.reference")?;
+        scene.check_size(&truth, "variant.reference", r)?;
         let image = &out.composite.image;
         Ok(Some((
             compare(image, &truth, None),
