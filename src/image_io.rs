@@ -98,10 +98,40 @@ struct ExrChannels {
     channels: Vec<(String, Vec<f32>)>,
 }
 
+/// Samples (pixels × channels, over every layer) above which an EXR is
+/// refused before its pixels are read: a header is a few bytes, and a
+/// damaged one can ask for any size (the reader then aborts the process on
+/// an allocation of tens of gigabytes). 2^30 samples is 4 GB of floats, a
+/// 24-megapixel photo with forty channels.
+pub const MAX_EXR_SAMPLES: u64 = 1 << 30;
+
+/// Reads the EXR's headers alone and refuses one whose layers hold more
+/// than [`MAX_EXR_SAMPLES`].
+fn check_exr_size(path: &Path, bytes: &[u8]) -> Result<()> {
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
+        .map_err(|e| Error::file(path, format!("malformed EXR: {e}")))?;
+    let mut samples: u64 = 0;
+    for header in &meta.headers {
+        let size = header.layer_size;
+        let pixels = size.width() as u64 * size.height() as u64;
+        samples = samples.saturating_add(pixels.saturating_mul(header.channels.list.len() as u64));
+    }
+    if samples > MAX_EXR_SAMPLES {
+        return Err(Error::file(
+            path,
+            format!(
+                "malformed EXR: its header asks for {samples} samples, more than arlux reads ({MAX_EXR_SAMPLES})"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 fn read_exr_channels(path: &Path) -> Result<ExrChannels> {
     let malformed = |e: x::Error| Error::file(path, format!("malformed EXR: {e}"));
     // Read from memory so that a missing file is reported as such.
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
+    check_exr_size(path, &bytes)?;
     let image = x::read()
         .no_deep_data()
         .largest_resolution_level()
@@ -462,6 +492,32 @@ mod tests {
         let e = read_image(&p).unwrap_err();
         assert!(
             e.to_string().contains("cut.exr") && e.to_string().contains("malformed EXR"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn an_exr_header_asking_for_gigabytes_is_refused_not_allocated() {
+        // A damaged header (found by tests/fuzz_parsers.rs) made the reader
+        // allocate 32 GB and abort the process.
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("huge.exr");
+        write_exr(&p, 5, 3, &[ExrLayer::Rgb("", &ramp(5, 3))]).unwrap();
+        let mut bytes = std::fs::read(&p).unwrap();
+        let key = b"dataWindow\0box2i\0";
+        let at = bytes
+            .windows(key.len())
+            .position(|w| w == key)
+            .expect("a data window")
+            + key.len()
+            + 4;
+        // xMax and yMax of the window: 200 000 × 200 000 pixels.
+        bytes[at + 8..at + 12].copy_from_slice(&199_999i32.to_le_bytes());
+        bytes[at + 12..at + 16].copy_from_slice(&199_999i32.to_le_bytes());
+        std::fs::write(&p, &bytes).unwrap();
+        let e = read_image(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("huge.exr") && e.contains("more than arlux reads"),
             "{e}"
         );
     }
