@@ -78,6 +78,77 @@ pub fn render(
     settings: &RenderSettings,
     times: &mut StageTimes,
 ) -> Result<RenderOutput> {
+    let (reachable, dropped) = without_unreachable_objects(scene);
+    let mut out = render_reachable(reachable.as_ref().unwrap_or(scene), photo, settings, times)?;
+    out.left_out.extend(dropped);
+    Ok(out)
+}
+
+/// `scene` with its enabled virtual objects that can change nothing
+/// switched off: an object whose box lies outside the box of the room and
+/// its lights cannot shadow or light anything in it, and one outside the
+/// camera's view is not seen, so such an object costs no ray and no form
+/// factor. `None` when every object stays; the notes say which went.
+fn without_unreachable_objects(scene: &Scene) -> (Option<Scene>, Vec<String>) {
+    let real = scene
+        .surfaces
+        .iter()
+        .flat_map(|s| s.triangles.iter().flatten())
+        .map(|p| p.as_dvec3());
+    let lights = scene.lights.iter().filter_map(|l| l.known_position());
+    let (lo, hi) = crate::geometry::bounds(real.chain(lights));
+    let margin = 0.01 * (hi - lo).length();
+    let (lo, hi) = (lo - margin, hi + margin);
+    let mut out: Option<Scene> = None;
+    let mut notes = Vec::new();
+    for (k, object) in scene.objects.iter().enumerate() {
+        if !object.enabled {
+            continue;
+        }
+        let points: Vec<DVec3> = (0..object.surfaces.len())
+            .flat_map(|i| object.world_triangles(i))
+            .flatten()
+            .map(|p| p.as_dvec3())
+            .collect();
+        let (olo, ohi) = crate::geometry::bounds(points.iter().copied());
+        let apart = olo.cmpgt(hi).any() || ohi.cmplt(lo).any();
+        if apart && !in_view(&scene.camera, olo, ohi) {
+            out.get_or_insert_with(|| scene.clone()).objects[k].enabled = false;
+            notes.push(format!(
+                "virtual object '{}': outside the room and out of view, it can change nothing (no rays, no form factors)",
+                object.name
+            ));
+        }
+    }
+    (out, notes)
+}
+
+/// Whether any part of the box (lo, hi) may be in the camera's view: false
+/// only when all its corners lie beyond one side of the view.
+fn in_view(camera: &crate::camera::Camera, lo: DVec3, hi: DVec3) -> bool {
+    let corners = crate::geometry::box_corners(lo, hi);
+    let projected: Option<Vec<(f64, f64)>> = corners
+        .iter()
+        .map(|c| camera.project(*c).map(|(x, y, _)| (x, y)))
+        .collect();
+    let Some(p) = projected else {
+        // Some corner at or behind the camera: in view unless all are.
+        return corners.iter().any(|c| camera.project(*c).is_some());
+    };
+    let (w, h) = (camera.width as f64, camera.height as f64);
+    !(p.iter().all(|q| q.0 < 0.0)
+        || p.iter().all(|q| q.0 > w)
+        || p.iter().all(|q| q.1 < 0.0)
+        || p.iter().all(|q| q.1 > h))
+}
+
+/// [`render`] of a scene whose objects may all change something.
+fn render_reachable(
+    scene: &Scene,
+    photo: &Image,
+    settings: &RenderSettings,
+    times: &mut StageTimes,
+) -> Result<RenderOutput> {
     let n = photo.pixels.len();
     if !scene.changes_the_photo() {
         let composite = Composite {

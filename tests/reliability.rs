@@ -292,3 +292,62 @@ fn a_patch_size_that_would_exhaust_memory_is_refused_up_front() {
         );
     }
 }
+
+#[test]
+fn an_object_far_outside_the_room_and_out_of_view_costs_nothing() {
+    let desk = Desk::new();
+    desk.edit(
+        "scene.toml",
+        "objects = { box = { translate = [0.35, 0.0, -0.25], rotate_y_deg = 20.0 } }",
+        "objects = { box = { translate = [0.35, 0.0, 10000.0], rotate_y_deg = 20.0 } }",
+    );
+    let out = desk.path("far.exr");
+    let run = arlux(&[
+        "render",
+        &desk.scene(),
+        "--variant",
+        "box_floor_a",
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(
+        run.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(report["rays"], 0, "{report}");
+    assert_eq!(report["links"], 0, "{report}");
+    let left_out = report["left_out"].to_string();
+    assert!(
+        left_out.contains("outside the room and out of view"),
+        "{left_out}"
+    );
+    // Nothing changes: the photo, bit for bit.
+    let image = arlux::image_io::read_image(&out).unwrap();
+    let photo = arlux::image_io::read_image(&desk.path("photo.exr")).unwrap();
+    assert_eq!(image.pixels, photo.pixels);
+}
+
+#[test]
+fn an_output_in_a_folder_that_cannot_be_written_is_refused_before_any_work() {
+    let scene = common::scene_dir("desk").join("scene.toml");
+    // /proc takes no new files, whoever runs the test (root included).
+    let run = arlux(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--variant",
+        "box_floor_a",
+        "-o",
+        "/proc/arlux-out.exr",
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("/proc/arlux-out.exr: -o: cannot write in the folder /proc"),
+        "{stderr}"
+    );
+    assert!(run.stdout.is_empty(), "work was done before the refusal");
+}

@@ -56,6 +56,17 @@ fn refuse(path: &Path, flag: &str, message: String) -> anyhow::Error {
     arlux::Error::file(path, format!("{flag}: {message}")).into()
 }
 
+/// Whether a file can be created in `dir`: creates and removes a probe (the
+/// permissions alone do not tell: a read-only mount, another user's folder).
+fn probe(dir: &Path) -> std::io::Result<()> {
+    let path = dir.join(format!(".arlux-probe-{}", std::process::id()));
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&path)?;
+    std::fs::remove_file(&path)
+}
+
 /// Checks every output before any work; remembers them for [`refuse_inputs`].
 pub(crate) fn check(outputs: &[Output]) -> Result<()> {
     for o in outputs {
@@ -82,6 +93,13 @@ pub(crate) fn check(outputs: &[Output]) -> Result<()> {
         }
         if o.path.is_dir() {
             return Err(refuse(o.path, o.flag, "is a folder, not a file".into()));
+        }
+        if let Err(e) = probe(parent) {
+            return Err(refuse(
+                o.path,
+                o.flag,
+                format!("cannot write in the folder {}: {e}", parent.display()),
+            ));
         }
         let ext = o
             .path
