@@ -214,6 +214,36 @@ impl RenderOptions {
     }
 }
 
+impl ModelSettings {
+    /// Checks the settings of a model of the room (`arlux radiosity`).
+    pub fn validate(&self) -> Result<(), SettingError> {
+        positive("patch-size", self.patch_size, " of metres")?;
+        if let TransportMethod::Hierarchical { epsilon } = self.transport {
+            positive("epsilon", epsilon, "")?;
+        }
+        let max = crate::light::MAX_GRID_LEVEL;
+        if self.light_level > max {
+            return fail("light-level", format!("must be at most {max}"));
+        }
+        Ok(())
+    }
+}
+
+impl crate::gonio::GonioSettings {
+    /// Checks the direction table's spacing (`arlux gonio`).
+    pub fn validate(&self) -> Result<(), SettingError> {
+        for (setting, v) in [
+            ("vertical-step", self.vertical_step_deg),
+            ("horizontal-step", self.horizontal_step_deg),
+        ] {
+            if !(v > 0.0 && v <= 90.0) {
+                return fail(setting, format!("must be in (0, 90] degrees, not {v}"));
+            }
+        }
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -247,6 +277,24 @@ mod tests {
             ..RenderOptions::default()
         };
         assert_eq!(pda_flag.resolve().unwrap_err().setting, "supersample");
+    }
+
+    #[test]
+    fn model_and_table_settings_are_checked() {
+        let bad = ModelSettings {
+            light_level: 99,
+            ..ModelSettings::default()
+        };
+        assert_eq!(bad.validate().unwrap_err().setting, "light-level");
+        assert!(ModelSettings::default().validate().is_ok());
+        let table = crate::gonio::GonioSettings {
+            vertical_step_deg: 0.0,
+            ..Default::default()
+        };
+        assert_eq!(
+            table.validate().unwrap_err().to_string(),
+            "--vertical-step must be in (0, 90] degrees, not 0"
+        );
     }
 
     #[test]

@@ -38,14 +38,12 @@ pub fn run(args: &Args) -> Result<()> {
     let horizontal_step = args.horizontal_step;
     let as_json = args.json;
     use arlux::gonio::{GonioSettings, ReflectanceSource, reconstruct};
-    for (name, v, max) in [
-        ("--vertical-step", vertical_step, 90.0),
-        ("--horizontal-step", horizontal_step, 90.0),
-    ] {
-        if !(v > 0.0 && v <= max) {
-            bail!("{name} must be in (0, {max}] degrees, not {v}");
-        }
-    }
+    let settings = GonioSettings {
+        vertical_step_deg: vertical_step,
+        horizontal_step_deg: horizontal_step,
+        ..GonioSettings::default()
+    };
+    settings.validate()?;
     let mut times = arlux::model::StageTimes::default();
     let scene = times.time("load", || load(path, None))?;
     if arlux::gonio::light_to_reconstruct(&scene)?.is_none() {
@@ -56,11 +54,6 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let tracer = times.time("tracer", || arlux::scene_tracer::build_tracer(&scene))?;
     let photo = photo_in_units(&scene, &tracer, &mut times)?;
-    let settings = GonioSettings {
-        vertical_step_deg: vertical_step,
-        horizontal_step_deg: horizontal_step,
-        ..GonioSettings::default()
-    };
     let rec = times.time("reconstruct", || {
         reconstruct(&scene, &photo, &tracer, &settings)
     })?;

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Result, bail};
+use anyhow::Result;
 use serde_json::json;
 
 use arlux::compare::compare;
@@ -49,18 +49,17 @@ pub fn run(args: &Args) -> Result<()> {
     let light_level = args.light_level;
     let as_json = args.json;
     use arlux::model::{Model, ModelSettings, ModelView, StageTimes, TransportMethod};
-    if !(patch_size > 0.0 && patch_size.is_finite()) {
-        bail!("--patch-size must be a positive number of metres, not {patch_size}");
-    }
-    if !(epsilon > 0.0 && epsilon.is_finite()) {
-        bail!("--epsilon must be positive, not {epsilon}");
-    }
-    if light_level > arlux::light::MAX_GRID_LEVEL {
-        bail!(
-            "--light-level must be at most {}",
-            arlux::light::MAX_GRID_LEVEL
-        );
-    }
+    let settings = ModelSettings {
+        patch_size,
+        transport: if full {
+            TransportMethod::Full
+        } else {
+            TransportMethod::Hierarchical { epsilon }
+        },
+        light_level,
+        ..ModelSettings::default()
+    };
+    settings.validate()?;
     let mut times = StageTimes::default();
     let scene = times.time("load", || load(path, None))?;
     let tracer = times.time("tracer", || arlux::scene_tracer::build_tracer(&scene))?;
@@ -71,16 +70,6 @@ pub fn run(args: &Args) -> Result<()> {
             arlux::inputs::reconstruct_cached(&scene, &photo, &tracer)
         })?,
         None => scene,
-    };
-    let settings = ModelSettings {
-        patch_size,
-        transport: if full {
-            TransportMethod::Full
-        } else {
-            TransportMethod::Hierarchical { epsilon }
-        },
-        light_level,
-        ..ModelSettings::default()
     };
     // The model reads the photo with its lamps filled from around them,
     // as a render does, and is compared with that photo.
