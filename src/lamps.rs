@@ -316,6 +316,10 @@ impl LampPixels {
             let on_real = samples.iter().filter(|q| self.real[q.light as usize]);
             let real_share = on_real.clone().count() as f32 / n;
             let real_model: Vec3 = on_real.map(|q| q.emitted).sum();
+            // An object in front of a lamp shows in the composite's coverage
+            // of the pixel; where that is zero no sample needs a ray (a
+            // lamp's pixels are many, and this runs at every update).
+            let may_be_hidden = composite.alpha.get(i).is_none_or(|a| *a > 0.0);
             let shot = photo.pixels[i].max(Vec3::ZERO);
             let lamps_shot = (shot - filled.pixels[i] * (1.0 - real_share)).max(Vec3::ZERO);
             let (mut lamp, mut visible, mut unchanged) = (Vec3::ZERO, 0u32, true);
@@ -325,7 +329,7 @@ impl LampPixels {
                 if !real && scale <= 0.0 {
                     continue;
                 }
-                if self.hidden(q, tracer) {
+                if may_be_hidden && self.hidden(q, tracer) {
                     unchanged = false;
                     continue;
                 }
