@@ -318,7 +318,9 @@ impl LampPixels {
             let real_model: Vec3 = on_real.map(|q| q.emitted).sum();
             // An object in front of a lamp shows in the composite's coverage
             // of the pixel; where that is zero no sample needs a ray (a
-            // lamp's pixels are many, and this runs at every update).
+            // lamp's pixels are many, and this runs at every update). An
+            // object thinner than one of the 4×4 edge sub-pixels could hide
+            // a lamp sample and leave no coverage: it is not looked for.
             let may_be_hidden = composite.alpha.get(i).is_none_or(|a| *a > 0.0);
             let shot = photo.pixels[i].max(Vec3::ZERO);
             let lamps_shot = (shot - filled.pixels[i] * (1.0 - real_share)).max(Vec3::ZERO);
