@@ -140,6 +140,7 @@ impl Transport {
                     layer,
                     epsilon,
                     trace_first: false,
+                    objects: None,
                 };
                 for &q in &patches.roots {
                     if p != q {
@@ -201,6 +202,7 @@ impl Transport {
                 |(lo, hi), (a, b)| (lo.min(a), hi.max(b)),
             );
         let object_box = crate::geometry::box_corners(olo, ohi);
+        let clusters = RootClusters::build(patches, &object_roots);
         // The candidates are the objects' own roots: no layer to look up per root.
         let near_objects = |i: usize| {
             let l = &room_links[i];
@@ -213,17 +215,14 @@ impl Transport {
             if olo.cmpgt(hi).any() || ohi.cmplt(lo).any() {
                 return false;
             }
-            match facts.and_then(|f| f.shafts.get(i)) {
-                // A shaft that leaves out the objects' whole box leaves out each of their roots.
-                Some(shafts) => {
-                    !shafts
-                        .coarse
-                        .get_or_init(|| Shaft::between_boxes(a.bounds, b.bounds))
-                        .excludes(&object_box)
-                        && may_be_occluded_using(patches, Layer::All, a, b, &object_roots, shafts)
-                }
-                None => may_be_occluded(patches, Layer::All, a, b, &object_roots),
-            }
+            let fresh = PairShafts::default();
+            let shafts = facts.and_then(|f| f.shafts.get(i)).unwrap_or(&fresh);
+            // A shaft that leaves out the objects' whole box leaves out each of their roots.
+            !shafts
+                .coarse
+                .get_or_init(|| Shaft::between_boxes(a.bounds, b.bounds))
+                .excludes(&object_box)
+                && clusters.any_may_block(&ShaftTest::new(patches, Layer::All, a, b, shafts))
         };
         let near: Vec<bool> = (0..room_links.len())
             .into_par_iter()
@@ -262,6 +261,7 @@ impl Transport {
             layer: Layer::All,
             epsilon,
             trace_first: true,
+            objects: Some(&clusters),
         };
         let new: Vec<Link> = tasks
             .par_iter()
@@ -284,20 +284,20 @@ impl Transport {
                                     &with,
                                     l.receiver,
                                     l.source,
-                                    all_roots,
-                                    Some((known, &object_roots, shafts)),
+                                    &[],
+                                    Some((known, shafts)),
                                     &mut out,
                                 );
                             }
-                            None => refine(&with, l.receiver, l.source, all_roots, &mut out),
+                            None => refine(&with, l.receiver, l.source, &room_roots, &mut out),
                         }
                     }
                     Task::Object(v, r) => {
                         if objects_receive {
-                            refine(&with, v, r, all_roots, &mut out);
+                            refine(&with, v, r, &room_roots, &mut out);
                         }
                         if !is_virtual(&r) {
-                            refine(&with, r, v, all_roots, &mut out);
+                            refine(&with, r, v, &room_roots, &mut out);
                         }
                     }
                 }
@@ -482,6 +482,9 @@ struct Refiner<'a> {
     layer: Layer,
     epsilon: f64,
     trace_first: bool,
+    /// Candidate occluders besides the given roots, at the first level
+    /// only (a child pair's candidates are its parent's occluders).
+    objects: Option<&'a RootClusters>,
 }
 
 /// What refinement learns about a pair of the room's elements before any
@@ -546,14 +549,14 @@ impl RoomLinkFacts {
 }
 
 /// [`refine`], with the pair's room facts already known (`known`: the
-/// facts, the other candidates — the objects' roots — and the pair's kept
-/// shafts) at this first level.
+/// facts and the pair's kept shafts; `candidates` are then ignored) at
+/// this first level.
 fn refine_from(
     with: &Refiner,
     p: u32,
     q: u32,
     candidates: &[u32],
-    known: Option<(&PairFacts, &[u32], &PairShafts)>,
+    known: Option<(&PairFacts, &PairShafts)>,
     out: &mut Vec<Link>,
 ) {
     let Refiner {
@@ -562,21 +565,32 @@ fn refine_from(
         layer,
         epsilon,
         trace_first,
+        objects,
     } = *with;
     let (ep, eq) = (&patches.elements[p as usize], &patches.elements[q as usize]);
     if coplanar(ep, eq) || faces_away(ep, eq) {
         return;
     }
-    let occluders = match known {
-        Some((facts, others, shafts)) => facts
-            .occluders
-            .iter()
-            .copied()
-            .chain(occluders_between_using(
-                patches, layer, ep, eq, others, shafts,
-            ))
-            .collect(),
-        None => occluders_between(patches, layer, ep, eq, candidates),
+    let fresh = PairShafts::default();
+    let (mut occluders, shafts) = match known {
+        Some((facts, shafts)) => (facts.occluders.clone(), shafts),
+        None => (
+            occluders_between_using(patches, layer, ep, eq, candidates, &fresh),
+            &fresh,
+        ),
+    };
+    if let Some(clusters) = objects {
+        // In root order, as a list of every root would give them.
+        let start = occluders.len();
+        clusters.may_block_into(
+            &ShaftTest::new(patches, layer, ep, eq, shafts),
+            &mut occluders,
+        );
+        occluders[start..].sort_unstable();
+    }
+    let with = &Refiner {
+        objects: None,
+        ..*with
     };
     let facts = known.map(|k| k.0);
     let (p_leaf, q_leaf) = (ep.children.is_none(), eq.children.is_none());
@@ -652,10 +666,12 @@ fn refine_from(
     }
 }
 
+mod clusters;
 mod direct;
 mod form_factor;
 mod solve;
 
+pub use clusters::*;
 pub use direct::*;
 pub use form_factor::*;
 pub use solve::*;

@@ -221,6 +221,40 @@ impl<'a> ShaftTest<'a> {
     }
 }
 
+impl ShaftTest<'_> {
+    /// Whether a root inside the box [lo, hi] may block light between p and
+    /// q: [`ShaftTest::may_block`]'s tests that hold for a box's contents
+    /// when they hold for its corners (the shafts and planes are convex).
+    pub(super) fn may_block_box(&self, lo: DVec3, hi: DVec3) -> bool {
+        if (lo - self.slack).cmpge(self.hi).any() || (hi + self.slack).cmple(self.lo).any() {
+            return false;
+        }
+        if self.layer == Layer::Real {
+            return false;
+        }
+        let corners = crate::geometry::box_corners(lo, hi);
+        let behind =
+            |&(o, n): &(DVec3, DVec3)| corners.iter().all(|c| (*c - o).dot(n) <= self.plane_slack);
+        if self.planes.iter().flatten().any(behind) {
+            return false;
+        }
+        let (p, q) = (self.p, self.q);
+        if self
+            .shafts
+            .coarse
+            .get_or_init(|| Shaft::between_boxes(p.bounds, q.bounds))
+            .excludes(&corners)
+        {
+            return false;
+        }
+        !self
+            .shafts
+            .hull
+            .get_or_init(|| Shaft::between_polygons(&p.shape.corners(), &q.shape.corners()))
+            .excludes(&corners)
+    }
+}
+
 /// The root elements among `candidates` that may block light between `p`
 /// and `q` (see `ShaftTest`). Empty means certainly visible. A child
 /// pair's shaft lies inside its parents', so their occluders are a subset.
