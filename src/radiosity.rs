@@ -66,10 +66,12 @@ pub enum Transport {
     /// Row-major patch × patch form factors.
     Full { n: usize, form_factors: Vec<f32> },
     /// Links between elements of the hierarchy, sorted by receiver, and
-    /// each receiver's range of them.
+    /// each receiver's range of them; and the room's links to clusters of
+    /// the virtual objects, when the objects send through those.
     Hierarchical {
         links: Vec<Link>,
         ranges: Vec<(u32, u32, u32)>,
+        clusters: Option<Box<ClusterLinks>>,
     },
 }
 
@@ -241,19 +243,32 @@ impl Transport {
             .collect();
         // One task per room link the objects may shadow and per (object
         // root, root) pair, so that both cores share the few large ones.
+        // Objects that gather from the room are linked element by element;
+        // objects that only send reach each room root through their clusters.
         enum Task {
             Room(usize),
             Object(u32, u32),
+            Cluster(u32),
         }
+        let object_tasks: Vec<Task> = if objects_receive {
+            object_roots
+                .iter()
+                .flat_map(|&v| {
+                    all_roots
+                        .iter()
+                        .filter(move |&&r| r != v)
+                        .map(move |&r| Task::Object(v, r))
+                })
+                .collect()
+        } else if clusters.nodes.is_empty() {
+            Vec::new()
+        } else {
+            room_roots.iter().map(|&r| Task::Cluster(r)).collect()
+        };
         let tasks: Vec<Task> = (0..room_links.len())
             .filter(|&i| near[i])
             .map(Task::Room)
-            .chain(object_roots.iter().flat_map(|&v| {
-                all_roots
-                    .iter()
-                    .filter(move |&&r| r != v)
-                    .map(move |&r| Task::Object(v, r))
-            }))
+            .chain(object_tasks)
             .collect();
         let with = Refiner {
             patches,
@@ -263,11 +278,12 @@ impl Transport {
             trace_first: true,
             objects: Some(&clusters),
         };
-        let new: Vec<Link> = tasks
+        let made: Vec<(Vec<Link>, Vec<ClusterLink>)> = tasks
             .par_iter()
             .with_max_len(4)
-            .flat_map_iter(|task| {
+            .map(|task| {
                 let mut out = Vec::new();
+                let mut to_clusters = Vec::new();
                 match *task {
                     Task::Room(i) => {
                         let l = room_links[i];
@@ -285,6 +301,7 @@ impl Transport {
                                     l.receiver,
                                     l.source,
                                     &[],
+                                    &[0],
                                     Some((known, shafts)),
                                     &mut out,
                                 );
@@ -300,12 +317,30 @@ impl Transport {
                             refine(&with, r, v, &room_roots, &mut out);
                         }
                     }
+                    Task::Cluster(r) => {
+                        refine_cluster(&with, r, 0, &room_roots, &mut out, &mut to_clusters)
+                    }
                 }
-                out
+                (out, to_clusters)
             })
             .collect();
-        links.extend(new);
-        Transport::hierarchical_from_links(links)
+        let mut cluster_links = Vec::new();
+        for (new, to_clusters) in made {
+            links.extend(new);
+            cluster_links.extend(to_clusters);
+        }
+        let mut transport = Transport::hierarchical_from_links(links);
+        if let Transport::Hierarchical { clusters: c, .. } = &mut transport
+            && !cluster_links.is_empty()
+        {
+            cluster_links.sort_by_key(|l| (l.receiver, l.node));
+            *c = Some(Box::new(ClusterLinks::new(
+                patches,
+                clusters,
+                cluster_links,
+            )));
+        }
+        transport
     }
 
     fn hierarchical_from_links(mut links: Vec<Link>) -> Transport {
@@ -317,7 +352,11 @@ impl Transport {
                 _ => ranges.push((l.receiver, i as u32, i as u32 + 1)),
             }
         }
-        Transport::Hierarchical { links, ranges }
+        Transport::Hierarchical {
+            links,
+            ranges,
+            clusters: None,
+        }
     }
 
     /// Number of form factors stored (links, or the matrix's non-zeros).
@@ -326,16 +365,23 @@ impl Transport {
             Transport::Full { form_factors, .. } => {
                 form_factors.iter().filter(|f| **f != 0.0).count()
             }
-            Transport::Hierarchical { links, .. } => links.len(),
+            Transport::Hierarchical {
+                links, clusters, ..
+            } => links.len() + clusters.as_ref().map_or(0, |c| c.links.len()),
         }
     }
 
     pub fn memory_bytes(&self) -> usize {
         match self {
             Transport::Full { form_factors, .. } => form_factors.len() * 4,
-            Transport::Hierarchical { links, ranges } => {
+            Transport::Hierarchical {
+                links,
+                ranges,
+                clusters,
+            } => {
                 links.len() * std::mem::size_of::<Link>()
                     + ranges.len() * std::mem::size_of::<(u32, u32, u32)>()
+                    + clusters.as_ref().map_or(0, |c| c.memory_bytes())
             }
         }
     }
@@ -349,7 +395,11 @@ impl Transport {
                     *o = row.iter().zip(b).map(|(f, b)| *f as f64 * b).sum();
                 });
             }
-            Transport::Hierarchical { links, ranges } => {
+            Transport::Hierarchical {
+                links,
+                ranges,
+                clusters,
+            } => {
                 let elements = &patches.elements;
                 // Pull: an element's radiosity is the area-weighted mean of its
                 // children's (children follow their parent in the arena).
@@ -378,6 +428,9 @@ impl Transport {
                 let mut node_h = vec![0.0; elements.len()];
                 for (&(receiver, _, _), h) in ranges.iter().zip(gathered) {
                     node_h[receiver as usize] = h;
+                }
+                if let Some(c) = clusters {
+                    c.gather_into(patches, &node_b, &mut node_h);
                 }
                 // Push: what an element gathers reaches every point of its children.
                 for e in 0..elements.len() {
@@ -464,7 +517,12 @@ fn source_spread(p: &Element, q: &Element) -> f64 {
 /// epsilon (its radiosity would be averaged with the wrong weights); the
 /// larger of the two while they are partly hidden from each other.
 fn refine(with: &Refiner, p: u32, q: u32, candidates: &[u32], out: &mut Vec<Link>) {
-    refine_from(with, p, q, candidates, None, out);
+    let clusters: &[u32] = if with.objects.is_some_and(|t| !t.nodes.is_empty()) {
+        &[0]
+    } else {
+        &[]
+    };
+    refine_from(with, p, q, candidates, clusters, None, out);
 }
 
 /// What [`refine`] works with: the elements, the geometry that may block
@@ -482,8 +540,8 @@ struct Refiner<'a> {
     layer: Layer,
     epsilon: f64,
     trace_first: bool,
-    /// Candidate occluders besides the given roots, at the first level
-    /// only (a child pair's candidates are its parent's occluders).
+    /// The objects' clusters: candidate occluders besides the given roots,
+    /// passed down as the few clusters a pair's shaft may meet.
     objects: Option<&'a RootClusters>,
 }
 
@@ -556,6 +614,7 @@ fn refine_from(
     p: u32,
     q: u32,
     candidates: &[u32],
+    clusters: &[u32],
     known: Option<(&PairFacts, &PairShafts)>,
     out: &mut Vec<Link>,
 ) {
@@ -572,25 +631,18 @@ fn refine_from(
         return;
     }
     let fresh = PairShafts::default();
-    let (mut occluders, shafts) = match known {
+    let (occluders, shafts) = match known {
         Some((facts, shafts)) => (facts.occluders.clone(), shafts),
         None => (
             occluders_between_using(patches, layer, ep, eq, candidates, &fresh),
             &fresh,
         ),
     };
-    if let Some(clusters) = objects {
-        // In root order, as a list of every root would give them.
-        let start = occluders.len();
-        clusters.may_block_into(
-            &ShaftTest::new(patches, layer, ep, eq, shafts),
-            &mut occluders,
-        );
-        occluders[start..].sort_unstable();
-    }
-    let with = &Refiner {
-        objects: None,
-        ..*with
+    let object_occluders = match objects {
+        Some(tree) if !clusters.is_empty() => {
+            tree.frontier(&ShaftTest::new(patches, layer, ep, eq, shafts), clusters)
+        }
+        _ => Vec::new(),
     };
     let facts = known.map(|k| k.0);
     let (p_leaf, q_leaf) = (ep.children.is_none(), eq.children.is_none());
@@ -616,7 +668,7 @@ fn refine_from(
         // trusted where the exchange is small (its error is at most F), and
         // refined where it is not (Hanrahan's BFV refinement, exact shafts)
         // — with `trace_first`, only where the rays disagree (see [`Refiner`]).
-        let occluded = !occluders.is_empty();
+        let occluded = !occluders.is_empty() || !object_occluders.is_empty();
         let splits = occluded && f > epsilon * VISIBILITY_REFINE_FRACTION && !(p_leaf && q_leaf);
         // A room pair's rays through the room were traced before: only the objects are left.
         // Where no object may block, the rays skip the objects: one could
@@ -626,6 +678,7 @@ fn refine_from(
         let traced = || match facts.and_then(|f| Some((f.room_blocked?, &f.rays))) {
             Some((room, rays)) if layer == Layer::All => visibility_with_room(rays, tracer, room),
             _ if layer == Layer::All
+                && object_occluders.is_empty()
                 && !occluders.iter().any(|&r| patches.is_virtual_element(r)) =>
             {
                 visibility(ep, eq, tracer, Layer::Real)
@@ -656,12 +709,12 @@ fn refine_from(
             .children
             .unwrap()
             .iter()
-            .for_each(|&c| refine(with, c, q, &occluders, out)),
+            .for_each(|&c| refine_from(with, c, q, &occluders, &object_occluders, None, out)),
         Some(false) => eq
             .children
             .unwrap()
             .iter()
-            .for_each(|&c| refine(with, p, c, &occluders, out)),
+            .for_each(|&c| refine_from(with, p, c, &occluders, &object_occluders, None, out)),
         None => {}
     }
 }

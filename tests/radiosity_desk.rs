@@ -404,3 +404,50 @@ fn gathering_rays_from_a_solids_faces_meet_through_the_room_alone_what_they_meet
         );
     }
 }
+
+#[test]
+fn what_the_box_sends_the_room_through_its_clusters_agrees_with_the_full_matrix() {
+    // Radiosity on the box only (brighter on top, none below): what each
+    // room patch gathers is the box's light, which the clustered transport
+    // sends through cluster links far away and element links near it (a
+    // coarse ε, so that the small box has some of each).
+    let epsilon = 0.02;
+    let base = desk();
+    let scene = base.with_variant("box_floor_a").unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
+    let room = Patches::of_scene(&scene, false, 0.5);
+    let with = Patches::of_scene_with(&scene, true, 0.5, 0.1);
+    let room_transport = Transport::hierarchical(&room, &tracer, Layer::Real, epsilon);
+    let clustered = room_transport.with_objects(&with, &tracer, epsilon, false);
+    let full = Transport::full(&with, &tracer, Layer::All);
+    let Transport::Hierarchical { clusters, .. } = &clustered else {
+        panic!("not hierarchical")
+    };
+    let cluster_links = clusters.as_ref().map_or(0, |c| c.links.len());
+    let n = with.patch_count();
+    let real = room.patch_count();
+    let b: Vec<DVec3> = (0..n)
+        .map(|k| {
+            let up = with.patch(k).normal.y;
+            DVec3::splat(if k >= real { 1.0 + up } else { 0.0 })
+        })
+        .collect();
+    let (h_full, h_clustered) = (full.gather_rgb(&with, &b), clustered.gather_rgb(&with, &b));
+    let area = |k: usize| with.patch(k).area;
+    let total = |h: &[DVec3]| (0..real).map(|k| h[k].x * area(k)).sum::<f64>();
+    let (t_full, t_clustered) = (total(&h_full), total(&h_clustered));
+    let peak = (0..real).map(|k| h_full[k].x).fold(0.0, f64::max);
+    let worst = (0..real)
+        .map(|k| (h_full[k].x - h_clustered[k].x).abs())
+        .fold(0.0, f64::max);
+    println!(
+        "box light on the room: {cluster_links} cluster links; total {t_clustered:.5} against {t_full:.5} (full matrix); worst patch off by {:.2}% of the brightest",
+        100.0 * worst / peak
+    );
+    assert!(cluster_links > 0, "no cluster link");
+    assert!(
+        (t_clustered / t_full - 1.0).abs() < 0.03,
+        "total {t_clustered} against {t_full}"
+    );
+    assert!(worst < 0.05 * peak, "a patch off by {worst} (peak {peak})");
+}

@@ -328,3 +328,86 @@ fn a_receiver_partly_behind_a_one_sided_source_gathers_from_the_part_in_front() 
         "gathers {got}, exact {exact}"
     );
 }
+
+/// The radiant intensity of a cluster over all of `patches`' roots at
+/// radiosity 1, against `exact`, worst relative error over 200 directions.
+fn worst_cluster_intensity(patches: &Patches, exact: impl Fn(DVec3) -> f64) -> f64 {
+    let links = ClusterLinks::new(
+        patches,
+        RootClusters::build(patches, &patches.roots),
+        Vec::new(),
+    );
+    let node_b = vec![1.0; patches.elements.len()];
+    let power = links.powers(patches, &node_b);
+    (0..200)
+        .map(|i| {
+            // Directions spread by the golden angle.
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / 200.0;
+            let (a, r) = (i as f64 * 2.399_963, (1.0 - z * z).sqrt());
+            let w = DVec3::new(r * a.cos(), r * a.sin(), z);
+            (links.intensity(0, &power[0], w) / exact(w) - 1.0).abs()
+        })
+        .fold(0.0, f64::max)
+}
+
+fn one_virtual_solid(triangles: &[Triangle], patch_size: f64) -> Patches {
+    Patches::build(
+        &[SurfaceInput {
+            surface: 0,
+            triangles,
+            is_virtual: true,
+        }],
+        patch_size,
+    )
+}
+
+#[test]
+fn a_cluster_sends_a_cube_s_and_a_sphere_s_intensity_in_every_direction() {
+    // A unit cube of radiosity 1 sends its projected area / π towards ω,
+    // (|ωx| + |ωy| + |ωz|) / π: one normal per face, exact.
+    let cube: Vec<Triangle> = box_faces(1.0).into_iter().flatten().collect();
+    let worst_cube = worst_cluster_intensity(&one_virtual_solid(&cube, 0.5), |w| {
+        (w.x.abs() + w.y.abs() + w.z.abs()) / std::f64::consts::PI
+    });
+    // A 20 × 40 sphere of radius 1 (the stool's ball): its projected area in every direction.
+    let (rings, segments) = (20, 40);
+    let at = |i: usize, j: usize| {
+        let (t, p) = (
+            std::f64::consts::PI * i as f64 / rings as f64,
+            std::f64::consts::TAU * j as f64 / segments as f64,
+        );
+        Vec3::new(
+            (t.sin() * p.cos()) as f32,
+            t.cos() as f32,
+            (t.sin() * p.sin()) as f32,
+        )
+    };
+    let mut sphere: Vec<Triangle> = Vec::new();
+    for i in 0..rings {
+        for j in 0..segments {
+            let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+            // Outward winding; the poles' degenerate halves left out.
+            if i + 1 < rings {
+                sphere.push([a, c, b]);
+            }
+            if i > 0 {
+                sphere.push([a, d, c]);
+            }
+        }
+    }
+    let patches = one_virtual_solid(&sphere, 10.0);
+    let area: f64 = patches
+        .roots
+        .iter()
+        .map(|&r| patches.elements[r as usize].area)
+        .sum();
+    // A convex solid's mean projected area is a quarter of its area.
+    let worst_sphere = worst_cluster_intensity(&patches, |_| area / 4.0 / std::f64::consts::PI);
+    println!(
+        "cluster intensity: cube worst {:.3}%, sphere worst {:.2}%",
+        100.0 * worst_cube,
+        100.0 * worst_sphere
+    );
+    assert!(worst_cube < 1e-6, "cube off by {worst_cube}");
+    assert!(worst_sphere < 0.05, "sphere off by {worst_sphere}");
+}
