@@ -119,6 +119,48 @@ pub fn is_closed(triangles: &[Triangle]) -> bool {
     !edges.is_empty() && edges.values().all(|n| n % 2 == 0)
 }
 
+/// Whether a closed surface's triangles all wind outwards (Some(true)) or
+/// all inwards (Some(false)); None when their winding is not consistent
+/// (an edge crossed twice the same way). One parity test then orients
+/// every face, where a test per face cost O(n²) (80 ms for a
+/// 2,000-triangle chair, at every move).
+pub fn consistent_winding(triangles: &[Triangle]) -> Option<bool> {
+    use std::collections::HashMap;
+    let key = |p: Vec3| (p * 1e5).round().as_ivec3().to_array();
+    let mut edges: HashMap<([i32; 3], [i32; 3]), i32> = HashMap::new();
+    for t in triangles {
+        for i in 0..3 {
+            let (a, b) = (key(t[i]), key(t[(i + 1) % 3]));
+            if a != b {
+                let (k, d) = if a < b { ((a, b), 1) } else { ((b, a), -1) };
+                *edges.entry(k).or_default() += d;
+            }
+        }
+    }
+    if edges.is_empty() || edges.values().any(|n| *n != 0) {
+        return None;
+    }
+    // Voted over the three largest faces: a sliver could mislead one test.
+    let mut order: Vec<(f64, DVec3, DVec3)> = triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| v.as_dvec3());
+            let n = (b - a).cross(c - a);
+            (n.length(), (a + b + c) / 3.0, n.normalize_or_zero())
+        })
+        .collect();
+    order.sort_by(|x, y| y.0.total_cmp(&x.0));
+    let votes = order
+        .iter()
+        .take(3)
+        .filter(|(area, centre, n)| {
+            let step = 1e-4 * area.sqrt().max(1e-3);
+            !encloses(triangles, *centre + *n * step)
+        })
+        .count();
+    Some(2 * votes > order.len().min(3))
+}
+
 /// Whether `p` lies inside the closed volume bounded by `triangles`, by the
 /// parity of ray crossings, voted over three skew directions so that a ray
 /// grazing an edge cannot decide alone.

@@ -453,6 +453,9 @@ impl Patches {
             // is linear in the surface's triangles: large solids stay two-sided.)
             let closed = input.triangles.len() <= MAX_SOLID_TRIANGLES
                 && crate::geometry::is_closed(input.triangles);
+            let outward = closed
+                .then(|| crate::geometry::consistent_winding(input.triangles))
+                .flatten();
             for (shape, tris) in primitives(input.triangles) {
                 let root = self.elements.len() as u32;
                 let region = match shape {
@@ -467,8 +470,17 @@ impl Patches {
                 self.push_element(shape, input.surface, root, None, region);
                 if closed {
                     let el = &mut self.elements[root as usize];
-                    let step = 1e-4 * el.shape.size().max(1e-3);
-                    if crate::geometry::encloses(input.triangles, el.centre + el.normal * step) {
+                    let inward = match (outward, tris.first()) {
+                        (Some(out), Some(&t)) => {
+                            let [a, b, c] = input.triangles[t as usize].map(|v| v.as_dvec3());
+                            ((b - a).cross(c - a).dot(el.normal) > 0.0) != out
+                        }
+                        _ => {
+                            let step = 1e-4 * el.shape.size().max(1e-3);
+                            crate::geometry::encloses(input.triangles, el.centre + el.normal * step)
+                        }
+                    };
+                    if inward {
                         el.normal = -el.normal;
                     }
                     el.one_sided = true;

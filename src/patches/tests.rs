@@ -221,3 +221,61 @@ fn a_quads_cut_sends_a_point_to_the_leaf_the_distances_choose() {
     }
     assert!(quads > 10, "{quads} quad roots");
 }
+
+#[test]
+fn every_face_of_the_stool_and_a_reversed_box_faces_out() {
+    // One parity test orients a consistently wound solid: each root's
+    // normal must point out as a parity test of its own says.
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let stool = crate::geometry::load_obj(&dir.join("scenes/lounge/geometry/stool.obj")).unwrap();
+    let mut solids: Vec<Vec<crate::geometry::Triangle>> =
+        stool.surfaces.iter().map(|o| o.triangles.clone()).collect();
+    // A box wound inwards: every face flipped.
+    let c = |x: f32, y: f32, z: f32| glam::Vec3::new(x, y, z);
+    let quad = |a, b, cc, d| [[a, cc, b], [a, d, cc]];
+    let inward: Vec<_> = [
+        quad(c(0., 0., 0.), c(1., 0., 0.), c(1., 0., 1.), c(0., 0., 1.)),
+        quad(c(0., 1., 0.), c(0., 1., 1.), c(1., 1., 1.), c(1., 1., 0.)),
+        quad(c(0., 0., 0.), c(0., 1., 0.), c(1., 1., 0.), c(1., 0., 0.)),
+        quad(c(0., 0., 1.), c(1., 0., 1.), c(1., 1., 1.), c(0., 1., 1.)),
+        quad(c(0., 0., 0.), c(0., 0., 1.), c(0., 1., 1.), c(0., 1., 0.)),
+        quad(c(1., 0., 0.), c(1., 1., 0.), c(1., 1., 1.), c(1., 0., 1.)),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    assert_eq!(crate::geometry::consistent_winding(&inward), Some(false));
+    solids.push(inward);
+    let (mut checked, mut embedded) = (0, 0);
+    for tris in &solids {
+        let p = Patches::build(
+            &[SurfaceInput {
+                surface: 0,
+                triangles: tris,
+                is_virtual: true,
+            }],
+            0.1,
+        );
+        for &r in &p.roots {
+            let e = &p.elements[r as usize];
+            if !e.one_sided {
+                continue;
+            }
+            let step = 1e-4 * e.shape.size().max(1e-3);
+            let inside = |n: DVec3| crate::geometry::encloses(tris, e.centre + n * step);
+            // A face sunk into another part of the solid (a leg's top in
+            // the seat) has the solid on both sides: no side is out.
+            if inside(e.normal) && inside(-e.normal) {
+                embedded += 1;
+                continue;
+            }
+            assert!(!inside(e.normal), "root {r} faces in");
+            checked += 1;
+        }
+    }
+    println!("{checked} one-sided roots face out, {embedded} lie inside the solid");
+    assert!(
+        checked > 1000 && embedded * 20 < checked,
+        "{checked} out, {embedded} inside"
+    );
+}
