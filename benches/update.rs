@@ -238,5 +238,60 @@ fn parts(_: &mut Criterion) {
         .install(|| parts_on_one_thread(&base, &photo, &RenderSettings::default()));
 }
 
-criterion_group!(benches, bench, parts);
+/// `lounge`'s `stool_walk` (a 1,968-triangle stool): the same move back
+/// and forth on one session, next to a full render of the pose, and the
+/// update's indirect part (re-link, solve, gather) on its own.
+fn lounge(c: &mut Criterion) {
+    let base = Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/lounge/scene.toml"))
+        .unwrap();
+    let settings = RenderSettings::default();
+    let (p2, p3) = (
+        base.with_motion_pose("stool_walk", 2).unwrap(),
+        base.with_motion_pose("stool_walk", 3).unwrap(),
+    );
+    let photo = p2.load_photo().unwrap();
+    let mut g = c.benchmark_group("update");
+    g.sample_size(10);
+    let mut session = Session::start(&p2, &photo, &settings, &mut StageTimes::default()).unwrap();
+    session.prepare_updates(&mut StageTimes::default());
+    session.image_only();
+    let mut forth = false;
+    let mut indirect = Vec::new();
+    g.bench_function("stool_walk_poses_2_3_alternating_on_one_session", |b| {
+        b.iter(|| {
+            forth = !forth;
+            let mut times = StageTimes::default();
+            let stats = session
+                .update(if forth { &p3 } else { &p2 }, &mut times)
+                .unwrap();
+            // Inside "radiosity | pixels": the indirect stages run beside the pixels'.
+            indirect.push(
+                times
+                    .1
+                    .iter()
+                    .filter(|(n, _)| !n.contains("pixel") && !n.contains("re-trace"))
+                    .map(|(_, d)| d.as_secs_f64() * 1e3)
+                    .sum::<f64>(),
+            );
+            stats
+        })
+    });
+    drop(session);
+    indirect.sort_by(f64::total_cmp);
+    if !indirect.is_empty() {
+        println!(
+            "stool_walk update, indirect part (re-link, solve, gather): median {:.1} ms over {} updates",
+            indirect[indirect.len() / 2],
+            indirect.len()
+        );
+    }
+    g.bench_function("stool_walk_pose_3_full_render", |b| {
+        b.iter_with_large_drop(|| {
+            render(&p3, &photo, &settings, &mut StageTimes::default()).unwrap()
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench, parts, lounge);
 criterion_main!(benches);

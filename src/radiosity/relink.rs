@@ -1,0 +1,213 @@
+//! Virtual objects added to a room's transport: the room's links they may
+//! shadow refined again, and the objects linked (element by element, or
+//! through their clusters).
+
+use super::*;
+
+impl Transport {
+    /// This transport (of a room's patches) with virtual objects added:
+    /// `patches` holds the room's elements first, unchanged, then the
+    /// objects'. Hierarchical links whose shaft cannot meet an object are
+    /// kept; the others are refined again with the objects as occluders;
+    /// the objects' elements are linked with everything. A full matrix is
+    /// rebuilt.
+    ///
+    /// With `objects_receive` false the objects get no links of their own to
+    /// gather through (the caller supplies their light, e.g. by final
+    /// gathering from the photo); they still shadow the room and send it
+    /// light, through [`ClusterLinks`] where their clusters are far enough.
+    pub fn with_objects(
+        &self,
+        patches: &Patches,
+        tracer: &Tracer,
+        epsilon: f64,
+        objects_receive: bool,
+    ) -> Transport {
+        self.with_objects_using(patches, tracer, epsilon, objects_receive, None)
+    }
+
+    /// [`Transport::with_objects`], keeping in `facts` (made for this
+    /// transport by [`RoomLinkFacts::new`]) what it learns about the room's
+    /// links for the next placement of the objects: the same links result.
+    pub fn with_objects_using(
+        &self,
+        patches: &Patches,
+        tracer: &Tracer,
+        epsilon: f64,
+        objects_receive: bool,
+        facts: Option<&RoomLinkFacts>,
+    ) -> Transport {
+        let Transport::Hierarchical {
+            links: room_links, ..
+        } = self
+        else {
+            return Transport::full(patches, tracer, Layer::All);
+        };
+        let is_virtual = |r: &u32| patches.is_virtual_element(*r);
+        let object_roots: Vec<u32> = patches.roots.iter().copied().filter(is_virtual).collect();
+        let all_roots = &patches.roots;
+        let clusters = RootClusters::build(patches, &object_roots);
+        let near = near_objects(patches, room_links, &clusters, facts);
+        let mut links: Vec<Link> = room_links
+            .iter()
+            .zip(&near)
+            .filter(|(_, n)| !**n)
+            .map(|(l, _)| *l)
+            .collect();
+        let room_roots: Vec<u32> = all_roots
+            .iter()
+            .copied()
+            .filter(|r| !is_virtual(r))
+            .collect();
+        // One task per room link the objects may shadow and per (object
+        // root, root) pair, so that both cores share the few large ones.
+        // Objects that gather from the room are linked element by element;
+        // objects that only send reach each room root through their clusters.
+        enum Task {
+            Room(usize),
+            Object(u32, u32),
+            Cluster(u32),
+        }
+        let object_tasks: Vec<Task> = if objects_receive {
+            object_roots
+                .iter()
+                .flat_map(|&v| {
+                    all_roots
+                        .iter()
+                        .filter(move |&&r| r != v)
+                        .map(move |&r| Task::Object(v, r))
+                })
+                .collect()
+        } else if clusters.nodes.is_empty() {
+            Vec::new()
+        } else {
+            room_roots.iter().map(|&r| Task::Cluster(r)).collect()
+        };
+        let tasks: Vec<Task> = (0..room_links.len())
+            .filter(|&i| near[i])
+            .map(Task::Room)
+            .chain(object_tasks)
+            .collect();
+        let with = Refiner {
+            patches,
+            tracer,
+            layer: Layer::All,
+            epsilon,
+            trace_first: true,
+            objects: Some(&clusters),
+        };
+        let made: Vec<(Vec<Link>, Vec<ClusterLink>)> = tasks
+            .par_iter()
+            .with_max_len(4)
+            .map(|task| {
+                let mut out = Vec::new();
+                let mut to_clusters = Vec::new();
+                match *task {
+                    Task::Room(i) => {
+                        relink_room_link(&with, room_links, i, facts, &room_roots, &mut out)
+                    }
+                    Task::Object(v, r) => {
+                        if objects_receive {
+                            refine(&with, v, r, &room_roots, &mut out);
+                        }
+                        if !is_virtual(&r) {
+                            refine(&with, r, v, &room_roots, &mut out);
+                        }
+                    }
+                    Task::Cluster(r) => {
+                        refine_cluster(&with, r, 0, &room_roots, &mut out, &mut to_clusters)
+                    }
+                }
+                (out, to_clusters)
+            })
+            .collect();
+        let mut cluster_links = Vec::new();
+        for (new, to_clusters) in made {
+            links.extend(new);
+            cluster_links.extend(to_clusters);
+        }
+        let mut transport = Transport::hierarchical_from_links(links);
+        if let Transport::Hierarchical { clusters: c, .. } = &mut transport
+            && !cluster_links.is_empty()
+        {
+            cluster_links.sort_by_key(|l| (l.receiver, l.node));
+            *c = Some(Box::new(ClusterLinks::new(
+                patches,
+                clusters,
+                cluster_links,
+            )));
+        }
+        transport
+    }
+}
+
+/// Which of the room's `links` the objects (`clusters`) may shadow: the
+/// pair's box must meet the objects' box, its box shaft leave out no corner
+/// of it, and a cluster of the objects may hold a root in the pair's shaft.
+fn near_objects(
+    patches: &Patches,
+    room_links: &[Link],
+    clusters: &RootClusters,
+    facts: Option<&RoomLinkFacts>,
+) -> Vec<bool> {
+    let Some(top) = clusters.nodes.first() else {
+        return vec![false; room_links.len()];
+    };
+    let (olo, ohi) = (top.lo, top.hi);
+    let object_box = crate::geometry::box_corners(olo, ohi);
+    let near = |i: usize| {
+        let l = &room_links[i];
+        let (a, b) = (
+            &patches.elements[l.receiver as usize],
+            &patches.elements[l.source as usize],
+        );
+        let ((alo, ahi), (blo, bhi)) = (a.bounds, b.bounds);
+        let (lo, hi) = (alo.min(blo), ahi.max(bhi));
+        if olo.cmpgt(hi).any() || ohi.cmplt(lo).any() {
+            return false;
+        }
+        let fresh = PairShafts::default();
+        let shafts = facts.and_then(|f| f.shafts.get(i)).unwrap_or(&fresh);
+        // A shaft that leaves out the objects' whole box leaves out each of their roots.
+        !shafts
+            .coarse
+            .get_or_init(|| Shaft::between_boxes(a.bounds, b.bounds))
+            .excludes(&object_box)
+            && clusters.any_may_block(&ShaftTest::new(patches, Layer::All, a, b, shafts))
+    };
+    (0..room_links.len()).into_par_iter().map(near).collect()
+}
+
+/// Refines room link `i` again with the objects as occluders, from the
+/// link's kept room facts when there are some (made on first need).
+fn relink_room_link(
+    with: &Refiner,
+    room_links: &[Link],
+    i: usize,
+    facts: Option<&RoomLinkFacts>,
+    room_roots: &[u32],
+    out: &mut Vec<Link>,
+) {
+    let l = room_links[i];
+    let patches = with.patches;
+    let (ep, eq) = (
+        &patches.elements[l.receiver as usize],
+        &patches.elements[l.source as usize],
+    );
+    match facts.and_then(|f| Some((f.facts.get(i)?, f.shafts.get(i)?))) {
+        Some((cell, shafts)) => {
+            let known = cell
+                .get_or_init(|| PairFacts::of(patches, with.tracer, ep, eq, room_roots, shafts));
+            refine_from(
+                with,
+                l.receiver,
+                l.source,
+                &[],
+                &[0],
+                Some((known, shafts)),
+                out,
+            );
+        }
+        None => refine(with, l.receiver, l.source, room_roots, out),
+    }
+}
