@@ -1,12 +1,11 @@
 //! Clusters of the virtual objects' root elements: a hierarchy of boxes
 //! (Smits, Arvo & Greenberg 1994; Sillion 1995) that a shaft test descends
-//! instead of testing every root. A 2,000-triangle chair has 2,000 roots;
-//! every room link an object may shadow, and every pair it links, asked
-//! each of them, and those tests were most of an update.
+//! instead of testing every root (a 2,000-triangle chair has 2,000 roots),
+//! and through which the objects send the room their light.
 //!
 //! Written here rather than taken from a spatial-index crate (rstar, bvh):
 //! each node carries what radiosity needs of its roots (the box for shaft
-//! tests; the light it sends, see [`ClusterLight`]), and queries are shaft
+//! tests; the light it sends, see [`ClusterLinks`]), and queries are shaft
 //! tests, not rays or points. Embree still does every ray.
 
 use glam::{DVec3, Vec3};
@@ -192,8 +191,8 @@ pub struct ClusterLink {
 /// roots' area per bin of normal directions (a cube map of 6 × 4 × 4 cells,
 /// about 15° across) with the bin's mean normal; I is summed over the
 /// bins. Exact for boxy furniture (one normal per face) and within a few
-/// per cent for a tessellated sphere, where spherical harmonics of order 2
-/// were 50% off along a cube's axes (its anisotropy is of order 4).
+/// per cent for a tessellated sphere; spherical harmonics of order 2 are
+/// 37–50% off along a cube's axes (its anisotropy is of order 4).
 /// Self-shadowing inside a cluster is left out (it sends a little too much
 /// towards a concave side); where that matters, near the object, the
 /// oracle opens the cluster.

@@ -185,10 +185,9 @@ impl<'a> ShaftTest<'a> {
     /// faces, for one), and the shaft does not exclude it.
     pub(super) fn may_block(&self, r: u32) -> bool {
         let root = &self.patches.elements[r as usize];
-        // Cheapest first: most roots lie outside the pair's box. Boxes that
-        // only touch cannot hold an occluder between p and q.
+        // Cheapest first: most roots lie outside the pair's box.
         let (rlo, rhi) = root.bounds;
-        if (rlo - self.slack).cmpge(self.hi).any() || (rhi + self.slack).cmple(self.lo).any() {
+        if self.outside_box(rlo, rhi) {
             return false;
         }
         let in_layer = match self.layer {
@@ -198,41 +197,29 @@ impl<'a> ShaftTest<'a> {
         if !in_layer || coplanar(root, self.p) || coplanar(root, self.q) {
             return false;
         }
-        let corners = root.shape.corners();
-        let behind =
-            |&(o, n): &(DVec3, DVec3)| corners.iter().all(|c| (*c - o).dot(n) <= self.plane_slack);
-        if self.planes.iter().flatten().any(behind) {
-            return false;
-        }
-        let (p, q) = (self.p, self.q);
-        if self
-            .shafts
-            .coarse
-            .get_or_init(|| Shaft::between_boxes(p.bounds, q.bounds))
-            .excludes(&corners)
-        {
-            return false;
-        }
-        !self
-            .shafts
-            .hull
-            .get_or_init(|| Shaft::between_polygons(&p.shape.corners(), &q.shape.corners()))
-            .excludes(&corners)
+        self.may_hold(&root.shape.corners())
     }
-}
 
-impl ShaftTest<'_> {
     /// Whether a root inside the box [lo, hi] may block light between p and
     /// q: [`ShaftTest::may_block`]'s tests that hold for a box's contents
     /// when they hold for its corners (the shafts and planes are convex).
+    /// Clusters hold virtual roots only.
     pub(super) fn may_block_box(&self, lo: DVec3, hi: DVec3) -> bool {
-        if (lo - self.slack).cmpge(self.hi).any() || (hi + self.slack).cmple(self.lo).any() {
-            return false;
-        }
-        if self.layer == Layer::Real {
-            return false;
-        }
-        let corners = crate::geometry::box_corners(lo, hi);
+        self.layer != Layer::Real
+            && !self.outside_box(lo, hi)
+            && self.may_hold(&crate::geometry::box_corners(lo, hi))
+    }
+
+    /// Whether the box [lo, hi] lies outside the pair's box (boxes that
+    /// only touch cannot hold an occluder between p and q).
+    fn outside_box(&self, lo: DVec3, hi: DVec3) -> bool {
+        (lo - self.slack).cmpge(self.hi).any() || (hi + self.slack).cmple(self.lo).any()
+    }
+
+    /// Whether the convex hull of `corners` may meet a segment carrying
+    /// light between p and q: behind neither's plane, and excluded by
+    /// neither the box shaft nor the hull.
+    fn may_hold(&self, corners: &[DVec3]) -> bool {
         let behind =
             |&(o, n): &(DVec3, DVec3)| corners.iter().all(|c| (*c - o).dot(n) <= self.plane_slack);
         if self.planes.iter().flatten().any(behind) {
@@ -243,7 +230,7 @@ impl ShaftTest<'_> {
             .shafts
             .coarse
             .get_or_init(|| Shaft::between_boxes(p.bounds, q.bounds))
-            .excludes(&corners)
+            .excludes(corners)
         {
             return false;
         }
@@ -251,7 +238,7 @@ impl ShaftTest<'_> {
             .shafts
             .hull
             .get_or_init(|| Shaft::between_polygons(&p.shape.corners(), &q.shape.corners()))
-            .excludes(&corners)
+            .excludes(corners)
     }
 }
 
