@@ -1,7 +1,8 @@
 //! Property tests over every parser of user input: whatever the bytes, a
 //! parser returns a value or an error, never a panic or an abort. Each
-//! input is a valid file mutated (bytes flipped, inserted, deleted, lines
-//! cut) or noise. CI runs a few hundred cases per parser; a long run:
+//! input is a seed of the parser's corpus (`tests/fuzz_corpus/<parser>/`:
+//! valid files covering the format, and inputs that once broke a parser)
+//! mutated: bytes flipped, inserted, deleted, or the file cut. CI runs a few hundred cases per parser; a long run:
 //! `ARLUX_FUZZ_CASES=200000 cargo test --release --test fuzz_parsers`
 //! (see docs/CONTRIBUTING.md). Failing cases proptest finds are kept in
 //! `tests/fuzz_parsers.proptest-regressions` and replayed first.
@@ -102,46 +103,111 @@ fn apply(mut bytes: Vec<u8>, edits: &[Edit], token: &[u8]) -> Vec<u8> {
     bytes
 }
 
-/// A temporary copy of the desk whose `file` holds `bytes`.
-fn desk_with(file: &str, bytes: &[u8]) -> common::Desk {
+/// The seed files of one parser's corpus (`tests/fuzz_corpus/<parser>/`),
+/// sorted by name: valid files covering the format's constructs, and the
+/// inputs that once broke a parser.
+fn corpus(parser: &str) -> Vec<(String, Vec<u8>)> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fuzz_corpus")
+        .join(parser);
+    let mut seeds: Vec<(String, Vec<u8>)> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            (
+                e.file_name().to_string_lossy().into_owned(),
+                std::fs::read(e.path()).unwrap(),
+            )
+        })
+        .collect();
+    seeds.sort();
+    assert!(!seeds.is_empty(), "no seeds in {}", dir.display());
+    seeds
+}
+
+/// A seed of `parser`'s corpus.
+fn seed(parser: &'static str) -> impl Strategy<Value = Vec<u8>> {
+    prop::sample::select(corpus(parser)).prop_map(|(_, bytes)| bytes)
+}
+
+/// A temporary copy of the desk whose `scene.toml` holds `bytes`, with the
+/// IES file the corpus's scenes name.
+fn desk_with_scene(bytes: &[u8]) -> common::Desk {
     let desk = common::Desk::new();
-    std::fs::write(desk.path(file), bytes).unwrap();
+    std::fs::write(desk.path("scene.toml"), bytes).unwrap();
+    let ies = corpus("ies")
+        .into_iter()
+        .find(|(n, _)| n == "type_c_tilt_none.ies")
+        .unwrap();
+    std::fs::write(desk.path("lamp.ies"), ies.1).unwrap();
     desk
+}
+
+fn read_ies(bytes: &[u8]) -> Result<arlux::ies::IesProfile, arlux::error::Error> {
+    arlux::ies::IesProfile::parse(
+        &String::from_utf8_lossy(bytes),
+        std::path::Path::new("lamp.ies"),
+    )
+}
+
+/// Writes `bytes` to a file `name` in a fresh folder and reads it with `read`.
+fn read_as<T>(name: &str, bytes: &[u8], read: impl Fn(&std::path::Path) -> T) -> T {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join(name);
+    std::fs::write(&path, bytes).unwrap();
+    read(&path)
+}
+
+/// Seeds are only useful if the parser accepts them: every seed but the
+/// recorded breakers (named `huge_*`) parses.
+#[test]
+fn every_seed_but_the_recorded_breakers_parses() {
+    for (name, bytes) in corpus("scene_toml") {
+        let desk = desk_with_scene(&bytes);
+        if let Err(e) = arlux::scene::Scene::load(desk.path("scene.toml")) {
+            panic!("{name}: {e}");
+        }
+    }
+    for (name, bytes) in corpus("obj") {
+        read_as("mesh.obj", &bytes, arlux::geometry::load_obj)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
+    for (name, bytes) in corpus("ies") {
+        read_ies(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
+    for (name, bytes) in corpus("exr") {
+        let read = read_as("photo.exr", &bytes, arlux::image_io::read_image);
+        assert_eq!(
+            read.is_ok(),
+            !name.starts_with("huge_"),
+            "{name}: {:?}",
+            read.err()
+        );
+    }
 }
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(cases()))]
 
     #[test]
-    fn scene_toml_never_panics(edits in edits(), token in tokens()) {
-        let text = std::fs::read(common::scene_dir("desk").join("scene.toml")).unwrap();
-        let desk = desk_with("scene.toml", &apply(text, &edits, &token));
+    fn scene_toml_never_panics(text in seed("scene_toml"), edits in edits(), token in tokens()) {
+        let desk = desk_with_scene(&apply(text, &edits, &token));
         let _ = arlux::scene::Scene::load(desk.path("scene.toml"));
     }
 
     #[test]
-    fn obj_never_panics(edits in edits(), token in tokens()) {
-        let text = std::fs::read(common::scene_dir("desk").join("geometry/furniture.obj")).unwrap();
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("mesh.obj");
-        std::fs::write(&path, apply(text, &edits, &token)).unwrap();
-        let _ = arlux::geometry::load_obj(&path);
+    fn obj_never_panics(text in seed("obj"), edits in edits(), token in tokens()) {
+        let _ = read_as("mesh.obj", &apply(text, &edits, &token), arlux::geometry::load_obj);
     }
 
     #[test]
-    fn ies_never_panics(edits in edits(), token in tokens()) {
-        let text = IES.as_bytes().to_vec();
-        let bytes = apply(text, &edits, &token);
-        let _ = arlux::ies::IesProfile::parse(&String::from_utf8_lossy(&bytes), std::path::Path::new("lamp.ies"));
+    fn ies_never_panics(text in seed("ies"), edits in edits(), token in tokens()) {
+        let _ = read_ies(&apply(text, &edits, &token));
     }
 
     #[test]
-    fn exr_never_panics(edits in header_edits(), token in tokens()) {
-        let bytes = small_exr();
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("photo.exr");
-        std::fs::write(&path, apply(bytes, &edits, &token)).unwrap();
-        let _ = arlux::image_io::read_image(&path);
+    fn exr_never_panics(bytes in seed("exr"), edits in header_edits(), token in tokens()) {
+        let _ = read_as("photo.exr", &apply(bytes, &edits, &token), arlux::image_io::read_image);
     }
 }
 
@@ -159,27 +225,3 @@ fn header_edits() -> impl Strategy<Value = Vec<Edit>> {
             .collect()
     })
 }
-
-/// A 16×8 RGB EXR.
-fn small_exr() -> Vec<u8> {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("small.exr");
-    let mut img = arlux::image_io::Image::new(16, 8);
-    for (i, p) in img.pixels.iter_mut().enumerate() {
-        *p = glam::Vec3::splat(i as f32 / 128.0);
-    }
-    arlux::image_io::write_exr(&path, 16, 8, &[arlux::image_io::ExrLayer::Rgb("", &img)]).unwrap();
-    std::fs::read(&path).unwrap()
-}
-
-const IES: &str = "IESNA:LM-63-2002
-[TEST] T-1
-[MANUFAC] arlux
-TILT=NONE
-1 -1 1 3 2 1 2 0.1 0.1 0
-1 1 100
-0 45 90
-0 90
-100 80 20
-100 70 10
-";

@@ -168,6 +168,47 @@ fn coordinates_beyond_single_precision_are_refused_with_their_line() {
 }
 
 #[test]
+fn a_scale_or_pose_that_throws_an_object_beyond_single_precision_is_refused() {
+    let desk = Desk::new();
+    desk.edit(
+        "scene.toml",
+        "scale = 1.0\nenabled = true",
+        "scale = 1e12\nenabled = true",
+    );
+    fails(
+        &["info", &desk.scene()],
+        &[
+            "scene.toml: virtual[0].scale:",
+            "places 'box'",
+            "beyond ±1000000 m",
+        ],
+    );
+    let desk = Desk::new();
+    desk.edit(
+        "scene.toml",
+        "box = { translate = [-1.2, 0.0, 0.7], rotate_y_deg = -15.0 }",
+        "box = { translate = [-1.2, 0.0, 0.7], scale = 1e9 }",
+    );
+    fails(
+        &["info", &desk.scene()],
+        &["scene.toml: variant[1].objects.box:", "beyond ±1000000 m"],
+    );
+    let desk = Desk::new();
+    desk.edit(
+        "scene.toml",
+        "[0.7571, 0.0, -0.2714]",
+        "[999999.99, 0.0, -0.2714]",
+    );
+    fails(
+        &["info", &desk.scene()],
+        &[
+            "scene.toml: motion[0].translations[6]:",
+            "beyond ±1000000 m",
+        ],
+    );
+}
+
+#[test]
 fn a_rect_light_with_a_zero_side_is_refused_at_that_side() {
     let desk = Desk::new();
     desk.edit("scene.toml", "u = [0.6, 0.0, 0.0]", "u = [0.0, 0.0, 0.0]");

@@ -22,6 +22,20 @@ pub(super) fn real_surface<'a>(r: &Fields<'a>, surfaces: &[Surface]) -> Result<(
     Ok((name, index))
 }
 
+/// Refuses a pose that places any of the object's vertices beyond
+/// [`geometry::MAX_COORDINATE`] (a huge scale, or a far translation).
+fn within_reach(object: &VirtualObject, pose: &Pose) -> std::result::Result<(), String> {
+    let reach = object.reach(pose);
+    let max = geometry::MAX_COORDINATE as f64;
+    if reach.is_finite() && reach <= max {
+        return Ok(());
+    }
+    Err(format!(
+        "places '{}' up to {reach:.3e} m from the origin, beyond ±{max} m: single-precision rays cannot resolve it there",
+        object.name
+    ))
+}
+
 pub(super) fn list(names: &[&str]) -> String {
     if names.is_empty() {
         "none".into()
@@ -536,13 +550,15 @@ impl Loader<'_> {
                 rgb,
             });
         }
-        Ok(VirtualObject {
+        let object = VirtualObject {
             name,
             mesh: path,
             surfaces,
             pose,
             enabled,
-        })
+        };
+        within_reach(&object, &pose).map_err(|m| v.error("scale", m))?;
+        Ok(object)
     }
 
     pub(super) fn variant(
@@ -591,7 +607,7 @@ impl Loader<'_> {
                             format!("no virtual object named '{oname}'"),
                         )
                     })?;
-                let p = Fields::new(self.file, key, value)?;
+                let p = Fields::new(self.file, key.clone(), value)?;
                 let change = PoseChange {
                     translate: p.opt_place("translate")?,
                     rotate_y_deg: p.opt_f64("rotate_y_deg")?,
@@ -601,6 +617,13 @@ impl Loader<'_> {
                     return Err(p.error("scale", "must be positive"));
                 }
                 p.finish()?;
+                let o = &objects[index];
+                let pose = Pose {
+                    translate: change.translate.unwrap_or(o.pose.translate),
+                    rotate_y_deg: change.rotate_y_deg.unwrap_or(o.pose.rotate_y_deg),
+                    scale: change.scale.unwrap_or(o.pose.scale),
+                };
+                within_reach(o, &pose).map_err(|m| Error::key(self.file, key.clone(), m))?;
                 variant.objects.push((index, change));
             }
         }
@@ -663,7 +686,15 @@ impl Loader<'_> {
         let translations = items
             .iter()
             .map(|(path, v)| {
-                fields::place(v).map_err(|msg| Error::key(self.file, path.clone(), msg))
+                let translate =
+                    fields::place(v).map_err(|msg| Error::key(self.file, path.clone(), msg))?;
+                let o = &objects[object];
+                let pose = Pose {
+                    translate,
+                    ..o.pose
+                };
+                within_reach(o, &pose).map_err(|msg| Error::key(self.file, path.clone(), msg))?;
+                Ok(translate)
             })
             .collect::<Result<Vec<_>>>()?;
         let mut references = Vec::new();

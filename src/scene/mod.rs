@@ -212,6 +212,19 @@ pub struct VirtualObject {
 }
 
 impl VirtualObject {
+    /// The farthest any vertex can lie from the origin under `pose`:
+    /// |translate| + scale · (largest vertex distance in the object's frame).
+    pub fn reach(&self, pose: &Pose) -> f64 {
+        let radius = self
+            .surfaces
+            .iter()
+            .flat_map(|s| s.triangles.iter())
+            .flat_map(|t| t.iter().copied())
+            .map(|p| p.as_dvec3().length())
+            .fold(0.0, f64::max);
+        pose.translate.length() + pose.scale * radius
+    }
+
     /// The triangles of surface `i` placed in the world.
     pub fn world_triangles(&self, i: usize) -> Vec<Triangle> {
         self.surfaces[i]
