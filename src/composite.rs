@@ -25,7 +25,8 @@ use crate::pda::{LightTerm, PatchPoint, PixelDataArray, SurfacePoint};
 pub const UNCHANGED_INDIRECT: f64 = 1e-3;
 
 /// How real pixels take the change.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum CompositeMode {
     /// photo + ρ·(Δ irradiance)/π.
     Additive,

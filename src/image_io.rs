@@ -7,10 +7,13 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use exr::prelude::{self as x, ReadChannels, ReadLayers, WritableImage};
+use exr::prelude::{self as x, ReadChannels, ReadLayers};
 use glam::Vec3;
 
 use crate::error::{Error, Result};
+
+mod frames;
+pub use frames::{CropWindow, ExrMeta, MergedFrame, PixelRect, merge_tiles, write_exr_with};
 
 /// A linear RGB image, row-major from the top-left pixel.
 #[derive(Debug, Clone, PartialEq)]
@@ -36,6 +39,15 @@ impl Image {
     pub fn set(&mut self, x: u32, y: u32, v: Vec3) {
         let w = self.width as usize;
         self.pixels[y as usize * w + x as usize] = v;
+    }
+
+    /// The pixels of `r`, as an image of its size.
+    pub fn crop(&self, r: PixelRect) -> Image {
+        Image {
+            width: r.width(),
+            height: r.height(),
+            pixels: r.cut(&self.pixels, self.width),
+        }
     }
 
     /// Mean of the three channels over all pixels.
@@ -247,54 +259,7 @@ pub enum ExrLayer<'a> {
 /// Writes a float EXR holding every layer as channels of one part (the
 /// multi-layer convention compositors read), atomically.
 pub fn write_exr(path: &Path, width: u32, height: u32, layers: &[ExrLayer]) -> Result<()> {
-    let (w, h) = (width as usize, height as usize);
-    let mut list: x::SmallVec<[x::AnyChannel<x::FlatSamples>; 4]> = x::SmallVec::new();
-    for layer in layers {
-        match layer {
-            ExrLayer::Rgb(name, img) => {
-                assert_eq!(
-                    (img.width, img.height),
-                    (width, height),
-                    "layer '{name}' has the wrong size"
-                );
-                for (c, cname) in ["R", "G", "B"].iter().enumerate() {
-                    let full = if name.is_empty() {
-                        cname.to_string()
-                    } else {
-                        format!("{name}.{cname}")
-                    };
-                    let samples = img.pixels.iter().map(|p| p[c]).collect();
-                    list.push(x::AnyChannel::new(
-                        full.as_str(),
-                        x::FlatSamples::F32(samples),
-                    ));
-                }
-            }
-            ExrLayer::Channel(name, data) => {
-                assert_eq!(data.len(), w * h, "channel '{name}' has the wrong size");
-                list.push(x::AnyChannel::new(
-                    *name,
-                    x::FlatSamples::F32(data.to_vec()),
-                ));
-            }
-        }
-    }
-    let layer = x::Layer::new(
-        (w, h),
-        x::LayerAttributes::default(),
-        x::Encoding {
-            line_order: x::LineOrder::Increasing,
-            ..x::Encoding::FAST_LOSSLESS
-        },
-        x::AnyChannels::sort(list),
-    );
-    let image = x::Image::from_layer(layer);
-    let mut bytes = std::io::Cursor::new(Vec::new());
-    image
-        .write()
-        .to_buffered(&mut bytes)
-        .map_err(|e| Error::file(path, format!("could not encode EXR: {e}")))?;
-    write_atomic(path, bytes.get_ref())
+    write_exr_with(path, width, height, layers, &ExrMeta::default())
 }
 
 /// Writes `img` as an 8-bit sRGB PNG after multiplying by 2^exposure_ev, atomically.

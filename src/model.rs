@@ -67,6 +67,7 @@ pub struct StageTimes(
 impl StageTimes {
     /// Runs `f` and records its time under `name`.
     pub fn time<T>(&mut self, name: &'static str, f: impl FnOnce() -> T) -> T {
+        crate::util::stages::started(name);
         let t0 = Instant::now();
         let out = f();
         self.0.push((name, t0.elapsed()));

@@ -19,6 +19,7 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::geometry::box_corners;
+use crate::image_io::{CropWindow, PixelRect};
 use crate::light::{LightSource, offset_origin, segment};
 pub use crate::objects::{CLEAR_TEST_LIMIT, VirtualBounds, own_blocks};
 use crate::patches::Patches;
@@ -35,6 +36,9 @@ pub struct PdaSettings {
     pub penumbra_level: usize,
     /// n×n sub-pixels tested (and shaded where they mix real and virtual).
     pub supersample: u32,
+    /// Only the pixels of this window get data (`render --crop`); every
+    /// pixel's data is what the whole frame gives it, bit for bit.
+    pub crop: Option<CropWindow>,
 }
 
 impl Default for PdaSettings {
@@ -43,6 +47,7 @@ impl Default for PdaSettings {
             min_level: 2,
             penumbra_level: 4,
             supersample: 4,
+            crop: None,
         }
     }
 }
@@ -294,6 +299,11 @@ impl PixelDataArray {
             edge_candidates(input)
         };
         let candidate = |pixel: u32| candidates.as_ref().is_none_or(|m| m[pixel as usize]);
+        let window = input
+            .settings
+            .crop
+            .and_then(|c| c.pixels(w, h))
+            .unwrap_or(PixelRect::full(w, h));
 
         struct Row {
             real: Vec<(u32, SurfacePoint)>,
@@ -320,6 +330,10 @@ impl PixelDataArray {
                     real_t: vec![],
                     rays: 0,
                 };
+                if !(window.y0..window.y1).contains(&row) {
+                    r.real_t = vec![f32::INFINITY; w as usize];
+                    return r;
+                }
                 let rays: Vec<TraceRay> = (0..w)
                     .map(|col| {
                         let ray = cam.pixel_ray(col, row);
@@ -343,7 +357,7 @@ impl PixelDataArray {
                         .put_virtual_in_front(&rays, &real_t, &mut all_hits);
                 }
                 r.real_t = real_t;
-                for col in 0..w {
+                for col in window.x0..window.x1 {
                     let pixel = row * w + col;
                     let seed = hash2(pixel as u64, 0x5A17);
                     let ray = cam.pixel_ray(col, row);

@@ -6,6 +6,7 @@
 use std::fmt;
 
 use crate::composite::CompositeMode;
+use crate::image_io::{CropWindow, PixelRect};
 use crate::model::{ModelSettings, TransportMethod};
 use crate::pda::PdaSettings;
 use crate::radiosity::DEFAULT_LINK_EPSILON;
@@ -39,7 +40,8 @@ fn fail<T>(setting: &'static str, message: impl Into<String>) -> Result<T, Setti
 }
 
 /// How a still is rendered.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum RenderMethod {
     /// Per-pixel differential rendering with the Pixel Data Array (Grosch).
     Pda,
@@ -57,7 +59,7 @@ pub enum Method {
 /// Every choice `arlux render` offers, as the user gives it: `None` is
 /// "the default", which may depend on the scene (the room's patch size) or
 /// on the method (the texture path's thresholds).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct RenderOptions {
     pub method: RenderMethod,
     pub composite: CompositeMode,
@@ -79,6 +81,12 @@ pub struct RenderOptions {
     pub visibility_threshold: Option<f64>,
     pub reference_colour_threshold: Option<f64>,
     pub min_leaf_pixels: Option<f64>,
+    /// Render only this window of the frame (pbrt's crop window); each of
+    /// its pixels is what the whole frame gives it, bit for bit. The pixel
+    /// path computes only the window; the texture path renders the frame.
+    /// Not serialised: a tile's settings are the whole frame's.
+    #[serde(skip)]
+    pub crop: Option<CropWindow>,
 }
 
 impl Default for RenderOptions {
@@ -98,6 +106,7 @@ impl Default for RenderOptions {
             visibility_threshold: None,
             reference_colour_threshold: None,
             min_leaf_pixels: None,
+            crop: None,
         }
     }
 }
@@ -153,6 +162,12 @@ impl RenderOptions {
                 return fail(setting, format!("must be a number in (0, {hi}), not {v}"));
             }
         }
+        if let Some(c) = self.crop {
+            c.validate().map_err(|m| SettingError {
+                setting: "crop",
+                message: m,
+            })?;
+        }
         match self.method {
             RenderMethod::Pda => Ok(Method::Pda(self.pda_settings())),
             RenderMethod::Texture => self.texture_settings().map(Method::Texture),
@@ -178,6 +193,7 @@ impl RenderOptions {
                 min_level: self.min_level,
                 penumbra_level: self.penumbra_level,
                 supersample: self.supersample,
+                crop: self.crop,
             },
             mode: self.composite,
             ..RenderSettings::default()
@@ -211,6 +227,24 @@ impl RenderOptions {
             min_leaf_pixels: self.min_leaf_pixels.unwrap_or(t.min_leaf_pixels),
             ..t
         })
+    }
+}
+
+impl RenderOptions {
+    /// The pixels of the crop window in a `width`×`height` frame (`None`:
+    /// no crop); an error when the window holds no pixel of it.
+    pub fn crop_pixels(&self, width: u32, height: u32) -> Result<Option<PixelRect>, SettingError> {
+        let Some(c) = self.crop else { return Ok(None) };
+        match c.pixels(width, height) {
+            Some(r) => Ok(Some(r)),
+            None => fail(
+                "crop",
+                format!(
+                    "{} {} {} {} holds no pixel of the {width}×{height} frame",
+                    c.x0, c.x1, c.y0, c.y1
+                ),
+            ),
+        }
     }
 }
 

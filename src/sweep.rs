@@ -13,6 +13,9 @@ use crate::pda::PdaSettings;
 use crate::render::{PatchSize, RenderSettings, Session, render};
 use crate::scene::Scene;
 
+mod table;
+pub use table::{SweepTable, merge_tables};
+
 /// Which renderer a grid point uses.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SweepMethod {
@@ -68,6 +71,7 @@ impl SweepSettings {
                 min_level: self.min_level,
                 penumbra_level: self.penumbra_level,
                 supersample: self.supersample,
+                crop: None,
             },
             ..d
         }
@@ -184,6 +188,8 @@ pub fn grid(quick: bool, texture: bool) -> Vec<SweepSettings> {
 /// One measured setting.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SweepRow {
+    /// The setting's place in the whole grid (a shard runs a part of it).
+    pub index: usize,
     pub settings: SweepSettings,
     /// Seconds per stage, summed over the run (a motion: over all poses).
     pub stages: Vec<(String, f64)>,
@@ -205,8 +211,6 @@ pub enum Target<'a> {
     Motion { name: &'a str },
 }
 
-/// Renders `target` of `scene` at every setting of `grid` (each `repeats`
-/// times, keeping the fastest), calling `progress` after each.
 /// The references a sweep of `target` measures against; an error naming
 /// the key when the variant or motion is missing or has none.
 pub fn reference_files(scene: &Scene, target: &Target) -> Result<Vec<std::path::PathBuf>> {
@@ -236,13 +240,17 @@ pub fn reference_files(scene: &Scene, target: &Target) -> Result<Vec<std::path::
     }
 }
 
+/// Renders `target` of `scene` at the settings `share` of `grid` (each
+/// `repeats` times, keeping the fastest), calling `progress` after each.
 pub fn run(
     scene: &Scene,
     target: &Target,
     grid: &[SweepSettings],
+    share: std::ops::Range<usize>,
     repeats: usize,
     mut progress: impl FnMut(usize, &SweepRow),
 ) -> Result<Vec<SweepRow>> {
+    let grid = &grid[share.clone()];
     let photo = scene.load_photo()?;
     let files = reference_files(scene, target)?;
     let references: Vec<Image> = files.iter().map(|r| read_image(r)).collect::<Result<_>>()?;
@@ -329,6 +337,7 @@ pub fn run(
             }
         }
         let row = SweepRow {
+            index: share.start + i,
             settings: *s,
             stages,
             seconds,
@@ -369,66 +378,6 @@ pub fn mark_pareto(rows: &mut [SweepRow]) {
             best = rows[i].rmse;
         }
     }
-}
-
-/// The rows as CSV: settings, seconds per stage (the union of stages, in
-/// first-seen order), total seconds, error figures (empty where undefined),
-/// Pareto flag.
-pub fn to_csv(rows: &[SweepRow], reference: &str) -> String {
-    let mut names: Vec<String> = Vec::new();
-    for r in rows {
-        for (n, _) in &r.stages {
-            if !names.contains(n) {
-                names.push(n.clone());
-            }
-        }
-    }
-    let mut out = String::from(
-        "method,min_level,penumbra_level,shadow_rays_min,shadow_rays_max,supersample,min_leaf_pixels,patch_size,virtual_patch_size,epsilon",
-    );
-    for n in &names {
-        out.push_str(&format!(",s_{}", n.replace([' ', ',', '+'], "_")));
-    }
-    out.push_str(
-        ",total_seconds,rmse,relative_rmse,psnr_srgb_db,images_compared,reference,pareto\n",
-    );
-    for r in rows {
-        let s = &r.settings;
-        let patch = s.patch_size.map_or("auto".to_string(), |m| m.to_string());
-        out.push_str(&match s.method {
-            SweepMethod::Pda => format!(
-                "pda,{},{},{},{},{},,{patch},{},{}",
-                s.min_level,
-                s.penumbra_level,
-                1u32 << s.min_level,
-                1u32 << s.penumbra_level,
-                s.supersample,
-                s.virtual_patch_size,
-                s.epsilon
-            ),
-            // Shadow rays and supersampling do not apply: its leaves take 2^4 rays per point.
-            SweepMethod::Texture { min_leaf_pixels } => {
-                format!("texture,,,,,,{min_leaf_pixels},{patch},,{}", s.epsilon)
-            }
-        });
-        for n in &names {
-            let v = r.stages.iter().find(|(m, _)| m == n).map_or(0.0, |x| x.1);
-            out.push_str(&format!(",{v:.6}"));
-        }
-        let cell =
-            |v: Option<f64>, digits: usize| v.map_or(String::new(), |v| format!("{v:.digits$}"));
-        out.push_str(&format!(
-            ",{:.6},{:.8},{},{},{},{},{}\n",
-            r.seconds,
-            r.rmse,
-            cell(r.relative_rmse, 8),
-            cell(r.psnr_srgb_db, 4),
-            r.compared,
-            reference,
-            r.pareto as u8
-        ));
-    }
-    out
 }
 
 /// Error against time, every row a point, the front joined and ringed;

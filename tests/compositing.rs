@@ -2,31 +2,93 @@
 //! `RGBA`, `object.RGBA` (the virtual objects premultiplied by their
 //! coverage), `shadow.RGB` (the photo's factor where real surfaces show),
 //! `change.RGB` and the `photo`. The recipe of docs/compositing.md,
-//! photo × shadow + object, rebuilds the image.
+//! photo × shadow + object, rebuilds the image, in a render's EXR and in
+//! each frame of a motion; both carry the camera and the run's settings.
 
 mod common;
 
 use arlux::image_io::read_exr_channel;
 
-#[test]
-fn photo_times_shadow_plus_object_rebuilds_the_render() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("box.exr");
-    let scene = common::scene_dir("desk").join("scene.toml");
-    let run = common::arlux(&[
-        "render",
-        scene.to_str().unwrap(),
-        "--variant",
-        "box_floor_a",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+fn run(args: &[&str]) {
+    let run = common::arlux(args);
     assert_eq!(
         run.status.code(),
         Some(0),
         "{}",
         String::from_utf8_lossy(&run.stderr)
     );
+}
+
+#[test]
+fn photo_times_shadow_plus_object_rebuilds_the_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("box.exr");
+    let scene = common::scene_dir("desk").join("scene.toml");
+    let scene = scene.to_str().unwrap();
+    run(&[
+        "render",
+        scene,
+        "--variant",
+        "box_floor_a",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    rebuilds(&out);
+    let frames = dir.path().join("frames");
+    let frames_arg = frames.to_str().unwrap();
+    run(&[
+        "motion",
+        scene,
+        "--motion",
+        "box_slide",
+        "--frames",
+        "4..5",
+        "-o",
+        frames_arg,
+    ]);
+    rebuilds(&frames.join("box_slide_004.exr"));
+}
+
+#[test]
+fn a_frame_carries_its_camera_and_settings() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("box.exr");
+    let scene = common::scene_dir("desk").join("scene.toml");
+    run(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--variant",
+        "box_table",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let meta = exr::meta::MetaData::read_from_file(&out, false).unwrap();
+    let a = &meta.headers[0].own_attributes;
+    let software = a.software_name.as_ref().unwrap().to_string();
+    assert!(software.starts_with("arlux "), "{software}");
+    // The desk camera at (0.7, 1.45, 2.7): its position goes to camera space's origin.
+    let m = a.world_to_camera.unwrap();
+    let p = [0.7f32, 1.45, 2.7, 1.0];
+    for j in 0..3 {
+        let v: f32 = (0..4).map(|i| p[i] * m[i * 4 + j]).sum();
+        assert!(v.abs() < 1e-5, "{v}");
+    }
+    assert!(a.world_to_normalized_device.is_some());
+    let text = match a
+        .other
+        .get(&exr::meta::attribute::Text::new_or_panic("arlux"))
+    {
+        Some(exr::meta::attribute::AttributeValue::Text(t)) => t.to_string(),
+        other => panic!("no arlux attribute: {other:?}"),
+    };
+    let settings: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(settings["variant"], "box_table");
+    assert_eq!(settings["settings"]["method"], "pda");
+    assert_eq!(settings["settings"]["supersample"], 4);
+}
+
+/// The recipe rebuilds the frame in `out`, and the box shows in it.
+fn rebuilds(out: &std::path::Path) {
     let channel = |name: &str| read_exr_channel(&out, name).unwrap().2;
     let rgb = |layer: &str| -> [Vec<f32>; 3] {
         let prefix = if layer.is_empty() {

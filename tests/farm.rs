@@ -113,3 +113,165 @@ fn a_bad_shard_or_range_is_refused_before_any_work() {
         assert!(!out.exists(), "{args:?}: the folder was made");
     }
 }
+
+fn arlux(args: &[&str], env: &[(&str, &str)]) -> std::process::Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_arlux"));
+    cmd.args(args)
+        .env_remove("SLURM_ARRAY_TASK_ID")
+        .env_remove("JOB_COMPLETION_INDEX");
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    cmd.output().unwrap()
+}
+
+fn ok(args: &[&str], env: &[(&str, &str)]) {
+    let run = arlux(args, env);
+    assert_eq!(
+        run.status.code(),
+        Some(0),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+}
+
+#[test]
+fn crops_of_a_frame_merged_equal_the_whole_render_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = common::scene_dir("desk").join("scene.toml");
+    let scene = scene.to_str().unwrap();
+    let path = |name: &str| dir.path().join(name).display().to_string();
+    let render = |out: &str, crop: &[&str]| {
+        let mut args = vec!["render", scene, "--variant", "box_floor_a", "-o", out];
+        if !crop.is_empty() {
+            args.push("--crop");
+            args.extend(crop);
+        }
+        ok(&args, &[]);
+    };
+    render(&path("whole.exr"), &[]);
+    // Uneven windows whose edges cross the box and its shadow: pbrt's
+    // rounding gives the tiles no pixel twice and none missing.
+    let windows = [
+        ["0", "0.37", "0", "0.61"],
+        ["0.37", "1", "0", "0.61"],
+        ["0", "0.71", "0.61", "1"],
+        ["0.71", "1", "0.61", "1"],
+    ];
+    let mut tiles = Vec::new();
+    for (i, w) in windows.iter().enumerate() {
+        let tile = path(&format!("tile{i}.exr"));
+        render(&tile, w);
+        tiles.push(tile);
+    }
+    let merged = path("merged.exr");
+    // In any order.
+    let mut args = vec!["merge", "-o", &merged];
+    args.extend(tiles.iter().rev().map(String::as_str));
+    ok(&args, &[]);
+    let (whole, merged_bytes) = (
+        std::fs::read(path("whole.exr")).unwrap(),
+        std::fs::read(&merged).unwrap(),
+    );
+    assert!(
+        whole == merged_bytes,
+        "the merged frame differs from the whole render"
+    );
+
+    // Three tiles leave pixels out; a tile given twice overlaps.
+    for (pieces, expected) in [
+        (&tiles[..3], "pixels uncovered"),
+        (&[tiles[0].clone(), tiles[0].clone()][..], "tiles overlap"),
+    ] {
+        let out = path("bad.exr");
+        let mut args = vec!["merge", "-o", &out];
+        args.extend(pieces.iter().map(String::as_str));
+        let run = arlux(&args, &[]);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{stderr}");
+        assert!(stderr.contains(expected), "{stderr}");
+        assert!(!dir.path().join("bad.exr").exists());
+    }
+}
+
+/// A sweep CSV's cells by column, less the timings (and the Pareto flag,
+/// which the timings decide).
+fn measured(csv: &str) -> Vec<Vec<(String, String)>> {
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    lines
+        .map(|l| {
+            header
+                .iter()
+                .zip(l.split(','))
+                .filter(|(h, _)| !h.starts_with("s_") && **h != "total_seconds" && **h != "pareto")
+                .map(|(h, c)| (h.to_string(), c.to_string()))
+                .collect()
+        })
+        .collect()
+}
+
+#[test]
+fn sweep_shards_merged_equal_the_whole_sweep_less_timings() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = common::scene_dir("desk").join("scene.toml");
+    let scene = scene.to_str().unwrap();
+    let path = |name: &str| dir.path().join(name).display().to_string();
+    let sweep = |out: &str, extra: &[&str], env: &[(&str, &str)]| {
+        let mut args = vec![
+            "sweep",
+            scene,
+            "--variant",
+            "box_floor_a",
+            "--quick",
+            "-o",
+            out,
+        ];
+        args.extend(extra);
+        ok(&args, env);
+    };
+    sweep(&path("whole"), &[], &[]);
+    sweep(&path("shards"), &["--shard", "0/3"], &[]);
+    sweep(
+        &path("shards"),
+        &["--shard", "auto/3"],
+        &[("SLURM_ARRAY_TASK_ID", "1")],
+    );
+    sweep(
+        &path("shards"),
+        &["--shard", "auto/3"],
+        &[("JOB_COMPLETION_INDEX", "2")],
+    );
+    let shard = |i: usize| path(&format!("shards/sweep.shard-{i}-of-3.csv"));
+    let merged = path("merged.csv");
+    let plot = path("merged.png");
+    ok(
+        &[
+            "merge",
+            &shard(2),
+            &shard(0),
+            &shard(1),
+            "-o",
+            &merged,
+            "--plot",
+            &plot,
+        ],
+        &[],
+    );
+    let whole = std::fs::read_to_string(dir.path().join("whole/sweep.csv")).unwrap();
+    let merged = std::fs::read_to_string(&merged).unwrap();
+    let rows = measured(&whole);
+    assert_eq!(rows.len(), 7, "the quick grid of a variant");
+    assert_eq!(measured(&merged), rows);
+    assert!(std::fs::metadata(&plot).unwrap().len() > 1000);
+
+    // A shard missing is named.
+    let out = path("part.csv");
+    let run = arlux(&["merge", &shard(0), &shard(2), "-o", &out], &[]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("the shards leave 2 of 7 settings out, the first 3"),
+        "{stderr}"
+    );
+}

@@ -8,6 +8,10 @@ use serde_json::json;
 use arlux::image_io::{self, Image};
 use arlux::scene::{Photo, Scene};
 
+/// The version of every `--json` report's layout (`docs/json.md`): raised
+/// when a field changes meaning or goes away.
+pub(crate) const SCHEMA: u32 = 1;
+
 pub(crate) fn load(path: &Path, variant: Option<&str>) -> Result<Scene> {
     let scene = Scene::load(path)?;
     crate::outputs::refuse_inputs(&scene.input_files())?;
@@ -30,6 +34,51 @@ pub(crate) fn read_photo(scene: &Scene) -> Result<Image> {
         );
     }
     Ok(img)
+}
+
+/// Writes a frame as the EXR a compositor expects: the final `RGBA`;
+/// `object.RGBA`, the virtual objects premultiplied by their coverage;
+/// `shadow.RGB`, the photo's factor where real surfaces show, so that
+/// photo × shadow + object is the frame; `change.RGB` = frame − photo; the
+/// `photo`; the irradiance layers `direct` and `indirect`. A composite made
+/// without its layers writes `RGBA` alone.
+pub(crate) fn write_frame(
+    path: &Path,
+    c: &arlux::composite::Composite,
+    photo: &Image,
+    meta: &image_io::ExrMeta,
+) -> Result<()> {
+    use image_io::ExrLayer::{Channel, Rgb};
+    let (w, h) = (c.image.width, c.image.height);
+    let mut layers = vec![Rgb("", &c.image), Channel("A", &c.alpha)];
+    let shadow = c.shadow(photo);
+    if c.direct.pixels.len() == c.image.pixels.len() {
+        layers.extend([
+            Rgb("object", &c.object),
+            Channel("object.A", &c.alpha),
+            Rgb("shadow", &shadow),
+            Rgb("change", &c.change),
+            Rgb("photo", photo),
+            Rgb("direct", &c.direct),
+            Rgb("indirect", &c.indirect),
+        ]);
+    }
+    image_io::write_exr_with(path, w, h, &layers, meta)?;
+    Ok(())
+}
+
+/// The EXR attributes of a frame: the camera's matrices, and in the text
+/// attribute `arlux` the version and what was rendered (`what`, JSON).
+pub(crate) fn frame_meta(scene: &Scene, what: serde_json::Value) -> image_io::ExrMeta {
+    let mut text = json!({ "version": env!("CARGO_PKG_VERSION"), "scene": scene.name });
+    if let (Some(t), serde_json::Value::Object(w)) = (text.as_object_mut(), what) {
+        t.extend(w);
+    }
+    image_io::ExrMeta {
+        arlux: Some(text.to_string()),
+        ..image_io::ExrMeta::default()
+    }
+    .with_camera(&scene.camera)
 }
 
 pub(crate) fn rel(scene: &Scene, p: &Path) -> String {
@@ -170,4 +219,22 @@ pub(crate) fn shard(text: &str) -> Result<(usize, usize)> {
         return Err(bad(format!("i must be below n ({i} >= {n})")));
     }
     Ok((i, n))
+}
+
+/// Shard `text`'s contiguous share of `count` items (the first shares one
+/// longer when n does not divide count), with i and n; an error when the
+/// share is empty. `what` names the items (`pose`, `setting`).
+pub(crate) fn shard_range(
+    text: &str,
+    count: usize,
+    what: &str,
+) -> Result<(std::ops::Range<usize>, usize, usize)> {
+    let (i, n) = shard(text)?;
+    let (base, extra) = (count / n, count % n);
+    let start = i * base + i.min(extra);
+    let end = start + base + usize::from(i < extra);
+    if start >= end {
+        anyhow::bail!("--shard {text}: shard {i} of {n} has no {what} ({count} in all)");
+    }
+    Ok((start..end, i, n))
 }

@@ -20,8 +20,10 @@ mod gonio;
 mod hdr;
 mod ids;
 mod info;
+mod merge;
 mod motion;
 mod outputs;
+mod progress;
 mod radiosity;
 mod render;
 mod sweep;
@@ -47,6 +49,10 @@ struct Cli {
     /// the photo, a clipped photo) errors: nothing is written.
     #[arg(long, global = true)]
     strict: bool,
+    /// Progress on stderr: on a terminal only (auto), always (as plain
+    /// lines in a pipe or a job's log), or never.
+    #[arg(long, global = true, value_enum, default_value_t = progress::ProgressMode::Auto)]
+    progress: progress::ProgressMode,
 }
 
 #[derive(Subcommand)]
@@ -67,6 +73,8 @@ enum Command {
     Gonio(gonio::Args),
     /// Error against run time: render a variant (or a motion) over a grid of quality settings, measure each against its reference, and write DIR/sweep.csv and DIR/sweep.png (error against time, Pareto front marked).
     Sweep(sweep::Args),
+    /// Assemble a farm's pieces: crops of one frame (render --crop) into the frame's EXR, or a sweep's shard tables (sweep --shard) into the whole sweep's CSV.
+    Merge(merge::Args),
     /// Error of an image against a reference: RMSE and relative RMSE in linear radiance, PSNR of the sRGB-encoded images, and their means.
     Compare(compare::Args),
 }
@@ -92,7 +100,21 @@ fn main() -> ExitCode {
     let cli = stage("arguments", Cli::parse);
     let timings = cli.timings;
     common::set_strict(cli.strict);
+    progress::set_mode(cli.progress);
+    // Commands of unknown length show their stages; motion and sweep count their items.
+    let spinner = match &cli.command {
+        Command::Render(_) => Some("render"),
+        Command::Radiosity(_) => Some("radiosity"),
+        Command::Gonio(_) => Some("gonio"),
+        Command::Hdr(_) => Some("hdr"),
+        Command::Ids(_) => Some("ids"),
+        _ => None,
+    }
+    .map(progress::spinner);
     let result = run(cli);
+    if let Some(s) = spinner {
+        s.finish_and_clear();
+    }
     if timings {
         report_timings(start.elapsed());
     }
@@ -155,6 +177,10 @@ fn outputs(command: &Command) -> Vec<Output<'_>> {
             optional(&a.debug_blocks, "--debug-blocks", PNG),
         ],
         Command::Sweep(a) => vec![Some(Output::folder(&a.output, "-o"))],
+        Command::Merge(a) => vec![
+            Some(Output::file(&a.output, "-o", &["exr", "csv"])),
+            optional(&a.plot, "--plot", PNG),
+        ],
         Command::Info(_) | Command::Compare(_) => vec![],
     };
     files.into_iter().flatten().collect()
@@ -174,5 +200,6 @@ fn run(cli: Cli) -> Result<()> {
         Command::Sweep(a) => sweep::run(a),
         Command::Gonio(a) => gonio::run(a),
         Command::Radiosity(a) => radiosity::run(a),
+        Command::Merge(a) => merge::run(a),
     }
 }

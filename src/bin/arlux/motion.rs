@@ -33,6 +33,10 @@ pub struct Args {
     /// (a Slurm array or a Kubernetes Indexed Job).
     #[arg(long)]
     pub shard: Option<String>,
+    /// Write each frame's RGBA alone, without the compositing and light
+    /// layers `render` writes (a tenth to a fifth less work per update).
+    #[arg(long)]
+    pub image_only: bool,
     #[arg(long)]
     pub json: bool,
 }
@@ -51,15 +55,10 @@ pub fn run(args: &Args) -> Result<()> {
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: could not create the folder", dir.display()))?;
     let settings = RenderSettings::default();
-    let write = |pose: usize, img: &Image| -> Result<()> {
+    let write = |pose: usize, c: &arlux::composite::Composite, photo: &Image| -> Result<()> {
         let file = dir.join(format!("{name}_{pose:03}.exr"));
-        image_io::write_exr(
-            &file,
-            img.width,
-            img.height,
-            &[image_io::ExrLayer::Rgb("", img)],
-        )?;
-        Ok(())
+        let meta = frame_meta(&base, json!({ "motion": name, "pose": pose }));
+        write_frame(&file, c, photo, &meta)
     };
     let error_at = |pose: usize, img: &Image| -> Result<Option<arlux::compare::Comparison>> {
         match motion.references.get(pose) {
@@ -71,13 +70,15 @@ pub fn run(args: &Args) -> Result<()> {
             None => Ok(None),
         }
     };
+    let bar = crate::progress::progress_bar(poses.len() as u64, "poses");
     let first = base.with_motion_pose(name, poses.start)?;
     let photo = stage("read photo", || read_photo(&first))?;
     let mut times = StageTimes::default();
     let mut session = Session::start(&first, &photo, &settings, &mut times)?;
     session.prepare_updates(&mut times);
-    // Each pose writes its image only.
-    session.image_only();
+    if args.image_only {
+        session.image_only();
+    }
     keep(&times);
     // Speed-ups compare with what re-rendering a pose costs: the photo's
     // calibration and a light's reconstruction are done once per scene.
@@ -88,7 +89,8 @@ pub fn run(args: &Args) -> Result<()> {
         .map(|(_, d)| d.as_secs_f64())
         .sum();
     let full_seconds = times.total().as_secs_f64() - once;
-    stage("write", || write(poses.start, &session.composite.image))?;
+    stage("write", || write(poses.start, &session.composite, &photo))?;
+    bar.inc(1);
     let (pda_bytes, block_bytes) = session.memory_bytes();
     let mut rows = vec![json!({
         "pose": poses.start, "seconds": full_seconds, "full_render": true,
@@ -115,10 +117,11 @@ pub fn run(args: &Args) -> Result<()> {
         let stats = session.update(&scene, &mut times)?;
         keep(&times);
         let seconds = times.total().as_secs_f64();
-        stage("write", || write(pose, &session.composite.image))?;
+        stage("write", || write(pose, &session.composite, &photo))?;
         let error = stage("compare", || error_at(pose, &session.composite.image))?;
         if !as_json {
-            say!(
+            bar.suspend(|| -> Result<()> {
+                say!(
                 "pose {pose}: update {:.1} ms ({:.1}x faster than the full render); {} pixels recomputed, {} re-traced, {} shaft tests, {} rays{}",
                 seconds * 1e3,
                 full_seconds / seconds,
@@ -130,7 +133,9 @@ pub fn run(args: &Args) -> Result<()> {
                     "; RMSE against its reference {:.5}",
                     e.rmse
                 ))
-            );
+                );
+                Ok(())
+            })?;
         }
         rows.push(json!({
             "pose": pose, "seconds": seconds, "full_render": false, "speedup": full_seconds / seconds,
@@ -139,7 +144,9 @@ pub fn run(args: &Args) -> Result<()> {
             "stages": stages_json(&times),
         }));
         last_skipped = stats.skipped_blocks;
+        bar.inc(1);
     }
+    bar.finish_and_clear();
     if let (Some(png), Some(blocks)) = (debug_blocks, session.blocks()) {
         let (w, h) = (blocks.width, blocks.height);
         // The photo, dimmed, under the skipped blocks coloured by level (Grosch Fig. 6).
@@ -209,13 +216,5 @@ fn pose_range(args: &Args, count: usize) -> Result<std::ops::Range<usize>> {
     let Some(shard) = &args.shard else {
         return Ok(0..count);
     };
-    let (i, n) = crate::common::shard(shard)?;
-    // Contiguous shares, the first ones one pose longer when it does not divide.
-    let (base, extra) = (count / n, count % n);
-    let start = i * base + i.min(extra);
-    let end = start + base + usize::from(i < extra);
-    if start >= end {
-        anyhow::bail!("--shard {shard}: shard {i} of {n} has no pose ({count} in the motion)");
-    }
-    Ok(start..end)
+    Ok(crate::common::shard_range(shard, count, "pose")?.0)
 }

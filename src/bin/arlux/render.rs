@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use serde_json::json;
 
 use arlux::compare::{Comparison, Skill, compare, skill};
-use arlux::image_io::{self, Image};
+use arlux::image_io::{self, ExrMeta, Image, PixelRect};
 use arlux::model::StageTimes;
 use arlux::output::RenderOutput;
 
@@ -73,6 +73,13 @@ pub struct Args {
     /// Texture path: the smallest leaf, in pixel footprints (default 3).
     #[arg(long)]
     pub min_leaf_pixels: Option<f64>,
+    /// Render only this window of the frame, as fractions of its width and
+    /// height (pbrt's crop window): columns ⌈w·X0⌉..⌈w·X1⌉, rows likewise.
+    /// The EXR holds the window as its data window within the whole frame,
+    /// each pixel bit-identical to the whole render's; `arlux merge`
+    /// assembles tiles.
+    #[arg(long, num_args = 4, value_names = ["X0", "X1", "Y0", "Y1"], allow_negative_numbers = true)]
+    pub crop: Option<Vec<f64>>,
     #[arg(long)]
     pub json: bool,
 }
@@ -93,12 +100,19 @@ impl Args {
             visibility_threshold: self.visibility_threshold,
             reference_colour_threshold: self.reference_colour_threshold,
             min_leaf_pixels: self.min_leaf_pixels,
+            crop: self.crop.as_ref().map(|c| arlux::image_io::CropWindow {
+                x0: c[0],
+                x1: c[1],
+                y0: c[2],
+                y1: c[3],
+            }),
         }
     }
 }
 
 pub fn run(args: &Args) -> Result<()> {
-    let method = args.options().resolve()?;
+    let options = args.options();
+    let method = options.resolve()?;
     let mut times = StageTimes::default();
     let base = times.time("load", || load(&args.scene, None))?;
     let variant = args.variant.as_deref();
@@ -109,6 +123,7 @@ pub fn run(args: &Args) -> Result<()> {
     let reference = variant
         .and_then(|v| base.variant(v).ok())
         .and_then(|v| v.reference.clone());
+    let window = options.crop_pixels(scene.camera.width, scene.camera.height)?;
     let photo = times.time("read photo", || read_photo(&scene))?;
     let out = match &method {
         Method::Pda(settings) => arlux::render::render(&scene, &photo, settings, &mut times)?,
@@ -119,20 +134,28 @@ pub fn run(args: &Args) -> Result<()> {
     for w in &out.warnings {
         warn(&scene, w)?;
     }
-    times.time("write", || write_outputs(args, &out, &photo))?;
+    let meta = ExrMeta {
+        window,
+        ..frame_meta(&scene, json!({ "variant": variant, "settings": options }))
+    };
+    times.time("write", || write_outputs(args, &out, &photo, &meta))?;
     let error = times.time("compare", || -> Result<Option<(Comparison, Skill)>> {
         let Some(r) = &reference else { return Ok(None) };
         let truth = image_io::read_image(r)?;
         scene.check_size(&truth, "variant.reference", r)?;
-        let image = &out.composite.image;
-        Ok(Some((
-            compare(image, &truth, None),
-            skill(image, &truth, &photo),
-        )))
+        let (image, photo) = (&out.composite.image, &photo);
+        Ok(Some(match window {
+            None => (compare(image, &truth, None), skill(image, &truth, photo)),
+            // A tile is measured on its own pixels.
+            Some(w) => {
+                let (image, truth, photo) = (image.crop(w), truth.crop(w), photo.crop(w));
+                (compare(&image, &truth, None), skill(&image, &truth, &photo))
+            }
+        }))
     })?;
     keep(&times);
     if args.json {
-        let report = report_json(variant, &out, error.as_ref(), &times);
+        let report = report_json(variant, &out, error.as_ref(), &times, window);
         say!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
@@ -140,30 +163,15 @@ pub fn run(args: &Args) -> Result<()> {
     Ok(())
 }
 
-/// The EXR with the layers a compositor expects (the final `RGBA`;
-/// `object.RGBA`, the virtual objects premultiplied by their coverage;
-/// `shadow.RGB`, the photo's factor where real surfaces show, so that
-/// photo × shadow + object is the image; `change.RGB` = image − photo; the
-/// `photo`; the irradiance layers `direct` and `indirect`), and the PNG and
-/// AOV files asked for.
-fn write_outputs(args: &Args, out: &RenderOutput, photo: &Image) -> Result<()> {
+/// The EXR with the layers a compositor expects (see [`write_frame`]), cut
+/// to the crop window, and the PNG and AOV files asked for.
+fn write_outputs(args: &Args, out: &RenderOutput, photo: &Image, meta: &ExrMeta) -> Result<()> {
     let c = &out.composite;
     let (w, h) = (c.image.width, c.image.height);
-    let shadow = c.shadow(photo);
-    let layers = [
-        image_io::ExrLayer::Rgb("", &c.image),
-        image_io::ExrLayer::Channel("A", &c.alpha),
-        image_io::ExrLayer::Rgb("object", &c.object),
-        image_io::ExrLayer::Channel("object.A", &c.alpha),
-        image_io::ExrLayer::Rgb("shadow", &shadow),
-        image_io::ExrLayer::Rgb("change", &c.change),
-        image_io::ExrLayer::Rgb("photo", photo),
-        image_io::ExrLayer::Rgb("direct", &c.direct),
-        image_io::ExrLayer::Rgb("indirect", &c.indirect),
-    ];
-    image_io::write_exr(&args.output, w, h, &layers)?;
+    write_frame(&args.output, c, photo, meta)?;
     if let Some(png) = &args.png {
-        image_io::write_png(png, &c.image, 0.0)?;
+        let image = meta.window.map(|r| c.image.crop(r));
+        image_io::write_png(png, image.as_ref().unwrap_or(&c.image), 0.0)?;
     }
     let Some(dir) = &args.aov else { return Ok(()) };
     std::fs::create_dir_all(dir)
@@ -178,10 +186,10 @@ fn write_outputs(args: &Args, out: &RenderOutput, photo: &Image) -> Result<()> {
     }
     for (name, img) in files {
         let layer = [image_io::ExrLayer::Rgb("", img)];
-        image_io::write_exr(&dir.join(format!("{name}.exr")), w, h, &layer)?;
+        image_io::write_exr_with(&dir.join(format!("{name}.exr")), w, h, &layer, meta)?;
     }
     let alpha = [image_io::ExrLayer::Channel("A", &c.alpha)];
-    image_io::write_exr(&dir.join("alpha.exr"), w, h, &alpha)?;
+    image_io::write_exr_with(&dir.join("alpha.exr"), w, h, &alpha, meta)?;
     Ok(())
 }
 
@@ -190,10 +198,12 @@ fn report_json(
     out: &RenderOutput,
     error: Option<&(Comparison, Skill)>,
     times: &StageTimes,
+    window: Option<PixelRect>,
 ) -> serde_json::Value {
     let c = &out.composite;
     json!({
         "variant": variant,
+        "crop": window.map(|r| json!({"x0": r.x0, "x1": r.x1, "y0": r.y0, "y1": r.y1})),
         "pixels": out.pda_pixels,
         "copied_from_photo": c.copied,
         "ratio_fallbacks": c.ratio_fallbacks,

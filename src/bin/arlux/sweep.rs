@@ -27,6 +27,11 @@ pub struct Args {
     /// Runs per setting; the fastest counts (default 3, 1 with --quick).
     #[arg(long)]
     pub repeats: Option<usize>,
+    /// Run shard i of n (0-based; `auto/n` reads SLURM_ARRAY_TASK_ID or
+    /// JOB_COMPLETION_INDEX): a contiguous share of the grid, written to
+    /// DIR/sweep.shard-I-of-N.csv; `arlux merge` joins the shards.
+    #[arg(long)]
+    pub shard: Option<String>,
     #[arg(long)]
     pub json: bool,
 }
@@ -42,7 +47,7 @@ pub fn run(args: &Args) -> Result<()> {
     if repeats == 0 {
         bail!("--repeats must be at least 1");
     }
-    use arlux::sweep::{Target, grid, plot, run, to_csv};
+    use arlux::sweep::{SweepTable, Target, grid, plot, run};
     let scene = stage("load", || load(path, None))?;
     let (target, label) = match (variant, motion) {
         (_, Some(m)) => (Target::Motion { name: m }, format!("motion {m}")),
@@ -51,19 +56,29 @@ pub fn run(args: &Args) -> Result<()> {
     };
     // Known good before the folder is made: a failed run leaves nothing behind.
     arlux::sweep::reference_files(&scene, &target)?;
+    let settings = grid(quick, matches!(target, Target::Variant { .. }));
+    let (share, csv_name) = match &args.shard {
+        None => (0..settings.len(), "sweep.csv".to_string()),
+        Some(text) => {
+            let (share, i, n) = shard_range(text, settings.len(), "setting")?;
+            (share, format!("sweep.shard-{i}-of-{n}.csv"))
+        }
+    };
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: could not create the folder", dir.display()))?;
-    let settings = grid(quick, matches!(target, Target::Variant { .. }));
-    let bar = indicatif::ProgressBar::new(settings.len() as u64);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} settings, {elapsed} {msg}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-    );
+    let bar = crate::progress::progress_bar(share.len() as u64, "settings");
     let rows = stage("renders", || {
-        run(&scene, &target, &settings, repeats, |_, row| {
-            bar.set_message(format!("last: {:.2} s, RMSE {:.5}", row.seconds, row.rmse));
-            bar.inc(1);
-        })
+        run(
+            &scene,
+            &target,
+            &settings,
+            share.clone(),
+            repeats,
+            |_, row| {
+                bar.set_message(format!("last: {:.2} s, RMSE {:.5}", row.seconds, row.rmse));
+                bar.inc(1);
+            },
+        )
     })?;
     bar.finish_and_clear();
     let reference = match &target {
@@ -77,12 +92,21 @@ pub fn run(args: &Args) -> Result<()> {
             scene.motion(name)?.references.len()
         ),
     };
-    let csv = dir.join("sweep.csv");
+    let csv = dir.join(csv_name);
     let png = dir.join("sweep.png");
+    let table = SweepTable {
+        rows,
+        reference,
+        grid_size: settings.len(),
+    };
+    let rows = &table.rows;
     stage("write", || -> Result<()> {
-        image_io::write_atomic(&csv, to_csv(&rows, &reference).as_bytes())?;
+        image_io::write_atomic(&csv, table.to_csv().as_bytes())?;
+        if args.shard.is_some() {
+            return Ok(()); // the front and its plot need every shard: `arlux merge`
+        }
         plot(
-            &rows,
+            rows,
             &format!(
                 "{}: {label}, error against time ({} settings)",
                 scene.name,

@@ -8,6 +8,7 @@ pub(crate) static STAGES: std::sync::Mutex<Vec<(String, std::time::Duration)>> =
 
 /// Runs `f` as the stage `name` of this run.
 pub(crate) fn stage<T>(name: &str, f: impl FnOnce() -> T) -> T {
+    arlux::util::stages::started(name);
     let t0 = std::time::Instant::now();
     let out = f();
     STAGES

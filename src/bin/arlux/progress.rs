@@ -1,0 +1,96 @@
+//! Progress on stderr: drawn on a terminal and silent in a pipe, or forced
+//! either way with `--progress always|never` (a job's log, a test).
+
+use std::io::Write as _;
+use std::sync::OnceLock;
+use std::time::Duration;
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle, TermLike};
+
+/// When progress is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub(crate) enum ProgressMode {
+    /// On a terminal only.
+    #[default]
+    Auto,
+    /// Always, as plain lines where stderr is not a terminal.
+    Always,
+    Never,
+}
+
+static MODE: OnceLock<ProgressMode> = OnceLock::new();
+
+pub(crate) fn set_mode(mode: ProgressMode) {
+    let _ = MODE.set(mode);
+}
+
+/// Stderr as indicatif's terminal whatever it is: each redraw a line.
+#[derive(Debug)]
+struct PlainStderr;
+
+impl TermLike for PlainStderr {
+    fn width(&self) -> u16 {
+        100
+    }
+    fn move_cursor_up(&self, _: usize) -> std::io::Result<()> {
+        Ok(())
+    }
+    fn move_cursor_down(&self, _: usize) -> std::io::Result<()> {
+        Ok(())
+    }
+    fn move_cursor_right(&self, _: usize) -> std::io::Result<()> {
+        Ok(())
+    }
+    fn move_cursor_left(&self, _: usize) -> std::io::Result<()> {
+        Ok(())
+    }
+    fn write_line(&self, s: &str) -> std::io::Result<()> {
+        writeln!(std::io::stderr(), "{s}")
+    }
+    fn write_str(&self, s: &str) -> std::io::Result<()> {
+        if s.is_empty() {
+            return Ok(());
+        }
+        writeln!(std::io::stderr(), "{s}")
+    }
+    fn clear_line(&self) -> std::io::Result<()> {
+        Ok(())
+    }
+    fn flush(&self) -> std::io::Result<()> {
+        std::io::stderr().flush()
+    }
+}
+
+fn target() -> ProgressDrawTarget {
+    match MODE.get().copied().unwrap_or_default() {
+        ProgressMode::Auto => ProgressDrawTarget::stderr(),
+        // Twice a second: a log gets a line per half second, not per tick.
+        ProgressMode::Always => ProgressDrawTarget::term_like_with_hz(Box::new(PlainStderr), 2),
+        ProgressMode::Never => ProgressDrawTarget::hidden(),
+    }
+}
+
+/// A bar over `len` items named `unit` (`poses`, `settings`).
+pub(crate) fn progress_bar(len: u64, unit: &str) -> ProgressBar {
+    let bar = ProgressBar::with_draw_target(Some(len), target());
+    let template = format!("{{bar:30}} {{pos}}/{{len}} {unit}, {{elapsed}} {{msg}}");
+    bar.set_style(
+        ProgressStyle::with_template(&template).unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar
+}
+
+/// A spinner for a command of unknown length, saying which stage runs
+/// (the library's stages as they start) and for how long.
+pub(crate) fn spinner(command: &str) -> ProgressBar {
+    let bar = ProgressBar::with_draw_target(None, target());
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {prefix}: {msg} ({elapsed})")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+    );
+    bar.set_prefix(command.to_string());
+    bar.enable_steady_tick(Duration::from_millis(250));
+    let shown = bar.clone();
+    arlux::util::stages::observe(move |stage| shown.set_message(stage.to_string()));
+    bar
+}
