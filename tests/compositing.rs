@@ -89,7 +89,7 @@ fn a_frame_carries_its_camera_and_settings() {
 
 /// The recipe rebuilds the frame in `out`, and the box shows in it.
 fn rebuilds(out: &std::path::Path) {
-    let channel = |name: &str| read_exr_channel(&out, name).unwrap().2;
+    let channel = |name: &str| read_exr_channel(out, name).unwrap().2;
     let rgb = |layer: &str| -> [Vec<f32>; 3] {
         let prefix = if layer.is_empty() {
             String::new()
