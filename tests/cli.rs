@@ -88,9 +88,9 @@ fn compare_reports_the_known_error_of_the_unchanged_photo() {
         String::from_utf8_lossy(&run.stderr)
     );
     let c: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
-    let rmse = c["rmse"].as_f64().unwrap();
+    let rmse = c["comparison"]["rmse"].as_f64().unwrap();
     assert!((rmse - 0.0265).abs() < 0.00005, "rmse {rmse}");
-    assert_eq!(c["pixels"], 512 * 384);
+    assert_eq!(c["comparison"]["pixels"], 512 * 384);
 
     let run = arlux(&[
         "compare",
@@ -298,7 +298,7 @@ fn radiosity_re_renders_the_photo_from_the_model() {
     );
     let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     // Measured 0.0120 at 0.5 m patches (0.0096 at 0.25 m): the model explains the photo.
-    let rmse = report["error_against_photo"]["rmse"].as_f64().unwrap();
+    let rmse = report["comparison"]["rmse"].as_f64().unwrap();
     assert!(rmse < 0.013, "model RMSE against the photo {rmse}");
     assert_eq!(report["clamped_patches"], 0);
     for layer in ["R", "direct.R", "indirect.G", "reflectance.B"] {
@@ -337,7 +337,7 @@ fn render_writes_layers_and_aovs_and_reports_the_error() {
     );
     let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     // Measured 0.00244 at 0.5 m patches.
-    let rmse = report["error_against_reference"]["rmse"].as_f64().unwrap();
+    let rmse = report["comparison"]["rmse"].as_f64().unwrap();
     assert!(rmse < 0.003, "{rmse}");
     let stages: Vec<&str> = report["stages"]
         .as_array()
@@ -403,7 +403,7 @@ fn render_method_texture_writes_the_shadow_free_texture() {
     assert_eq!(report["method"], "texture");
     assert!(report["rays"].is_null());
     // Measured 0.00236.
-    let rmse = report["error_against_reference"]["rmse"].as_f64().unwrap();
+    let rmse = report["comparison"]["rmse"].as_f64().unwrap();
     assert!(rmse < 0.003, "{rmse}");
     let t = &report["texture"];
     assert!(
@@ -527,7 +527,7 @@ fn rendering_a_light_change_leaves_out_the_virtual_stages() {
             .iter()
             .any(|l| l.as_str().unwrap().contains("no virtual object"))
     );
-    assert!(report["error_against_reference"]["rmse"].as_f64().unwrap() < 0.0025);
+    assert!(report["comparison"]["rmse"].as_f64().unwrap() < 0.0025);
 }
 
 #[test]
@@ -636,7 +636,7 @@ fn a_light_placed_by_its_shadows_renders_like_the_given_one() {
         String::from_utf8_lossy(&run.stderr)
     );
     let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
-    assert!(report["error_against_reference"]["rmse"].as_f64().unwrap() < 0.003);
+    assert!(report["comparison"]["rmse"].as_f64().unwrap() < 0.003);
 
     // Two parallel lines only: an error saying what is missing, naming the key.
     let desk = Desk::new();
@@ -856,6 +856,6 @@ fn radiosity_recovers_a_light_marked_reconstruct_first() {
     );
     let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     // The model with the recovered spot explains the photo about as well as with the true one (0.0096).
-    let rmse = report["error_against_photo"]["rmse"].as_f64().unwrap();
+    let rmse = report["comparison"]["rmse"].as_f64().unwrap();
     assert!(rmse < 0.012, "model against the photo {rmse}");
 }

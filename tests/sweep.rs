@@ -152,7 +152,7 @@ fn a_quick_sweep_measures_every_row_and_its_front_falls_as_cost_rises() {
         .output()
         .unwrap();
     let c: serde_json::Value = serde_json::from_slice(&compare.stdout).unwrap();
-    let independent = c["rmse"].as_f64().unwrap();
+    let independent = c["comparison"]["rmse"].as_f64().unwrap();
     let swept = num(default_row, "rmse");
     assert!(
         (independent - swept).abs() < 1e-6,

@@ -19,10 +19,14 @@ const SETTINGS: &str = "setting,grid_size,method,min_level,penumbra_level,shadow
 const FIGURES: &str =
     "total_seconds,rmse,relative_rmse,psnr_srgb_db,images_compared,reference,pareto";
 
-/// A stage's name as a column: `s_` and the name with spaces, commas and
-/// plus signs as underscores.
+/// A stage's name as a column: `s_` and the name's words joined by
+/// underscores (`estimate + solve` → `s_estimate_solve`).
 fn stage_column(name: &str) -> String {
-    format!("s_{}", name.replace([' ', ',', '+'], "_"))
+    let words: Vec<&str> = name
+        .split(|c: char| !c.is_ascii_alphanumeric())
+        .filter(|w| !w.is_empty())
+        .collect();
+    format!("s_{}", words.join("_"))
 }
 
 impl SweepTable {

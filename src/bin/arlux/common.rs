@@ -12,6 +12,19 @@ use arlux::scene::{Photo, Scene};
 /// when a field changes meaning or goes away.
 pub(crate) const SCHEMA: u32 = 1;
 
+/// Prints a command's `--json` report: the object `report` with the
+/// schema's version and the command's name in front (`docs/json.md`).
+pub(crate) fn emit(command: &str, report: serde_json::Value) -> Result<()> {
+    let mut out = serde_json::Map::new();
+    out.insert("schema".into(), json!(SCHEMA));
+    out.insert("command".into(), json!(command));
+    if let serde_json::Value::Object(fields) = report {
+        out.extend(fields);
+    }
+    say!("{}", serde_json::to_string_pretty(&out)?);
+    Ok(())
+}
+
 pub(crate) fn load(path: &Path, variant: Option<&str>) -> Result<Scene> {
     let scene = Scene::load(path)?;
     crate::outputs::refuse_inputs(&scene.input_files())?;

@@ -7,8 +7,9 @@ use anyhow::{Result, bail};
 use arlux::compare::{Comparison, compare, read_mask, skill};
 use arlux::image_io::{self, Image};
 
-use crate::common::skill_line;
+use crate::common::{emit, skill_line};
 use crate::timing::*;
+use serde_json::json;
 
 /// Arguments of `arlux compare`.
 #[derive(clap::Args)]
@@ -66,9 +67,7 @@ pub fn run(args: &Args) -> Result<()> {
     let c: Comparison = stage("compare", || compare(&a, &b, mask.as_deref()));
     let s = photo.map(|p| stage("skill", || skill(&a, &b, &p)));
     if as_json {
-        let mut report = serde_json::to_value(c)?;
-        report["skill"] = serde_json::to_value(s)?;
-        say!("{}", serde_json::to_string_pretty(&report)?);
+        emit("compare", json!({ "comparison": c, "skill": s }))?;
     } else {
         say!("pixels         {}", c.pixels);
         say!("rmse           {:.6}", c.rmse);

@@ -97,10 +97,10 @@ pub fn run(args: &Args) -> Result<()> {
         "reflectances": surfaces,
         "output": output.display().to_string(),
         "stages": stages_json(&times),
-        "total_seconds": times.total().as_secs_f64(),
+        "seconds": times.total().as_secs_f64(),
     });
     if as_json {
-        say!("{}", serde_json::to_string_pretty(&report)?);
+        emit("gonio", report)?;
         return Ok(());
     }
     say!(

@@ -19,6 +19,8 @@ pub struct Args {
     /// Also write the recovered response as CSV (code, then ln exposure per channel).
     #[arg(long)]
     pub response: Option<PathBuf>,
+    #[arg(long)]
+    pub json: bool,
 }
 
 pub fn run(args: &Args) -> Result<()> {
@@ -63,14 +65,26 @@ pub fn run(args: &Args) -> Result<()> {
         }
         Ok(())
     })?;
+    let saturated = merged.saturated.iter().filter(|s| **s).count();
+    let black = merged.black.iter().filter(|s| **s).count();
+    if args.json {
+        return crate::common::emit(
+            "hdr",
+            serde_json::json!({
+                "exposures": exposures.len(), "output": output.display().to_string(),
+                "width": merged.image.width, "height": merged.image.height,
+                "saturated_pixels": saturated, "black_pixels": black, "relative_radiance": true,
+            }),
+        );
+    }
     say!(
         "merged {} exposures into {} ({}x{}); {} pixels saturated in every exposure, {} black in every exposure; radiance is relative (g(128) = 0, t0 = 1)",
         exposures.len(),
         output.display(),
         merged.image.width,
         merged.image.height,
-        merged.saturated.iter().filter(|s| **s).count(),
-        merged.black.iter().filter(|s| **s).count()
+        saturated,
+        black
     );
     Ok(())
 }

@@ -26,6 +26,8 @@ pub struct Args {
     pub with_virtual: bool,
     #[arg(long)]
     pub variant: Option<String>,
+    #[arg(long)]
+    pub json: bool,
 }
 
 pub fn run(args: &Args) -> Result<()> {
@@ -68,21 +70,43 @@ pub fn run(args: &Args) -> Result<()> {
     })?;
     let names = scene.surface_names();
     let total = ids.ids.len() as f64;
+    let seen: Vec<(usize, &String, usize)> = names
+        .iter()
+        .enumerate()
+        .map(|(i, name)| (i, name, ids.ids.iter().filter(|&&s| s == i as i32).count()))
+        .filter(|(_, _, n)| *n > 0)
+        .collect();
+    if args.json {
+        let surfaces: Vec<_> = seen
+            .iter()
+            .map(|(i, name, n)| {
+                let [r, g, b] = id_colour(*i as i32);
+                serde_json::json!({
+                    "id": i, "name": name, "colour": format!("#{r:02x}{g:02x}{b:02x}"),
+                    "pixels": n, "fraction": *n as f64 / total,
+                })
+            })
+            .collect();
+        return emit(
+            "ids",
+            serde_json::json!({
+                "pixels": ids.ids.len(), "covered": ids.covered(),
+                "output": output.display().to_string(), "surfaces": surfaces,
+            }),
+        );
+    }
     say!(
         "{} of {} pixels see a surface; wrote {}",
         ids.covered(),
         ids.ids.len(),
         output.display()
     );
-    for (i, name) in names.iter().enumerate() {
-        let n = ids.ids.iter().filter(|&&s| s == i as i32).count();
-        if n > 0 {
-            let [r, g, b] = id_colour(i as i32);
-            say!(
-                "  {i:>3} {name:<20} #{r:02x}{g:02x}{b:02x}  {:5.1}% of the image",
-                100.0 * n as f64 / total
-            );
-        }
+    for (i, name, n) in seen {
+        let [r, g, b] = id_colour(i as i32);
+        say!(
+            "  {i:>3} {name:<20} #{r:02x}{g:02x}{b:02x}  {:5.1}% of the image",
+            100.0 * n as f64 / total
+        );
     }
     Ok(())
 }

@@ -41,6 +41,65 @@ pub fn run(args: &Args) -> Result<()> {
     stage("report", || info_report(&scene, &names, photo, as_json))
 }
 
+/// A light as JSON (numbers, its kinds named) and as a line of text.
+fn light_report(scene: &Scene, l: &arlux::scene::Light) -> (serde_json::Value, String) {
+    let (position, position_text) = match &l.position {
+        LightPosition::Known(p) => (json!(p.to_array()), fmt3(*p)),
+        LightPosition::FromShadows(c) => (
+            json!({ "shadow_lines": c.lines.len(), "shadow_planes": c.planes.len() }),
+            format!(
+                "from {} shadow lines and {} shadow planes",
+                c.lines.len(),
+                c.planes.len()
+            ),
+        ),
+    };
+    let (shape, shape_text) = match l.shape {
+        LightShape::Point => (json!({ "kind": "point" }), "point".to_string()),
+        LightShape::Rect { u, v } => (
+            json!({ "kind": "rect", "u": u.to_array(), "v": v.to_array(), "u_m": u.length(), "v_m": v.length() }),
+            format!("rect {:.3} x {:.3} m", u.length(), v.length()),
+        ),
+    };
+    let (intensity, intensity_text) = match &l.intensity {
+        Intensity::Uniform(rgb) => (
+            json!({ "kind": "uniform", "rgb": rgb.to_array() }),
+            format!("uniform {}", fmt3(*rgb)),
+        ),
+        Intensity::Lambertian { rgb, normal } => (
+            json!({ "kind": "lambertian", "rgb": rgb.to_array(), "normal": normal.to_array() }),
+            format!("lambertian {}", fmt3(*rgb)),
+        ),
+        Intensity::Spot {
+            rgb,
+            direction,
+            beam_deg,
+            cutoff_deg,
+        } => (
+            json!({ "kind": "spot", "rgb": rgb.to_array(), "direction": direction.to_array(), "beam_deg": beam_deg, "cutoff_deg": cutoff_deg }),
+            format!("spot {} beam {beam_deg}° cutoff {cutoff_deg}°", fmt3(*rgb)),
+        ),
+        Intensity::Ies { file, rgb, .. } => (
+            json!({ "kind": "ies", "file": rel(scene, file), "rgb": rgb.to_array() }),
+            format!("ies {} x {}", rel(scene, file), fmt3(*rgb)),
+        ),
+        Intensity::Reconstruct => (
+            json!({ "kind": "reconstruct" }),
+            "reconstruct from the photo".to_string(),
+        ),
+    };
+    let line = format!(
+        "{:<12} {:<7} scale {:<4} at {position_text}  {shape_text}  {intensity_text}",
+        l.name,
+        if l.real { "real" } else { "virtual" },
+        l.scale
+    );
+    (
+        json!({ "name": l.name, "real": l.real, "scale": l.scale, "position": position, "shape": shape, "intensity": intensity }),
+        line,
+    )
+}
+
 fn info_report(
     scene: &Scene,
     names: &[String],
@@ -56,32 +115,8 @@ fn info_report(
             json!({ "id": i, "name": s.name, "triangles": s.triangles.len(), "mesh": rel(scene, &s.mesh), "known_reflectance": known })
         })
         .collect();
-    let lights: Vec<_> = scene
-        .lights
-        .iter()
-        .map(|l| {
-            let position = match &l.position {
-                LightPosition::Known(p) => fmt3(*p),
-                LightPosition::FromShadows(c) => {
-                    format!("from {} shadow lines and {} shadow planes", c.lines.len(), c.planes.len())
-                }
-            };
-            let shape = match l.shape {
-                LightShape::Point => "point".to_string(),
-                LightShape::Rect { u, v } => format!("rect {:.3} x {:.3} m", u.length(), v.length()),
-            };
-            let intensity = match &l.intensity {
-                Intensity::Uniform(rgb) => format!("uniform {}", fmt3(*rgb)),
-                Intensity::Lambertian { rgb, .. } => format!("lambertian {}", fmt3(*rgb)),
-                Intensity::Spot { rgb, beam_deg, cutoff_deg, .. } => {
-                    format!("spot {} beam {beam_deg}° cutoff {cutoff_deg}°", fmt3(*rgb))
-                }
-                Intensity::Ies { file, rgb, .. } => format!("ies {} x {}", rel(scene, file), fmt3(*rgb)),
-                Intensity::Reconstruct => "reconstruct from the photo".to_string(),
-            };
-            json!({ "name": l.name, "real": l.real, "scale": l.scale, "position": position, "shape": shape, "intensity": intensity })
-        })
-        .collect();
+    let (lights, light_lines): (Vec<_>, Vec<_>) =
+        scene.lights.iter().map(|l| light_report(scene, l)).unzip();
     let objects: Vec<_> = scene
         .objects
         .iter()
@@ -125,7 +160,8 @@ fn info_report(
     });
     let mut out = std::io::stdout().lock();
     if as_json {
-        writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?;
+        drop(out);
+        emit("info", report)?;
         return Ok(());
     }
     writeln!(out, "scene '{}' ({})", scene.name, scene.file.display())?;
@@ -177,21 +213,8 @@ fn info_report(
         )?;
     }
     writeln!(out, "lights: {}", lights.len())?;
-    for l in &lights {
-        writeln!(
-            out,
-            "  {:<12} {:<7} scale {:<4} at {}  {}  {}",
-            l["name"].as_str().unwrap_or(""),
-            if l["real"].as_bool().unwrap_or(true) {
-                "real"
-            } else {
-                "virtual"
-            },
-            l["scale"],
-            l["position"].as_str().unwrap_or(""),
-            l["shape"].as_str().unwrap_or(""),
-            l["intensity"].as_str().unwrap_or("")
-        )?;
+    for line in &light_lines {
+        writeln!(out, "  {line}")?;
     }
     writeln!(out, "virtual objects: {}", objects.len())?;
     for o in &objects {

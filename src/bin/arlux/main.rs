@@ -99,6 +99,7 @@ fn main() -> ExitCode {
     remove_temporaries_on_signals();
     let cli = stage("arguments", Cli::parse);
     let timings = cli.timings;
+    let json_command = cli.command.json_name();
     common::set_strict(cli.strict);
     progress::set_mode(cli.progress);
     // Commands of unknown length show their stages; motion and sweep count their items.
@@ -132,9 +133,49 @@ fn main() -> ExitCode {
             for cause in e.chain().skip(1) {
                 eprintln!("  caused by: {cause}");
             }
+            if let Some(command) = json_command {
+                let _ = common::emit(command, error_json(&e));
+            }
             ExitCode::from(2)
         }
     }
+}
+
+impl Command {
+    /// The command's name when it was asked for `--json`.
+    fn json_name(&self) -> Option<&'static str> {
+        let (name, json) = match self {
+            Command::Info(a) => ("info", a.json),
+            Command::Ids(a) => ("ids", a.json),
+            Command::Render(a) => ("render", a.json),
+            Command::Motion(a) => ("motion", a.json),
+            Command::Hdr(a) => ("hdr", a.json),
+            Command::Radiosity(a) => ("radiosity", a.json),
+            Command::Gonio(a) => ("gonio", a.json),
+            Command::Sweep(a) => ("sweep", a.json),
+            Command::Merge(a) => ("merge", a.json),
+            Command::Compare(a) => ("compare", a.json),
+        };
+        json.then_some(name)
+    }
+}
+
+/// A failed run as JSON: the message, and where arlux's own error names
+/// them, the file and the key or line to edit (`docs/json.md`).
+fn error_json(e: &anyhow::Error) -> serde_json::Value {
+    let mut error = serde_json::json!({
+        "message": e.to_string(),
+        "causes": e.chain().skip(1).map(|c| c.to_string()).collect::<Vec<_>>(),
+    });
+    if let Some(a) = e.chain().find_map(|c| c.downcast_ref::<arlux::Error>()) {
+        error["file"] = serde_json::json!(a.file.display().to_string());
+        match &a.location {
+            arlux::error::Location::Key(k) => error["key"] = serde_json::json!(k),
+            arlux::error::Location::Line(l) => error["line"] = serde_json::json!(l),
+            arlux::error::Location::File => {}
+        }
+    }
+    serde_json::json!({ "error": error })
 }
 
 /// An optional output file.

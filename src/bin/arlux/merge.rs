@@ -8,6 +8,7 @@ use serde_json::json;
 use arlux::image_io;
 use arlux::sweep::{SweepTable, merge_tables, plot};
 
+use crate::common::emit;
 use crate::timing::*;
 
 /// Arguments of `arlux merge`.
@@ -49,14 +50,14 @@ pub fn run(args: &Args) -> Result<()> {
             image_io::merge_tiles(&args.inputs, &args.output)
         })?;
         if args.json {
-            say!(
-                "{}",
-                serde_json::to_string_pretty(&json!({
-                    "schema": crate::common::SCHEMA, "command": "merge", "kind": "frame",
+            emit(
+                "merge",
+                json!({
+                    "kind": "frame",
                     "output": args.output.display().to_string(), "pieces": merged.tiles,
                     "width": merged.width, "height": merged.height, "channels": merged.channels,
-                }))?
-            );
+                }),
+            )?;
         } else {
             say!(
                 "merged {} crops into {} ({}×{}, {} channels)",
@@ -93,14 +94,14 @@ pub fn run(args: &Args) -> Result<()> {
     })?;
     let front = table.rows.iter().filter(|r| r.pareto).count();
     if args.json {
-        say!(
-            "{}",
-            serde_json::to_string_pretty(&json!({
-                "schema": crate::common::SCHEMA, "command": "merge", "kind": "sweep",
+        emit(
+            "merge",
+            json!({
+                "kind": "sweep",
                 "output": args.output.display().to_string(), "pieces": tables.len(),
                 "settings": table.rows.len(), "pareto": front,
-            }))?
-        );
+            }),
+        )?;
     } else {
         say!(
             "merged {} shard tables into {} ({} settings, {front} on the Pareto front)",

@@ -94,7 +94,7 @@ pub fn run(args: &Args) -> Result<()> {
     let (pda_bytes, block_bytes) = session.memory_bytes();
     let mut rows = vec![json!({
         "pose": poses.start, "seconds": full_seconds, "full_render": true,
-        "error_against_reference": stage("compare", || error_at(poses.start, &session.composite.image))?,
+        "comparison": stage("compare", || error_at(poses.start, &session.composite.image))?,
     })];
     if !as_json {
         say!(
@@ -103,7 +103,7 @@ pub fn run(args: &Args) -> Result<()> {
             full_seconds * 1e3,
             pda_bytes as f64 / 1e6,
             block_bytes as f64 / 1e6,
-            rows[0]["error_against_reference"]["rmse"]
+            rows[0]["comparison"]["rmse"]
                 .as_f64()
                 .map_or(String::new(), |e| format!(
                     "; RMSE against its reference {e:.5}"
@@ -140,7 +140,7 @@ pub fn run(args: &Args) -> Result<()> {
         rows.push(json!({
             "pose": pose, "seconds": seconds, "full_render": false, "speedup": full_seconds / seconds,
             "pixels_recomputed": stats.pixels_recomputed, "pixels_retraced": stats.pixels_retraced,
-            "shaft_tests": stats.shaft_tests, "rays": stats.rays, "error_against_reference": error,
+            "shaft_tests": stats.shaft_tests, "rays": stats.rays, "comparison": error,
             "stages": stages_json(&times),
         }));
         last_skipped = stats.skipped_blocks;
@@ -184,12 +184,11 @@ pub fn run(args: &Args) -> Result<()> {
     // The hierarchy keeps the shafts its traversals built: what it holds at the end.
     let block_bytes_end = session.memory_bytes().1;
     if as_json {
-        say!(
-            "{}",
-            serde_json::to_string_pretty(
-                &json!({ "motion": name, "poses": rows, "pda_bytes": pda_bytes, "block_bytes": block_bytes, "block_bytes_end": block_bytes_end })
-            )?
-        );
+        let seconds: f64 = rows.iter().filter_map(|r| r["seconds"].as_f64()).sum();
+        emit(
+            "motion",
+            json!({ "motion": name, "seconds": seconds, "poses": rows, "pda_bytes": pda_bytes, "block_bytes": block_bytes, "block_bytes_end": block_bytes_end }),
+        )?;
     } else {
         say!(
             "pixel blocks at the end: {:.1} MB",

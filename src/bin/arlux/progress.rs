@@ -24,9 +24,24 @@ pub(crate) fn set_mode(mode: ProgressMode) {
     let _ = MODE.set(mode);
 }
 
-/// Stderr as indicatif's terminal whatever it is: each redraw a line.
-#[derive(Debug)]
-struct PlainStderr;
+/// Stderr as indicatif's terminal whatever it is: each new state of the
+/// line printed once, as a line of its own (no cursor movement in a log).
+#[derive(Debug, Default)]
+struct PlainStderr {
+    last: std::sync::Mutex<String>,
+}
+
+impl PlainStderr {
+    fn line(&self, s: &str) -> std::io::Result<()> {
+        let s = s.trim_end();
+        let mut last = self.last.lock().unwrap_or_else(|e| e.into_inner());
+        if s.is_empty() || *last == s {
+            return Ok(());
+        }
+        *last = s.to_string();
+        writeln!(std::io::stderr(), "{s}")
+    }
+}
 
 impl TermLike for PlainStderr {
     fn width(&self) -> u16 {
@@ -45,13 +60,10 @@ impl TermLike for PlainStderr {
         Ok(())
     }
     fn write_line(&self, s: &str) -> std::io::Result<()> {
-        writeln!(std::io::stderr(), "{s}")
+        self.line(s)
     }
     fn write_str(&self, s: &str) -> std::io::Result<()> {
-        if s.is_empty() {
-            return Ok(());
-        }
-        writeln!(std::io::stderr(), "{s}")
+        self.line(s)
     }
     fn clear_line(&self) -> std::io::Result<()> {
         Ok(())
@@ -65,7 +77,9 @@ fn target() -> ProgressDrawTarget {
     match MODE.get().copied().unwrap_or_default() {
         ProgressMode::Auto => ProgressDrawTarget::stderr(),
         // Twice a second: a log gets a line per half second, not per tick.
-        ProgressMode::Always => ProgressDrawTarget::term_like_with_hz(Box::new(PlainStderr), 2),
+        ProgressMode::Always => {
+            ProgressDrawTarget::term_like_with_hz(Box::<PlainStderr>::default(), 2)
+        }
         ProgressMode::Never => ProgressDrawTarget::hidden(),
     }
 }

@@ -118,12 +118,12 @@ pub fn run(args: &Args) -> Result<()> {
         "solver_iterations": est.solution.iterations,
         "solver_residual": est.solution.residual,
         "shadow_rays": view.rays,
-        "error_against_photo": error,
+        "comparison": error,
         "stages": stages_json(&times),
-        "total_seconds": times.total().as_secs_f64(),
+        "seconds": times.total().as_secs_f64(),
     });
     if as_json {
-        say!("{}", serde_json::to_string_pretty(&report)?);
+        emit("radiosity", report)?;
         return Ok(());
     }
     say!(

@@ -156,7 +156,7 @@ pub fn run(args: &Args) -> Result<()> {
     keep(&times);
     if args.json {
         let report = report_json(variant, &out, error.as_ref(), &times, window);
-        say!("{}", serde_json::to_string_pretty(&report)?);
+        emit("render", report)?;
         return Ok(());
     }
     print_report(&out, error.as_ref())?;
@@ -221,11 +221,11 @@ fn report_json(
             "corrected_from_user_reference": s.by_user_reference, "uncorrected": s.uncorrected,
             "texels": s.texels, "texture_bytes": s.texture_bytes, "light_change_seconds": change.as_secs_f64(),
         })),
-        "error_against_reference": error.map(|e| e.0),
-        "skill_against_reference": error.map(|e| e.1),
+        "comparison": error.map(|e| e.0),
+        "skill": error.map(|e| e.1),
         "left_out": out.left_out,
         "stages": stages_json(times),
-        "total_seconds": times.total().as_secs_f64(),
+        "seconds": times.total().as_secs_f64(),
     })
 }
 

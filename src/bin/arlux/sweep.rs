@@ -129,19 +129,19 @@ pub fn run(args: &Args) -> Result<()> {
         json!({
             "method": method,
             "shadow_rays": [1u32 << s.min_level, 1u32 << s.penumbra_level], "supersample": s.supersample,
-            "patch_size": s.patch_size, "virtual_patch_size": matches!(s.method, arlux::sweep::SweepMethod::Pda).then_some(s.virtual_patch_size),
+            "patch_size_m": s.patch_size, "virtual_patch_size_m": matches!(s.method, arlux::sweep::SweepMethod::Pda).then_some(s.virtual_patch_size),
             "epsilon": s.epsilon, "seconds": r.seconds, "rmse": r.rmse,
             "relative_rmse": r.relative_rmse, "pareto": r.pareto,
         })
     };
     if as_json {
-        say!(
-            "{}",
-            serde_json::to_string_pretty(&json!({
-                "target": label, "settings": rows.len(), "csv": csv.display().to_string(), "plot": png.display().to_string(),
+        emit(
+            "sweep",
+            json!({
+                "target": label, "settings": rows.len(), "csv": csv.display().to_string(), "plot": args.shard.is_none().then(|| png.display().to_string()),
                 "rows": rows.iter().map(describe).collect::<Vec<_>>(),
-            }))?
-        );
+            }),
+        )?;
         return Ok(());
     }
     say!(

@@ -78,15 +78,30 @@ pub(crate) fn report_timings(wall: std::time::Duration) {
     }
 }
 
+/// A library call's stages for a `--json` report: each name once, in
+/// first-run order, with its summed seconds and how often it ran; stages
+/// that ran side by side within another are marked so (not summed into
+/// the total).
 pub(crate) fn stages_json(times: &arlux::model::StageTimes) -> serde_json::Value {
-    let side_by_side = times
-        .1
-        .iter()
-        .map(|(n, d)| json!({ "stage": n, "seconds": d.as_secs_f64(), "side_by_side": true }));
-    times
+    let mut merged: Vec<(&str, f64, usize, bool)> = Vec::new();
+    let all = times
         .0
         .iter()
-        .map(|(n, d)| json!({ "stage": n, "seconds": d.as_secs_f64() }))
-        .chain(side_by_side)
+        .map(|s| (s, false))
+        .chain(times.1.iter().map(|s| (s, true)));
+    for ((name, d), side) in all {
+        match merged.iter_mut().find(|m| m.0 == *name && m.3 == side) {
+            Some(m) => {
+                m.1 += d.as_secs_f64();
+                m.2 += 1;
+            }
+            None => merged.push((name, d.as_secs_f64(), 1, side)),
+        }
+    }
+    merged
+        .into_iter()
+        .map(|(stage, seconds, runs, side_by_side)| {
+            json!({ "stage": stage, "seconds": seconds, "runs": runs, "side_by_side": side_by_side })
+        })
         .collect()
 }
