@@ -384,11 +384,7 @@ pub fn mark_pareto(rows: &mut [SweepRow]) {
 /// text drawn with the font shipped in `assets/` (no system font needed).
 pub fn plot(rows: &[SweepRow], title: &str, path: &Path) -> Result<()> {
     use plotters::prelude::*;
-    static FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
-    static REGISTERED: std::sync::Once = std::sync::Once::new();
-    REGISTERED.call_once(|| {
-        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
-    });
+    crate::util::figure::register_font();
     let (w, h) = (900u32, 600u32);
     let mut buffer = vec![255u8; (w * h * 3) as usize];
     let fail = |e: String| Error::file(path, format!("could not draw the plot: {e}"));

@@ -222,13 +222,15 @@ fn progress_is_drawn_when_asked_and_never_into_a_pipe() {
     assert!(!piped.contains("poses"), "{piped}");
     // gonio takes tens of seconds: one run asked to draw, its report still clean JSON.
     let reconstruct = format!("{DESK}/scene_reconstruct.toml");
-    let ies = at("spot.ies");
+    let (ies, plot) = (at("spot.ies"), at("spot.png"));
     let (status, stdout, stderr) = arlux(&[
         "gonio",
         &reconstruct,
         "-o",
         &ies,
         "--json",
+        "--plot",
+        &plot,
         "--progress",
         "always",
     ]);
@@ -236,6 +238,9 @@ fn progress_is_drawn_when_asked_and_never_into_a_pipe() {
     assert!(stderr.contains("gonio: reconstruct"), "{stderr}");
     let report: Value = serde_json::from_str(&stdout).unwrap();
     validate("gonio", &report);
+    // The polar plot (plotters: axes in candela, legend, colour bar).
+    let png = image::open(&plot).unwrap();
+    assert_eq!((png.width(), png.height()), (1100, 540));
     // The same in a pipe, by default: nothing drawn.
     let (status, _, stderr) = arlux(&["gonio", &reconstruct, "-o", &at("again.ies")]);
     assert_eq!(status, 0, "{stderr}");

@@ -1,8 +1,9 @@
 //! Helpers every stage may use, depending on none of them: deterministic
 //! randomness, content-hashed caches, the temporary files a signal must
-//! remove, and who is told which stage runs.
+//! remove, who is told which stage runs, and the figures' font.
 
 pub mod cache;
 pub mod cleanup;
+pub mod figure;
 pub mod rng;
 pub mod stages;

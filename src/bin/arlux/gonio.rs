@@ -60,7 +60,8 @@ pub fn run(args: &Args) -> Result<()> {
     times.time("write", || -> Result<()> {
         image_io::write_atomic(output, rec.profile.to_lm63().as_bytes())?;
         if let Some(plot) = plot {
-            let (w, h, rgb) = arlux::gonio::polar_plot(&rec);
+            let (w, h, rgb) =
+                arlux::gonio::polar_plot(&rec).map_err(|m| arlux::Error::file(plot, m))?;
             image_io::write_png_rgb8(plot, w, h, rgb)?;
         }
         Ok(())

@@ -28,6 +28,10 @@ pub struct Args {
     /// Also an 8-bit sRGB PNG.
     #[arg(long)]
     pub png: Option<PathBuf>,
+    /// The PNG's exposure, in stops: its pixels are radiance × 2^EV (the
+    /// EXR keeps radiance).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub exposure: f32,
     /// Also each layer as its own EXR in this folder.
     #[arg(long)]
     pub aov: Option<PathBuf>,
@@ -113,6 +117,9 @@ impl Args {
 pub fn run(args: &Args) -> Result<()> {
     let options = args.options();
     let method = options.resolve()?;
+    if !(args.exposure.is_finite() && args.exposure.abs() <= 64.0) {
+        anyhow::bail!("--exposure {}: give stops within ±64", args.exposure);
+    }
     let mut times = StageTimes::default();
     let base = times.time("load", || load(&args.scene, None))?;
     let variant = args.variant.as_deref();
@@ -171,7 +178,7 @@ fn write_outputs(args: &Args, out: &RenderOutput, photo: &Image, meta: &ExrMeta)
     write_frame(&args.output, c, photo, meta)?;
     if let Some(png) = &args.png {
         let image = meta.window.map(|r| c.image.crop(r));
-        image_io::write_png(png, image.as_ref().unwrap_or(&c.image), 0.0)?;
+        image_io::write_png(png, image.as_ref().unwrap_or(&c.image), args.exposure)?;
     }
     let Some(dir) = &args.aov else { return Ok(()) };
     std::fs::create_dir_all(dir)
