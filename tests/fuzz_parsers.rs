@@ -1,4 +1,5 @@
-//! Property tests over every parser of user input: whatever the bytes, a
+//! Property tests over every parser of user input (scene TOML, OBJ, IES,
+//! EXR, COLMAP models, fSpy projects): whatever the bytes, a
 //! parser returns a value or an error, never a panic or an abort. Each
 //! input is a seed of the parser's corpus (`tests/fuzz_corpus/<parser>/`:
 //! valid files covering the format, and inputs that once broke a parser)
@@ -186,8 +187,50 @@ fn every_seed_but_the_recorded_breakers_parses() {
     }
 }
 
+/// A COLMAP model (`colmap_text` or `colmap_binary` corpus) in a fresh
+/// folder, its file `mutated` (0: cameras, 1: images) edited; reads both
+/// images it names.
+fn read_colmap(kind: &str, mutated: usize, edits: &[Edit], token: &[u8]) -> Vec<bool> {
+    let dir = tempfile::tempdir().unwrap();
+    for (i, (name, bytes)) in corpus(kind).into_iter().enumerate() {
+        let bytes = if i == mutated {
+            apply(bytes, edits, token)
+        } else {
+            bytes
+        };
+        std::fs::write(dir.path().join(name), bytes).unwrap();
+    }
+    ["photo.exr", "side view.jpg"]
+        .iter()
+        .map(|image| arlux::scene::calibration::from_colmap(dir.path(), image).is_ok())
+        .collect()
+}
+
+/// The COLMAP models and the fSpy project of the corpus read.
+#[test]
+fn the_camera_seeds_read() {
+    for kind in ["colmap_text", "colmap_binary"] {
+        assert_eq!(read_colmap(kind, 2, &[], b""), [true, true], "{kind}");
+    }
+    for (name, bytes) in corpus("fspy") {
+        let read = read_as("p.fspy", &bytes, arlux::scene::calibration::from_fspy);
+        assert!(read.is_ok(), "{name}: {:?}", read.err());
+    }
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(cases()))]
+
+    #[test]
+    fn colmap_never_panics(binary in any::<bool>(), mutated in 0usize..2, edits in edits(), token in tokens()) {
+        let kind = if binary { "colmap_binary" } else { "colmap_text" };
+        let _ = read_colmap(kind, mutated, &edits, &token);
+    }
+
+    #[test]
+    fn fspy_never_panics(bytes in seed("fspy"), edits in edits(), token in tokens()) {
+        let _ = read_as("p.fspy", &apply(bytes, &edits, &token), arlux::scene::calibration::from_fspy);
+    }
 
     #[test]
     fn scene_toml_never_panics(text in seed("scene_toml"), edits in edits(), token in tokens()) {

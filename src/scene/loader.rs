@@ -44,6 +44,9 @@ pub(super) fn list(names: &[&str]) -> String {
     }
 }
 
+/// The longest image side arlux renders, pixels.
+pub(super) const MAX_SIDE: u32 = 1 << 15;
+
 /// Reads one scene file; holds what every part needs to resolve paths and
 /// report errors.
 pub(super) struct Loader<'a> {
@@ -216,9 +219,11 @@ impl Loader<'_> {
     }
 
     pub(super) fn camera(&self, c: &Fields) -> Result<Camera> {
+        if c.has("colmap") || c.has("fspy") {
+            return self.solved_camera(c);
+        }
         let width = c.req_count("width")?;
         let height = c.req_count("height")?;
-        const MAX_SIDE: u32 = 1 << 15;
         for (key, v) in [("width", width), ("height", height)] {
             if v > MAX_SIDE {
                 return Err(c.error(

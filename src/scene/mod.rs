@@ -6,6 +6,7 @@
 //! and [`Scene::with_motion_pose`] give the effective scene of a variant or a
 //! motion pose. Every error names the file and the key path.
 
+pub mod calibration;
 mod fields;
 mod loader;
 
