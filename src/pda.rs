@@ -660,6 +660,15 @@ impl PixelDataArray {
     }
 
     /// Bytes held, and per pixel.
+    /// The share of `window`'s pixels whose centre sees a real surface.
+    pub fn coverage(&self, window: PixelRect) -> f64 {
+        let seen = (window.y0..window.y1)
+            .flat_map(|y| (window.x0..window.x1).map(move |x| (x, y)))
+            .filter(|&(x, y)| self.real_index[(y * self.width + x) as usize] != NONE)
+            .count();
+        seen as f64 / window.pixel_count().max(1) as f64
+    }
+
     pub fn memory_bytes(&self) -> usize {
         let samples = |s: &Samples| {
             s.points.len() * std::mem::size_of::<SurfacePoint>()

@@ -70,6 +70,31 @@ impl Default for RenderSettings {
     }
 }
 
+/// Below this share of the image seen by the model, a render is likely
+/// wrong (a camera that looks past the room, a model that misses most of
+/// the photo): the rest is the photo, unchanged.
+const MIN_COVERAGE: f64 = 0.5;
+
+/// A warning when the model covers less than [`MIN_COVERAGE`] of the
+/// image (of the crop window, when one is given).
+fn coverage_warning(
+    pda: &PixelDataArray,
+    camera: &crate::camera::Camera,
+    crop: Option<crate::image_io::CropWindow>,
+) -> Option<String> {
+    let (w, h) = (camera.width, camera.height);
+    let window = crop
+        .and_then(|c| c.pixels(w, h))
+        .unwrap_or(crate::image_io::PixelRect::full(w, h));
+    let covered = pda.coverage(window);
+    (covered < MIN_COVERAGE).then(|| {
+        format!(
+            "the model covers {:.1}% of the image: the rest is the photo, unchanged (check the camera's position, look_at and field of view against `arlux ids`)",
+            100.0 * covered
+        )
+    })
+}
+
 /// Renders `scene` (an effective scene: a variant or motion pose of the
 /// loaded one) over `photo`.
 pub fn render(
@@ -343,10 +368,12 @@ impl Session {
             })
         });
         let rays = pda.rays;
+        let mut warnings = crate::inputs::input_warnings(&photo, Some(&model.estimate));
+        warnings.extend(coverage_warning(&pda, &scene.camera, settings.pda.crop));
         let mut session = Session {
             scene: scene.clone(),
             given_lights,
-            warnings: crate::inputs::input_warnings(&photo, Some(&model.estimate)),
+            warnings,
             photo,
             lamps,
             settings,

@@ -85,3 +85,24 @@ fn a_clipped_photo_is_reported() {
         "{stderr}"
     );
 }
+
+#[test]
+fn a_camera_that_sees_little_of_the_model_is_reported() {
+    let desk = Desk::new();
+    // Turned to look out of the room's open side: no surface in view.
+    desk.edit(
+        "scene.toml",
+        "look_at = [-0.45, 0.6, -1.0]",
+        "look_at = [1.2, 1.2, 6.0]",
+    );
+    let (code, stderr) = render(&desk, false);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("the model covers 0.0% of the image"),
+        "{stderr}"
+    );
+    std::fs::remove_file(desk.path("a.exr")).unwrap();
+    let (code, stderr) = render(&desk, true);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(!desk.path("a.exr").exists(), "--strict wrote the output");
+}
