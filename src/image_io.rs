@@ -1,6 +1,7 @@
 //! [`Image`]: linear RGB float images, and their files. Reads EXR (half or
 //! float, RGB/RGBA/Y in any channel order, optionally inside a layer) and
-//! 8-bit PNG/JPEG (sRGB decoded to linear); writes float EXR with several
+//! 8-bit PNG/JPEG (sRGB decoded to linear, turned as their EXIF
+//! orientation says); writes float EXR with several
 //! layers in one file, and PNG (exposure + sRGB). Every write is atomic: a
 //! temporary file in the same folder, renamed over the target when complete.
 
@@ -89,8 +90,17 @@ fn extension(path: &Path) -> String {
 
 fn read_8bit(path: &Path) -> Result<Image> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
-    let decoded = image::load_from_memory(&bytes)
-        .map_err(|e| Error::file(path, format!("malformed image: {e}")))?;
+    let malformed = |e: image::ImageError| Error::file(path, format!("malformed image: {e}"));
+    // Phones store a photo as the sensor read it and say in its EXIF how to
+    // turn it: the picture the user saw is the one the camera describes.
+    let mut decoder = image::ImageReader::new(std::io::Cursor::new(&bytes))
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, &e))?
+        .into_decoder()
+        .map_err(malformed)?;
+    let orientation = image::ImageDecoder::orientation(&mut decoder).map_err(malformed)?;
+    let mut decoded = image::DynamicImage::from_decoder(decoder).map_err(malformed)?;
+    decoded.apply_orientation(orientation);
     let rgb = decoded.to_rgb32f();
     let pixels = rgb
         .pixels()
@@ -372,6 +382,38 @@ mod tests {
             }
         }
         img
+    }
+
+    #[test]
+    fn a_jpeg_is_turned_as_its_exif_orientation_says() {
+        // 16×8, left half white: stored as the sensor read it, shown turned
+        // 90° clockwise (EXIF orientation 6), so the white half is on top.
+        let buf = image::RgbImage::from_fn(16, 8, |x, _| {
+            image::Rgb(if x < 8 { [255; 3] } else { [0; 3] })
+        });
+        let mut jpeg = std::io::Cursor::new(Vec::new());
+        buf.write_to(&mut jpeg, image::ImageFormat::Jpeg).unwrap();
+        let jpeg = jpeg.into_inner();
+        let mut exif = vec![0xFF, 0xE1, 0, 34];
+        exif.extend(b"Exif\0\0II*\0\x08\0\0\0\x01\0");
+        exif.extend([0x12, 0x01, 3, 0, 1, 0, 0, 0, 6, 0, 0, 0, 0, 0, 0, 0]);
+        let bytes: Vec<u8> = jpeg[..2]
+            .iter()
+            .chain(&exif)
+            .chain(&jpeg[2..])
+            .copied()
+            .collect();
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("phone.jpg");
+        std::fs::write(&p, bytes).unwrap();
+        let img = read_image(&p).unwrap();
+        assert_eq!((img.width, img.height), (8, 16));
+        assert!(
+            img.get(4, 2).x > 0.9 && img.get(4, 13).x < 0.05,
+            "{:?} {:?}",
+            img.get(4, 2),
+            img.get(4, 13)
+        );
     }
 
     #[test]
