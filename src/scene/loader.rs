@@ -514,14 +514,11 @@ impl Loader<'_> {
         {
             return Err(v.error("rgb", "a reflectance lies in [0, 1]"));
         }
-        let pose = Pose {
-            translate: v.opt_place("translate")?.unwrap_or(DVec3::ZERO),
-            rotate_y_deg: v.opt_f64("rotate_y_deg")?.unwrap_or(0.0),
-            scale: v.opt_f64("scale")?.unwrap_or(1.0),
-        };
-        if pose.scale <= 0.0 {
-            return Err(v.error("scale", "must be positive"));
-        }
+        let pose = super::placement::pose_change(v)?.applied_to(&Pose {
+            translate: DVec3::ZERO,
+            rotation: DMat3::IDENTITY,
+            scale: 1.0,
+        });
         let enabled = v.opt_bool("enabled")?.unwrap_or(true);
         v.finish()?;
         let mesh =
@@ -613,21 +610,10 @@ impl Loader<'_> {
                         )
                     })?;
                 let p = Fields::new(self.file, key.clone(), value)?;
-                let change = PoseChange {
-                    translate: p.opt_place("translate")?,
-                    rotate_y_deg: p.opt_f64("rotate_y_deg")?,
-                    scale: p.opt_f64("scale")?,
-                };
-                if change.scale.is_some_and(|s| s <= 0.0) {
-                    return Err(p.error("scale", "must be positive"));
-                }
+                let change = super::placement::pose_change(&p)?;
                 p.finish()?;
                 let o = &objects[index];
-                let pose = Pose {
-                    translate: change.translate.unwrap_or(o.pose.translate),
-                    rotate_y_deg: change.rotate_y_deg.unwrap_or(o.pose.rotate_y_deg),
-                    scale: change.scale.unwrap_or(o.pose.scale),
-                };
+                let pose = change.applied_to(&o.pose);
                 within_reach(o, &pose).map_err(|m| Error::key(self.file, key.clone(), m))?;
                 variant.objects.push((index, change));
             }

@@ -9,6 +9,7 @@
 pub mod calibration;
 mod fields;
 mod loader;
+mod placement;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -179,18 +180,37 @@ pub enum Intensity {
     Reconstruct,
 }
 
-/// A virtual object's placement: p' = translate + R_y(rotate_y_deg)·(scale·p).
+/// A virtual object's placement: p' = translate + rotation·(scale·p).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Pose {
     pub translate: DVec3,
-    pub rotate_y_deg: f64,
+    /// A rotation (orthonormal, determinant 1).
+    pub rotation: DMat3,
     pub scale: f64,
 }
 
 impl Pose {
     pub fn apply(&self, p: Vec3) -> Vec3 {
-        let r = DMat3::from_rotation_y(self.rotate_y_deg.to_radians());
-        (self.translate + r * (p.as_dvec3() * self.scale)).as_vec3()
+        (self.translate + self.rotation * (p.as_dvec3() * self.scale)).as_vec3()
+    }
+
+    /// The rotation about +y by `degrees`, counter-clockwise seen from above.
+    pub fn about_y(degrees: f64) -> DMat3 {
+        DMat3::from_rotation_y(degrees.to_radians())
+    }
+
+    /// The rotation as angles about x, then y, then z (degrees): the
+    /// rotation is R_z·R_y·R_x, Blender's XYZ Euler order.
+    pub fn euler_xyz_deg(&self) -> [f64; 3] {
+        let r = |i: usize, j: usize| self.rotation.col(j)[i];
+        let y = (-r(2, 0)).clamp(-1.0, 1.0).asin();
+        let (x, z) = if r(2, 0).abs() < 1.0 - 1e-12 {
+            (r(2, 1).atan2(r(2, 2)), r(1, 0).atan2(r(0, 0)))
+        } else {
+            // Gimbal lock: z is taken as 0.
+            ((-r(1, 2)).atan2(r(1, 1)), 0.0)
+        };
+        [x, y, z].map(f64::to_degrees)
     }
 }
 
@@ -240,8 +260,19 @@ impl VirtualObject {
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct PoseChange {
     pub translate: Option<DVec3>,
-    pub rotate_y_deg: Option<f64>,
+    pub rotation: Option<DMat3>,
     pub scale: Option<f64>,
+}
+
+impl PoseChange {
+    /// `pose` with this change made.
+    pub fn applied_to(&self, pose: &Pose) -> Pose {
+        Pose {
+            translate: self.translate.unwrap_or(pose.translate),
+            rotation: self.rotation.unwrap_or(pose.rotation),
+            scale: self.scale.unwrap_or(pose.scale),
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -368,9 +399,7 @@ impl Scene {
         for &(object, change) in &variant.objects {
             let o = &mut s.objects[object];
             o.enabled = true;
-            o.pose.translate = change.translate.unwrap_or(o.pose.translate);
-            o.pose.rotate_y_deg = change.rotate_y_deg.unwrap_or(o.pose.rotate_y_deg);
-            o.pose.scale = change.scale.unwrap_or(o.pose.scale);
+            o.pose = change.applied_to(&o.pose);
         }
         for &o in &variant.hide_objects {
             s.objects[o].enabled = false;

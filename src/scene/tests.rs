@@ -99,7 +99,7 @@ fn variants_set_scales_pose_objects_and_hide() {
     let s = Scene::load(Path::new(DESK).join("scene.toml")).unwrap();
     let b = s.with_variant("box_floor_b").unwrap();
     assert_eq!(b.objects[0].pose.translate, DVec3::new(-1.2, 0.0, 0.7));
-    assert_eq!(b.objects[0].pose.rotate_y_deg, -15.0);
+    assert_eq!(b.objects[0].pose.rotation, Pose::about_y(-15.0));
     assert!(b.objects[0].enabled);
     let v = s.with_variant("virtual_light_only").unwrap();
     assert_eq!(
@@ -131,7 +131,7 @@ fn motion_poses_translate_and_keep_rotation() {
         p.objects[0].pose.translate,
         DVec3::new(-0.2714, 0.0, 0.1143)
     );
-    assert_eq!(p.objects[0].pose.rotate_y_deg, 20.0);
+    assert_eq!(p.objects[0].pose.rotation, Pose::about_y(20.0));
     assert!(s.with_motion_pose("box_slide", 8).is_err());
 }
 
@@ -139,7 +139,7 @@ fn motion_poses_translate_and_keep_rotation() {
 fn rotation_is_counter_clockwise_seen_from_above() {
     let pose = Pose {
         translate: DVec3::new(1.0, 0.0, 0.0),
-        rotate_y_deg: 90.0,
+        rotation: Pose::about_y(90.0),
         scale: 2.0,
     };
     // +x turns towards -z when rotating counter-clockwise about +y seen from above.
@@ -437,4 +437,83 @@ fn degenerate_triangles_are_dropped_with_a_warning_and_bad_obj_names_the_line() 
             && err.contains("extra.obj: line 4: vertex: 'oops' is not a number"),
         "{err}"
     );
+}
+
+/// The desk's box placed by `keys` (TOML inside `[[virtual]]`), or the error.
+fn box_placed(keys: &str) -> Result<Pose> {
+    let dir = tempfile::tempdir().unwrap();
+    for f in ["photo.exr"] {
+        std::fs::copy(Path::new(DESK).join(f), dir.path().join(f)).unwrap();
+    }
+    std::fs::create_dir(dir.path().join("geometry")).unwrap();
+    for f in ["room.obj", "furniture.obj", "box.obj"] {
+        let from = Path::new(DESK).join("geometry").join(f);
+        std::fs::copy(from, dir.path().join("geometry").join(f)).unwrap();
+    }
+    let text = std::fs::read_to_string(Path::new(DESK).join("scene.toml")).unwrap();
+    let text = text.replace(
+        "translate = [0.35, 0.0, -0.25]\nrotate_y_deg = 20.0\nscale = 1.0\n",
+        &format!("{keys}\n"),
+    );
+    let cut = text.find("[[variant]]").unwrap();
+    std::fs::write(dir.path().join("scene.toml"), &text[..cut]).unwrap();
+    Scene::load(dir.path().join("scene.toml")).map(|s| s.objects[0].pose)
+}
+
+#[test]
+fn rotations_given_as_euler_angles_a_quaternion_or_a_matrix_agree() {
+    let close = |a: &Pose, b: &Pose| {
+        let p = Vec3::new(0.3, -0.2, 0.7);
+        (a.apply(p) - b.apply(p)).length() < 1e-6
+    };
+    let y = box_placed("rotate_y_deg = 30.0").unwrap();
+    let euler = box_placed("rotate = [0.0, 30.0, 0.0]").unwrap();
+    let (s, c) = (15f64.to_radians().sin(), 15f64.to_radians().cos());
+    let quat = box_placed(&format!("quaternion = [{c}, 0.0, {s}, 0.0]")).unwrap();
+    assert!(close(&y, &euler) && close(&y, &quat));
+    // Blender's XYZ Euler: x first, then y, then z; read back the same.
+    let xyz = box_placed("rotate = [10.0, -20.0, 35.0]\ntranslate = [0.1, 0.2, 0.3]\nscale = 2.0")
+        .unwrap();
+    let e = xyz.euler_xyz_deg();
+    assert!(
+        (e[0] - 10.0).abs() < 1e-9 && (e[1] + 20.0).abs() < 1e-9 && (e[2] - 35.0).abs() < 1e-9,
+        "{e:?}"
+    );
+    // The same placement as a 4×4 matrix, rows, scale folded in.
+    let r = |i: usize| (xyz.rotation.row(i) * 2.0).to_array();
+    let t = [0.1, 0.2, 0.3];
+    let m = format!(
+        "matrix = [[{}, {}, {}, {}], [{}, {}, {}, {}], [{}, {}, {}, {}], [0.0, 0.0, 0.0, 1.0]]",
+        r(0)[0],
+        r(0)[1],
+        r(0)[2],
+        t[0],
+        r(1)[0],
+        r(1)[1],
+        r(1)[2],
+        t[1],
+        r(2)[0],
+        r(2)[1],
+        r(2)[2],
+        t[2]
+    );
+    let from_matrix = box_placed(&m).unwrap();
+    assert!(close(&xyz, &from_matrix), "{from_matrix:?}");
+    assert!((from_matrix.scale - 2.0).abs() < 1e-12);
+    // Shear, a mirror, two rotations: refused at their key.
+    let shear = box_placed(
+        "matrix = [[1.0, 0.5, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]",
+    );
+    assert!(
+        shear
+            .unwrap_err()
+            .to_string()
+            .contains("virtual[0].matrix: its 3×3 part is not a rotation")
+    );
+    let mirror = box_placed(
+        "matrix = [[-1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]",
+    );
+    assert!(mirror.unwrap_err().to_string().contains("mirrors"));
+    let two = box_placed("rotate_y_deg = 10.0\nrotate = [0.0, 1.0, 0.0]");
+    assert!(two.unwrap_err().to_string().contains("give one rotation"));
 }

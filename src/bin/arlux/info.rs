@@ -125,7 +125,8 @@ fn info_report(
                 "name": o.name, "mesh": rel(scene, &o.mesh), "enabled": o.enabled,
                 "triangles": o.surfaces.iter().map(|s| s.triangles.len()).sum::<usize>(),
                 "surfaces": o.surfaces.iter().map(|s| json!({ "name": s.name, "rgb": s.rgb.to_array() })).collect::<Vec<_>>(),
-                "translate": o.pose.translate.to_array(), "rotate_y_deg": o.pose.rotate_y_deg, "scale": o.pose.scale,
+                "translate": o.pose.translate.to_array(), "rotate_deg": o.pose.euler_xyz_deg(),
+                "rotation": (0..3).map(|i| o.pose.rotation.row(i).to_array()).collect::<Vec<_>>(), "scale": o.pose.scale,
             })
         })
         .collect();
@@ -220,7 +221,7 @@ fn info_report(
     for o in &objects {
         writeln!(
             out,
-            "  {:<12} {} triangles, {}, at {} rotated {}°",
+            "  {:<12} {} triangles, {}, at {} rotated {}° (about x, y, z)",
             o["name"].as_str().unwrap_or(""),
             o["triangles"],
             if o["enabled"].as_bool().unwrap_or(false) {
@@ -229,7 +230,7 @@ fn info_report(
                 "disabled"
             },
             o["translate"],
-            o["rotate_y_deg"]
+            o["rotate_deg"]
         )?;
     }
     writeln!(out, "variants: {}", variants.len())?;
