@@ -63,7 +63,7 @@ fn quaternion(v: &toml::Value) -> std::result::Result<DMat3, String> {
         .map(number)
         .collect::<std::result::Result<_, _>>()?;
     let q = DQuat::from_xyzw(q[1], q[2], q[3], q[0]);
-    if !(q.length() > 1e-9) {
+    if q.length().is_nan() || q.length() <= 1e-9 {
         return Err("must not be zero".into());
     }
     Ok(DMat3::from_quat(q.normalize()))
@@ -100,7 +100,7 @@ fn matrix(f: &Fields) -> Result<PoseChange> {
         DVec3::new(m[0][2], m[1][2], m[2][2]),
     );
     let det = linear.determinant();
-    if !(det > 0.0) {
+    if det.is_nan() || det <= 0.0 {
         return Err(bad(format!(
             "its 3×3 part has determinant {det}: it mirrors or flattens the object"
         )));
