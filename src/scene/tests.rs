@@ -442,9 +442,8 @@ fn degenerate_triangles_are_dropped_with_a_warning_and_bad_obj_names_the_line() 
 /// The desk's box placed by `keys` (TOML inside `[[virtual]]`), or the error.
 fn box_placed(keys: &str) -> Result<Pose> {
     let dir = tempfile::tempdir().unwrap();
-    for f in ["photo.exr"] {
-        std::fs::copy(Path::new(DESK).join(f), dir.path().join(f)).unwrap();
-    }
+    let photo = Path::new(DESK).join("photo.exr");
+    std::fs::copy(photo, dir.path().join("photo.exr")).unwrap();
     std::fs::create_dir(dir.path().join("geometry")).unwrap();
     for f in ["room.obj", "furniture.obj", "box.obj"] {
         let from = Path::new(DESK).join("geometry").join(f);
