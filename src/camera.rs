@@ -99,6 +99,25 @@ impl Camera {
         })
     }
 
+    /// The same view at `scale` of the size (0 < scale ≤ 1): each side
+    /// rounded to whole pixels, the intrinsics scaled with it, so that a
+    /// pixel of the smaller image covers the same rays as the area of the
+    /// larger one it averages.
+    pub fn scaled(&self, scale: f64) -> Camera {
+        let side = |n: u32| ((n as f64 * scale).round() as u32).max(1);
+        let (w, h) = (side(self.width), side(self.height));
+        let (sx, sy) = (w as f64 / self.width as f64, h as f64 / self.height as f64);
+        Camera {
+            width: w,
+            height: h,
+            fx: self.fx * sx,
+            cx: self.cx * sx,
+            fy: self.fy * sy,
+            cy: self.cy * sy,
+            ..*self
+        }
+    }
+
     pub fn pixel_count(&self) -> usize {
         self.width as usize * self.height as usize
     }

@@ -51,6 +51,41 @@ impl Image {
         }
     }
 
+    /// This image at `width`×`height` (no larger than it), each new pixel
+    /// the mean over the area of this image it covers (a box filter with
+    /// fractional overlaps): a photo's pixels are means over their area.
+    pub fn area_resampled(&self, width: u32, height: u32) -> Image {
+        // Per new column (row), the old columns it overlaps and by how much.
+        let weights = |old: u32, new: u32| -> Vec<Vec<(usize, f32)>> {
+            let step = old as f64 / new as f64;
+            (0..new)
+                .map(|i| {
+                    let (a, b) = (i as f64 * step, (i + 1) as f64 * step);
+                    (a.floor() as usize..(b.ceil() as usize).min(old as usize))
+                        .map(|j| {
+                            let overlap = (b.min(j as f64 + 1.0) - a.max(j as f64)).max(0.0);
+                            (j, (overlap / step) as f32)
+                        })
+                        .collect()
+                })
+                .collect()
+        };
+        let (wx, wy) = (weights(self.width, width), weights(self.height, height));
+        let mut out = Image::new(width, height);
+        for (y, ry) in wy.iter().enumerate() {
+            for (x, rx) in wx.iter().enumerate() {
+                let mut sum = Vec3::ZERO;
+                for &(j, a) in ry {
+                    for &(i, b) in rx {
+                        sum += self.get(i as u32, j as u32) * (a * b);
+                    }
+                }
+                out.set(x as u32, y as u32, sum);
+            }
+        }
+        out
+    }
+
     /// Mean of the three channels over all pixels.
     pub fn mean(&self) -> f64 {
         let sum: f64 = self.pixels.iter().map(|p| p.as_dvec3().element_sum()).sum();
@@ -382,6 +417,26 @@ mod tests {
             }
         }
         img
+    }
+
+    #[test]
+    fn area_resampling_averages_what_each_pixel_covers() {
+        // 3 columns into 2: the middle one is shared half and half.
+        let mut img = Image::new(3, 1);
+        for (x, v) in [1.0, 4.0, 7.0].iter().enumerate() {
+            img.set(x as u32, 0, Vec3::splat(*v));
+        }
+        let out = img.area_resampled(2, 1);
+        assert!((out.get(0, 0).x - 2.0).abs() < 1e-6 && (out.get(1, 0).x - 6.0).abs() < 1e-6);
+        // Any size: the mean is kept.
+        let r = ramp(17, 11);
+        let small = r.area_resampled(5, 4);
+        assert!(
+            (small.mean() - r.mean()).abs() < 1e-5 * r.mean(),
+            "{} {}",
+            small.mean(),
+            r.mean()
+        );
     }
 
     #[test]

@@ -253,10 +253,10 @@ pub fn run(
     let grid = &grid[share.clone()];
     let photo = scene.load_photo()?;
     let files = reference_files(scene, target)?;
-    let references: Vec<Image> = files.iter().map(|r| read_image(r)).collect::<Result<_>>()?;
-    for (r, file) in references.iter().zip(&files) {
-        scene.check_size(r, "reference", file)?;
-    }
+    let references: Vec<Image> = files
+        .iter()
+        .map(|r| scene.fit_size(read_image(r)?, "reference", r))
+        .collect::<Result<_>>()?;
     // One untimed render first: the thread pool and the page cache warm up
     // there, not in whichever setting happens to come first.
     if let Some(first) = grid.first() {

@@ -177,3 +177,41 @@ fn an_fspy_project_gives_the_scene_s_rays() {
         "{e}"
     );
 }
+
+#[test]
+fn a_camera_at_half_scale_renders_the_photo_averaged_down_as_accurately() {
+    let desk = common::Desk::new();
+    desk.edit(
+        "scene.toml",
+        "fov_y_deg = 55.0\n",
+        "fov_y_deg = 55.0\nscale = 0.5\n",
+    );
+    let out = desk.path("half.exr");
+    let run = common::arlux(&[
+        "render",
+        &desk.scene(),
+        "--variant",
+        "box_floor_a",
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(
+        run.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let image = arlux::image_io::read_image(&out).unwrap();
+    assert_eq!((image.width, image.height), (256, 192));
+    // The full-size render's skill is 0.895; the reference is averaged
+    // down as the photo is.
+    let skill = report["skill"]["skill"].as_f64().unwrap();
+    assert!(skill > 0.85, "skill {skill}");
+    desk.edit("scene.toml", "scale = 0.5", "scale = 1.5");
+    let e = Scene::load(desk.path("scene.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("camera.scale: must lie in (0, 1]"), "{e}");
+}

@@ -81,7 +81,23 @@ impl Loader<'_> {
                 .map(|n| n.to_string_lossy().into_owned())
                 .unwrap_or_default(),
         };
-        let camera = self.camera(&top.req_table("camera")?)?;
+        let camera_fields = top.req_table("camera")?;
+        let scale = camera_fields.opt_f64("scale")?.unwrap_or(1.0);
+        if !(scale > 0.0 && scale <= 1.0) {
+            return Err(camera_fields.error(
+                "scale",
+                format!(
+                    "must lie in (0, 1]: the share of the photo's size to render at, not {scale}"
+                ),
+            ));
+        }
+        let full = self.camera(&camera_fields)?;
+        let photo_size = (full.width, full.height);
+        let camera = if scale < 1.0 {
+            full.scaled(scale)
+        } else {
+            full
+        };
         let photo = self.photo(&top.req_table("photo")?)?;
 
         let mut surfaces: Vec<Surface> = Vec::new();
@@ -204,6 +220,7 @@ impl Loader<'_> {
             name,
             file: self.file.to_path_buf(),
             camera,
+            photo_size,
             photo,
             surfaces,
             reflectances,

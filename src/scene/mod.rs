@@ -34,6 +34,9 @@ pub struct Scene {
     /// The `scene.toml` this came from; relative paths were resolved against its folder.
     pub file: PathBuf,
     pub camera: Camera,
+    /// The photo's and the references' size: the camera's before its
+    /// `scale` (equal to the camera's size without one).
+    pub photo_size: (u32, u32),
     pub photo: Photo,
     /// Real surfaces, numbered as arlux numbers them everywhere: `[[real]]`
     /// meshes in manifest order, then `o`/`g` names in file order.
@@ -447,7 +450,7 @@ impl Scene {
     /// a merge's or a denoiser's ringing) and their count. Non-finite pixels
     /// are an error, as is a photo whose size is not the camera's.
     pub fn read_photo(&self) -> Result<(Image, usize)> {
-        let (mut img, key, file) = match &self.photo {
+        let (img, key, file) = match &self.photo {
             Photo::Image(path) => (
                 image_io::read_image(path).map_err(|e| e.within(&self.file, "photo.image"))?,
                 "photo.image",
@@ -467,7 +470,7 @@ impl Scene {
                 )
             }
         };
-        self.check_size(&img, key, &file)?;
+        let mut img = self.fit_size(img, key, &file)?;
         let mut negative = 0;
         for p in &mut img.pixels {
             if p.min_element() < 0.0 {
@@ -489,23 +492,34 @@ impl Scene {
         matches!(self.photo, Photo::Brackets(_))
     }
 
-    /// Errors unless `img`, read from `file`, has the camera's size; `key`
-    /// names where the scene gave it.
-    pub fn check_size(&self, img: &Image, key: &str, file: &Path) -> Result<()> {
+    /// `img`, read from `file`, at the camera's size: as it is when it has
+    /// that size, averaged down when it has the photo's size and the camera
+    /// renders at a `scale`; otherwise an error (`key` names where the scene
+    /// gave the file).
+    pub fn fit_size(&self, img: Image, key: &str, file: &Path) -> Result<Image> {
         let (w, h) = (self.camera.width, self.camera.height);
-        if (img.width, img.height) != (w, h) {
-            return Err(Error::key(
-                &self.file,
-                key,
-                format!(
-                    "{} is {}x{} but the camera is {w}x{h}",
-                    file.display(),
-                    img.width,
-                    img.height
-                ),
-            ));
+        if (img.width, img.height) == (w, h) {
+            return Ok(img);
         }
-        Ok(())
+        if (img.width, img.height) == self.photo_size {
+            return Ok(img.area_resampled(w, h));
+        }
+        let (pw, ph) = self.photo_size;
+        let scaled = if (pw, ph) != (w, h) {
+            format!(" ({pw}x{ph} before its scale)")
+        } else {
+            String::new()
+        };
+        Err(Error::key(
+            &self.file,
+            key,
+            format!(
+                "{} is {}x{} but the camera is {w}x{h}{scaled}",
+                file.display(),
+                img.width,
+                img.height
+            ),
+        ))
     }
 
     /// World-space triangles of every enabled virtual object's surfaces, with

@@ -138,8 +138,7 @@ pub(crate) fn display_photo(scene: &Scene) -> Result<Image> {
                 .min_by(|a, b| a.ev.abs().total_cmp(&b.ev.abs()))
                 .context("no brackets")?;
             let img = image_io::read_image(&b.image)?;
-            scene.check_size(&img, "photo.brackets", &b.image)?;
-            Ok(img)
+            Ok(scene.fit_size(img, "photo.brackets", &b.image)?)
         }
     }
 }

@@ -63,8 +63,7 @@ pub fn run(args: &Args) -> Result<()> {
     let error_at = |pose: usize, img: &Image| -> Result<Option<arlux::compare::Comparison>> {
         match motion.references.get(pose) {
             Some(r) => {
-                let truth = image_io::read_image(r)?;
-                base.check_size(&truth, "motion.references", r)?;
+                let truth = base.fit_size(image_io::read_image(r)?, "motion.references", r)?;
                 Ok(Some(compare(img, &truth, None)))
             }
             None => Ok(None),

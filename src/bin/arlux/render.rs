@@ -148,8 +148,7 @@ pub fn run(args: &Args) -> Result<()> {
     times.time("write", || write_outputs(args, &out, &photo, &meta))?;
     let error = times.time("compare", || -> Result<Option<(Comparison, Skill)>> {
         let Some(r) = &reference else { return Ok(None) };
-        let truth = image_io::read_image(r)?;
-        scene.check_size(&truth, "variant.reference", r)?;
+        let truth = scene.fit_size(image_io::read_image(r)?, "variant.reference", r)?;
         let (image, photo) = (&out.composite.image, &photo);
         Ok(Some(match window {
             None => (compare(image, &truth, None), skill(image, &truth, photo)),
