@@ -28,6 +28,9 @@ pub struct Mesh {
     pub surfaces: Vec<MeshSurface>,
     /// Triangles dropped because they had zero area or non-finite corners.
     pub dropped_triangles: usize,
+    /// Materials the surfaces use whose texture (`map_Kd`) or specular part
+    /// (`Ks` above 0) arlux does not use, by name.
+    pub unused_material_parts: Vec<String>,
 }
 
 impl Mesh {
@@ -396,6 +399,7 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
 
     let mut surfaces: Vec<MeshSurface> = Vec::new();
     let mut dropped = 0;
+    let mut unused: Vec<String> = Vec::new();
     for model in &models {
         let m = &model.mesh;
         let corner = |i: u32| -> Vec3 {
@@ -411,11 +415,14 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
                 triangles.push(t);
             }
         }
-        let kd = m
-            .material_id
-            .and_then(|id| materials.get(id))
-            .and_then(|mat| mat.diffuse)
-            .map(Vec3::from_array);
+        let material = m.material_id.and_then(|id| materials.get(id));
+        if let Some(mat) = material {
+            let specular = mat.specular.is_some_and(|k| k.iter().any(|&c| c > 0.0));
+            if (specular || mat.diffuse_texture.is_some()) && !unused.contains(&mat.name) {
+                unused.push(mat.name.clone());
+            }
+        }
+        let kd = material.and_then(|mat| mat.diffuse).map(Vec3::from_array);
         match surfaces.iter_mut().find(|s| s.name == model.name) {
             Some(s) => {
                 s.triangles.extend(triangles);
@@ -440,6 +447,7 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
     Ok(Mesh {
         surfaces,
         dropped_triangles: dropped,
+        unused_material_parts: unused,
     })
 }
 

@@ -106,3 +106,25 @@ fn a_camera_that_sees_little_of_the_model_is_reported() {
     assert_eq!(code, Some(2), "{stderr}");
     assert!(!desk.path("a.exr").exists(), "--strict wrote the output");
 }
+
+#[test]
+fn a_material_s_texture_and_specular_part_are_reported_once() {
+    let desk = Desk::new();
+    std::fs::write(
+        desk.path("geometry/box.mtl"),
+        "newmtl wood\nKd 0.6 0.4 0.2\nKs 0.5 0.5 0.5\nmap_Kd wood.png\n",
+    )
+    .unwrap();
+    desk.edit(
+        "geometry/box.obj",
+        "o box\n",
+        "mtllib box.mtl\no box\nusemtl wood\n",
+    );
+    let run = arlux(&["info", &desk.scene()]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(0), "{stderr}");
+    let said = stderr
+        .matches("material wood has a texture (map_Kd) or a specular part (Ks)")
+        .count();
+    assert_eq!(said, 1, "{stderr}");
+}

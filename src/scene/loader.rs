@@ -36,6 +36,27 @@ fn within_reach(object: &VirtualObject, pose: &Pose) -> std::result::Result<(), 
     ))
 }
 
+/// What a mesh held that arlux leaves out: degenerate triangles, and
+/// material parts it does not use (said once per file).
+fn mesh_warnings(path: &Path, mesh: &geometry::Mesh) -> Vec<String> {
+    let mut out = Vec::new();
+    if mesh.dropped_triangles > 0 {
+        out.push(format!(
+            "{}: dropped {} degenerate or non-finite triangles",
+            path.display(),
+            mesh.dropped_triangles
+        ));
+    }
+    if !mesh.unused_material_parts.is_empty() {
+        out.push(format!(
+            "{}: material {} has a texture (map_Kd) or a specular part (Ks) that arlux does not use: each surface is diffuse with its Kd (or the scene's rgb), and the photo carries the texture",
+            path.display(),
+            mesh.unused_material_parts.join(", ")
+        ));
+    }
+    out
+}
+
 pub(super) fn list(names: &[&str]) -> String {
     if names.is_empty() {
         "none".into()
@@ -115,13 +136,7 @@ impl Loader<'_> {
             r.finish()?;
             let mesh =
                 geometry::load_obj(&path).map_err(|e| e.within(self.file, r.key_path("mesh")))?;
-            if mesh.dropped_triangles > 0 {
-                warnings.push(format!(
-                    "{}: dropped {} degenerate or non-finite triangles",
-                    path.display(),
-                    mesh.dropped_triangles
-                ));
-            }
+            warnings.extend(mesh_warnings(&path, &mesh));
             for s in mesh.surfaces {
                 if let Some(other) = surfaces.iter().find(|o| o.name == s.name) {
                     return Err(r.error(
@@ -540,13 +555,7 @@ impl Loader<'_> {
         v.finish()?;
         let mesh =
             geometry::load_obj(&path).map_err(|e| e.within(self.file, v.key_path("mesh")))?;
-        if mesh.dropped_triangles > 0 {
-            warnings.push(format!(
-                "{}: dropped {} degenerate or non-finite triangles",
-                path.display(),
-                mesh.dropped_triangles
-            ));
-        }
+        warnings.extend(mesh_warnings(&path, &mesh));
         let mut surfaces = Vec::new();
         for s in mesh.surfaces {
             let rgb = match (rgb, s.material_rgb) {
