@@ -101,12 +101,23 @@ pub fn run(args: &Args) -> Result<()> {
         "seconds": times.total().as_secs_f64(),
     });
     if as_json {
-        emit("gonio", report)?;
-        return Ok(());
+        return emit("gonio", report);
     }
+    print_reconstruction(&rec, &light.name, output, times.total().as_secs_f64())
+}
+
+/// The reconstruction as text, with the line that uses the file written.
+fn print_reconstruction(
+    rec: &arlux::gonio::Reconstruction,
+    light: &str,
+    output: &std::path::Path,
+    seconds: f64,
+) -> Result<()> {
+    use arlux::gonio::ReflectanceSource;
+    let (peak, peak_dir) = arlux::gonio::peak(rec);
     say!(
         "light '{}' at {}: reconstructed from {} pixels ({} patches for the indirect light), {} rounds (last change {:.1e} of the peak)",
-        light.name,
+        light,
         fmt3(rec.position),
         rec.samples,
         rec.patches,
@@ -145,7 +156,7 @@ pub fn run(args: &Args) -> Result<()> {
     say!(
         "reconstruction {:.2} s (Grosch et al.: 97.9 s for 282 patches); total {:.2} s",
         rec.seconds,
-        times.total().as_secs_f64()
+        seconds
     );
     say!(
         "wrote {}; use it as: intensity = {{ ies = \"{}\", rgb = [{:.4}, {:.4}, {:.4}], direction = [0.0, -1.0, 0.0], reference = [1.0, 0.0, 0.0] }}",

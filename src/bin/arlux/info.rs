@@ -159,12 +159,23 @@ fn info_report(
         "virtual_objects": objects, "variants": variants, "motions": motions, "warnings": scene.warnings,
         "all_surface_names": names,
     });
-    let mut out = std::io::stdout().lock();
     if as_json {
-        drop(out);
-        emit("info", report)?;
-        return Ok(());
+        return emit("info", report);
     }
+    print_info(scene, &report, &light_lines)
+}
+
+/// The report as text, from its JSON (the lights from their own lines).
+fn print_info(scene: &Scene, report: &serde_json::Value, light_lines: &[String]) -> Result<()> {
+    let list = |key: &str| report[key].as_array().cloned().unwrap_or_default();
+    let (surfaces, objects, variants, motions) = (
+        list("surfaces"),
+        list("virtual_objects"),
+        list("variants"),
+        list("motions"),
+    );
+    let c = &scene.camera;
+    let mut out = std::io::stdout().lock();
     writeln!(out, "scene '{}' ({})", scene.name, scene.file.display())?;
     writeln!(
         out,
@@ -213,8 +224,8 @@ fn info_report(
             known
         )?;
     }
-    writeln!(out, "lights: {}", lights.len())?;
-    for line in &light_lines {
+    writeln!(out, "lights: {}", light_lines.len())?;
+    for line in light_lines {
         writeln!(out, "  {line}")?;
     }
     writeln!(out, "virtual objects: {}", objects.len())?;

@@ -147,38 +147,7 @@ pub fn run(args: &Args) -> Result<()> {
     }
     bar.finish_and_clear();
     if let (Some(png), Some(blocks)) = (debug_blocks, session.blocks()) {
-        let (w, h) = (blocks.width, blocks.height);
-        // The photo, dimmed, under the skipped blocks coloured by level (Grosch Fig. 6).
-        let mut bytes: Vec<u8> = photo
-            .pixels
-            .iter()
-            .flat_map(|p| {
-                (*p * (0.09 / photo.mean().max(1e-12) as f32))
-                    .to_array()
-                    .map(|c| (image_io::linear_to_srgb(c) * 255.0) as u8)
-            })
-            .collect();
-        if let Some(skipped) = last_skipped.iter().find(|s| !s.is_empty()) {
-            for &(level, bx, by) in skipped {
-                let (x0, y0, x1, y1) = blocks.block_pixels(level, bx, by);
-                let colour =
-                    arlux::surface_ids::id_colour(level as i32 + 3 * (bx as i32 + by as i32) % 2);
-                for y in y0..y1 {
-                    for x in x0..x1 {
-                        let i = ((y * w + x) * 3) as usize;
-                        let edge = x == x0 || y == y0;
-                        for c in 0..3 {
-                            bytes[i + c] = if edge {
-                                0
-                            } else {
-                                ((bytes[i + c] as u16 + colour[c] as u16) / 2) as u8
-                            };
-                        }
-                    }
-                }
-            }
-        }
-        image_io::write_png_rgb8(png, w, h, bytes)?;
+        write_skipped_blocks(png, blocks, &photo, &last_skipped)?;
     }
     // The hierarchy keeps the shafts its traversals built: what it holds at the end.
     let block_bytes_end = session.memory_bytes().1;
@@ -215,4 +184,46 @@ fn pose_range(args: &Args, count: usize) -> Result<std::ops::Range<usize>> {
         return Ok(0..count);
     };
     Ok(crate::common::shard_range(shard, count, "pose")?.0)
+}
+
+/// The photo, dimmed, under the blocks the last update skipped with one
+/// shaft test, coloured by level (Grosch Fig. 6).
+fn write_skipped_blocks(
+    png: &std::path::Path,
+    blocks: &arlux::blocks::BlockHierarchy,
+    photo: &Image,
+    last_skipped: &[Vec<(u8, u32, u32)>],
+) -> Result<()> {
+    let (w, h) = (blocks.width, blocks.height);
+    let mut bytes: Vec<u8> = photo
+        .pixels
+        .iter()
+        .flat_map(|p| {
+            (*p * (0.09 / photo.mean().max(1e-12) as f32))
+                .to_array()
+                .map(|c| (image_io::linear_to_srgb(c) * 255.0) as u8)
+        })
+        .collect();
+    if let Some(skipped) = last_skipped.iter().find(|s| !s.is_empty()) {
+        for &(level, bx, by) in skipped {
+            let (x0, y0, x1, y1) = blocks.block_pixels(level, bx, by);
+            let colour =
+                arlux::surface_ids::id_colour(level as i32 + 3 * (bx as i32 + by as i32) % 2);
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    let i = ((y * w + x) * 3) as usize;
+                    let edge = x == x0 || y == y0;
+                    for c in 0..3 {
+                        bytes[i + c] = if edge {
+                            0
+                        } else {
+                            ((bytes[i + c] as u16 + colour[c] as u16) / 2) as u8
+                        };
+                    }
+                }
+            }
+        }
+    }
+    image_io::write_png_rgb8(png, w, h, bytes)?;
+    Ok(())
 }

@@ -116,39 +116,52 @@ pub fn run(args: &Args) -> Result<()> {
         )?;
         Ok(())
     })?;
-    let mut front: Vec<&arlux::sweep::SweepRow> = rows.iter().filter(|r| r.pareto).collect();
-    front.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
-    let describe = |r: &arlux::sweep::SweepRow| {
-        let s = &r.settings;
-        let method = match s.method {
-            arlux::sweep::SweepMethod::Pda => json!("pda"),
-            arlux::sweep::SweepMethod::Texture { min_leaf_pixels } => {
-                json!({ "texture": { "min_leaf_pixels": min_leaf_pixels } })
-            }
-        };
-        json!({
-            "method": method,
-            "shadow_rays": [1u32 << s.min_level, 1u32 << s.penumbra_level], "supersample": s.supersample,
-            "patch_size_m": s.patch_size, "virtual_patch_size_m": matches!(s.method, arlux::sweep::SweepMethod::Pda).then_some(s.virtual_patch_size),
-            "epsilon": s.epsilon, "seconds": r.seconds, "rmse": r.rmse,
-            "relative_rmse": r.relative_rmse, "pareto": r.pareto,
-        })
-    };
+    let plot_file = args.shard.is_none().then_some(png.as_path());
     if as_json {
-        emit(
+        return emit(
             "sweep",
             json!({
-                "target": label, "settings": rows.len(), "csv": csv.display().to_string(), "plot": args.shard.is_none().then(|| png.display().to_string()),
-                "rows": rows.iter().map(describe).collect::<Vec<_>>(),
+                "target": label, "settings": rows.len(), "csv": csv.display().to_string(),
+                "plot": plot_file.map(|p| p.display().to_string()),
+                "rows": rows.iter().map(row_json).collect::<Vec<_>>(),
             }),
-        )?;
-        return Ok(());
+        );
     }
+    print_front(rows, &label, &csv, plot_file)
+}
+
+/// A measured setting for the `--json` report.
+fn row_json(r: &arlux::sweep::SweepRow) -> serde_json::Value {
+    let s = &r.settings;
+    let method = match s.method {
+        arlux::sweep::SweepMethod::Pda => json!("pda"),
+        arlux::sweep::SweepMethod::Texture { min_leaf_pixels } => {
+            json!({ "texture": { "min_leaf_pixels": min_leaf_pixels } })
+        }
+    };
+    json!({
+        "method": method,
+        "shadow_rays": [1u32 << s.min_level, 1u32 << s.penumbra_level], "supersample": s.supersample,
+        "patch_size_m": s.patch_size, "virtual_patch_size_m": matches!(s.method, arlux::sweep::SweepMethod::Pda).then_some(s.virtual_patch_size),
+        "epsilon": s.epsilon, "seconds": r.seconds, "rmse": r.rmse,
+        "relative_rmse": r.relative_rmse, "pareto": r.pareto,
+    })
+}
+
+/// What was written, and the Pareto front as a table.
+fn print_front(
+    rows: &[arlux::sweep::SweepRow],
+    label: &str,
+    csv: &std::path::Path,
+    plot: Option<&std::path::Path>,
+) -> Result<()> {
+    let mut front: Vec<&arlux::sweep::SweepRow> = rows.iter().filter(|r| r.pareto).collect();
+    front.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
     say!(
-        "{} settings of {label}; wrote {} and {}",
+        "{} settings of {label}; wrote {}{}",
         rows.len(),
         csv.display(),
-        png.display()
+        plot.map_or(String::new(), |p| format!(" and {}", p.display()))
     );
     say!("Pareto front (faster and closer than nothing else):");
     say!(
