@@ -1,6 +1,7 @@
 //! [`Camera`]: a pinhole camera, by vertical field of view or by calibrated
-//! intrinsics. Gives rays through any point of the image plane and projects
-//! world points back to pixels.
+//! intrinsics, with OpenCV's lens distortion (radial k1, k2, k3 and
+//! tangential p1, p2) when the photo was shot through one. Gives rays
+//! through any point of the image and projects world points back to pixels.
 //!
 //! Image coordinates are continuous pixels: (0,0) is the top-left corner of
 //! the image, a pixel's centre is at (col+0.5, row+0.5), `y` grows down.
@@ -23,6 +24,72 @@ pub struct Camera {
     pub fy: f64,
     pub cx: f64,
     pub cy: f64,
+    /// Zero for a pinhole photo (an undistorted one).
+    pub distortion: Distortion,
+}
+
+/// OpenCV's distortion model on normalised image coordinates (x right,
+/// y down, 1 unit at the focal length): a point (x, y) at r² = x² + y²
+/// is seen at (x·k + 2p1·xy + p2(r² + 2x²), y·k + p1(r² + 2y²) + 2p2·xy)
+/// with k = 1 + k1·r² + k2·r⁴ + k3·r⁶.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Distortion {
+    pub k1: f64,
+    pub k2: f64,
+    pub p1: f64,
+    pub p2: f64,
+    pub k3: f64,
+}
+
+impl Distortion {
+    pub fn is_none(&self) -> bool {
+        *self == Distortion::default()
+    }
+
+    /// Whether the radial part still grows at r²: beyond, a polynomial
+    /// lens model folds back onto the image and means nothing.
+    pub fn is_monotonic_at(&self, r2: f64) -> bool {
+        1.0 + r2 * (3.0 * self.k1 + r2 * (5.0 * self.k2 + r2 * 7.0 * self.k3)) > 0.0
+    }
+
+    /// Where the lens shows the normalised point (x, y).
+    pub fn apply(&self, x: f64, y: f64) -> (f64, f64) {
+        let r2 = x * x + y * y;
+        let k = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+        (
+            x * k + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x),
+            y * k + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y,
+        )
+    }
+
+    /// The normalised point the lens shows at (xd, yd): Newton's method on
+    /// [`Distortion::apply`] (converges in a few steps over a photo's
+    /// field; OpenCV's fixed-point iteration needs tens).
+    pub fn remove(&self, xd: f64, yd: f64) -> (f64, f64) {
+        let (mut x, mut y) = (xd, yd);
+        for _ in 0..20 {
+            let (fx, fy) = self.apply(x, y);
+            let (ex, ey) = (fx - xd, fy - yd);
+            if ex.abs().max(ey.abs()) < 1e-14 {
+                break;
+            }
+            // The Jacobian by central differences (step far below a pixel).
+            let h = 1e-7;
+            let (ax, ay) = self.apply(x + h, y);
+            let (bx, by) = self.apply(x - h, y);
+            let (cx, cy) = self.apply(x, y + h);
+            let (dx, dy) = self.apply(x, y - h);
+            let (j00, j10) = ((ax - bx) / (2.0 * h), (ay - by) / (2.0 * h));
+            let (j01, j11) = ((cx - dx) / (2.0 * h), (cy - dy) / (2.0 * h));
+            let det = j00 * j11 - j01 * j10;
+            if det.abs() < 1e-12 {
+                break;
+            }
+            x -= (j11 * ex - j01 * ey) / det;
+            y -= (-j10 * ex + j00 * ey) / det;
+        }
+        (x, y)
+    }
 }
 
 /// How the projection is given in `scene.toml`.
@@ -96,7 +163,13 @@ impl Camera {
             fy,
             cx,
             cy,
+            distortion: Distortion::default(),
         })
+    }
+
+    /// This camera seeing through a lens with `distortion`.
+    pub fn with_distortion(self, distortion: Distortion) -> Camera {
+        Camera { distortion, ..self }
     }
 
     /// The same view at `scale` of the size (0 < scale ≤ 1): each side
@@ -124,8 +197,15 @@ impl Camera {
 
     /// The ray through image point (x, y) in continuous pixel coordinates.
     pub fn ray(&self, x: f64, y: f64) -> Ray {
-        let d = self.forward + self.right * ((x - self.cx) / self.fx)
-            - self.up * ((y - self.cy) / self.fy);
+        let d = if self.distortion.is_none() {
+            self.forward + self.right * ((x - self.cx) / self.fx)
+                - self.up * ((y - self.cy) / self.fy)
+        } else {
+            let (u, v) = self
+                .distortion
+                .remove((x - self.cx) / self.fx, (y - self.cy) / self.fy);
+            self.forward + self.right * u - self.up * v
+        };
         Ray {
             origin: self.position,
             direction: d.normalize(),
@@ -137,6 +217,39 @@ impl Camera {
         self.ray(col as f64 + 0.5, row as f64 + 0.5)
     }
 
+    /// The image of the segment a–b as a polyline: its two ends for a
+    /// pinhole (a straight line stays straight), 17 points along it through
+    /// a lens (which bends it). `None` when a point is behind the camera.
+    pub fn project_path(&self, a: DVec3, b: DVec3) -> Option<Vec<(f64, f64)>> {
+        let n = if self.distortion.is_none() { 1 } else { 16 };
+        (0..=n)
+            .map(|i| {
+                let p = a.lerp(b, i as f64 / n as f64);
+                self.project(p).map(|(x, y, _)| (x, y))
+            })
+            .collect()
+    }
+
+    /// Image points whose bounding box holds the image of the convex hull of
+    /// `corners`: the corners themselves for a pinhole, points along every
+    /// segment between two of them through a lens (whose curves may bow
+    /// past the corners). `None` when a point is behind the camera.
+    pub fn project_hull(&self, corners: &[DVec3]) -> Option<Vec<(f64, f64)>> {
+        if self.distortion.is_none() {
+            return corners
+                .iter()
+                .map(|c| self.project(*c).map(|(x, y, _)| (x, y)))
+                .collect();
+        }
+        let mut out = Vec::new();
+        for (i, a) in corners.iter().enumerate() {
+            for b in &corners[i + 1..] {
+                out.extend(self.project_path(*a, *b)?);
+            }
+        }
+        Some(out)
+    }
+
     /// Image coordinates of a world point and its depth along the view axis,
     /// or `None` for points at or behind the camera plane.
     pub fn project(&self, p: DVec3) -> Option<(f64, f64, f64)> {
@@ -145,9 +258,18 @@ impl Camera {
         if z <= 1e-12 {
             return None;
         }
-        let x = self.cx + self.fx * d.dot(self.right) / z;
-        let y = self.cy - self.fy * d.dot(self.up) / z;
-        Some((x, y, z))
+        if self.distortion.is_none() {
+            let x = self.cx + self.fx * d.dot(self.right) / z;
+            let y = self.cy - self.fy * d.dot(self.up) / z;
+            return Some((x, y, z));
+        }
+        let (x, y) = (d.dot(self.right) / z, -d.dot(self.up) / z);
+        if !self.distortion.is_monotonic_at(x * x + y * y) {
+            // Past where the lens model folds back: it says nothing there.
+            return None;
+        }
+        let (u, v) = self.distortion.apply(x, y);
+        Some((self.cx + self.fx * u, self.cy + self.fy * v, z))
     }
 }
 

@@ -93,11 +93,7 @@ fn meet(light: &LightSource, origin: DVec3, dir: DVec3) -> Option<(f64, bool)> {
 fn pixel_box(camera: &Camera, light: &LightSource) -> Option<(u32, u32, u32, u32)> {
     let corners = light.rect_corners()?;
     let (w, h) = (camera.width as f64, camera.height as f64);
-    let projected: Option<Vec<(f64, f64)>> = corners
-        .iter()
-        .map(|c| camera.project(*c).map(|(x, y, _)| (x, y)))
-        .collect();
-    let Some(projected) = projected else {
+    let Some(projected) = camera.project_hull(&corners) else {
         return Some((0, camera.width, 0, camera.height));
     };
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);

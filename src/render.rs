@@ -152,11 +152,7 @@ fn without_unreachable_objects(scene: &Scene) -> (Option<Scene>, Vec<String>) {
 /// only when all its corners lie beyond one side of the view.
 fn in_view(camera: &crate::camera::Camera, lo: DVec3, hi: DVec3) -> bool {
     let corners = crate::geometry::box_corners(lo, hi);
-    let projected: Option<Vec<(f64, f64)>> = corners
-        .iter()
-        .map(|c| camera.project(*c).map(|(x, y, _)| (x, y)))
-        .collect();
-    let Some(p) = projected else {
+    let Some(p) = camera.project_hull(&corners) else {
         // Some corner at or behind the camera: in view unless all are.
         return corners.iter().any(|c| camera.project(*c).is_some());
     };

@@ -67,7 +67,7 @@ fn a_colmap_text_model_gives_the_scene_s_rays() {
     std::fs::write(
         desk.path("sparse/cameras.txt"),
         format!(
-            "# Camera list with one line of data per camera:\n#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n3 SIMPLE_RADIAL 512 384 300 256 192 0.1\n1 PINHOLE 512 384 {:.17} {:.17} {:.17} {:.17}\n",
+            "# Camera list with one line of data per camera:\n#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n3 OPENCV_FISHEYE 512 384 300 300 256 192 0.1 0 0 0\n1 PINHOLE 512 384 {:.17} {:.17} {:.17} {:.17}\n",
             c.fx, c.fy, c.cx, c.cy
         ),
     )
@@ -89,7 +89,7 @@ fn a_colmap_text_model_gives_the_scene_s_rays() {
         .to_string();
     assert!(
         e.contains("camera.colmap")
-            && e.contains("SIMPLE_RADIAL")
+            && e.contains("OPENCV_FISHEYE")
             && e.contains("image_undistorter"),
         "{e}"
     );
@@ -214,4 +214,66 @@ fn a_camera_at_half_scale_renders_the_photo_averaged_down_as_accurately() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("camera.scale: must lie in (0, 1]"), "{e}");
+}
+
+/// OpenCV's fixed-point undistortion (not the library's Newton steps): the
+/// normalised point a lens with k1, k2, p1, p2 shows at (xd, yd).
+fn undistort(k: [f64; 4], xd: f64, yd: f64) -> (f64, f64) {
+    let [k1, k2, p1, p2] = k;
+    let (mut x, mut y) = (xd, yd);
+    for _ in 0..200 {
+        let r2 = x * x + y * y;
+        let radial = 1.0 + k1 * r2 + k2 * r2 * r2;
+        let dx = 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
+        let dy = p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
+        (x, y) = ((xd - dx) / radial, (yd - dy) / radial);
+    }
+    (x, y)
+}
+
+#[test]
+fn a_photo_shot_through_a_lens_registers_with_the_model() {
+    use arlux::surface_ids::SurfaceIds;
+    use arlux::trace::Layer;
+    let k = [-0.18, 0.03, 0.002, -0.001];
+    let desk = desk_with_camera(&format!(
+        "{CAMERA}distortion = {{ k1 = {}, k2 = {}, p1 = {}, p2 = {} }}\n",
+        k[0], k[1], k[2], k[3]
+    ));
+    let scene = Scene::load(desk.path("scene.toml")).unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
+    let lens = SurfaceIds::at_pixel_centres(&scene.camera, &tracer, Layer::Real);
+    let pinhole = known();
+    // The truth: the pinhole camera's ids at 4× resolution, looked up where
+    // each pixel of the distorted photo sees (OpenCV's own inversion).
+    let fine = pinhole.scaled(4.0);
+    let truth_ids = SurfaceIds::at_pixel_centres(&fine, &tracer, Layer::Real);
+    let plain = SurfaceIds::at_pixel_centres(&pinhole, &tracer, Layer::Real);
+    let (w, h) = (pinhole.width, pinhole.height);
+    let (mut compared, mut agree, mut agree_plain) = (0, 0, 0);
+    for y in 0..h {
+        for x in 0..w {
+            let xd = (x as f64 + 0.5 - pinhole.cx) / pinhole.fx;
+            let yd = (y as f64 + 0.5 - pinhole.cy) / pinhole.fy;
+            let (u, v) = undistort(k, xd, yd);
+            let (fx, fy) = (fine.cx + fine.fx * u, fine.cy + fine.fy * v);
+            if fx < 0.0 || fy < 0.0 || fx >= fine.width as f64 || fy >= fine.height as f64 {
+                continue;
+            }
+            let truth = truth_ids.ids[fy as usize * fine.width as usize + fx as usize];
+            let i = (y * w + x) as usize;
+            compared += 1;
+            agree += usize::from(lens.ids[i] == truth);
+            agree_plain += usize::from(plain.ids[i] == truth);
+        }
+    }
+    let share = agree as f64 / compared as f64;
+    let plain_share = agree_plain as f64 / compared as f64;
+    assert!(compared > 150_000, "{compared}");
+    assert!(
+        share >= 0.99,
+        "the lens camera agrees on {share:.4} of the pixels"
+    );
+    // The lens matters: a pinhole camera misregisters the same photo.
+    assert!(plain_share < 0.97, "a pinhole agrees on {plain_share:.4}");
 }

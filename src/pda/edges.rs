@@ -173,21 +173,13 @@ pub(super) fn edge_candidates(input: &PdaInput) -> Option<Vec<bool>> {
     let edges = interior_edges(cam, &roots);
     for root in &roots {
         let corners = root.shape.corners();
-        let projected: Option<Vec<(f64, f64)>> = corners
-            .iter()
-            .map(|c| cam.project(*c).map(|(x, y, _)| (x, y)))
-            .collect();
-        let projected = projected?;
-        for (k, a) in projected.iter().enumerate() {
-            if !edges.contains(&edge_key(corners[k], corners[(k + 1) % corners.len()])) {
-                mark_segment(
-                    &mut marks,
-                    w,
-                    h,
-                    *a,
-                    projected[(k + 1) % projected.len()],
-                    MARGIN,
-                );
+        for k in 0..corners.len() {
+            let (a, b) = (corners[k], corners[(k + 1) % corners.len()]);
+            let path = cam.project_path(a, b)?;
+            if !edges.contains(&edge_key(a, b)) {
+                for piece in path.windows(2) {
+                    mark_segment(&mut marks, w, h, piece[0], piece[1], MARGIN);
+                }
             }
         }
     }
@@ -346,10 +338,7 @@ pub(super) fn screen_boxes(cam: &Camera, bounds: &VirtualBounds) -> Vec<PixelBox
         .iter()
         .map(|o| {
             let (lo, hi) = &o.aabb;
-            let projected: Option<Vec<(f64, f64)>> = box_corners(*lo, *hi)
-                .iter()
-                .map(|c| cam.project(*c).map(|(x, y, _)| (x, y)))
-                .collect();
+            let projected = cam.project_hull(&box_corners(*lo, *hi));
             let full = PixelBox {
                 x0: 0,
                 y0: 0,

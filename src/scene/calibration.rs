@@ -13,7 +13,7 @@ use glam::{DMat3, DQuat, DVec3};
 
 use super::fields::Fields;
 use super::loader::{Loader, MAX_SIDE};
-use crate::camera::{Camera, Projection};
+use crate::camera::{Camera, Distortion, Projection};
 use crate::error::{Error, Result};
 
 /// A camera as another tool solved it: the image's size, the pose, and
@@ -31,6 +31,7 @@ pub struct SolvedCamera {
     pub fy: f64,
     pub cx: f64,
     pub cy: f64,
+    pub distortion: Distortion,
 }
 
 impl Loader<'_> {
@@ -86,7 +87,7 @@ impl Loader<'_> {
             cy: solved.cy,
         };
         let look_at = solved.position + solved.forward;
-        Camera::new(
+        let camera = Camera::new(
             solved.width,
             solved.height,
             solved.position,
@@ -94,7 +95,8 @@ impl Loader<'_> {
             solved.up,
             projection,
         )
-        .map_err(|(_, msg)| c.error(key, msg))
+        .map_err(|(_, msg)| c.error(key, msg))?;
+        Ok(camera.with_distortion(solved.distortion))
     }
 }
 
@@ -123,9 +125,10 @@ struct ColmapCamera {
 }
 
 impl ColmapCamera {
-    /// fx, fy, cx, cy; an error when the model bends rays (a distortion
-    /// parameter that is not zero, or a fisheye).
-    fn pinhole(&self, file: &Path) -> Result<(f64, f64, f64, f64)> {
+    /// fx, fy, cx, cy and the lens distortion in OpenCV's terms; an error
+    /// for a model outside them (a fisheye, FOV, or FULL_OPENCV's rational
+    /// terms).
+    fn intrinsics(&self, file: &Path) -> Result<((f64, f64, f64, f64), Distortion)> {
         let &(_, name, _, fisheye) = MODELS
             .iter()
             .find(|m| m.1 == self.model)
@@ -139,15 +142,39 @@ impl ColmapCamera {
             | "RADIAL_FISHEYE" => ((p[0], p[0], p[1], p[2]), &p[3..]),
             _ => ((p[0], p[1], p[2], p[3]), &p[4..]),
         };
-        if fisheye || distortion.iter().any(|&d| d != 0.0) {
-            return Err(Error::file(
+        let d = |i: usize| distortion.get(i).copied().unwrap_or(0.0);
+        let lens = match name {
+            "SIMPLE_RADIAL" | "RADIAL" => Some(Distortion {
+                k1: d(0),
+                k2: d(1),
+                ..Distortion::default()
+            }),
+            "OPENCV" => Some(Distortion {
+                k1: d(0),
+                k2: d(1),
+                p1: d(2),
+                p2: d(3),
+                k3: 0.0,
+            }),
+            "FULL_OPENCV" if distortion[5..].iter().all(|&k| k == 0.0) => Some(Distortion {
+                k1: d(0),
+                k2: d(1),
+                p1: d(2),
+                p2: d(3),
+                k3: d(4),
+            }),
+            _ if !fisheye && distortion.iter().all(|&k| k == 0.0) => Some(Distortion::default()),
+            _ => None,
+        };
+        match lens {
+            Some(lens) => Ok((intrinsics, lens)),
+            None => Err(Error::file(
                 file,
                 format!(
-                    "camera model {name} with distortion {distortion:?}: arlux's camera is a pinhole; undistort the photos first (`colmap image_undistorter`) and give the undistorted model"
+                    "camera model {name} with parameters {distortion:?}: arlux models OpenCV's lens (k1, k2, p1, p2, k3); undistort the photos first (`colmap image_undistorter`) and give the undistorted model"
                 ),
-            ));
+            )),
         }
-        Ok(intrinsics)
     }
 }
 
@@ -172,7 +199,7 @@ pub fn from_colmap(dir: &Path, image: &str) -> Result<SolvedCamera> {
     } else {
         colmap_binary_camera(&cameras_file, &cameras, camera_id)?
     };
-    let (fx, fy, cx, cy) = camera.pinhole(&cameras_file)?;
+    let ((fx, fy, cx, cy), distortion) = camera.intrinsics(&cameras_file)?;
     let (q, t) = pose;
     if !(q.is_finite() && t.is_finite() && q.length() > 0.5) {
         return Err(Error::file(
@@ -204,6 +231,7 @@ pub fn from_colmap(dir: &Path, image: &str) -> Result<SolvedCamera> {
         fy,
         cx,
         cy,
+        distortion,
     })
 }
 
@@ -448,5 +476,6 @@ fn fspy_camera(path: &Path, p: &serde_json::Value) -> Result<SolvedCamera> {
         fy: 0.5 * h / (0.5 * vfov).tan(),
         cx: 0.5 * w + px * half,
         cy: 0.5 * h - py * half,
+        distortion: Distortion::default(),
     })
 }

@@ -84,6 +84,11 @@ pub(crate) fn write_frame(
 /// attribute `arlux` the version and what was rendered (`what`, JSON).
 pub(crate) fn frame_meta(scene: &Scene, what: serde_json::Value) -> image_io::ExrMeta {
     let mut text = json!({ "version": env!("CARGO_PKG_VERSION"), "scene": scene.name });
+    let d = scene.camera.distortion;
+    if !d.is_none() {
+        // worldToNDC is the pinhole part; the lens bends it as OpenCV's model says.
+        text["lens"] = json!({ "k1": d.k1, "k2": d.k2, "p1": d.p1, "p2": d.p2, "k3": d.k3 });
+    }
     if let (Some(t), serde_json::Value::Object(w)) = (text.as_object_mut(), what) {
         t.extend(w);
     }
