@@ -10,6 +10,9 @@ use glam::{DVec3, Vec3};
 
 use crate::error::{Error, Result};
 
+mod formats;
+pub use formats::load_mesh;
+
 /// A triangle's three corners, in metres.
 pub type Triangle = [Vec3; 3];
 

@@ -1,5 +1,5 @@
-//! Property tests over every parser of user input (scene TOML, OBJ, IES,
-//! EXR, COLMAP models, fSpy projects): whatever the bytes, a
+//! Property tests over every parser of user input (scene TOML, OBJ, glTF,
+//! PLY, IES, EXR, COLMAP models, fSpy projects): whatever the bytes, a
 //! parser returns a value or an error, never a panic or an abort. Each
 //! input is a seed of the parser's corpus (`tests/fuzz_corpus/<parser>/`:
 //! valid files covering the format, and inputs that once broke a parser)
@@ -173,6 +173,12 @@ fn every_seed_but_the_recorded_breakers_parses() {
         read_as("mesh.obj", &bytes, arlux::geometry::load_obj)
             .unwrap_or_else(|e| panic!("{name}: {e}"));
     }
+    for kind in ["gltf", "ply"] {
+        for (name, bytes) in corpus(kind) {
+            read_as(&name, &bytes, arlux::geometry::load_mesh)
+                .unwrap_or_else(|e| panic!("{name}: {e}"));
+        }
+    }
     for (name, bytes) in corpus("ies") {
         read_ies(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
     }
@@ -225,6 +231,18 @@ proptest! {
     fn colmap_never_panics(binary in any::<bool>(), mutated in 0usize..2, edits in edits(), token in tokens()) {
         let kind = if binary { "colmap_binary" } else { "colmap_text" };
         let _ = read_colmap(kind, mutated, &edits, &token);
+    }
+
+    #[test]
+    fn gltf_never_panics(seed in prop::sample::select(corpus("gltf")), edits in edits(), token in tokens()) {
+        let (name, bytes) = seed;
+        let _ = read_as(&name, &apply(bytes, &edits, &token), arlux::geometry::load_mesh);
+    }
+
+    #[test]
+    fn ply_never_panics(seed in prop::sample::select(corpus("ply")), edits in edits(), token in tokens()) {
+        let (name, bytes) = seed;
+        let _ = read_as(&name, &apply(bytes, &edits, &token), arlux::geometry::load_mesh);
     }
 
     #[test]

@@ -176,7 +176,7 @@ impl Loader<'_> {
             let path = self.existing_path(r, "mesh", rel)?;
             r.finish()?;
             let mesh =
-                geometry::load_obj(&path).map_err(|e| e.within(self.file, r.key_path("mesh")))?;
+                geometry::load_mesh(&path).map_err(|e| e.within(self.file, r.key_path("mesh")))?;
             warnings.extend(mesh_warnings(&path, &mesh));
             for s in mesh.surfaces {
                 if let Some(other) = surfaces.iter().find(|o| o.name == s.name) {
@@ -595,7 +595,7 @@ impl Loader<'_> {
         let enabled = v.opt_bool("enabled")?.unwrap_or(true);
         v.finish()?;
         let mesh =
-            geometry::load_obj(&path).map_err(|e| e.within(self.file, v.key_path("mesh")))?;
+            geometry::load_mesh(&path).map_err(|e| e.within(self.file, v.key_path("mesh")))?;
         warnings.extend(mesh_warnings(&path, &mesh));
         let mut surfaces = Vec::new();
         for s in mesh.surfaces {

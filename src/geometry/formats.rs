@@ -1,0 +1,240 @@
+//! Meshes besides OBJ: glTF 2.0 (`.gltf`, `.glb`; the `gltf` crate) and
+//! PLY (`.ply`, ASCII or binary; `ply-rs-bw`), read into the same
+//! [`Mesh`] as an OBJ: named surfaces of triangles, an optional colour each.
+
+use std::path::Path;
+
+use glam::{DMat4, Vec3};
+
+use super::{MAX_COORDINATE, Mesh, MeshSurface, Triangle, is_degenerate};
+use crate::error::{Error, Result};
+
+/// Loads a mesh by its file's extension: `.obj`, `.gltf`/`.glb`, `.ply`.
+pub fn load_mesh(path: &Path) -> Result<Mesh> {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    match ext.as_str() {
+        "obj" => super::load_obj(path),
+        "gltf" | "glb" => load_gltf(path),
+        "ply" => load_ply(path),
+        _ => Err(Error::file(
+            path,
+            format!("unknown mesh type '.{ext}' (use .obj, .gltf, .glb or .ply)"),
+        )),
+    }
+}
+
+/// Triangles kept, and how many were dropped (degenerate); an error names
+/// a corner beyond [`MAX_COORDINATE`] or not finite.
+struct Collect {
+    dropped: usize,
+}
+
+impl Collect {
+    fn keep(&mut self, path: &Path, t: Triangle, out: &mut Vec<Triangle>) -> Result<()> {
+        if let Some(far) = t
+            .iter()
+            .flat_map(|p| p.to_array())
+            .find(|c| c.abs() > MAX_COORDINATE)
+        {
+            return Err(Error::file(
+                path,
+                format!(
+                    "vertex coordinate {far} lies beyond ±{MAX_COORDINATE} m: single-precision rays cannot resolve a room there (move the model near the origin)"
+                ),
+            ));
+        }
+        if is_degenerate(&t) {
+            self.dropped += 1;
+        } else {
+            out.push(t);
+        }
+        Ok(())
+    }
+}
+
+/// Fans a polygon's corner indices into triangles (0, i, i+1), as OBJ
+/// readers do.
+fn fan(corners: &[usize]) -> impl Iterator<Item = [usize; 3]> + '_ {
+    (1..corners.len().saturating_sub(1)).map(|i| [corners[0], corners[i], corners[i + 1]])
+}
+
+/// A glTF's triangles as placed by its default scene: one surface per
+/// node with a mesh, named by the node (else its mesh, else `mesh<i>`);
+/// the material's base colour as the surface's colour.
+fn load_gltf(path: &Path) -> Result<Mesh> {
+    let bad = |e: gltf::Error| Error::file(path, format!("malformed glTF: {e}"));
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
+    let doc = gltf::Gltf::from_slice(&bytes).map_err(bad)?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let buffers = gltf::import_buffers(&doc, Some(base), doc.blob.clone()).map_err(bad)?;
+    let scene = doc
+        .default_scene()
+        .or_else(|| doc.scenes().next())
+        .ok_or_else(|| Error::file(path, "no scene"))?;
+    let mut surfaces: Vec<MeshSurface> = Vec::new();
+    let mut collect = Collect { dropped: 0 };
+    // Depth first in document order: the surfaces come in the order the file lists them.
+    let mut stack: Vec<(gltf::Node, DMat4)> = scene.nodes().map(|n| (n, DMat4::IDENTITY)).collect();
+    stack.reverse();
+    let mut visited = 0usize;
+    while let Some((node, parent)) = stack.pop() {
+        visited += 1;
+        if visited > 1_000_000 {
+            return Err(Error::file(
+                path,
+                "its node hierarchy does not end (a cycle)",
+            ));
+        }
+        let local = DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(f64::from)));
+        let world = parent * local;
+        let children: Vec<_> = node.children().map(|c| (c, world)).collect();
+        stack.extend(children.into_iter().rev());
+        let Some(mesh) = node.mesh() else { continue };
+        let name = node
+            .name()
+            .or(mesh.name())
+            .map_or_else(|| format!("mesh{}", mesh.index()), str::to_string);
+        let mut triangles = Vec::new();
+        let mut rgb = None;
+        for prim in mesh.primitives() {
+            if prim.mode() != gltf::mesh::Mode::Triangles {
+                continue;
+            }
+            let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
+            let Some(positions) = reader.read_positions() else {
+                continue;
+            };
+            let place = |p: [f32; 3]| -> Vec3 {
+                if world == DMat4::IDENTITY {
+                    Vec3::from_array(p)
+                } else {
+                    world
+                        .transform_point3(Vec3::from_array(p).as_dvec3())
+                        .as_vec3()
+                }
+            };
+            let points: Vec<Vec3> = positions.map(place).collect();
+            let indices: Vec<usize> = match reader.read_indices() {
+                Some(i) => i.into_u32().map(|i| i as usize).collect(),
+                None => (0..points.len()).collect(),
+            };
+            for t in indices.chunks_exact(3) {
+                let corner = |i: usize| {
+                    points.get(i).copied().ok_or_else(|| {
+                        Error::file(
+                            path,
+                            format!(
+                                "mesh '{name}': index {i} past its {} vertices",
+                                points.len()
+                            ),
+                        )
+                    })
+                };
+                collect.keep(
+                    path,
+                    [corner(t[0])?, corner(t[1])?, corner(t[2])?],
+                    &mut triangles,
+                )?;
+            }
+            let c = prim.material().pbr_metallic_roughness().base_color_factor();
+            rgb = rgb.or(Some(Vec3::new(c[0], c[1], c[2])));
+        }
+        if !triangles.is_empty() {
+            surfaces.push(MeshSurface {
+                name,
+                triangles,
+                material_rgb: rgb,
+            });
+        }
+    }
+    finish(path, surfaces, collect.dropped)
+}
+
+/// A PLY's faces as one surface named after the file (its stem): PLY has
+/// no object names. Polygons are fanned into triangles.
+fn load_ply(path: &Path) -> Result<Mesh> {
+    use ply_rs_bw::ply::Property;
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
+    let parser = ply_rs_bw::parser::Parser::<ply_rs_bw::ply::DefaultElement>::new();
+    let ply = parser
+        .read_ply(&mut bytes.as_slice())
+        .map_err(|e| Error::file(path, format!("malformed PLY: {e}")))?;
+    let scalar = |p: Option<&Property>| p.and_then(Property::to_f32_lossy);
+    let vertices = ply.payload.get("vertex").map(Vec::as_slice).unwrap_or(&[]);
+    let points: Vec<Vec3> = vertices
+        .iter()
+        .enumerate()
+        .map(
+            |(i, v)| match (scalar(v.get("x")), scalar(v.get("y")), scalar(v.get("z"))) {
+                (Some(x), Some(y), Some(z)) => Ok(Vec3::new(x, y, z)),
+                _ => Err(Error::file(
+                    path,
+                    format!("vertex {i} has no numeric x, y, z"),
+                )),
+            },
+        )
+        .collect::<Result<_>>()?;
+    let mut triangles = Vec::new();
+    let mut collect = Collect { dropped: 0 };
+    let faces = ply.payload.get("face").map(Vec::as_slice).unwrap_or(&[]);
+    for (f, face) in faces.iter().enumerate() {
+        let list = face
+            .get("vertex_indices")
+            .or_else(|| face.get("vertex_index"));
+        let corners: Option<Vec<i64>> = match list {
+            Some(Property::ListInt(v)) => Some(v.iter().map(|&i| i64::from(i)).collect()),
+            Some(Property::ListUInt(v)) => Some(v.iter().map(|&i| i64::from(i)).collect()),
+            Some(Property::ListShort(v)) => Some(v.iter().map(|&i| i64::from(i)).collect()),
+            Some(Property::ListUShort(v)) => Some(v.iter().map(|&i| i64::from(i)).collect()),
+            Some(Property::ListChar(v)) => Some(v.iter().map(|&i| i64::from(i)).collect()),
+            Some(Property::ListUChar(v)) => Some(v.iter().map(|&i| i64::from(i)).collect()),
+            _ => None,
+        };
+        let corners = corners
+            .ok_or_else(|| Error::file(path, format!("face {f} has no vertex_indices list")))?;
+        let corners: Vec<usize> = corners
+            .iter()
+            .map(|&i| {
+                usize::try_from(i)
+                    .ok()
+                    .filter(|&i| i < points.len())
+                    .ok_or_else(|| {
+                        Error::file(
+                            path,
+                            format!("face {f}: vertex {i} is not one of its {}", points.len()),
+                        )
+                    })
+            })
+            .collect::<Result<_>>()?;
+        for [a, b, c] in fan(&corners) {
+            collect.keep(path, [points[a], points[b], points[c]], &mut triangles)?;
+        }
+    }
+    let name = path
+        .file_stem()
+        .map_or_else(|| "ply".to_string(), |s| s.to_string_lossy().into_owned());
+    let surfaces = vec![MeshSurface {
+        name,
+        triangles,
+        material_rgb: None,
+    }];
+    finish(path, surfaces, collect.dropped)
+}
+
+fn finish(path: &Path, mut surfaces: Vec<MeshSurface>, dropped: usize) -> Result<Mesh> {
+    surfaces.retain(|s| !s.triangles.is_empty());
+    if surfaces.is_empty() {
+        return Err(Error::file(
+            path,
+            format!("no usable triangles ({dropped} degenerate triangles dropped)"),
+        ));
+    }
+    Ok(Mesh {
+        surfaces,
+        dropped_triangles: dropped,
+        unused_material_parts: Vec::new(),
+    })
+}
