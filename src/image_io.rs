@@ -117,6 +117,38 @@ pub fn read_image(path: &Path) -> Result<Image> {
     Ok(img)
 }
 
+/// The exposure time an image's EXIF records (`ExposureTime`, seconds):
+/// what bracketed photos differ by when their EV offsets are not given.
+pub fn exif_exposure_time(path: &Path) -> Result<f64> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, &e))?;
+    let exif = exif::Reader::new()
+        .read_from_container(&mut std::io::BufReader::new(file))
+        .map_err(|e| {
+            Error::file(
+                path,
+                format!("no EXIF to read the exposure time from ({e})"),
+            )
+        })?;
+    let field = exif
+        .get_field(exif::Tag::ExposureTime, exif::In::PRIMARY)
+        .ok_or_else(|| Error::file(path, "its EXIF records no ExposureTime"))?;
+    let seconds = match &field.value {
+        exif::Value::Rational(v) if !v.is_empty() => v[0].to_f64(),
+        _ => f64::NAN,
+    };
+    if seconds.is_finite() && seconds > 0.0 {
+        Ok(seconds)
+    } else {
+        Err(Error::file(
+            path,
+            format!(
+                "its EXIF ExposureTime {} is not a time",
+                field.display_value()
+            ),
+        ))
+    }
+}
+
 fn extension(path: &Path) -> String {
     path.extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())

@@ -161,3 +161,78 @@ fn the_box_rendered_from_brackets_is_within_a_quarter_of_the_exr_render() {
         "{cached:?}"
     );
 }
+
+/// An 8×8 grey JPEG whose EXIF records an exposure time of num/den s.
+fn jpeg_exposed(num: u32, den: u32) -> Vec<u8> {
+    let img = image::GrayImage::from_pixel(8, 8, image::Luma([128]));
+    let mut jpeg = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut jpeg, image::ImageFormat::Jpeg).unwrap();
+    let jpeg = jpeg.into_inner();
+    // TIFF: IFD0 points to the Exif IFD, which holds ExposureTime (RATIONAL).
+    let mut tiff: Vec<u8> = b"II*\0".to_vec();
+    tiff.extend(8u32.to_le_bytes());
+    tiff.extend(1u16.to_le_bytes());
+    tiff.extend([0x69, 0x87, 4, 0]);
+    tiff.extend(1u32.to_le_bytes());
+    tiff.extend(26u32.to_le_bytes());
+    tiff.extend(0u32.to_le_bytes());
+    tiff.extend(1u16.to_le_bytes());
+    tiff.extend([0x9A, 0x82, 5, 0]);
+    tiff.extend(1u32.to_le_bytes());
+    tiff.extend(44u32.to_le_bytes());
+    tiff.extend(0u32.to_le_bytes());
+    tiff.extend(num.to_le_bytes());
+    tiff.extend(den.to_le_bytes());
+    let mut app1 = vec![0xFF, 0xE1];
+    app1.extend(((2 + 6 + tiff.len()) as u16).to_be_bytes());
+    app1.extend(b"Exif\0\0");
+    app1.extend(tiff);
+    jpeg[..2]
+        .iter()
+        .chain(&app1)
+        .chain(&jpeg[2..])
+        .copied()
+        .collect()
+}
+
+#[test]
+fn brackets_without_ev_take_it_from_their_exif_exposure_times() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(Path::new(DESK).join("scene_brackets.toml")).unwrap();
+    let start = text.find("brackets = [").unwrap();
+    let end = start + text[start..].find('\n').unwrap();
+    let scene = format!(
+        "{}brackets = [{{ image = \"a.jpg\" }}, {{ image = \"b.jpg\" }}, {{ image = \"c.jpg\" }}]{}",
+        &text[..start],
+        &text[end..]
+    );
+    std::fs::write(dir.path().join("scene.toml"), scene).unwrap();
+    for (name, den) in [("a.jpg", 400), ("b.jpg", 100), ("c.jpg", 50)] {
+        std::fs::write(dir.path().join(name), jpeg_exposed(1, den)).unwrap();
+    }
+    std::os::unix::fs::symlink(Path::new(DESK).join("truth"), dir.path().join("truth")).unwrap();
+    std::fs::create_dir(dir.path().join("geometry")).unwrap();
+    for f in ["room.obj", "furniture.obj", "box.obj"] {
+        let from = Path::new(DESK).join("geometry").join(f);
+        std::fs::copy(from, dir.path().join("geometry").join(f)).unwrap();
+    }
+    let loaded = arlux::scene::Scene::load(dir.path().join("scene.toml")).unwrap();
+    let arlux::scene::Photo::Brackets(b) = &loaded.photo else {
+        panic!("brackets expected")
+    };
+    let evs: Vec<f64> = b.iter().map(|b| b.ev).collect();
+    // 1/400, 1/100 and 1/50 s: 0, 2 and 3 stops above the first.
+    for (got, want) in evs.iter().zip([0.0, 2.0, 3.0]) {
+        assert!((got - want).abs() < 1e-12, "{evs:?}");
+    }
+    // A JPEG without the time: the error names the bracket and the file.
+    let bare = image::GrayImage::from_pixel(8, 8, image::Luma([128]));
+    bare.save(dir.path().join("c.jpg")).unwrap();
+    let e = arlux::scene::Scene::load(dir.path().join("scene.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("photo.brackets[2].ev") && e.contains("c.jpg"),
+        "{e}"
+    );
+}

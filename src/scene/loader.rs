@@ -337,9 +337,26 @@ impl Loader<'_> {
             (Some(rel), false) => Photo::Image(self.existing_path(p, "image", rel)?),
             (None, true) => {
                 let mut brackets: Vec<Bracket> = Vec::new();
-                for b in p.tables("brackets")? {
+                let tables = p.tables("brackets")?;
+                let given = tables.iter().filter(|b| b.has("ev")).count();
+                if given != 0 && given != tables.len() {
+                    return Err(p.error(
+                        "brackets",
+                        "give ev for every bracket, or for none (then each image's EXIF exposure time gives it)",
+                    ));
+                }
+                let mut first_time = None;
+                for b in tables {
                     let image = self.existing_path(&b, "image", b.req_str("image")?)?;
-                    let ev = b.req_f64("ev")?;
+                    let ev = match b.opt_f64("ev")? {
+                        Some(ev) => ev,
+                        // Relative to the first bracket: radiance is relative anyway.
+                        None => {
+                            let t = image_io::exif_exposure_time(&image)
+                                .map_err(|e| e.within(self.file, b.key_path("ev")))?;
+                            (t / *first_time.get_or_insert(t)).log2()
+                        }
+                    };
                     if brackets.iter().any(|o| o.ev == ev) {
                         return Err(b.error(
                             "ev",
