@@ -160,7 +160,8 @@ fn read_as<T>(name: &str, bytes: &[u8], read: impl Fn(&std::path::Path) -> T) ->
 }
 
 /// Seeds are only useful if the parser accepts them: every seed but the
-/// recorded breakers (named `huge_*`) parses.
+/// recorded breakers (named `huge_*` or `broken_*`: inputs that once
+/// crashed a parser, now refused with an error) parses.
 #[test]
 fn every_seed_but_the_recorded_breakers_parses() {
     for (name, bytes) in corpus("scene_toml") {
@@ -175,8 +176,13 @@ fn every_seed_but_the_recorded_breakers_parses() {
     }
     for kind in ["gltf", "ply"] {
         for (name, bytes) in corpus(kind) {
-            read_as(&name, &bytes, arlux::geometry::load_mesh)
-                .unwrap_or_else(|e| panic!("{name}: {e}"));
+            let read = read_as(&name, &bytes, arlux::geometry::load_mesh);
+            assert_eq!(
+                read.is_ok(),
+                !name.starts_with("broken_"),
+                "{name}: {:?}",
+                read.err()
+            );
         }
     }
     for (name, bytes) in corpus("ies") {

@@ -67,9 +67,31 @@ fn fan(corners: &[usize]) -> impl Iterator<Item = [usize; 3]> + '_ {
 fn load_gltf(path: &Path) -> Result<Mesh> {
     let bad = |e: gltf::Error| Error::file(path, format!("malformed glTF: {e}"));
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
-    let doc = gltf::Gltf::from_slice(&bytes).map_err(bad)?;
+    let raw = gltf::Gltf::from_slice_without_validation(&bytes).map_err(bad)?;
+    let root = raw.document.into_json();
+    // gltf-json 1.4 looks up a primitive's POSITION accessor before it
+    // checks the index (and panics on a bad one, as fuzzing found): check
+    // it here, then let the crate validate the rest.
+    let accessors = root.accessors.len();
+    let positions = gltf::json::validation::Checked::Valid(gltf::Semantic::Positions);
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for p in &mesh.primitives {
+            if p.attributes
+                .get(&positions)
+                .is_some_and(|i| i.value() >= accessors)
+            {
+                return Err(Error::file(
+                    path,
+                    format!(
+                        "malformed glTF: mesh {m}'s POSITION names an accessor past its {accessors}"
+                    ),
+                ));
+            }
+        }
+    }
+    let doc = gltf::Document::from_json(root).map_err(bad)?;
     let base = path.parent().unwrap_or(Path::new("."));
-    let buffers = gltf::import_buffers(&doc, Some(base), doc.blob.clone()).map_err(bad)?;
+    let buffers = gltf::import_buffers(&doc, Some(base), raw.blob).map_err(bad)?;
     let scene = doc
         .default_scene()
         .or_else(|| doc.scenes().next())
