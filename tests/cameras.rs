@@ -187,22 +187,7 @@ fn a_camera_at_half_scale_renders_the_photo_averaged_down_as_accurately() {
         "fov_y_deg = 55.0\nscale = 0.5\n",
     );
     let out = desk.path("half.exr");
-    let run = common::arlux(&[
-        "render",
-        &desk.scene(),
-        "--variant",
-        "box_floor_a",
-        "-o",
-        out.to_str().unwrap(),
-        "--json",
-    ]);
-    assert_eq!(
-        run.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let report = common::render_box_floor_a(&desk, &out);
     let image = arlux::image_io::read_image(&out).unwrap();
     assert_eq!((image.width, image.height), (256, 192));
     // The full-size render's skill is 0.895; the reference is averaged

@@ -7,20 +7,7 @@ use arlux::geometry::load_obj;
 
 fn render(desk: &common::Desk) -> Vec<u8> {
     let out = desk.path("out.exr");
-    let run = common::arlux(&[
-        "render",
-        &desk.scene(),
-        "--variant",
-        "box_floor_a",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
-    assert_eq!(
-        run.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    common::render_box_floor_a(desk, &out);
     std::fs::read(out).unwrap()
 }
 
@@ -115,4 +102,19 @@ fn a_broken_gltf_or_ply_names_its_file() {
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("room.gltf: malformed glTF"), "{stderr}");
+    // Inputs that once made the glTF reader panic: an error, no backtrace.
+    for seed in ["broken_float_indices.gltf", "broken_position_accessor.gltf"] {
+        let desk = common::Desk::new();
+        let corpus =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_corpus/gltf");
+        std::fs::copy(corpus.join(seed), desk.path("geometry/room.gltf")).unwrap();
+        desk.edit("scene.toml", "geometry/room.obj", "geometry/room.gltf");
+        let run = common::arlux(&["info", &desk.scene()]);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{seed}: {stderr}");
+        assert!(
+            stderr.contains("malformed glTF") && !stderr.contains("panicked"),
+            "{seed}: {stderr}"
+        );
+    }
 }

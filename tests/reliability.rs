@@ -343,22 +343,7 @@ fn an_object_far_outside_the_room_and_out_of_view_costs_nothing() {
         "objects = { box = { translate = [0.35, 0.0, 10000.0], rotate_y_deg = 20.0 } }",
     );
     let out = desk.path("far.exr");
-    let run = arlux(&[
-        "render",
-        &desk.scene(),
-        "--variant",
-        "box_floor_a",
-        "-o",
-        out.to_str().unwrap(),
-        "--json",
-    ]);
-    assert_eq!(
-        run.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let report = common::render_box_floor_a(&desk, &out);
     assert_eq!(report["rays"], 0, "{report}");
     assert_eq!(report["links"], 0, "{report}");
     let left_out = report["left_out"].to_string();

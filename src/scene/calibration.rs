@@ -35,6 +35,68 @@ pub struct SolvedCamera {
 }
 
 impl Loader<'_> {
+    /// `[camera]` with its lens (`distortion`) and `scale`: the camera to
+    /// render with, and the photo's size (the camera's before its scale).
+    pub(super) fn camera_with_lens(&self, c: &Fields) -> Result<(Camera, (u32, u32))> {
+        let scale = c.opt_f64("scale")?.unwrap_or(1.0);
+        if !(scale > 0.0 && scale <= 1.0) {
+            return Err(c.error(
+                "scale",
+                format!(
+                    "must lie in (0, 1]: the share of the photo's size to render at, not {scale}"
+                ),
+            ));
+        }
+        let lens = match c.opt_table("distortion")? {
+            None => None,
+            Some(d) => {
+                let k = |key: &'static str| -> Result<f64> { Ok(d.opt_f64(key)?.unwrap_or(0.0)) };
+                let lens = crate::camera::Distortion {
+                    k1: k("k1")?,
+                    k2: k("k2")?,
+                    p1: k("p1")?,
+                    p2: k("p2")?,
+                    k3: k("k3")?,
+                };
+                d.finish()?;
+                Some(lens)
+            }
+        };
+        let mut full = self.camera(c)?;
+        if let Some(lens) = lens {
+            if !full.distortion.is_none() {
+                return Err(c.error(
+                    "distortion",
+                    "the COLMAP camera model gives the lens already: leave distortion out",
+                ));
+            }
+            full = full.with_distortion(lens);
+            // Every corner of the image must come from a point the model
+            // maps there one to one.
+            let (w, h) = (full.width as f64, full.height as f64);
+            let folds = [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)]
+                .iter()
+                .any(|&(px, py)| {
+                    let (xd, yd) = ((px - full.cx) / full.fx, (py - full.cy) / full.fy);
+                    let (x, y) = lens.remove(xd, yd);
+                    let (ax, ay) = lens.apply(x, y);
+                    !lens.is_monotonic_at(x * x + y * y) || (ax - xd).hypot(ay - yd) > 1e-9
+                });
+            if folds {
+                return Err(c.error(
+                    "distortion",
+                    "folds the image back on itself before its corners: not a lens (check the signs)",
+                ));
+            }
+        }
+        let photo_size = (full.width, full.height);
+        let camera = if scale < 1.0 {
+            full.scaled(scale)
+        } else {
+            full
+        };
+        Ok((camera, photo_size))
+    }
     /// A camera another tool solved: `colmap = { dir, image }` or `fspy = FILE`.
     pub(super) fn solved_camera(&self, c: &Fields) -> Result<Camera> {
         let (key, solved) = match c.opt_table("colmap")? {

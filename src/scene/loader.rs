@@ -102,64 +102,7 @@ impl Loader<'_> {
                 .map(|n| n.to_string_lossy().into_owned())
                 .unwrap_or_default(),
         };
-        let camera_fields = top.req_table("camera")?;
-        let scale = camera_fields.opt_f64("scale")?.unwrap_or(1.0);
-        if !(scale > 0.0 && scale <= 1.0) {
-            return Err(camera_fields.error(
-                "scale",
-                format!(
-                    "must lie in (0, 1]: the share of the photo's size to render at, not {scale}"
-                ),
-            ));
-        }
-        let lens = match camera_fields.opt_table("distortion")? {
-            None => None,
-            Some(d) => {
-                let k = |key: &'static str| -> Result<f64> { Ok(d.opt_f64(key)?.unwrap_or(0.0)) };
-                let lens = crate::camera::Distortion {
-                    k1: k("k1")?,
-                    k2: k("k2")?,
-                    p1: k("p1")?,
-                    p2: k("p2")?,
-                    k3: k("k3")?,
-                };
-                d.finish()?;
-                Some(lens)
-            }
-        };
-        let mut full = self.camera(&camera_fields)?;
-        if let Some(lens) = lens {
-            if !full.distortion.is_none() {
-                return Err(camera_fields.error(
-                    "distortion",
-                    "the COLMAP camera model gives the lens already: leave distortion out",
-                ));
-            }
-            full = full.with_distortion(lens);
-            // Every corner of the image must come from a point the model
-            // maps there one to one.
-            let (w, h) = (full.width as f64, full.height as f64);
-            let folds = [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)]
-                .iter()
-                .any(|&(px, py)| {
-                    let (xd, yd) = ((px - full.cx) / full.fx, (py - full.cy) / full.fy);
-                    let (x, y) = lens.remove(xd, yd);
-                    let (ax, ay) = lens.apply(x, y);
-                    !lens.is_monotonic_at(x * x + y * y) || (ax - xd).hypot(ay - yd) > 1e-9
-                });
-            if folds {
-                return Err(camera_fields.error(
-                    "distortion",
-                    "folds the image back on itself before its corners: not a lens (check the signs)",
-                ));
-            }
-        }
-        let photo_size = (full.width, full.height);
-        let camera = if scale < 1.0 {
-            full.scaled(scale)
-        } else {
-            full
-        };
+        let (camera, photo_size) = self.camera_with_lens(&top.req_table("camera")?)?;
         let photo = self.photo(&top.req_table("photo")?)?;
 
         let mut surfaces: Vec<Surface> = Vec::new();

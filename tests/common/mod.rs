@@ -78,6 +78,35 @@ pub fn arlux(args: &[&str]) -> Output {
         .unwrap()
 }
 
+/// Runs arlux and asserts that it succeeded (its stderr in the message).
+#[allow(dead_code)]
+pub fn arlux_ok(args: &[&str]) -> Output {
+    let run = arlux(args);
+    assert_eq!(
+        run.status.code(),
+        Some(0),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    run
+}
+
+/// Renders the desk copy's `box_floor_a` to `out` with `--json`; its report.
+#[allow(dead_code)]
+pub fn render_box_floor_a(desk: &Desk, out: &Path) -> serde_json::Value {
+    let out = out.to_str().unwrap();
+    let run = arlux_ok(&[
+        "render",
+        &desk.scene(),
+        "--variant",
+        "box_floor_a",
+        "-o",
+        out,
+        "--json",
+    ]);
+    serde_json::from_slice(&run.stdout).unwrap()
+}
+
 /// A variant rendered with the defaults (every pixel checked finite and not
 /// negative), its truth and the photo.
 pub fn rendered(base: &Scene, variant: &str) -> (Image, Image, Image) {

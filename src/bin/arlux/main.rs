@@ -96,6 +96,14 @@ fn remove_temporaries_on_signals() {
 
 fn main() -> ExitCode {
     let start = std::time::Instant::now();
+    // A panic the library contains (a third-party parser's bug on a bad
+    // file) becomes an error message, not a backtrace.
+    let default_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if !arlux::util::guard::is_containing() {
+            default_hook(info);
+        }
+    }));
     remove_temporaries_on_signals();
     let cli = stage("arguments", Cli::parse);
     let timings = cli.timings;
