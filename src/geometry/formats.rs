@@ -137,64 +137,12 @@ fn read_gltf(path: &Path) -> Result<Mesh> {
             if prim.mode() != gltf::mesh::Mode::Triangles {
                 continue;
             }
-            // The crate's readers assume these types (and panic otherwise).
-            use gltf::accessor::{DataType, Dimensions};
-            let position = prim.get(&gltf::Semantic::Positions);
-            if position.is_some_and(|a| {
-                a.data_type() != DataType::F32 || a.dimensions() != Dimensions::Vec3
-            }) {
-                return Err(Error::file(
-                    path,
-                    format!("malformed glTF: mesh '{name}': POSITION is not float VEC3"),
-                ));
-            }
-            if prim.indices().is_some_and(|a| {
-                !matches!(a.data_type(), DataType::U8 | DataType::U16 | DataType::U32)
-                    || a.dimensions() != Dimensions::Scalar
-            }) {
-                return Err(Error::file(
-                    path,
-                    format!(
-                        "malformed glTF: mesh '{name}': indices are not unsigned integer scalars"
-                    ),
-                ));
-            }
-            let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
-            let Some(positions) = reader.read_positions() else {
-                continue;
+            let placed = Placed {
+                path,
+                name: &name,
+                world,
             };
-            let place = |p: [f32; 3]| -> Vec3 {
-                if world == DMat4::IDENTITY {
-                    Vec3::from_array(p)
-                } else {
-                    world
-                        .transform_point3(Vec3::from_array(p).as_dvec3())
-                        .as_vec3()
-                }
-            };
-            let points: Vec<Vec3> = positions.map(place).collect();
-            let indices: Vec<usize> = match reader.read_indices() {
-                Some(i) => i.into_u32().map(|i| i as usize).collect(),
-                None => (0..points.len()).collect(),
-            };
-            for t in indices.chunks_exact(3) {
-                let corner = |i: usize| {
-                    points.get(i).copied().ok_or_else(|| {
-                        Error::file(
-                            path,
-                            format!(
-                                "mesh '{name}': index {i} past its {} vertices",
-                                points.len()
-                            ),
-                        )
-                    })
-                };
-                collect.keep(
-                    path,
-                    [corner(t[0])?, corner(t[1])?, corner(t[2])?],
-                    &mut triangles,
-                )?;
-            }
+            placed.triangles(&prim, &buffers, &mut collect, &mut triangles)?;
             let c = prim.material().pbr_metallic_roughness().base_color_factor();
             rgb = rgb.or(Some(Vec3::new(c[0], c[1], c[2])));
         }
@@ -207,6 +155,83 @@ fn read_gltf(path: &Path) -> Result<Mesh> {
         }
     }
     finish(path, surfaces, collect.dropped)
+}
+
+/// A glTF mesh node: its file, name and world transform.
+struct Placed<'a> {
+    path: &'a Path,
+    name: &'a str,
+    world: DMat4,
+}
+
+impl Placed<'_> {
+    /// A triangle primitive's triangles, placed in the world.
+    fn triangles(
+        &self,
+        prim: &gltf::Primitive,
+        buffers: &[gltf::buffer::Data],
+        collect: &mut Collect,
+        triangles: &mut Vec<Triangle>,
+    ) -> Result<()> {
+        let (path, name, world) = (self.path, self.name, self.world);
+        // The crate's readers assume these types (and panic otherwise).
+        use gltf::accessor::{DataType, Dimensions};
+        let position = prim.get(&gltf::Semantic::Positions);
+        if position
+            .is_some_and(|a| a.data_type() != DataType::F32 || a.dimensions() != Dimensions::Vec3)
+        {
+            return Err(Error::file(
+                path,
+                format!("malformed glTF: mesh '{name}': POSITION is not float VEC3"),
+            ));
+        }
+        if prim.indices().is_some_and(|a| {
+            !matches!(a.data_type(), DataType::U8 | DataType::U16 | DataType::U32)
+                || a.dimensions() != Dimensions::Scalar
+        }) {
+            return Err(Error::file(
+                path,
+                format!("malformed glTF: mesh '{name}': indices are not unsigned integer scalars"),
+            ));
+        }
+        let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
+        let Some(positions) = reader.read_positions() else {
+            return Ok(());
+        };
+        let place = |p: [f32; 3]| -> Vec3 {
+            if world == DMat4::IDENTITY {
+                Vec3::from_array(p)
+            } else {
+                world
+                    .transform_point3(Vec3::from_array(p).as_dvec3())
+                    .as_vec3()
+            }
+        };
+        let points: Vec<Vec3> = positions.map(place).collect();
+        let indices: Vec<usize> = match reader.read_indices() {
+            Some(i) => i.into_u32().map(|i| i as usize).collect(),
+            None => (0..points.len()).collect(),
+        };
+        for t in indices.chunks_exact(3) {
+            let corner = |i: usize| {
+                points.get(i).copied().ok_or_else(|| {
+                    Error::file(
+                        path,
+                        format!(
+                            "mesh '{name}': index {i} past its {} vertices",
+                            points.len()
+                        ),
+                    )
+                })
+            };
+            collect.keep(
+                path,
+                [corner(t[0])?, corner(t[1])?, corner(t[2])?],
+                triangles,
+            )?;
+        }
+        Ok(())
+    }
 }
 
 /// A PLY's faces as one surface named after the file (its stem): PLY has
