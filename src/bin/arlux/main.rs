@@ -110,13 +110,17 @@ fn main() -> ExitCode {
     let json_command = cli.command.json_name();
     common::set_strict(cli.strict);
     progress::set_mode(cli.progress);
-    // Commands of unknown length show their stages; motion and sweep count their items.
+    // Every command shows its stages while it runs, on a terminal (motion
+    // and sweep count their poses and settings instead).
     let spinner = match &cli.command {
         Command::Render(_) => Some("render"),
         Command::Radiosity(_) => Some("radiosity"),
         Command::Gonio(_) => Some("gonio"),
         Command::Hdr(_) => Some("hdr"),
         Command::Ids(_) => Some("ids"),
+        Command::Merge(_) => Some("merge"),
+        Command::Compare(_) => Some("compare"),
+        Command::Info(_) => Some("info"),
         _ => None,
     }
     .map(progress::spinner);
