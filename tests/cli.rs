@@ -854,6 +854,9 @@ fn radiosity_recovers_a_light_marked_reconstruct_first() {
         "{}",
         String::from_utf8_lossy(&run.stderr)
     );
+    // Tens of seconds of reconstruction, and no progress drawn into a pipe.
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!stderr.contains("radiosity:"), "{stderr}");
     let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     // The model with the recovered spot explains the photo about as well as with the true one (0.0096).
     let rmse = report["comparison"]["rmse"].as_f64().unwrap();

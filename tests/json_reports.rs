@@ -220,7 +220,8 @@ fn progress_is_drawn_when_asked_and_never_into_a_pipe() {
     assert!(shown.contains("8/8 poses"), "{shown}");
     let piped = motion(&at("b"), &[]);
     assert!(!piped.contains("poses"), "{piped}");
-    // gonio takes tens of seconds: one run asked to draw, its report still clean JSON.
+    // gonio takes tens of seconds: one run, asked to draw (the pipe's
+    // silence is the same code path as motion's, checked above).
     let reconstruct = format!("{DESK}/scene_reconstruct.toml");
     let (ies, plot) = (at("spot.ies"), at("spot.png"));
     let (status, stdout, stderr) = arlux(&[
@@ -241,8 +242,4 @@ fn progress_is_drawn_when_asked_and_never_into_a_pipe() {
     // The polar plot (plotters: axes in candela, legend, colour bar).
     let png = image::open(&plot).unwrap();
     assert_eq!((png.width(), png.height()), (1100, 540));
-    // The same in a pipe, by default: nothing drawn.
-    let (status, _, stderr) = arlux(&["gonio", &reconstruct, "-o", &at("again.ies")]);
-    assert_eq!(status, 0, "{stderr}");
-    assert!(!stderr.contains("gonio:"), "{stderr}");
 }
