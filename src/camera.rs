@@ -167,6 +167,25 @@ impl Camera {
         })
     }
 
+    /// Whether every corner of the image comes from a point the lens maps
+    /// there one to one (true for a pinhole): a polynomial model fitted to
+    /// a photo can fold back before its corners, and then means nothing.
+    pub fn lens_maps_the_image(&self) -> bool {
+        let lens = self.distortion;
+        if lens.is_none() {
+            return true;
+        }
+        let (w, h) = (self.width as f64, self.height as f64);
+        [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)]
+            .iter()
+            .all(|&(px, py)| {
+                let (xd, yd) = ((px - self.cx) / self.fx, (py - self.cy) / self.fy);
+                let (x, y) = lens.remove(xd, yd);
+                let (ax, ay) = lens.apply(x, y);
+                lens.is_monotonic_at(x * x + y * y) && (ax - xd).hypot(ay - yd) <= 1e-9
+            })
+    }
+
     /// This camera seeing through a lens with `distortion`.
     pub fn with_distortion(self, distortion: Distortion) -> Camera {
         Camera { distortion, ..self }

@@ -262,3 +262,16 @@ fn a_photo_shot_through_a_lens_registers_with_the_model() {
     // The lens matters: a pinhole camera misregisters the same photo.
     assert!(plain_share < 0.97, "a pinhole agrees on {plain_share:.4}");
 }
+
+#[test]
+fn a_lens_that_folds_the_image_back_is_refused() {
+    // k1 = −1: the radius stops growing at r² = 1/3, inside the desk's corners.
+    let desk = desk_with_camera(&format!("{CAMERA}distortion = {{ k1 = -1.0 }}\n"));
+    let e = Scene::load(desk.path("scene.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("camera.distortion") && e.contains("folds the image back"),
+        "{e}"
+    );
+}

@@ -113,32 +113,20 @@ fn every_command_s_report_follows_its_documented_schema() {
             &format!("{DESK}/photo.exr"),
         ],
     );
-    report(
-        "sweep",
-        &[
+    for shard in ["0/2", "1/2"] {
+        let sweep = at("sweep");
+        let args = [
             &scene,
             "--variant",
             "box_floor_a",
             "--quick",
             "-o",
-            &at("sweep"),
+            &sweep,
             "--shard",
-            "0/2",
-        ],
-    );
-    report(
-        "sweep",
-        &[
-            &scene,
-            "--variant",
-            "box_floor_a",
-            "--quick",
-            "-o",
-            &at("sweep"),
-            "--shard",
-            "1/2",
-        ],
-    );
+            shard,
+        ];
+        report("sweep", &args);
+    }
     let shards = [
         at("sweep/sweep.shard-0-of-2.csv"),
         at("sweep/sweep.shard-1-of-2.csv"),

@@ -16,22 +16,21 @@ use super::loader::{Loader, MAX_SIDE};
 use crate::camera::{Camera, Distortion, Projection};
 use crate::error::{Error, Result};
 
-/// A camera as another tool solved it: the image's size, the pose, and
-/// pinhole intrinsics in pixels (principal point in arlux's convention:
-/// the top-left pixel's centre at (0.5, 0.5)).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SolvedCamera {
-    pub width: u32,
-    pub height: u32,
-    pub position: DVec3,
-    /// Unit view direction and image-up direction in the world.
-    pub forward: DVec3,
-    pub up: DVec3,
-    pub fx: f64,
-    pub fy: f64,
-    pub cx: f64,
-    pub cy: f64,
-    pub distortion: Distortion,
+/// The camera another tool solved, from `file`: the image's size, the
+/// position, the view and image-up directions, and pinhole intrinsics
+/// `[fx, fy, cx, cy]` in pixels (principal point in arlux's convention: the
+/// top-left pixel's centre at (0.5, 0.5)).
+fn solved(
+    file: &Path,
+    (width, height): (u32, u32),
+    position: DVec3,
+    forward: DVec3,
+    up: DVec3,
+    [fx, fy, cx, cy]: [f64; 4],
+) -> Result<Camera> {
+    let projection = Projection::Intrinsics { fx, fy, cx, cy };
+    Camera::new(width, height, position, position + forward, up, projection)
+        .map_err(|(_, msg)| Error::file(file, format!("its camera: {msg}")))
 }
 
 impl Loader<'_> {
@@ -71,23 +70,18 @@ impl Loader<'_> {
                 ));
             }
             full = full.with_distortion(lens);
-            // Every corner of the image must come from a point the model
-            // maps there one to one.
-            let (w, h) = (full.width as f64, full.height as f64);
-            let folds = [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)]
-                .iter()
-                .any(|&(px, py)| {
-                    let (xd, yd) = ((px - full.cx) / full.fx, (py - full.cy) / full.fy);
-                    let (x, y) = lens.remove(xd, yd);
-                    let (ax, ay) = lens.apply(x, y);
-                    !lens.is_monotonic_at(x * x + y * y) || (ax - xd).hypot(ay - yd) > 1e-9
-                });
-            if folds {
-                return Err(c.error(
-                    "distortion",
-                    "folds the image back on itself before its corners: not a lens (check the signs)",
-                ));
-            }
+        }
+        // Whichever gave the lens (the scene or a COLMAP model).
+        if !full.lens_maps_the_image() {
+            let key = if c.has("colmap") {
+                "colmap"
+            } else {
+                "distortion"
+            };
+            return Err(c.error(
+                key,
+                "the lens folds the image back on itself before its corners: not a lens (check the signs)",
+            ));
         }
         let photo_size = (full.width, full.height);
         let camera = if scale < 1.0 {
@@ -99,7 +93,7 @@ impl Loader<'_> {
     }
     /// A camera another tool solved: `colmap = { dir, image }` or `fspy = FILE`.
     pub(super) fn solved_camera(&self, c: &Fields) -> Result<Camera> {
-        let (key, solved) = match c.opt_table("colmap")? {
+        let (key, camera) = match c.opt_table("colmap")? {
             Some(t) if c.has("fspy") => return Err(t.table_error("give colmap or fspy, not both")),
             Some(t) => {
                 let dir = self.dir.join(t.req_str("dir")?);
@@ -124,7 +118,7 @@ impl Loader<'_> {
                 return Err(c.error(k, format!("the camera comes from {key}: leave {k} out")));
             }
         }
-        for (k, solved_size) in [("width", solved.width), ("height", solved.height)] {
+        for (k, solved_size) in [("width", camera.width), ("height", camera.height)] {
             if solved_size > MAX_SIDE {
                 return Err(c.error(
                     key,
@@ -142,23 +136,7 @@ impl Loader<'_> {
             }
         }
         c.finish()?;
-        let projection = Projection::Intrinsics {
-            fx: solved.fx,
-            fy: solved.fy,
-            cx: solved.cx,
-            cy: solved.cy,
-        };
-        let look_at = solved.position + solved.forward;
-        let camera = Camera::new(
-            solved.width,
-            solved.height,
-            solved.position,
-            look_at,
-            solved.up,
-            projection,
-        )
-        .map_err(|(_, msg)| c.error(key, msg))?;
-        Ok(camera.with_distortion(solved.distortion))
+        Ok(camera)
     }
 }
 
@@ -242,7 +220,7 @@ impl ColmapCamera {
 
 /// The camera of `image` in the COLMAP sparse model in `dir` (`cameras.txt`
 /// and `images.txt`, or `cameras.bin` and `images.bin`).
-pub fn from_colmap(dir: &Path, image: &str) -> Result<SolvedCamera> {
+pub fn from_colmap(dir: &Path, image: &str) -> Result<Camera> {
     let text = dir.join("images.txt").is_file();
     let (images_file, cameras_file) = if text {
         (dir.join("images.txt"), dir.join("cameras.txt"))
@@ -283,18 +261,12 @@ pub fn from_colmap(dir: &Path, image: &str) -> Result<SolvedCamera> {
             ),
         ));
     }
-    Ok(SolvedCamera {
-        width: camera.width as u32,
-        height: camera.height as u32,
-        position: -(rt * t),
-        forward: rt * DVec3::Z,
-        up: -(rt * DVec3::Y),
-        fx,
-        fy,
-        cx,
-        cy,
-        distortion,
-    })
+    let size = (camera.width as u32, camera.height as u32);
+    let (position, forward, up) = (-(rt * t), rt * DVec3::Z, -(rt * DVec3::Y));
+    Ok(
+        solved(&cameras_file, size, position, forward, up, [fx, fy, cx, cy])?
+            .with_distortion(distortion),
+    )
 }
 
 type Pose = (DQuat, DVec3);
@@ -456,7 +428,7 @@ fn colmap_binary_camera(file: &Path, data: &[u8], id: i64) -> Result<ColmapCamer
 
 /// The camera of an fSpy project file (`.fspy`: "fspy", version 1, the
 /// sizes of its JSON state and image, then both).
-pub fn from_fspy(path: &Path) -> Result<SolvedCamera> {
+pub fn from_fspy(path: &Path) -> Result<Camera> {
     let data = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
     let word = |i: usize| {
         data.get(4 * i..4 * i + 4)
@@ -483,7 +455,7 @@ pub fn from_fspy(path: &Path) -> Result<SolvedCamera> {
     fspy_camera(path, &state["cameraParameters"])
 }
 
-fn fspy_camera(path: &Path, p: &serde_json::Value) -> Result<SolvedCamera> {
+fn fspy_camera(path: &Path, p: &serde_json::Value) -> Result<Camera> {
     if p.is_null() {
         return Err(Error::file(
             path,
@@ -528,16 +500,11 @@ fn fspy_camera(path: &Path, p: &serde_json::Value) -> Result<SolvedCamera> {
         num(&p["principalPoint"]["x"], "principalPoint")?,
         num(&p["principalPoint"]["y"], "principalPoint")?,
     );
-    Ok(SolvedCamera {
-        width: w as u32,
-        height: h as u32,
-        position,
-        forward: -back.normalize(),
-        up: up.normalize(),
-        fx: 0.5 * w / (0.5 * hfov).tan(),
-        fy: 0.5 * h / (0.5 * vfov).tan(),
-        cx: 0.5 * w + px * half,
-        cy: 0.5 * h - py * half,
-        distortion: Distortion::default(),
-    })
+    let intrinsics = [
+        0.5 * w / (0.5 * hfov).tan(),
+        0.5 * h / (0.5 * vfov).tan(),
+        0.5 * w + px * half,
+        0.5 * h - py * half,
+    ];
+    solved(path, (w as u32, h as u32), position, -back, up, intrinsics)
 }

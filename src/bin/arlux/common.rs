@@ -64,8 +64,14 @@ pub(crate) fn write_frame(
     use image_io::ExrLayer::{Channel, Rgb};
     let (w, h) = (c.image.width, c.image.height);
     let mut layers = vec![Rgb("", &c.image), Channel("A", &c.alpha)];
-    let shadow = c.shadow(photo);
-    if c.direct.pixels.len() == c.image.pixels.len() {
+    let with_layers = c.direct.pixels.len() == c.image.pixels.len();
+    // Only a composite with its layers writes the shadow factor.
+    let shadow = if with_layers {
+        c.shadow(photo)
+    } else {
+        Image::new(0, 0)
+    };
+    if with_layers {
         layers.extend([
             Rgb("object", &c.object),
             Channel("object.A", &c.alpha),
