@@ -297,42 +297,9 @@ pub fn composite(input: &CompositeInput) -> Composite {
 /// [`composite`] into `out`, reusing its buffers when they have the
 /// image's size (an update rewrites the same image: no new pages to fault in).
 pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
-    let pda = input.pda;
-    let lights = pda.light_count;
-    let (w, h) = (pda.width, pda.height);
+    let shader = Shader::new(input);
+    let (w, h) = (input.pda.width, input.pda.height);
     let n = (w * h) as usize;
-    // Without prepared pixels (a still image) each is prepared as it is shaded.
-    let floor = input
-        .known
-        .map_or_else(|| RealPixels::floor_of(input), |k| k.floor);
-    // Per row, the columns from the first to past the last pixel showing
-    // an object or mixing real and virtual sub-pixels (none: start ≥ end).
-    // Outside them a pixel shows a real point alone, or nothing: most
-    // pixels need neither the virtual index nor the edge list.
-    let mut spans = vec![(u32::MAX, 0u32); h as usize];
-    for &p in pda
-        .virtual_pixels
-        .iter()
-        .chain(pda.edges.iter().map(|e| &e.pixel))
-    {
-        let (x, y) = (p % w, (p / w) as usize);
-        spans[y] = (spans[y].0.min(x), spans[y].1.max(x + 1));
-    }
-    let in_span = |i: usize| {
-        let (x0, x1) = spans[i / w as usize];
-        (x0..x1).contains(&((i % w as usize) as u32))
-    };
-    // Edge pixels are in pixel order.
-    let edge_at = |i: usize| {
-        in_span(i)
-            .then(|| {
-                pda.edges
-                    .binary_search_by_key(&(i as u32), |e| e.pixel)
-                    .ok()
-            })
-            .flatten()
-            .map(|k| pda.edges[k])
-    };
     if out.image.pixels.len() != n || out.alpha.len() != n {
         *out = Composite {
             image: Image::new(w, h),
@@ -350,220 +317,24 @@ pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
     if (out.direct.pixels.len() == n) != input.layers {
         (out.direct, out.indirect, out.change, out.object) = (layer(), layer(), layer(), layer());
     }
-    // A pixel's shade, its virtual coverage and the objects' part of it.
-    let shade = |i: usize| -> (Shade, f32, DVec3) {
-        let photo = input.photo.pixels[i].as_dvec3();
-        if let Some(e) = edge_at(i) {
-            let mut sum = Shade {
-                value: DVec3::ZERO,
-                direct: DVec3::ZERO,
-                indirect: DVec3::ZERO,
-                copied: false,
-                fallback: false,
-                clamped: false,
-            };
-            let mut virtual_count = 0;
-            let mut object = DVec3::ZERO;
-            for k in e.start..e.start + e.count {
-                let p = &pda.edge_samples.points[k as usize];
-                let terms = match pda.real_index[i] {
-                    r if p.pixel_terms && r != u32::MAX => {
-                        &pda.real.terms[r as usize * lights..(r as usize + 1) * lights]
-                    }
-                    _ => &pda.edge_samples.terms[k as usize * lights..(k as usize + 1) * lights],
-                };
-                let s = if p.is_virtual {
-                    virtual_count += 1;
-                    let s = input.shade_virtual(p, terms);
-                    object += s.value;
-                    s
-                } else {
-                    let direct = input.irradiance(terms, input.scales_with, true);
-                    input.real_pixel(p, terms, photo, floor).shade(
-                        input.interpolate(input.indirect_with, &p.location),
-                        photo,
-                        direct,
-                    )
-                };
-                sum.value += s.value;
-                sum.direct += s.direct;
-                sum.indirect += s.indirect;
-                sum.fallback |= s.fallback;
-                sum.clamped |= s.clamped;
-            }
-            // Sub-pixels that see no surface keep the photo's background.
-            let total = (pda.supersample * pda.supersample) as f64;
-            sum.value += photo * (total - e.count as f64);
-            return (
-                Shade {
-                    value: sum.value / total,
-                    direct: sum.direct / total,
-                    indirect: sum.indirect / total,
-                    ..sum
-                },
-                virtual_count as f32 / total as f32,
-                object / total,
-            );
-        }
-        if pda.virtual_index[i] != u32::MAX {
-            let k = pda.virtual_index[i] as usize;
-            let s = input.shade_virtual(
-                &pda.virtual_samples.points[k],
-                &pda.virtual_samples.terms[k * lights..(k + 1) * lights],
-            );
-            let object = s.value;
-            return (s, 1.0, object);
-        }
-        (
-            Shade {
-                value: photo,
-                direct: DVec3::ZERO,
-                indirect: DVec3::ZERO,
-                copied: true,
-                fallback: false,
-                clamped: false,
-            },
-            0.0,
-            DVec3::ZERO,
-        )
-    };
-    let photo = &input.photo.pixels;
     // Most pixels show a real point alone: their indirect light is
     // interpolated in single precision, which the layers keep anyway (in
     // double precision, through an iterator, it took a third of the time).
     let h_with = patch_corners(input.indirect_with, input.patch_vertices);
-    let plain = |i: usize| -> Option<PixelShade> {
-        let k = pda.real_index[i];
-        if k == u32::MAX || in_span(i) && (pda.virtual_index[i] != u32::MAX || edge_at(i).is_some())
-        {
-            return None;
-        }
-        let k = k as usize;
-        let r = match input.known {
-            Some(known) => known.get(k),
-            None => input.real_pixel(
-                &pda.real.points[k],
-                &pda.real.terms[k * lights..(k + 1) * lights],
-                photo[i].as_dvec3(),
-                floor,
-            ),
-        };
-        let mut s = r.layers(
-            interpolate_single(&h_with[r.patch()], r.affine.weights),
-            &photo[i],
-        );
-        if input.layers {
-            s.direct = input
-                .irradiance(
-                    &pda.real.terms[k * lights..(k + 1) * lights],
-                    input.scales_with,
-                    true,
-                )
-                .as_vec3();
-        }
-        Some(s)
-    };
-    let other = |i: usize| -> PixelShade {
-        let (s, a, object) = shade(i);
-        // Copied pixels keep the photo's exact bits.
-        let value: Vec3 = if s.copied {
-            photo[i]
-        } else {
-            s.value.as_vec3()
-        };
-        PixelShade {
-            value,
-            direct: s.direct.as_vec3(),
-            indirect: s.indirect.as_vec3(),
-            alpha: a,
-            object: object.as_vec3(),
-            copied: s.copied,
-            fallback: s.fallback,
-            clamped: s.clamped,
-        }
-    };
     match input.known {
-        // An update's image alone: a row at a time over plain slices, the
-        // prepared real pixels shaded in place (what `plain` does, without
-        // a pixel's layers passed back).
-        Some(known) if !input.layers => {
-            let may_keep = known.may_keep(&h_with, input.patch_vertices);
-            let tables = PlainTables {
-                affine: &known.affine,
-                bands: &known.keep,
-                h_with: &h_with,
-                may_keep: &may_keep,
-                // With an object in the room nearly no patch may keep the
-                // photo: then no pixel looks its patch up.
-                any_keep: may_keep.iter().any(|k| *k),
-            };
-            let w = (w as usize).max(1);
-            let rows = out
-                .image
-                .pixels
-                .par_chunks_mut(w)
-                .zip(out.alpha.par_chunks_mut(w))
-                .enumerate();
-            let counts = rows
-                .map(|(row, (image, alpha))| {
-                    let at = row * w..row * w + image.len();
-                    let (real, virt, photo_row) = (
-                        &pda.real_index[at.clone()],
-                        &pda.virtual_index[at.clone()],
-                        &photo[at],
-                    );
-                    // Outside the columns where objects or edges may show,
-                    // every pixel is plain: a loop that asks nothing else.
-                    let (x0, x1) = match spans[row] {
-                        (a, b) if a < b => (a as usize, b as usize),
-                        _ => (image.len(), image.len()),
-                    };
-                    let mut counts = Counts::default();
-                    tables.run(
-                        &mut image[..x0],
-                        &mut alpha[..x0],
-                        &real[..x0],
-                        &photo_row[..x0],
-                        &mut counts,
-                    );
-                    tables.run(
-                        &mut image[x1..],
-                        &mut alpha[x1..],
-                        &real[x1..],
-                        &photo_row[x1..],
-                        &mut counts,
-                    );
-                    for x in x0..x1 {
-                        let k = real[x];
-                        if k == u32::MAX || virt[x] != u32::MAX || edge_at(row * w + x).is_some() {
-                            let s = other(row * w + x);
-                            image[x] = s.value;
-                            alpha[x] = s.alpha;
-                            counts.add(s.copied, s.fallback, s.clamped);
-                            continue;
-                        }
-                        tables.pixel(
-                            k as usize,
-                            &photo_row[x],
-                            &mut image[x],
-                            &mut alpha[x],
-                            &mut counts,
-                        );
-                    }
-                    counts
-                })
-                .reduce(Counts::default, Counts::sum);
-            (out.copied, out.ratio_fallbacks, out.clamped) =
-                (counts.copied, counts.fallbacks, counts.clamped);
-        }
-        _ => out.fill(input.photo, |i| plain(i).unwrap_or_else(|| other(i))),
+        Some(known) if !input.layers => shader.image_only(known, &h_with, out),
+        _ => out.fill(input.photo, |i| {
+            shader.plain(i, &h_with).unwrap_or_else(|| shader.other(i))
+        }),
     }
 }
 
 mod real_pixels;
+mod shader;
 
 use real_pixels::*;
 pub use real_pixels::{RealPixel, RealPixels};
+use shader::Shader;
 
 #[cfg(test)]
 mod tests;

@@ -240,18 +240,19 @@ impl PdaInput<'_> {
                         .room_clear(p.is_virtual, p.surface, l)
                         .then_some(&mut clear)
                 };
-                let (term, r) = light_term(
-                    self.tracer,
+                let query = LightQuery {
+                    tracer: self.tracer,
                     light,
-                    self.bounds,
-                    own,
+                    bounds: self.bounds,
+                    settings: self.settings,
+                };
+                let point = TermPoint {
                     x,
                     n,
-                    hash2(seed, l as u64),
-                    self.settings,
-                    None,
-                    keep,
-                );
+                    own,
+                    seed: hash2(seed, l as u64),
+                };
+                let (term, r) = light_term(query, point, None, keep);
                 out.push(term);
                 rays += r;
             } else {
@@ -484,18 +485,20 @@ impl PixelDataArray {
                     let at = k as usize * lights + light;
                     let seed = hash2(pixel as u64, 0x5A17);
                     let mut mask = masks.get(at).copied();
-                    let (term, rays) = light_term(
-                        input.tracer,
-                        &input.lights[light],
-                        input.bounds,
-                        None,
-                        p.position.as_dvec3(),
-                        p.normal.as_dvec3(),
-                        hash2(seed, light as u64),
-                        input.settings,
-                        Some((terms[at].unoccluded, now.binary_search(&pixel).is_ok())),
-                        mask.as_mut(),
-                    );
+                    let query = LightQuery {
+                        tracer: input.tracer,
+                        light: &input.lights[light],
+                        bounds: input.bounds,
+                        settings: input.settings,
+                    };
+                    let point = TermPoint {
+                        x: p.position.as_dvec3(),
+                        n: p.normal.as_dvec3(),
+                        own: None,
+                        seed: hash2(seed, light as u64),
+                    };
+                    let before = (terms[at].unoccluded, now.binary_search(&pixel).is_ok());
+                    let (term, rays) = light_term(query, point, Some(before), mask.as_mut());
                     (at, term, mask, rays)
                 })
             })

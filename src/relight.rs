@@ -37,7 +37,7 @@ use rayon::prelude::*;
 
 use crate::composite::{Composite, PixelShade};
 use crate::error::Result;
-use crate::estimate::{PhotoPatches, estimate_reflectances};
+use crate::estimate::{Estimate, PhotoPatches, estimate_reflectances};
 use crate::image_io::Image;
 use crate::light::LightSource;
 use crate::model::StageTimes;
@@ -130,23 +130,35 @@ pub struct TexturePath {
     pub stats: TextureStats,
 }
 
-impl TexturePath {
-    /// Preprocesses `scene` (a variant or the scene itself: its inserted
-    /// lights and objects take part in the refinement) over `photo`.
-    pub fn prepare(
-        scene: &Scene,
-        photo: &Image,
-        tracer: &Tracer,
-        settings: &TextureSettings,
-        times: &mut StageTimes,
-    ) -> Result<TexturePath> {
+/// What the preprocess derives from its inputs before any work.
+struct Setup<'a> {
+    scene: &'a Scene,
+    photo: &'a Image,
+    tracer: &'a Tracer,
+    settings: &'a TextureSettings,
+    lights: Vec<LightSource>,
+    /// Each light's scale in the photo.
+    photo_scales: Vec<f64>,
+    has_objects: bool,
+    patch_size: f64,
+    virtual_size: f64,
+    criteria: Criteria,
+    pixel_angle: f64,
+}
+
+impl<'a> Setup<'a> {
+    fn new(
+        scene: &'a Scene,
+        photo: &'a Image,
+        tracer: &'a Tracer,
+        settings: &'a TextureSettings,
+    ) -> Result<Self> {
         let lights = LightSource::all(scene)?;
         let photo_scales: Vec<f64> = lights.iter().map(|l| l.photo_scale()).collect();
         let has_objects = tracer.virtual_objects.is_some();
         let patch_size = settings
             .patch_size
             .unwrap_or_else(|| crate::inputs::fine_patch_size(scene));
-        let virtual_size = 0.1f64.min(patch_size);
         let criteria = Criteria {
             texture: (0..lights.len())
                 .filter(|&l| photo_scales[l] > 0.0)
@@ -157,110 +169,95 @@ impl TexturePath {
                 .collect(),
         };
         let cam = &scene.camera;
-        let pixel_angle = 1.0 / cam.fx.min(cam.fy);
-        let mut stats = TextureStats {
+        Ok(Setup {
+            scene,
+            photo,
+            tracer,
+            settings,
+            lights,
+            photo_scales,
+            has_objects,
             patch_size,
-            ..Default::default()
-        };
+            virtual_size: 0.1f64.min(patch_size),
+            criteria,
+            pixel_angle: 1.0 / cam.fx.min(cam.fy),
+        })
+    }
 
-        // Texture-based refinement (Fig. 12), one level per round.
-        let base = times.time("mesh", || Patches::of_scene(scene, false, patch_size));
-        // The user's references, checked before any work: (surface, root ordinal, point).
-        let mut user_points: Vec<(u32, u32, DVec3)> = Vec::new();
-        for (i, r) in scene.texture_references.iter().enumerate() {
-            // The root polygon of that surface whose plane holds the point, inside it.
-            let root = base.roots.iter().copied().find(|&root| {
-                let el = &base.elements[root as usize];
-                let st = base.root_params(root, r.point);
-                el.surface == r.surface as u32
-                    && (base.root_point(root, st) - r.point).length() < 1e-3
-                    && crate::patches::distance_outside(&el.region, st) <= 1e-6
-            });
-            let Some(root) = root else {
-                return Err(crate::error::Error::key(
-                    &scene.file,
-                    format!("texture_reference[{i}].point"),
-                    format!(
-                        "{:?} does not lie on surface '{}' (within 1 mm)",
-                        r.point.to_array(),
-                        scene.surfaces[r.surface].name
-                    ),
-                ));
-            };
-            user_points.push((r.surface as u32, base.root_ordinal(root), r.point));
-        }
-        let hits = times.time("camera rays", || real_hits(scene, tracer));
-        let white = {
-            let mut l: Vec<f64> = hits
-                .iter()
-                .zip(&photo.pixels)
-                .filter(|(h, _)| h.is_some())
-                .map(|(_, p)| luminance(p.as_dvec3()))
-                .collect();
-            l.sort_by(f64::total_cmp);
-            l.get(l.len() * 99 / 100).copied().unwrap_or(1.0).max(1e-30)
+    /// Texture-based refinement (Fig. 12), one level per round: the refined
+    /// mesh and its split marks.
+    fn refine(
+        &self,
+        base: Patches,
+        hits: &[Option<RealHit>],
+        stats: &mut TextureStats,
+    ) -> (Patches, SplitMarks) {
+        let refiner = Refiner {
+            hits,
+            photo: self.photo,
+            pixel_angle: self.pixel_angle,
+            white: white_level(hits, self.photo),
+            lights: &self.lights,
+            criteria: &self.criteria,
+            tracer: self.tracer,
+            settings: self.settings,
         };
         let mut marks = SplitMarks::new();
         let mut cache = TermCache::new();
-        let patches = times.time("texture-based refinement", || {
-            let mut patches = base;
-            for _ in 0..settings.max_rounds {
-                stats.rounds += 1;
-                let added = refine_round(
-                    &patches,
-                    &hits,
-                    photo,
-                    pixel_angle,
-                    white,
-                    &lights,
-                    &criteria,
-                    tracer,
-                    settings,
-                    &mut cache,
-                    &mut marks,
-                    &mut stats,
-                );
-                if added == 0 {
-                    break;
-                }
-                patches = Patches::of_scene_refined(scene, false, patch_size, virtual_size, &marks);
+        let mut patches = base;
+        for _ in 0..self.settings.max_rounds {
+            stats.rounds += 1;
+            if refiner.round(&patches, &mut cache, &mut marks, stats) == 0 {
+                break;
             }
-            patches
-        });
-        let real_patches = patches.patch_count();
-        stats.leaves = real_patches;
+            patches = Patches::of_scene_refined(
+                self.scene,
+                false,
+                self.patch_size,
+                self.virtual_size,
+                &marks,
+            );
+        }
+        (patches, marks)
+    }
 
-        // The illumination model on the refined mesh (links at the leaves for
-        // the light sources: direct light is per leaf).
-        let real_direct = times.time("direct light", || {
-            leaf_light(&patches, &lights, tracer, Layer::Real, settings.light_level)
+    /// The photo's illumination model on the refined mesh (links at the
+    /// leaves for the light sources: direct light is per leaf).
+    fn real_model(&self, patches: &Patches, times: &mut StageTimes) -> RealModel {
+        let (lights, tracer) = (&self.lights, self.tracer);
+        let direct = times.time("direct light", || {
+            leaf_light(
+                patches,
+                lights,
+                tracer,
+                Layer::Real,
+                self.settings.light_level,
+            )
         });
         let transport = times.time("form factors", || {
-            Transport::hierarchical(&patches, tracer, Layer::Real, settings.link_epsilon)
+            Transport::hierarchical(patches, tracer, Layer::Real, self.settings.link_epsilon)
         });
         let measured = times.time("photo per patch", || {
-            PhotoPatches::measure(cam, tracer, &patches, photo)
+            PhotoPatches::measure(&self.scene.camera, tracer, patches, self.photo)
         });
-        let known: HashMap<u32, DVec3> = scene
+        let known: HashMap<u32, DVec3> = self
+            .scene
             .reflectances
             .iter()
             .map(|k| (k.surface as u32, k.rgb))
             .collect();
         let sum_scaled = |f: &dyn Fn(&LightTerm) -> DVec3, k: usize| -> DVec3 {
             (0..lights.len())
-                .filter(|&l| photo_scales[l] > 0.0)
-                .map(|l| f(&real_direct[l][k]) * photo_scales[l])
+                .filter(|&l| self.photo_scales[l] > 0.0)
+                .map(|l| f(&direct[l][k]) * self.photo_scales[l])
                 .sum()
         };
-        let e_occluded: Vec<DVec3> = (0..real_patches)
-            .map(|k| sum_scaled(&|t| t.occluded, k))
-            .collect();
-        let e_unoccluded: Vec<DVec3> = (0..real_patches)
-            .map(|k| sum_scaled(&|t| t.unoccluded, k))
-            .collect();
+        let n = patches.patch_count();
+        let e_occluded: Vec<DVec3> = (0..n).map(|k| sum_scaled(&|t| t.occluded, k)).collect();
+        let e_unoccluded: Vec<DVec3> = (0..n).map(|k| sum_scaled(&|t| t.unoccluded, k)).collect();
         let estimate = times.time("estimate + solve", || {
             estimate_reflectances(
-                &patches,
+                patches,
                 &transport,
                 &e_occluded,
                 &measured,
@@ -268,132 +265,287 @@ impl TexturePath {
                 crate::estimate::EstimateSettings::default(),
             )
         });
-        let h = &estimate.solution.indirect_irradiance;
-        let solve_tolerance = crate::estimate::EstimateSettings::default().solve_tolerance;
-        let steps_started = std::time::Instant::now();
-        let pi = std::f64::consts::PI;
+        RealModel {
+            direct,
+            transport,
+            known,
+            e_occluded,
+            e_unoccluded,
+            estimate,
+        }
+    }
+}
 
-        // Visibility per light at the real vertices (the mesh's shadows).
-        let vis_vertex = |direct: &[Vec<LightTerm>], p: &Patches| -> Vec<Vec<f64>> {
-            direct
+/// The photo's illumination model on the refined mesh.
+struct RealModel {
+    /// Per light and leaf, through the real layer.
+    direct: Vec<Vec<LightTerm>>,
+    transport: Transport,
+    /// The user's reflectances by surface.
+    known: HashMap<u32, DVec3>,
+    /// The photo's lights' direct irradiance per leaf, with and without
+    /// their shadows.
+    e_occluded: Vec<DVec3>,
+    e_unoccluded: Vec<DVec3>,
+    estimate: Estimate,
+}
+
+/// The photo's 99th percentile luminance over the real pixels: CIELAB's white.
+fn white_level(hits: &[Option<RealHit>], photo: &Image) -> f64 {
+    let mut l: Vec<f64> = hits
+        .iter()
+        .zip(&photo.pixels)
+        .filter(|(h, _)| h.is_some())
+        .map(|(_, p)| luminance(p.as_dvec3()))
+        .collect();
+    l.sort_by(f64::total_cmp);
+    l.get(l.len() * 99 / 100).copied().unwrap_or(1.0).max(1e-30)
+}
+
+/// The user's `[[texture_reference]]` points, checked against the mesh's
+/// roots: (surface, root ordinal, point).
+fn user_points(scene: &Scene, base: &Patches) -> Result<Vec<(u32, u32, DVec3)>> {
+    let mut points = Vec::new();
+    for (i, r) in scene.texture_references.iter().enumerate() {
+        // The root polygon of that surface whose plane holds the point, inside it.
+        let root = base.roots.iter().copied().find(|&root| {
+            let el = &base.elements[root as usize];
+            let st = base.root_params(root, r.point);
+            el.surface == r.surface as u32
+                && (base.root_point(root, st) - r.point).length() < 1e-3
+                && crate::patches::distance_outside(&el.region, st) <= 1e-6
+        });
+        let Some(root) = root else {
+            return Err(crate::error::Error::key(
+                &scene.file,
+                format!("texture_reference[{i}].point"),
+                format!(
+                    "{:?} does not lie on surface '{}' (within 1 mm)",
+                    r.point.to_array(),
+                    scene.surfaces[r.surface].name
+                ),
+            ));
+        };
+        points.push((r.surface as u32, base.root_ordinal(root), r.point));
+    }
+    Ok(points)
+}
+
+/// Visibility per light at the vertices (the mesh's shadows).
+fn vertex_visibility(direct: &[Vec<LightTerm>], patches: &Patches) -> Vec<Vec<f64>> {
+    direct
+        .iter()
+        .map(|l| {
+            patches
+                .vertex_values(
+                    &l.iter()
+                        .map(|t| DVec3::splat(t.visibility()))
+                        .collect::<Vec<_>>(),
+                )
                 .iter()
-                .map(|l| {
-                    p.vertex_values(
-                        &l.iter()
-                            .map(|t| DVec3::splat(t.visibility()))
-                            .collect::<Vec<_>>(),
-                    )
-                    .iter()
-                    .map(|v| v.x)
-                    .collect()
-                })
+                .map(|v| v.x)
                 .collect()
-        };
-        let real_vis = vis_vertex(&real_direct, &patches);
-        let h_vertex = patches.vertex_values(h);
-        // Step 1 (Eq. 5-6) at a point: the blocked direct light added back.
-        // The photo's lights' unoccluded irradiance there is exact; their
-        // visibility is the mesh's.
-        let step1 = |x: DVec3, n: DVec3, at: &Location| -> DVec3 {
-            let (mut unocc, mut occ) = (DVec3::ZERO, DVec3::ZERO);
-            for &l in &criteria.texture {
-                let e = lights[l].unoccluded_irradiance(x, n) * photo_scales[l];
-                let v: f64 = at
-                    .weights
-                    .iter()
-                    .map(|&(k, w)| real_vis[l][k as usize] * w)
-                    .sum();
-                unocc += e;
-                occ += e * v.clamp(0.0, 1.0);
-            }
-            let hh = patches.interpolate(&h_vertex, at);
-            let (num, den) = (unocc + hh, occ + hh);
-            // Where the photo holds almost none of the light there is nothing
-            // to scale back; the factor is capped where it cannot tell.
-            DVec3::select(
-                den.cmpgt(num * 1e-3),
-                num / den.max(DVec3::splat(1e-300)),
-                DVec3::ONE,
-            )
-            .clamp(DVec3::ONE, DVec3::splat(1e3))
-        };
+        })
+        .collect()
+}
 
-        // Per pixel: leaf and Step 1.
-        let lp = leaf_pixels(&patches, &hits, photo, pixel_angle);
-        let pixel_leaf: Vec<Option<(Location, DVec3)>> = hits
-            .par_iter()
-            .map(|h| {
-                let h = h.as_ref()?;
-                let at = patches.locate(h.surface, h.triangle, h.x)?;
-                Some((at, step1(h.x, patches.patch(at.patch as usize).normal, &at)))
-            })
-            .collect();
-        let leaf_mean = |factor: &dyn Fn(usize) -> DVec3| -> Vec<DVec3> {
-            let mut sum = vec![DVec3::ZERO; real_patches];
-            for (i, p) in pixel_leaf.iter().enumerate() {
-                if let Some((at, _)) = p {
-                    sum[at.patch as usize] += photo.pixels[i].as_dvec3() * factor(i);
-                }
-            }
-            sum.iter()
-                .zip(&lp.count)
-                .map(|(s, &c)| if c > 0 { *s / c as f64 } else { DVec3::ZERO })
-                .collect()
-        };
-        let step1_of = |i: usize| pixel_leaf[i].map_or(DVec3::ONE, |p| p.1);
-        let t_inter = leaf_mean(&step1_of);
-        let irradiance_unoccluded: Vec<DVec3> =
-            (0..real_patches).map(|k| e_unoccluded[k] + h[k]).collect();
-        let rho_of = |t: DVec3, k: usize| {
-            (t * pi / irradiance_unoccluded[k].max(DVec3::splat(1e-300)))
-                .clamp(DVec3::ZERO, DVec3::splat(crate::estimate::MAX_REFLECTANCE))
-        };
-        let rho_inter: Vec<DVec3> = (0..real_patches)
-            .map(|k| {
-                if lp.count[k] > 0 {
-                    rho_of(t_inter[k], k)
-                } else {
-                    estimate.reflectance[k]
-                }
-            })
-            .collect();
+/// Loscos's Steps 1 and 2 as factors on the photo at a point of the room.
+struct Unshadow<'a> {
+    setup: &'a Setup<'a>,
+    patches: &'a Patches,
+    real_vis: Vec<Vec<f64>>,
+    /// The photo's indirect irradiance at the vertices.
+    h_vertex: Vec<DVec3>,
+    /// Step 2's correction at the vertices (empty until Step 2 has run).
+    correction_vertex: Vec<DVec3>,
+}
 
-        // Step 2 (Eq. 7-9, Fig. 15-16): reference leaves on the frontier.
-        let near = neighbours(&patches, real_patches);
-        let tau = settings.visibility_threshold;
-        let occluded: Vec<bool> = (0..real_patches)
-            .map(|k| {
-                criteria.texture.iter().any(|&l| {
-                    real_direct[l][k].unoccluded.element_sum() > 0.0
-                        && real_direct[l][k].visibility() < 1.0 - tau
-                })
+impl Unshadow<'_> {
+    /// Step 1 (Eq. 5-6) at a point: the blocked direct light added back.
+    /// The photo's lights' unoccluded irradiance there is exact; their
+    /// visibility is the mesh's.
+    fn step1(&self, x: DVec3, n: DVec3, at: &Location) -> DVec3 {
+        let (mut unocc, mut occ) = (DVec3::ZERO, DVec3::ZERO);
+        for &l in &self.setup.criteria.texture {
+            let e = self.setup.lights[l].unoccluded_irradiance(x, n) * self.setup.photo_scales[l];
+            let v: f64 = at
+                .weights
+                .iter()
+                .map(|&(k, w)| self.real_vis[l][k as usize] * w)
+                .sum();
+            unocc += e;
+            occ += e * v.clamp(0.0, 1.0);
+        }
+        let hh = self.patches.interpolate(&self.h_vertex, at);
+        let (num, den) = (unocc + hh, occ + hh);
+        // Where the photo holds almost none of the light there is nothing
+        // to scale back; the factor is capped where it cannot tell.
+        DVec3::select(
+            den.cmpgt(num * 1e-3),
+            num / den.max(DVec3::splat(1e-300)),
+            DVec3::ONE,
+        )
+        .clamp(DVec3::ONE, DVec3::splat(1e3))
+    }
+
+    fn step2(&self, at: &Location) -> DVec3 {
+        self.patches.interpolate(&self.correction_vertex, at)
+    }
+
+    /// Both steps at a point of root polygon `root`.
+    fn at_root_point(&self, root: u32, x: DVec3) -> DVec3 {
+        let at = self.patches.locate_in_root(root, x);
+        self.step1(x, self.patches.patch(at.patch as usize).normal, &at) * self.step2(&at)
+    }
+}
+
+/// Steps 1 and 2 over the leaves the camera sees: the shadow-free factors
+/// and ρ_final per leaf.
+fn unshadow<'a>(
+    setup: &'a Setup<'a>,
+    patches: &'a Patches,
+    model: &RealModel,
+    hits: &[Option<RealHit>],
+    user_points: &[(u32, u32, DVec3)],
+    stats: &mut TextureStats,
+) -> (Unshadow<'a>, Vec<DVec3>) {
+    let real_patches = patches.patch_count();
+    let h = &model.estimate.solution.indirect_irradiance;
+    let mut unshadow = Unshadow {
+        setup,
+        patches,
+        real_vis: vertex_visibility(&model.direct, patches),
+        h_vertex: patches.vertex_values(h),
+        correction_vertex: Vec::new(),
+    };
+    let photo = setup.photo;
+    // Per pixel: leaf and Step 1.
+    let lp = leaf_pixels(patches, hits, photo, setup.pixel_angle);
+    let pixel_leaf: Vec<Option<(Location, DVec3)>> = hits
+        .par_iter()
+        .map(|h| {
+            let h = h.as_ref()?;
+            let at = patches.locate(h.surface, h.triangle, h.x)?;
+            let n = patches.patch(at.patch as usize).normal;
+            Some((at, unshadow.step1(h.x, n, &at)))
+        })
+        .collect();
+    let leaf_mean = |factor: &dyn Fn(usize) -> DVec3| -> Vec<DVec3> {
+        let mut sum = vec![DVec3::ZERO; real_patches];
+        for (i, p) in pixel_leaf.iter().enumerate() {
+            if let Some((at, _)) = p {
+                sum[at.patch as usize] += photo.pixels[i].as_dvec3() * factor(i);
+            }
+        }
+        sum.iter()
+            .zip(&lp.count)
+            .map(|(s, &c)| if c > 0 { *s / c as f64 } else { DVec3::ZERO })
+            .collect()
+    };
+    let step1_of = |i: usize| pixel_leaf[i].map_or(DVec3::ONE, |p| p.1);
+    let t_inter = leaf_mean(&step1_of);
+    let irradiance_unoccluded: Vec<DVec3> = (0..real_patches)
+        .map(|k| model.e_unoccluded[k] + h[k])
+        .collect();
+    let rho_of = |t: DVec3, k: usize| {
+        (t * std::f64::consts::PI / irradiance_unoccluded[k].max(DVec3::splat(1e-300)))
+            .clamp(DVec3::ZERO, DVec3::splat(crate::estimate::MAX_REFLECTANCE))
+    };
+    let rho_inter: Vec<DVec3> = (0..real_patches)
+        .map(|k| {
+            if lp.count[k] > 0 {
+                rho_of(t_inter[k], k)
+            } else {
+                model.estimate.reflectance[k]
+            }
+        })
+        .collect();
+    let occluded = occluded_leaves(setup, model, real_patches);
+    let seen: Vec<bool> = lp.count.iter().map(|&c| c > 0).collect();
+    let references = References {
+        patches,
+        occluded: &occluded,
+        seen: &seen,
+        rho_inter: &rho_inter,
+        user_points,
+        colour_threshold: setup.settings.reference_colour_threshold,
+    };
+    let correction = references.corrections(stats);
+    unshadow.correction_vertex = patches.vertex_values(&correction);
+
+    // ρ_final from T_final.
+    let t_final_leaf = leaf_mean(&|i| {
+        step1_of(i)
+            * pixel_leaf[i]
+                .as_ref()
+                .map_or(DVec3::ONE, |p| unshadow.step2(&p.0))
+    });
+    let rho_final: Vec<DVec3> = (0..real_patches)
+        .map(|k| {
+            if occluded[k] && seen[k] && !model.known.contains_key(&patches.patch(k).surface) {
+                rho_of(t_final_leaf[k], k)
+            } else {
+                model.estimate.reflectance[k]
+            }
+        })
+        .collect();
+    (unshadow, rho_final)
+}
+
+/// Leaves in a texture light's shadow.
+fn occluded_leaves(setup: &Setup, model: &RealModel, leaves: usize) -> Vec<bool> {
+    let tau = setup.settings.visibility_threshold;
+    (0..leaves)
+        .map(|k| {
+            setup.criteria.texture.iter().any(|&l| {
+                model.direct[l][k].unoccluded.element_sum() > 0.0
+                    && model.direct[l][k].visibility() < 1.0 - tau
+            })
+        })
+        .collect()
+}
+
+/// Step 2 (Eq. 7-9, Fig. 15-16): reference leaves on the frontier of the
+/// unoccluded ones.
+struct References<'a> {
+    patches: &'a Patches,
+    occluded: &'a [bool],
+    seen: &'a [bool],
+    rho_inter: &'a [DVec3],
+    user_points: &'a [(u32, u32, DVec3)],
+    colour_threshold: f64,
+}
+
+impl References<'_> {
+    /// The correction factor per leaf (one where no reference applies).
+    fn corrections(&self, stats: &mut TextureStats) -> Vec<DVec3> {
+        let (patches, leaves) = (self.patches, self.rho_inter.len());
+        let near = neighbours(patches, leaves);
+        let frontier: Vec<usize> = (0..leaves)
+            .filter(|&k| {
+                self.seen[k]
+                    && !self.occluded[k]
+                    && near[k].iter().any(|&n| self.occluded[n as usize])
             })
             .collect();
-        let seen = |k: usize| lp.count[k] > 0;
-        let frontier: Vec<usize> = (0..real_patches)
-            .filter(|&k| seen(k) && !occluded[k] && near[k].iter().any(|&n| occluded[n as usize]))
-            .collect();
-        let lab: Vec<DVec3> = rho_inter.iter().map(|r| cielab(*r, 1.0)).collect();
-        let user_reference: HashMap<u32, usize> = user_points
+        let lab: Vec<DVec3> = self.rho_inter.iter().map(|r| cielab(*r, 1.0)).collect();
+        let user_reference: HashMap<u32, usize> = self
+            .user_points
             .iter()
             .map(|&(surface, ordinal, point)| {
-                (
-                    surface,
-                    patches
-                        .locate_in_root(patches.roots[ordinal as usize], point)
-                        .patch as usize,
-                )
+                let root = patches.roots[ordinal as usize];
+                (surface, patches.locate_in_root(root, point).patch as usize)
             })
             .collect();
-        let mut correction = vec![DVec3::ONE; real_patches];
-        for k in (0..real_patches).filter(|&k| occluded[k] && seen(k)) {
+        let mut correction = vec![DVec3::ONE; leaves];
+        for k in (0..leaves).filter(|&k| self.occluded[k] && self.seen[k]) {
             stats.occluded += 1;
             let el = patches.patch(k);
             let mut best: Option<(f64, usize)> = None;
             for &n in &frontier {
                 let en = patches.patch(n);
                 if en.surface != el.surface
-                    || colour_distance(lab[k], lab[n]) >= settings.reference_colour_threshold
+                    || colour_distance(lab[k], lab[n]) >= self.colour_threshold
                 {
                     continue;
                 }
@@ -419,38 +571,156 @@ impl TexturePath {
                 },
             };
             // Eq. 8 in arlux's reflectances (ρ_corr = ρ_r), Eq. 9 as a factor.
-            let c = rho_inter[reference] / rho_inter[k].max(DVec3::splat(1e-6));
+            let c = self.rho_inter[reference] / self.rho_inter[k].max(DVec3::splat(1e-6));
             correction[k] = c.clamp(DVec3::splat(0.2), DVec3::splat(5.0));
         }
-        let corr_v = patches.vertex_values(&correction);
-        let step2 = |at: &Location| patches.interpolate(&corr_v, at);
+        correction
+    }
+}
 
-        // ρ_final from T_final, a radiosity step; D = ρ·(unoccluded direct + indirect).
-        let t_final_leaf = leaf_mean(&|i| {
-            step1_of(i) * pixel_leaf[i].as_ref().map_or(DVec3::ONE, |p| step2(&p.0))
-        });
-        let rho_final: Vec<DVec3> = (0..real_patches)
-            .map(|k| {
-                if occluded[k] && seen(k) && !known.contains_key(&patches.patch(k).surface) {
-                    rho_of(t_final_leaf[k], k)
-                } else {
-                    estimate.reflectance[k]
+/// The textures in root order, and each root's index among them (indexed,
+/// not hashed: the display looks one up per pixel).
+fn index_textures(textures: HashMap<u32, Texture>) -> (Vec<Texture>, HashMap<u32, u32>) {
+    let mut by_root: Vec<(u32, Texture)> = textures.into_iter().collect();
+    by_root.sort_unstable_by_key(|(root, _)| *root);
+    let texture_of: HashMap<u32, u32> = by_root
+        .iter()
+        .enumerate()
+        .map(|(i, (root, _))| (*root, i as u32))
+        .collect();
+    (by_root.into_iter().map(|(_, t)| t).collect(), texture_of)
+}
+
+/// What each pixel shows (through the objects too) and each light's
+/// unoccluded irradiance there (pixel-major), written row by row in place.
+fn pixel_points(
+    setup: &Setup,
+    patches: &Patches,
+    textures: &[Texture],
+    texture_of: &HashMap<u32, u32>,
+) -> (Vec<Option<PixelPoint>>, Vec<Vec3>) {
+    let (cam, lights) = (&setup.scene.camera, &setup.lights);
+    let layer = if setup.has_objects {
+        Layer::All
+    } else {
+        Layer::Real
+    };
+    let (w, nl) = (cam.width as usize, lights.len());
+    let mut pixels: Vec<Option<PixelPoint>> = vec![None; cam.pixel_count()];
+    let mut unoccluded = vec![Vec3::ZERO; cam.pixel_count() * nl];
+    pixels
+        .par_chunks_mut(w)
+        .zip(unoccluded.par_chunks_mut(w * nl))
+        .enumerate()
+        .for_each(|(row, (points, irradiance))| {
+            let hits = crate::surface_ids::row_hits(cam, setup.tracer, layer, row as u32);
+            for (col, h) in hits.into_iter().enumerate() {
+                let Some(h) = h else { continue };
+                let x = cam.position + cam.pixel_ray(col as u32, row as u32).direction * h.t as f64;
+                let Some(root) = patches.root_of(h.surface, h.triangle) else {
+                    continue;
+                };
+                let at = patches.locate_in_root(root, x);
+                let n = patches.patch(at.patch as usize).normal;
+                for (e, light) in irradiance[col * nl..(col + 1) * nl].iter_mut().zip(lights) {
+                    *e = light.unoccluded_irradiance(x, n).as_vec3();
                 }
-            })
-            .collect();
+                points[col] = if h.is_virtual {
+                    Some(PixelPoint::Virtual { at })
+                } else {
+                    texture_of.get(&root).map(|&texture| {
+                        let texel = textures[texture as usize]
+                            .texel_of(patches.root_params(root, x))
+                            as u32;
+                        PixelPoint::Real { texture, at, texel }
+                    })
+                };
+            }
+        });
+    (pixels, unoccluded)
+}
+
+/// D per pixel (the photo's lights unoccluded, plus the final indirect
+/// light), and the floor under which D counts as zero.
+fn display_factors(
+    setup: &Setup,
+    patches: &Patches,
+    pixels: &[Option<PixelPoint>],
+    unoccluded: &[Vec3],
+    h_final_vertex: &[DVec3],
+) -> (Vec<Vec3>, f64) {
+    let nl = setup.lights.len();
+    let display: Vec<Vec3> = pixels
+        .iter()
+        .enumerate()
+        .map(|(i, p)| match p {
+            Some(PixelPoint::Real { at, .. }) => {
+                let e: DVec3 = setup
+                    .criteria
+                    .texture
+                    .iter()
+                    .map(|&l| unoccluded[i * nl + l].as_dvec3() * setup.photo_scales[l])
+                    .sum();
+                (e + patches.interpolate(h_final_vertex, at)).as_vec3()
+            }
+            _ => Vec3::ZERO,
+        })
+        .collect();
+    let d: Vec<f64> = display
+        .iter()
+        .zip(pixels)
+        .filter(|(_, p)| matches!(p, Some(PixelPoint::Real { .. })))
+        .map(|(d, _)| luminance(d.as_dvec3()))
+        .collect();
+    let d_floor = 1e-3 * d.iter().sum::<f64>() / d.len().max(1) as f64;
+    (display, d_floor)
+}
+
+impl TexturePath {
+    /// Preprocesses `scene` (a variant or the scene itself: its inserted
+    /// lights and objects take part in the refinement) over `photo`.
+    pub fn prepare(
+        scene: &Scene,
+        photo: &Image,
+        tracer: &Tracer,
+        settings: &TextureSettings,
+        times: &mut StageTimes,
+    ) -> Result<TexturePath> {
+        let setup = Setup::new(scene, photo, tracer, settings)?;
+        let (patch_size, virtual_size) = (setup.patch_size, setup.virtual_size);
+        let mut stats = TextureStats {
+            patch_size,
+            ..Default::default()
+        };
+        let base = times.time("mesh", || Patches::of_scene(scene, false, patch_size));
+        // The user's references, checked before any work.
+        let user_points = user_points(scene, &base)?;
+        let hits = times.time("camera rays", || real_hits(scene, tracer));
+        let (patches, marks) = times.time("texture-based refinement", || {
+            setup.refine(base, &hits, &mut stats)
+        });
+        let real_patches = patches.patch_count();
+        stats.leaves = real_patches;
+        let model = setup.real_model(&patches, times);
+        let solve_tolerance = crate::estimate::EstimateSettings::default().solve_tolerance;
+
+        let steps_started = std::time::Instant::now();
+        let (unshadow, rho_final) =
+            unshadow(&setup, &patches, &model, &hits, &user_points, &mut stats);
         times.0.push(("steps 1 and 2", steps_started.elapsed()));
+        // B_final by a radiosity step.
         let final_solution = times.time("solve unoccluded", || {
             let b: Vec<DVec3> = rho_final
                 .iter()
-                .zip(&e_occluded)
+                .zip(&model.e_occluded)
                 .map(|(r, e)| *r * *e)
                 .collect();
             solve_from(
                 &patches,
-                &transport,
+                &model.transport,
                 &rho_final,
                 &b,
-                Some(&estimate.solution.radiosity),
+                Some(&model.estimate.solution.radiosity),
                 solve_tolerance,
                 500,
             )
@@ -463,44 +733,41 @@ impl TexturePath {
                 &patches,
                 &hits,
                 photo,
-                pixel_angle,
+                setup.pixel_angle,
                 settings.texels_per_pixel,
-                &|root, x| {
-                    let at = patches.locate_in_root(root, x);
-                    step1(x, patches.patch(at.patch as usize).normal, &at) * step2(&at)
-                },
+                &|root, x| unshadow.at_root_point(root, x),
             )
         });
-        // Indexed, not hashed: the display looks one up per pixel.
-        let mut by_root: Vec<(u32, Texture)> = textures.into_iter().collect();
-        by_root.sort_unstable_by_key(|(root, _)| *root);
-        let texture_of: HashMap<u32, u32> = by_root
-            .iter()
-            .enumerate()
-            .map(|(i, (root, _))| (*root, i as u32))
-            .collect();
-        let textures: Vec<Texture> = by_root.into_iter().map(|(_, t)| t).collect();
+        let (textures, texture_of) = index_textures(textures);
         stats.texels = textures.iter().map(|t| t.texels.len()).sum();
         stats.texture_bytes = stats.texels * std::mem::size_of::<Vec3>();
 
         // The mesh with the inserted objects, and the direct light through them.
-        let (patches, direct, transport) = if has_objects {
+        let (patches, direct, transport) = if setup.has_objects {
             let all = times.time("virtual mesh", || {
                 Patches::of_scene_refined(scene, true, patch_size, virtual_size, &marks)
             });
             let direct = times.time("direct light with objects", || {
-                leaf_light(&all, &lights, tracer, Layer::All, settings.light_level)
+                leaf_light(
+                    &all,
+                    &setup.lights,
+                    tracer,
+                    Layer::All,
+                    settings.light_level,
+                )
             });
             let transport = times.time("form factors with objects", || {
-                transport.with_objects(&all, tracer, settings.link_epsilon, true)
+                model
+                    .transport
+                    .with_objects(&all, tracer, settings.link_epsilon, true)
             });
             (all, direct, transport)
         } else {
-            (patches, real_direct, transport)
+            (patches, model.direct, model.transport)
         };
         stats.links = transport.link_count();
         let rest_started = std::time::Instant::now();
-        let visibility = vis_vertex(&direct, &patches);
+        let visibility = vertex_visibility(&direct, &patches);
         let direct: Vec<Vec<DVec3>> = direct
             .iter()
             .map(|l| l.iter().map(|t| t.occluded).collect())
@@ -515,80 +782,20 @@ impl TexturePath {
         let mut h_final = final_solution.indirect_irradiance;
         h_final.resize(patches.patch_count(), DVec3::ZERO);
         let h_final_vertex = patches.vertex_values(&h_final);
-
         times
             .0
             .push(("reflectances and links", rest_started.elapsed()));
-        // What each pixel shows (through the objects too) and each light's
-        // unoccluded irradiance there, written row by row in place.
-        let layer = if has_objects { Layer::All } else { Layer::Real };
-        let (w, nl) = (cam.width as usize, lights.len());
-        let mut pixels: Vec<Option<PixelPoint>> = vec![None; cam.pixel_count()];
-        let mut unoccluded = vec![Vec3::ZERO; cam.pixel_count() * nl];
-        times.time("pixel points", || {
-            pixels
-                .par_chunks_mut(w)
-                .zip(unoccluded.par_chunks_mut(w * nl))
-                .enumerate()
-                .for_each(|(row, (points, irradiance))| {
-                    let hits = crate::surface_ids::row_hits(cam, tracer, layer, row as u32);
-                    for (col, h) in hits.into_iter().enumerate() {
-                        let Some(h) = h else { continue };
-                        let x = cam.position
-                            + cam.pixel_ray(col as u32, row as u32).direction * h.t as f64;
-                        let Some(root) = patches.root_of(h.surface, h.triangle) else {
-                            continue;
-                        };
-                        let at = patches.locate_in_root(root, x);
-                        let n = patches.patch(at.patch as usize).normal;
-                        for (e, light) in
-                            irradiance[col * nl..(col + 1) * nl].iter_mut().zip(&lights)
-                        {
-                            *e = light.unoccluded_irradiance(x, n).as_vec3();
-                        }
-                        points[col] = if h.is_virtual {
-                            Some(PixelPoint::Virtual { at })
-                        } else {
-                            texture_of.get(&root).map(|&texture| {
-                                let texel = textures[texture as usize]
-                                    .texel_of(patches.root_params(root, x))
-                                    as u32;
-                                PixelPoint::Real { texture, at, texel }
-                            })
-                        };
-                    }
-                });
+
+        let (pixels, unoccluded) = times.time("pixel points", || {
+            pixel_points(&setup, &patches, &textures, &texture_of)
         });
         let display_started = std::time::Instant::now();
-        // D per pixel: the photo's lights unoccluded, plus the final indirect light.
-        let display: Vec<Vec3> = pixels
-            .iter()
-            .enumerate()
-            .map(|(i, p)| match p {
-                Some(PixelPoint::Real { at, .. }) => {
-                    let e: DVec3 = criteria
-                        .texture
-                        .iter()
-                        .map(|&l| unoccluded[i * nl + l].as_dvec3() * photo_scales[l])
-                        .sum();
-                    (e + patches.interpolate(&h_final_vertex, at)).as_vec3()
-                }
-                _ => Vec3::ZERO,
-            })
-            .collect();
-        let d_floor = {
-            let d: Vec<f64> = display
-                .iter()
-                .zip(&pixels)
-                .filter(|(_, p)| matches!(p, Some(PixelPoint::Real { .. })))
-                .map(|(d, _)| luminance(d.as_dvec3()))
-                .collect();
-            1e-3 * d.iter().sum::<f64>() / d.len().max(1) as f64
-        };
+        let (display, d_floor) =
+            display_factors(&setup, &patches, &pixels, &unoccluded, &h_final_vertex);
         times.0.push(("display factors", display_started.elapsed()));
         Ok(TexturePath {
+            lights: setup.lights,
             patches,
-            lights,
             direct,
             visibility,
             transport,

@@ -128,277 +128,65 @@ pub(super) fn remove_texture(
     height: u32,
     edge: f64,
 ) -> (usize, Texture) {
-    let mut at = vec![u32::MAX; (width * height) as usize];
-    for (i, s) in samples.iter().enumerate() {
-        at[s.pixel as usize] = i as u32;
-    }
-    let log_b = |s: &Sample| s.b.max(DVec3::splat(1e-30)).to_array().map(f64::ln);
-    // Pixel pairs (i, j) with the target u_j − u_i per channel: a texture
-    // is coloured (a brown and cream checkerboard steps differently in
-    // each channel), so each channel is integrated on its own.
-    let mut pairs: Vec<(u32, u32)> = Vec::new();
-    // 0: rightwards, 1: downwards.
-    let mut directions: Vec<usize> = Vec::new();
-    let mut jumps: Vec<[f64; 3]> = Vec::new();
-    // Neighbours on one plane where either pixel is mixed (across a
-    // shadow's edge, or blending a silhouette in front): what steps there
-    // is light or another surface, so they say nothing of the texture but
-    // that it most likely does not step. Without them, a region that
-    // shadows cut off (the wall under a table) would be integrated on its
-    // own and its texture level, mean 0, would not match the rest of its
-    // surface's (where a poster moves the mean).
-    let mut links: Vec<(u32, u32)> = Vec::new();
-    let mut gap_links: Vec<(u32, u32, u32)> = Vec::new();
-    // Pairs across a known light's soft edge, with their modelled steps.
-    let mut soft: Vec<(u32, u32)> = Vec::new();
-    let mut soft_steps: Vec<[f64; 3]> = Vec::new();
-    // Clean pixels across a gap, with their steps less the model's.
-    let mut measured: Vec<(u32, u32, u32)> = Vec::new();
-    let mut measured_steps: Vec<[f64; 3]> = Vec::new();
-    // The pair leaving each pixel rightwards and downwards, if any.
-    let mut leaving = vec![[u32::MAX; 2]; samples.len()];
-    let max_gap = width.max(height) / 8;
-    for i in 0..samples.len() {
-        let p = &samples[i];
-        let (col, row) = (p.pixel % width, p.pixel / width);
-        for (dir, (dc, dr)) in [(1u32, 0u32), (0, 1)].into_iter().enumerate() {
-            if col + dc >= width || row + dr >= height {
-                continue;
-            }
-            let j = at[((row + dr) * width + col + dc) as usize];
-            let clean_neighbour =
-                j != u32::MAX && samples[j as usize].surface == p.surface && !mixed[j as usize];
-            if let Some(m) = model.filter(|_| !mixed[i] && !clean_neighbour && p.g > 0.0) {
-                // Across what the light model reads on both sides: the first
-                // clean pixel of this plane the unknown light reaches beyond
-                // (past a thin occluder's shadow of that light, or the
-                // occluder itself).
-                for gap in 2..=max_gap {
-                    let (c, r) = (col + dc * gap, row + dr * gap);
-                    if c >= width || r >= height {
-                        break;
-                    }
-                    let k = at[(r * width + c) as usize];
-                    if k == u32::MAX
-                        || mixed[k as usize]
-                        || samples[k as usize].surface != p.surface
-                        || samples[k as usize].g <= 0.0
-                    {
-                        continue;
-                    }
-                    let q = &samples[k as usize];
-                    if same_plane(p, q) {
-                        let (ep, eq) = (
-                            m.unknown[i] + p.e_known + p.h_ind,
-                            m.unknown[k as usize] + q.e_known + q.h_ind,
-                        );
-                        let (lp, lq) = (log_b(p), log_b(q));
-                        let step: [f64; 3] = std::array::from_fn(|c| {
-                            lq[c] - lp[c] - (eq[c].max(1e-30) / ep[c].max(1e-30)).ln()
-                        });
-                        measured.push((i as u32, k, gap));
-                        measured_steps.push(step);
-                    }
-                    break;
-                }
-            }
-            if j == u32::MAX || samples[j as usize].surface != p.surface {
-                // Something in front (a table's leg) or nothing at all: link
-                // to the surface where it shows again, if on the same plane
-                // within a gap, so that the region the occluder encloses
-                // (the wall between the legs) is not left on its own.
-                for gap in 2..=max_gap {
-                    let (c, r) = (col + dc * gap, row + dr * gap);
-                    if c >= width || r >= height {
-                        break;
-                    }
-                    let k = at[(r * width + c) as usize];
-                    if k != u32::MAX && samples[k as usize].surface == p.surface {
-                        if same_plane(p, &samples[k as usize]) {
-                            gap_links.push((i as u32, k, gap));
-                        }
-                        break;
-                    }
-                }
-                continue;
-            }
-            if mixed[i] || mixed[j as usize] {
-                let q = &samples[j as usize];
-                match model {
-                    Some(m)
-                        if !m.sharp[i] && !m.sharp[j as usize] && continuous_but_known(p, q) =>
-                    {
-                        // The indirect light is one for both (per pixel it is
-                        // gathered with noise larger than its change here).
-                        let h = 0.5 * (p.h_ind + q.h_ind);
-                        let (ep, eq) = (
-                            m.unknown[i] + p.e_known + h,
-                            m.unknown[j as usize] + q.e_known + h,
-                        );
-                        let (lp, lq) = (log_b(p), log_b(q));
-                        let step: [f64; 3] = std::array::from_fn(|c| {
-                            lq[c] - lp[c] - (eq[c].max(1e-30) / ep[c].max(1e-30)).ln()
-                        });
-                        soft.push((i as u32, j));
-                        soft_steps.push(step);
-                    }
-                    _ => {
-                        if same_plane(p, q) {
-                            links.push((i as u32, j));
-                        }
-                    }
-                }
-                continue;
-            }
-            let q = &samples[j as usize];
-            let (lp, lq) = (log_b(p), log_b(q));
-            let jump = [lq[0] - lp[0], lq[1] - lp[1], lq[2] - lp[2]];
-            leaving[i][dir] = pairs.len() as u32;
-            pairs.push((i as u32, j));
-            directions.push(dir);
-            jumps.push(jump);
-        }
-    }
+    let grid = Grid::new(samples, width, height);
+    let r = relations(&grid, mixed, model);
     // A step across a texture edge also holds the illumination's change
     // over one pixel, and illumination near a light or a corner changes by
     // several percent per pixel: a step is texture only by how much it
     // differs from the steps around it in the same direction (their median:
     // an edge's own two or three anti-aliased steps do not move it).
     let mut arriving = vec![[u32::MAX; 2]; samples.len()];
-    for (k, &(_, j)) in pairs.iter().enumerate() {
-        arriving[j as usize][directions[k]] = k as u32;
+    for (k, &(_, j)) in r.pairs.iter().enumerate() {
+        arriving[j as usize][r.directions[k]] = k as u32;
     }
-    let excess: Vec<[f64; 3]> = (0..pairs.len())
-        .into_par_iter()
-        .map(|k| {
-            let ((i, j), dir) = (pairs[k], directions[k]);
-            let mut around = [0usize; 2 * EDGE_WALK];
-            let mut m = 0;
-            let mut back = arriving[i as usize][dir];
-            let mut ahead = leaving[j as usize][dir];
-            for _ in 0..EDGE_WALK {
-                if back != u32::MAX {
-                    around[m] = back as usize;
-                    m += 1;
-                    back = arriving[pairs[back as usize].0 as usize][dir];
-                }
-                if ahead != u32::MAX {
-                    around[m] = ahead as usize;
-                    m += 1;
-                    ahead = leaving[pairs[ahead as usize].1 as usize][dir];
-                }
-            }
-            std::array::from_fn(|c| {
-                if m == 0 {
-                    return jumps[k][c];
-                }
-                let mut steps = [0.0f64; 2 * EDGE_WALK];
-                for (s, &n) in steps.iter_mut().zip(&around[..m]) {
-                    *s = jumps[n][c];
-                }
-                let steps = &mut steps[..m];
-                steps.sort_by(f64::total_cmp);
-                let slope = if m % 2 == 1 {
-                    steps[m / 2]
-                } else {
-                    0.5 * (steps[m / 2 - 1] + steps[m / 2])
-                };
-                jumps[k][c] - slope
-            })
-        })
-        .collect();
-    // An edge where any channel steps; there every channel keeps its own step.
-    let mut is_edge: Vec<bool> = excess
-        .iter()
-        .map(|x| x.iter().any(|x| x.abs() > edge))
-        .collect();
-    // A texture edge the camera's filter (or the texture's own) spreads
-    // over a few pixels steps less than `edge` per pixel: a pair is also an
-    // edge when the three steps around it, in the same direction, add up to
-    // more than `edge` and its own step is a real part of that (a third).
-    let ramp: Vec<bool> = (0..pairs.len())
-        .map(|k| {
-            if is_edge[k] {
-                return false;
-            }
-            let ((i, j), dir) = (pairs[k], directions[k]);
-            let (before, after) = (arriving[i as usize][dir], leaving[j as usize][dir]);
-            if before == u32::MAX || after == u32::MAX {
-                return false;
-            }
-            (0..3).any(|c| {
-                let span = excess[before as usize][c] + excess[k][c] + excess[after as usize][c];
-                span.abs() > edge
-                    && excess[k][c].abs() > edge / 3.0
-                    && excess[k][c].signum() == span.signum()
-            })
-        })
-        .collect();
-    for (k, r) in ramp.into_iter().enumerate() {
-        is_edge[k] |= r;
-    }
-    let soft_edge: Vec<bool> = soft_steps
-        .iter()
-        .map(|x| x.iter().any(|x| x.abs() > edge))
-        .collect();
-    let measured_edge: Vec<bool> = measured_steps
-        .iter()
-        .map(|x| x.iter().any(|x| x.abs() > edge))
-        .collect();
+    let excess = excess_steps(&r, &arriving);
+    let is_edge = texture_edges(&r, &arriving, &excess, edge);
+    let over = |steps: &[[f64; 3]]| -> Vec<bool> {
+        steps
+            .iter()
+            .map(|x| x.iter().any(|x| x.abs() > edge))
+            .collect()
+    };
+    let (soft_edge, measured_edge) = (over(&r.soft_steps), over(&r.measured_steps));
     let edges = is_edge
         .iter()
         .chain(&soft_edge)
         .chain(&measured_edge)
         .filter(|&&e| e)
         .count();
-    let targets: [Vec<f64>; 3] = std::array::from_fn(|c| {
-        (0..pairs.len())
-            .map(|k| if is_edge[k] { excess[k][c] } else { 0.0 })
-            .chain(
-                soft_steps
-                    .iter()
-                    .zip(&soft_edge)
-                    .map(|(x, &e)| if e { x[c] } else { 0.0 }),
-            )
-            .chain(
-                measured_steps
-                    .iter()
-                    .zip(&measured_edge)
-                    .map(|(x, &e)| if e { x[c] } else { 0.0 }),
-            )
+    let kept = |steps: &[[f64; 3]], is: &[bool], c: usize| -> Vec<f64> {
+        steps
+            .iter()
+            .zip(is)
+            .map(|(x, &e)| if e { x[c] } else { 0.0 })
             .collect()
+    };
+    let targets: [Vec<f64>; 3] = std::array::from_fn(|c| {
+        let mut t = kept(&excess, &is_edge, c);
+        t.extend(kept(&r.soft_steps, &soft_edge, c));
+        t.extend(kept(&r.measured_steps, &measured_edge, c));
+        t
     });
     // A measured step across n pixels weighs as n pairs in series would.
-    let base: Vec<f64> = std::iter::repeat_n(1.0, pairs.len() + soft.len())
-        .chain(measured.iter().map(|&(_, _, gap)| 1.0 / gap as f64))
+    let base: Vec<f64> = std::iter::repeat_n(1.0, r.pairs.len() + r.soft.len())
+        .chain(r.measured.iter().map(|&(_, _, gap)| 1.0 / gap as f64))
         .collect();
-    pairs.extend(soft);
-    pairs.extend(measured.iter().map(|&(i, k, _)| (i, k)));
-    // The photo's noise in a step: the spread of the steps that are
-    // neither texture edges nor illumination (their excess over the steps
-    // around them), as a robust standard deviation.
-    let noise: [f64; 3] = std::array::from_fn(|c| {
-        let mut plain: Vec<f64> = (0..is_edge.len())
-            .filter(|&k| !is_edge[k])
-            .map(|k| excess[k][c].abs())
-            .collect();
-        if plain.is_empty() {
-            return edge;
-        }
-        let m = plain.len() / 2;
-        (1.4826 * *plain.select_nth_unstable_by(m, f64::total_cmp).1).clamp(1e-4, edge)
-    });
+    let mut pairs = r.pairs.clone();
+    pairs.extend(&r.soft);
+    pairs.extend(r.measured.iter().map(|&(i, k, _)| (i, k)));
+    let noise = step_noise(&excess, &is_edge, edge);
     // A link across a gap stands for the links through the pixels it
     // spans, in series: it weighs as much as they would together (a
     // band of mixed pixels ties its sides by such a chain too). The
     // texture may step anywhere behind a table's leg; at full weight
     // these links bent the desk's floor under the table: 95th percentile
     // of the direction error 3.7% of the peak, 3.3% weighed in series.
-    let links: Vec<(u32, u32, f64)> = links
+    let links: Vec<(u32, u32, f64)> = r
+        .links
         .iter()
         .map(|&(i, j)| (i, j, LINK_WEIGHT))
         .chain(
-            gap_links
+            r.gap_links
                 .iter()
                 .map(|&(i, j, gap)| (i, j, LINK_WEIGHT / gap as f64)),
         )
@@ -428,6 +216,308 @@ pub(super) fn remove_texture(
         })
         .collect();
     let (u, weights): (Vec<Vec<f64>>, Vec<Vec<f64>>) = solved.into_iter().unzip();
+    divide_out(samples, &u);
+    (
+        edges,
+        Texture {
+            ln: u,
+            weights,
+            modelled: model.is_some(),
+        },
+    )
+}
+
+/// Samples by pixel, for walking the image.
+struct Grid<'a> {
+    samples: &'a [Sample],
+    at: Vec<u32>,
+    width: u32,
+    height: u32,
+}
+
+impl<'a> Grid<'a> {
+    fn new(samples: &'a [Sample], width: u32, height: u32) -> Self {
+        let mut at = vec![u32::MAX; (width * height) as usize];
+        for (i, s) in samples.iter().enumerate() {
+            at[s.pixel as usize] = i as u32;
+        }
+        Grid {
+            samples,
+            at,
+            width,
+            height,
+        }
+    }
+
+    /// The sample at (col, row), u32::MAX where none.
+    fn sample(&self, col: u32, row: u32) -> u32 {
+        self.at[(row * self.width + col) as usize]
+    }
+}
+
+/// The neighbour relations [`remove_texture`] integrates.
+#[derive(Default)]
+struct Relations {
+    /// Clean neighbours on one plane (i, j), their direction (0:
+    /// rightwards, 1: downwards) and step of ln B per channel: a texture is
+    /// coloured (a brown and cream checkerboard steps differently in each
+    /// channel), so each channel is integrated on its own.
+    pairs: Vec<(u32, u32)>,
+    directions: Vec<usize>,
+    jumps: Vec<[f64; 3]>,
+    /// The pair leaving each pixel rightwards and downwards, if any.
+    leaving: Vec<[u32; 2]>,
+    /// Neighbours on one plane where either pixel is mixed (across a
+    /// shadow's edge, or blending a silhouette in front): what steps there
+    /// is light or another surface, so they say nothing of the texture but
+    /// that it most likely does not step. Without them, a region that
+    /// shadows cut off (the wall under a table) would be integrated on its
+    /// own and its texture level, mean 0, would not match the rest of its
+    /// surface's (where a poster moves the mean).
+    links: Vec<(u32, u32)>,
+    /// The same across something in front, with the gap in pixels.
+    gap_links: Vec<(u32, u32, u32)>,
+    /// Pairs across a known light's soft edge, with their modelled steps.
+    soft: Vec<(u32, u32)>,
+    soft_steps: Vec<[f64; 3]>,
+    /// Clean pixels across a gap, with their steps less the model's.
+    measured: Vec<(u32, u32, u32)>,
+    measured_steps: Vec<[f64; 3]>,
+}
+
+fn log_b(s: &Sample) -> [f64; 3] {
+    s.b.max(DVec3::splat(1e-30)).to_array().map(f64::ln)
+}
+
+/// The step of ln B from `p` to `q` less the modelled step of their light.
+fn modelled_step(p: &Sample, q: &Sample, ep: DVec3, eq: DVec3) -> [f64; 3] {
+    let (lp, lq) = (log_b(p), log_b(q));
+    std::array::from_fn(|c| lq[c] - lp[c] - (eq[c].max(1e-30) / ep[c].max(1e-30)).ln())
+}
+
+/// Sample `i`'s pairs, links and modelled steps rightwards and downwards.
+fn relations(grid: &Grid, mixed: &[bool], model: Option<&PenumbraModel>) -> Relations {
+    let (samples, width, height) = (grid.samples, grid.width, grid.height);
+    let mut r = Relations {
+        leaving: vec![[u32::MAX; 2]; samples.len()],
+        ..Default::default()
+    };
+    for (i, p) in samples.iter().enumerate() {
+        let (col, row) = (p.pixel % width, p.pixel / width);
+        for (dir, (dc, dr)) in [(1u32, 0u32), (0, 1)].into_iter().enumerate() {
+            if col + dc >= width || row + dr >= height {
+                continue;
+            }
+            let j = grid.sample(col + dc, row + dr);
+            let clean_neighbour =
+                j != u32::MAX && samples[j as usize].surface == p.surface && !mixed[j as usize];
+            if let Some(m) = model.filter(|_| !mixed[i] && !clean_neighbour && p.g > 0.0)
+                && let Some((k, gap, step)) = measured_across(grid, mixed, m, i, (dc, dr))
+            {
+                r.measured.push((i as u32, k, gap));
+                r.measured_steps.push(step);
+            }
+            if j == u32::MAX || samples[j as usize].surface != p.surface {
+                r.gap_links.extend(gap_link(grid, i, (dc, dr)));
+                continue;
+            }
+            let q = &samples[j as usize];
+            if mixed[i] || mixed[j as usize] {
+                match model {
+                    Some(m)
+                        if !m.sharp[i] && !m.sharp[j as usize] && continuous_but_known(p, q) =>
+                    {
+                        // The indirect light is one for both (per pixel it is
+                        // gathered with noise larger than its change here).
+                        let h = 0.5 * (p.h_ind + q.h_ind);
+                        let (ep, eq) = (
+                            m.unknown[i] + p.e_known + h,
+                            m.unknown[j as usize] + q.e_known + h,
+                        );
+                        r.soft.push((i as u32, j));
+                        r.soft_steps.push(modelled_step(p, q, ep, eq));
+                    }
+                    _ => {
+                        if same_plane(p, q) {
+                            r.links.push((i as u32, j));
+                        }
+                    }
+                }
+                continue;
+            }
+            let (lp, lq) = (log_b(p), log_b(q));
+            r.leaving[i][dir] = r.pairs.len() as u32;
+            r.pairs.push((i as u32, j));
+            r.directions.push(dir);
+            r.jumps.push([lq[0] - lp[0], lq[1] - lp[1], lq[2] - lp[2]]);
+        }
+    }
+    r
+}
+
+/// Across what the light model reads on both sides: the first clean pixel
+/// of sample `i`'s plane the unknown light reaches beyond, in direction
+/// `(dc, dr)` (past a thin occluder's shadow of that light, or the
+/// occluder itself), with the gap and the step less the model's.
+fn measured_across(
+    grid: &Grid,
+    mixed: &[bool],
+    m: &PenumbraModel,
+    i: usize,
+    (dc, dr): (u32, u32),
+) -> Option<(u32, u32, [f64; 3])> {
+    let (samples, width, height) = (grid.samples, grid.width, grid.height);
+    let p = &samples[i];
+    let (col, row) = (p.pixel % width, p.pixel / width);
+    for gap in 2..=width.max(height) / 8 {
+        let (c, r) = (col + dc * gap, row + dr * gap);
+        if c >= width || r >= height {
+            return None;
+        }
+        let k = grid.sample(c, r);
+        if k == u32::MAX
+            || mixed[k as usize]
+            || samples[k as usize].surface != p.surface
+            || samples[k as usize].g <= 0.0
+        {
+            continue;
+        }
+        let q = &samples[k as usize];
+        if !same_plane(p, q) {
+            return None;
+        }
+        let ep = m.unknown[i] + p.e_known + p.h_ind;
+        let eq = m.unknown[k as usize] + q.e_known + q.h_ind;
+        return Some((k, gap, modelled_step(p, q, ep, eq)));
+    }
+    None
+}
+
+/// Something in front of sample `i` (a table's leg) or nothing at all, in
+/// direction `(dc, dr)`: a link to the surface where it shows again, if on
+/// the same plane within a gap, so that the region the occluder encloses
+/// (the wall between the legs) is not left on its own.
+fn gap_link(grid: &Grid, i: usize, (dc, dr): (u32, u32)) -> Option<(u32, u32, u32)> {
+    let (samples, width, height) = (grid.samples, grid.width, grid.height);
+    let p = &samples[i];
+    let (col, row) = (p.pixel % width, p.pixel / width);
+    for gap in 2..=width.max(height) / 8 {
+        let (c, r) = (col + dc * gap, row + dr * gap);
+        if c >= width || r >= height {
+            return None;
+        }
+        let k = grid.sample(c, r);
+        if k != u32::MAX && samples[k as usize].surface == p.surface {
+            return same_plane(p, &samples[k as usize]).then_some((i as u32, k, gap));
+        }
+    }
+    None
+}
+
+/// Each pair's step less the median of the steps around it in its direction.
+fn excess_steps(r: &Relations, arriving: &[[u32; 2]]) -> Vec<[f64; 3]> {
+    let (pairs, jumps) = (&r.pairs, &r.jumps);
+    (0..pairs.len())
+        .into_par_iter()
+        .map(|k| {
+            let ((i, j), dir) = (pairs[k], r.directions[k]);
+            let mut around = [0usize; 2 * EDGE_WALK];
+            let mut m = 0;
+            let mut back = arriving[i as usize][dir];
+            let mut ahead = r.leaving[j as usize][dir];
+            for _ in 0..EDGE_WALK {
+                if back != u32::MAX {
+                    around[m] = back as usize;
+                    m += 1;
+                    back = arriving[pairs[back as usize].0 as usize][dir];
+                }
+                if ahead != u32::MAX {
+                    around[m] = ahead as usize;
+                    m += 1;
+                    ahead = r.leaving[pairs[ahead as usize].1 as usize][dir];
+                }
+            }
+            std::array::from_fn(|c| {
+                if m == 0 {
+                    return jumps[k][c];
+                }
+                let mut steps = [0.0f64; 2 * EDGE_WALK];
+                for (s, &n) in steps.iter_mut().zip(&around[..m]) {
+                    *s = jumps[n][c];
+                }
+                let steps = &mut steps[..m];
+                steps.sort_by(f64::total_cmp);
+                let slope = if m % 2 == 1 {
+                    steps[m / 2]
+                } else {
+                    0.5 * (steps[m / 2 - 1] + steps[m / 2])
+                };
+                jumps[k][c] - slope
+            })
+        })
+        .collect()
+}
+
+/// The pairs across a texture edge: any channel's excess over `edge` (there
+/// every channel keeps its own step), or a ramp. A texture edge the
+/// camera's filter (or the texture's own) spreads over a few pixels steps
+/// less than `edge` per pixel: a pair is also an edge when the three steps
+/// around it, in the same direction, add up to more than `edge` and its own
+/// step is a real part of that (a third).
+fn texture_edges(
+    r: &Relations,
+    arriving: &[[u32; 2]],
+    excess: &[[f64; 3]],
+    edge: f64,
+) -> Vec<bool> {
+    let mut is_edge: Vec<bool> = excess
+        .iter()
+        .map(|x| x.iter().any(|x| x.abs() > edge))
+        .collect();
+    let ramp: Vec<bool> = (0..r.pairs.len())
+        .map(|k| {
+            if is_edge[k] {
+                return false;
+            }
+            let ((i, j), dir) = (r.pairs[k], r.directions[k]);
+            let (before, after) = (arriving[i as usize][dir], r.leaving[j as usize][dir]);
+            if before == u32::MAX || after == u32::MAX {
+                return false;
+            }
+            (0..3).any(|c| {
+                let span = excess[before as usize][c] + excess[k][c] + excess[after as usize][c];
+                span.abs() > edge
+                    && excess[k][c].abs() > edge / 3.0
+                    && excess[k][c].signum() == span.signum()
+            })
+        })
+        .collect();
+    for (k, r) in ramp.into_iter().enumerate() {
+        is_edge[k] |= r;
+    }
+    is_edge
+}
+
+/// The photo's noise in a step: the spread of the steps that are neither
+/// texture edges nor illumination (their excess over the steps around
+/// them), as a robust standard deviation.
+fn step_noise(excess: &[[f64; 3]], is_edge: &[bool], edge: f64) -> [f64; 3] {
+    std::array::from_fn(|c| {
+        let mut plain: Vec<f64> = (0..is_edge.len())
+            .filter(|&k| !is_edge[k])
+            .map(|k| excess[k][c].abs())
+            .collect();
+        if plain.is_empty() {
+            return edge;
+        }
+        let m = plain.len() / 2;
+        (1.4826 * *plain.select_nth_unstable_by(m, f64::total_cmp).1).clamp(1e-4, edge)
+    })
+}
+
+/// Divides each sample's radiosity by its texture exp(u), scaled to area
+/// mean 1 per surface.
+fn divide_out(samples: &mut [Sample], u: &[Vec<f64>]) {
     let mut mean: HashMap<u32, (DVec3, f64)> = HashMap::new();
     let texture_at = |k: usize| DVec3::new(u[0][k].exp(), u[1][k].exp(), u[2][k].exp());
     for (k, s) in samples.iter().enumerate() {
@@ -444,14 +534,6 @@ pub(super) fn remove_texture(
             samples[k].b /= texture;
         }
     }
-    (
-        edges,
-        Texture {
-            ln: u,
-            weights,
-            modelled: model.is_some(),
-        },
-    )
 }
 
 /// A texture [`remove_texture`] found: ln per channel and sample, and the

@@ -3,31 +3,44 @@
 
 use super::*;
 
-/// Visibility of one light from x through the two worlds, by the oracle.
-/// `before`: for a term computed before, its geometry factor (when
+/// A light and what its terms are traced against.
+#[derive(Clone, Copy)]
+pub(super) struct LightQuery<'a> {
+    pub(super) tracer: &'a Tracer,
+    pub(super) light: &'a LightSource,
+    pub(super) bounds: &'a VirtualBounds,
+    pub(super) settings: PdaSettings,
+}
+
+/// The point a term is for: position, normal, the object whose solid the
+/// point's face is clear of (if any), and the seed of its samples.
+#[derive(Clone, Copy)]
+pub(super) struct TermPoint {
+    pub(super) x: DVec3,
+    pub(super) n: DVec3,
+    pub(super) own: Option<usize>,
+    pub(super) seed: u64,
+}
+
+/// Visibility of one light from a point through the two worlds, by the
+/// oracle. `before`: for a term computed before, its geometry factor (when
 /// positive) and whether the objects may shadow x now (the pixel-block
 /// traversal's answer; where it differs from [`VirtualBounds::may_shadow`],
 /// one of the two excludes the objects and their rays meet nothing);
 /// `real`: the real blockers already known for these samples, where rays
 /// traced through the room are kept (a real point's; samples beyond
 /// [`RealMask::MAX_SAMPLES`] are always traced).
-#[allow(clippy::too_many_arguments)]
 pub(super) fn light_term(
-    tracer: &Tracer,
-    light: &LightSource,
-    bounds: &VirtualBounds,
-    own: Option<usize>,
-    x: DVec3,
-    n: DVec3,
-    seed: u64,
-    settings: PdaSettings,
+    q: LightQuery,
+    p: TermPoint,
     before: Option<(f32, bool)>,
-    mut real: Option<&mut RealMask>,
+    real: Option<&mut RealMask>,
 ) -> (LightTerm, u64) {
+    let light = q.light;
     let unoccluded = match before {
         Some((u, _)) if u > 0.0 => u,
         _ => {
-            let g = light.unoccluded_irradiance(x, n);
+            let g = light.unoccluded_irradiance(p.x, p.n);
             let colour = light.colour().max_element();
             if g == DVec3::ZERO || colour <= 0.0 {
                 return (LightTerm::default(), 0);
@@ -35,16 +48,87 @@ pub(super) fn light_term(
             (g.max_element() / colour) as f32
         }
     };
-    let check_virtual = before.map_or_else(|| bounds.may_shadow(x, light, own), |(_, may)| may);
-    // On a face clear of its own solid (and no other object near), what
-    // the solid blocks is known without tracing: whatever lies behind the
-    // face, which a ray reaches only through the solid — and everything
-    // when the light's centre is behind it, as the rays then leave from
-    // the solid's side of the face ([`offset_origin`]).
-    let own_blocks = |y: DVec3| own.is_some() && own_blocks(x, n, light.position, y);
-    let origin = offset_origin(x, n, light.position);
+    let t = Tracing {
+        q,
+        p,
+        origin: offset_origin(p.x, p.n, light.position),
+        unoccluded,
+        check_virtual: before
+            .map_or_else(|| q.bounds.may_shadow(p.x, light, p.own), |(_, may)| may),
+    };
     let Some(grid) = &light.grid else {
-        let ray = segment(origin, light.position);
+        return t.point_light(real);
+    };
+    // Buffers for the most rays one call may cast: on the stack for the
+    // usual budgets (filling 256 entries per pixel and light, whatever the
+    // budget, cost more than the shading around it), on the heap beyond.
+    let settings = q.settings;
+    let most = 1usize
+        << settings
+            .min_level
+            .max(settings.penumbra_level)
+            .min(crate::light::MAX_GRID_LEVEL);
+    const SMALL: usize = 16;
+    let blank = TraceRay::new(glam::Vec3::ZERO, glam::Vec3::Z);
+    if most <= SMALL {
+        t.area_light(
+            grid,
+            real,
+            Buffers {
+                targets: &mut [DVec3::ZERO; SMALL],
+                rays: &mut [blank; SMALL],
+                real_blocked: &mut [false; SMALL],
+                virt_blocked: &mut [false; SMALL],
+            },
+        )
+    } else {
+        t.area_light(
+            grid,
+            real,
+            Buffers {
+                targets: &mut vec![DVec3::ZERO; most],
+                rays: &mut vec![blank; most],
+                real_blocked: &mut vec![false; most],
+                virt_blocked: &mut vec![false; most],
+            },
+        )
+    }
+}
+
+/// One term being traced.
+struct Tracing<'a> {
+    q: LightQuery<'a>,
+    p: TermPoint,
+    /// The rays' origin, off the surface.
+    origin: DVec3,
+    unoccluded: f32,
+    /// Whether rays go through the objects (else only the point's own
+    /// solid, known without tracing, may block).
+    check_virtual: bool,
+}
+
+/// Per-sample buffers of one term.
+struct Buffers<'b> {
+    targets: &'b mut [DVec3],
+    rays: &'b mut [TraceRay],
+    real_blocked: &'b mut [bool],
+    virt_blocked: &'b mut [bool],
+}
+
+impl Tracing<'_> {
+    /// On a face clear of its own solid (and no other object near), what
+    /// the solid blocks is known without tracing: whatever lies behind the
+    /// face, which a ray reaches only through the solid — and everything
+    /// when the light's centre is behind it, as the rays then leave from
+    /// the solid's side of the face ([`offset_origin`]).
+    fn own_blocks(&self, y: DVec3) -> bool {
+        self.p.own.is_some() && own_blocks(self.p.x, self.p.n, self.q.light.position, y)
+    }
+
+    /// A point light: one ray.
+    fn point_light(&self, real: Option<&mut RealMask>) -> (LightTerm, u64) {
+        let (tracer, position) = (self.q.tracer, self.q.light.position);
+        let ray = segment(self.origin, position);
         let (real_visible, mut rays_cast) = match real.as_ref().and_then(|m| m.get(false)) {
             Some(bits) => (bits == 0, 0),
             None => {
@@ -56,49 +140,46 @@ pub(super) fn light_term(
             }
         };
         let all = real_visible
-            && !if check_virtual {
+            && !if self.check_virtual {
                 tracer.occluded(&ray, Layer::Virtual)
             } else {
-                own_blocks(light.position)
+                self.own_blocks(position)
             };
-        rays_cast += (real_visible && check_virtual) as u64;
+        rays_cast += (real_visible && self.check_virtual) as u64;
         let f = |b: bool| if b { 1.0 } else { 0.0 };
-        return (
-            LightTerm::new(unoccluded, f(real_visible), f(all)),
+        (
+            LightTerm::new(self.unoccluded, f(real_visible), f(all)),
             rays_cast,
-        );
-    };
-    // Buffers for the most rays one call may cast: on the stack for the
-    // usual budgets (filling 256 entries per pixel and light, whatever the
-    // budget, cost more than the shading around it), on the heap beyond.
-    let most = 1usize
-        << settings
-            .min_level
-            .max(settings.penumbra_level)
-            .min(crate::light::MAX_GRID_LEVEL);
-    const SMALL: usize = 16;
-    let mut run = |targets: &mut [DVec3],
-                   rays: &mut [TraceRay],
-                   real_blocked: &mut [bool],
-                   virt_blocked: &mut [bool]|
-     -> (LightTerm, u64) {
+        )
+    }
+
+    /// An area light: its samples at the base level, and at the penumbra
+    /// level where they disagree.
+    fn area_light(
+        &self,
+        grid: &crate::light::JitteredGrid,
+        mut real: Option<&mut RealMask>,
+        b: Buffers,
+    ) -> (LightTerm, u64) {
+        let (tracer, light, settings) = (self.q.tracer, self.q.light, self.q.settings);
         let mut level = settings.min_level;
         let mut rays_cast = 0u64;
         loop {
             let mut count = 0;
-            for st in grid.samples(level, seed) {
-                targets[count] = light.point_at(st);
-                rays[count] = segment(origin, targets[count]);
+            for st in grid.samples(level, self.p.seed) {
+                b.targets[count] = light.point_at(st);
+                b.rays[count] = segment(self.origin, b.targets[count]);
                 count += 1;
             }
             let penumbra = level != settings.min_level;
             let keep = real
                 .as_deref_mut()
                 .filter(|_| count <= RealMask::MAX_SAMPLES);
+            let real_blocked = &mut b.real_blocked[..count];
             match keep.as_ref().and_then(|m| m.get(penumbra)) {
                 Some(bits) => (0..count).for_each(|k| real_blocked[k] = bits >> k & 1 == 1),
                 None => {
-                    tracer.occluded_batch(&rays[..count], Layer::Real, &mut real_blocked[..count]);
+                    tracer.occluded_batch(&b.rays[..count], Layer::Real, real_blocked);
                     rays_cast += count as u64;
                     if let Some(m) = keep {
                         m.set(
@@ -108,12 +189,13 @@ pub(super) fn light_term(
                     }
                 }
             }
-            if check_virtual {
-                tracer.occluded_batch(&rays[..count], Layer::Virtual, &mut virt_blocked[..count]);
+            let virt_blocked = &mut b.virt_blocked[..count];
+            if self.check_virtual {
+                tracer.occluded_batch(&b.rays[..count], Layer::Virtual, virt_blocked);
                 rays_cast += count as u64;
             } else {
                 for k in 0..count {
-                    virt_blocked[k] = own_blocks(targets[k]);
+                    virt_blocked[k] = self.own_blocks(b.targets[k]);
                 }
             }
             // Which rays the room blocks, and which it or the objects block:
@@ -138,41 +220,37 @@ pub(super) fn light_term(
             if !real_mixed && !all_mixed {
                 let settled = |some: bool| if some { 0.0 } else { 1.0 };
                 return (
-                    LightTerm::new(unoccluded, settled(real_some), settled(all_some)),
+                    LightTerm::new(self.unoccluded, settled(real_some), settled(all_some)),
                     rays_cast,
                 );
             }
-            // Each ray weighs what its sample contributes at x.
-            let (mut total, mut real, mut all) = (0.0, 0.0, 0.0);
-            for k in 0..count {
-                let w = crate::light::point_contribution(targets[k], x, n, |d| light.intensity(d))
-                    .max_element();
-                total += w;
-                if !real_blocked[k] {
-                    real += w;
-                    if !virt_blocked[k] {
-                        all += w;
-                    }
+            let (real, all) = self.weighted(&b.targets[..count], real_blocked, virt_blocked);
+            return (LightTerm::new(self.unoccluded, real, all), rays_cast);
+        }
+    }
+
+    /// The fractions of the light through the room, and through the room
+    /// and the objects, each ray weighing what its sample contributes at x.
+    fn weighted(
+        &self,
+        targets: &[DVec3],
+        real_blocked: &[bool],
+        virt_blocked: &[bool],
+    ) -> (f64, f64) {
+        let (x, n, light) = (self.p.x, self.p.n, self.q.light);
+        let (mut total, mut real, mut all) = (0.0, 0.0, 0.0);
+        for k in 0..targets.len() {
+            let w = crate::light::point_contribution(targets[k], x, n, |d| light.intensity(d))
+                .max_element();
+            total += w;
+            if !real_blocked[k] {
+                real += w;
+                if !virt_blocked[k] {
+                    all += w;
                 }
             }
-            let frac = |v: f64| if total > 0.0 { v / total } else { 0.0 };
-            return (LightTerm::new(unoccluded, frac(real), frac(all)), rays_cast);
         }
-    };
-    let blank = TraceRay::new(glam::Vec3::ZERO, glam::Vec3::Z);
-    if most <= SMALL {
-        run(
-            &mut [DVec3::ZERO; SMALL],
-            &mut [blank; SMALL],
-            &mut [false; SMALL],
-            &mut [false; SMALL],
-        )
-    } else {
-        run(
-            &mut vec![DVec3::ZERO; most],
-            &mut vec![blank; most],
-            &mut vec![false; most],
-            &mut vec![false; most],
-        )
+        let frac = |v: f64| if total > 0.0 { v / total } else { 0.0 };
+        (frac(real), frac(all))
     }
 }

@@ -100,17 +100,34 @@ fn a_face_clear_of_its_solid_gets_the_light_tracing_the_solid_gives() {
             for (l, light) in lights.iter().enumerate() {
                 let seed = (k * 16 + i * 4 + l) as u64;
                 let (traced, all_rays) = light_term(
-                    &tracer, light, &bounds, None, x, n, seed, settings, None, None,
+                    LightQuery {
+                        tracer: &tracer,
+                        light,
+                        bounds: &bounds,
+                        settings,
+                    },
+                    TermPoint {
+                        x,
+                        n,
+                        own: None,
+                        seed,
+                    },
+                    None,
+                    None,
                 );
                 let (known, fewer) = light_term(
-                    &tracer,
-                    light,
-                    &bounds,
-                    Some(0),
-                    x,
-                    n,
-                    seed,
-                    settings,
+                    LightQuery {
+                        tracer: &tracer,
+                        light,
+                        bounds: &bounds,
+                        settings,
+                    },
+                    TermPoint {
+                        x,
+                        n,
+                        own: Some(0),
+                        seed,
+                    },
                     None,
                     None,
                 );
@@ -284,27 +301,35 @@ fn an_object_the_room_cannot_shadow_gets_the_light_tracing_the_room_gives() {
                 for (l, light) in lights.iter().enumerate() {
                     let seed = (k * 16 + i * 4 + l) as u64;
                     let (traced, all_rays) = light_term(
-                        &tracer,
-                        light,
-                        &bounds,
-                        Some(0),
-                        x,
-                        n,
-                        seed,
-                        settings,
+                        LightQuery {
+                            tracer: &tracer,
+                            light,
+                            bounds: &bounds,
+                            settings,
+                        },
+                        TermPoint {
+                            x,
+                            n,
+                            own: Some(0),
+                            seed,
+                        },
                         None,
                         None,
                     );
                     let mut clear = RealMask::CLEAR;
                     let (known, fewer) = light_term(
-                        &tracer,
-                        light,
-                        &bounds,
-                        Some(0),
-                        x,
-                        n,
-                        seed,
-                        settings,
+                        LightQuery {
+                            tracer: &tracer,
+                            light,
+                            bounds: &bounds,
+                            settings,
+                        },
+                        TermPoint {
+                            x,
+                            n,
+                            own: Some(0),
+                            seed,
+                        },
                         None,
                         expected[l].then_some(&mut clear),
                     );

@@ -223,34 +223,43 @@ pub(super) struct Criteria {
     pub(super) forced: Vec<(usize, Layer)>,
 }
 
-/// One round of Fig. 12 over the current leaves; returns the splits added to `marks`.
-#[allow(clippy::too_many_arguments)]
-pub(super) fn refine_round(
-    patches: &Patches,
-    hits: &[Option<RealHit>],
-    photo: &Image,
-    pixel_angle: f64,
-    white: f64,
-    lights: &[LightSource],
-    criteria: &Criteria,
-    tracer: &Tracer,
-    settings: &TextureSettings,
-    cache: &mut TermCache,
-    marks: &mut SplitMarks,
-    stats: &mut TextureStats,
-) -> usize {
-    let n = patches.patch_count();
-    let lp = leaf_pixels(patches, hits, photo, pixel_angle);
-    let seen = |k: usize| lp.count[k] > 0;
-    let lab: Vec<DVec3> = lp.mean.iter().map(|c| cielab(*c, white)).collect();
-    // Every (light, layer) the criteria look at.
-    let mut wanted: Vec<(usize, Layer)> =
-        criteria.texture.iter().map(|&l| (l, Layer::Real)).collect();
-    wanted.extend(criteria.forced.iter().copied());
-    wanted.dedup();
-    let terms = |els: &[Element], cache: &mut HashMap<_, LightTerm>| -> Vec<Vec<LightTerm>> {
-        // Compute what the cache lacks in parallel, then read.
-        for &(l, layer) in &wanted {
+/// What every round of the texture-based refinement reads.
+pub(super) struct Refiner<'a> {
+    pub(super) hits: &'a [Option<RealHit>],
+    pub(super) photo: &'a Image,
+    pub(super) pixel_angle: f64,
+    /// CIELAB's white.
+    pub(super) white: f64,
+    pub(super) lights: &'a [LightSource],
+    pub(super) criteria: &'a Criteria,
+    pub(super) tracer: &'a Tracer,
+    pub(super) settings: &'a TextureSettings,
+}
+
+impl Refiner<'_> {
+    /// Every (light, layer) the criteria look at.
+    fn wanted(&self) -> Vec<(usize, Layer)> {
+        let mut wanted: Vec<(usize, Layer)> = self
+            .criteria
+            .texture
+            .iter()
+            .map(|&l| (l, Layer::Real))
+            .collect();
+        wanted.extend(self.criteria.forced.iter().copied());
+        wanted.dedup();
+        wanted
+    }
+
+    /// The light terms of `els` for each wanted (light, layer): what the
+    /// cache lacks is computed in parallel, then read.
+    fn terms(
+        &self,
+        patches: &Patches,
+        wanted: &[(usize, Layer)],
+        els: &[Element],
+        cache: &mut TermCache,
+    ) -> Vec<Vec<LightTerm>> {
+        for &(l, layer) in wanted {
             let all = layer == Layer::All;
             let missing: Vec<&Element> = els
                 .iter()
@@ -262,10 +271,10 @@ pub(super) fn refine_round(
                     element_light(
                         &el.shape,
                         el.normal,
-                        &lights[l],
-                        tracer,
+                        &self.lights[l],
+                        self.tracer,
                         layer,
-                        settings.light_level,
+                        self.settings.light_level,
                         element_seed(patches, el),
                     )
                 })
@@ -282,20 +291,91 @@ pub(super) fn refine_round(
                     .collect()
             })
             .collect()
-    };
-    let leaves: Vec<Element> = (0..n).map(|k| patches.patch(k).clone()).collect();
-    let eligible: Vec<usize> = (0..n)
-        .filter(|&k| {
-            seen(k)
-                && !patches.is_virtual_surface(leaves[k].surface)
-                && leaves[k].shape.size() >= settings.min_leaf_pixels * lp.footprint[k]
-        })
-        .collect();
-    let vis: Vec<Vec<f64>> = terms(&leaves, cache)
-        .iter()
-        .map(|t| t.iter().map(LightTerm::visibility).collect())
-        .collect();
-    let halves: Vec<Element> = eligible
+    }
+
+    /// One round of Fig. 12 over the current leaves; returns the splits added to `marks`.
+    pub(super) fn round(
+        &self,
+        patches: &Patches,
+        cache: &mut TermCache,
+        marks: &mut SplitMarks,
+        stats: &mut TextureStats,
+    ) -> usize {
+        let n = patches.patch_count();
+        let settings = self.settings;
+        let lp = leaf_pixels(patches, self.hits, self.photo, self.pixel_angle);
+        let seen = |k: usize| lp.count[k] > 0;
+        let lab: Vec<DVec3> = lp.mean.iter().map(|c| cielab(*c, self.white)).collect();
+        let wanted = self.wanted();
+        let leaves: Vec<Element> = (0..n).map(|k| patches.patch(k).clone()).collect();
+        let eligible: Vec<usize> = (0..n)
+            .filter(|&k| {
+                seen(k)
+                    && !patches.is_virtual_surface(leaves[k].surface)
+                    && leaves[k].shape.size() >= settings.min_leaf_pixels * lp.footprint[k]
+            })
+            .collect();
+        let vis: Vec<Vec<f64>> = self
+            .terms(patches, &wanted, &leaves, cache)
+            .iter()
+            .map(|t| t.iter().map(LightTerm::visibility).collect())
+            .collect();
+        let halves = halves(&leaves, &eligible);
+        let half_terms = self.terms(patches, &wanted, &halves, cache);
+        let near = neighbours(patches, n);
+        let tau = settings.visibility_threshold;
+        let texture_count = self.criteria.texture.len();
+        let mut added = 0;
+        for (i, &k) in eligible.iter().enumerate() {
+            let (a, b) = (&half_terms[2 * i], &half_terms[2 * i + 1]);
+            // Fig. 12: colour against visibility, with each neighbour.
+            let partial = vis[k].iter().any(|&v| v > tau && v < 1.0 - tau);
+            let mut split_it = partial;
+            for &m in &near[k] {
+                let m = m as usize;
+                if split_it || !seen(m) {
+                    continue;
+                }
+                let similar_colour = colour_distance(lab[k], lab[m]) < settings.colour_threshold;
+                let differ = |range: std::ops::Range<usize>| {
+                    range
+                        .into_iter()
+                        .any(|j| (vis[k][j] - vis[m][j]).abs() >= tau)
+                };
+                let texture_vis_differs = differ(0..texture_count);
+                // Inserted lights and objects: visibility alone decides.
+                let forced_differs = differ(texture_count..wanted.len());
+                split_it = (similar_colour && texture_vis_differs)
+                    || (!similar_colour && !texture_vis_differs && texture_count > 0)
+                    || forced_differs;
+            }
+            if !split_it {
+                continue;
+            }
+            // Undone when the halves see every light as the leaf does.
+            let changes = (0..wanted.len()).any(|j| {
+                (a[j].visibility() - vis[k][j]).abs() >= tau
+                    || (b[j].visibility() - vis[k][j]).abs() >= tau
+            });
+            if changes {
+                stats.splits += 1;
+                let el = &leaves[k];
+                marks
+                    .entry(patches.root_ordinal(el.root))
+                    .or_default()
+                    .push((region_centre(&el.region), el.shape.size()));
+                added += 1;
+            } else {
+                stats.undone += 1;
+            }
+        }
+        added
+    }
+}
+
+/// The two halves of each eligible leaf, in order.
+fn halves(leaves: &[Element], eligible: &[usize]) -> Vec<Element> {
+    eligible
         .iter()
         .flat_map(|&k| {
             let el = &leaves[k];
@@ -312,57 +392,5 @@ pub(super) fn refine_round(
                 ..el.clone()
             })
         })
-        .collect();
-    let half_terms = terms(&halves, cache);
-    let near = neighbours(patches, n);
-    let tau = settings.visibility_threshold;
-    let texture_count = criteria.texture.len();
-    let mut added = 0;
-    let mut mark = |k: usize, marks: &mut SplitMarks| {
-        let el = &leaves[k];
-        marks
-            .entry(patches.root_ordinal(el.root))
-            .or_default()
-            .push((region_centre(&el.region), el.shape.size()));
-        added += 1;
-    };
-    for (i, &k) in eligible.iter().enumerate() {
-        let (a, b) = (&half_terms[2 * i], &half_terms[2 * i + 1]);
-        // Fig. 12: colour against visibility, with each neighbour.
-        let partial = vis[k].iter().any(|&v| v > tau && v < 1.0 - tau);
-        let mut split_it = partial;
-        for &m in &near[k] {
-            let m = m as usize;
-            if split_it || !seen(m) {
-                continue;
-            }
-            let similar_colour = colour_distance(lab[k], lab[m]) < settings.colour_threshold;
-            let differ = |range: std::ops::Range<usize>| {
-                range
-                    .into_iter()
-                    .any(|j| (vis[k][j] - vis[m][j]).abs() >= tau)
-            };
-            let texture_vis_differs = differ(0..texture_count);
-            // Inserted lights and objects: visibility alone decides.
-            let forced_differs = differ(texture_count..wanted.len());
-            split_it = (similar_colour && texture_vis_differs)
-                || (!similar_colour && !texture_vis_differs && texture_count > 0)
-                || forced_differs;
-        }
-        if !split_it {
-            continue;
-        }
-        // Undone when the halves see every light as the leaf does.
-        let changes = (0..wanted.len()).any(|j| {
-            (a[j].visibility() - vis[k][j]).abs() >= tau
-                || (b[j].visibility() - vis[k][j]).abs() >= tau
-        });
-        if changes {
-            stats.splits += 1;
-            mark(k, marks);
-        } else {
-            stats.undone += 1;
-        }
-    }
-    added
+        .collect()
 }

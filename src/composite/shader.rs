@@ -1,0 +1,277 @@
+//! Per-pixel shading for [`composite_into`]: plain real pixels, edge pixels
+//! (their sub-pixels averaged), virtual pixels, and an update's image alone
+//! a row at a time.
+
+use super::*;
+use crate::pda::EdgePixel;
+
+/// What shading a pixel reads: the input, and per row the columns where an
+/// object or an edge may show.
+pub(super) struct Shader<'a> {
+    input: &'a CompositeInput<'a>,
+    pda: &'a PixelDataArray,
+    lights: usize,
+    /// Without prepared pixels (a still image) each is prepared as it is shaded.
+    floor: DVec3,
+    /// Per row, the columns from the first to past the last pixel showing
+    /// an object or mixing real and virtual sub-pixels (none: start ≥ end).
+    /// Outside them a pixel shows a real point alone, or nothing: most
+    /// pixels need neither the virtual index nor the edge list.
+    spans: Vec<(u32, u32)>,
+}
+
+impl<'a> Shader<'a> {
+    pub(super) fn new(input: &'a CompositeInput<'a>) -> Self {
+        let pda = input.pda;
+        let floor = input
+            .known
+            .map_or_else(|| RealPixels::floor_of(input), |k| k.floor);
+        let (w, h) = (pda.width, pda.height);
+        let mut spans = vec![(u32::MAX, 0u32); h as usize];
+        for &p in pda
+            .virtual_pixels
+            .iter()
+            .chain(pda.edges.iter().map(|e| &e.pixel))
+        {
+            let (x, y) = (p % w, (p / w) as usize);
+            spans[y] = (spans[y].0.min(x), spans[y].1.max(x + 1));
+        }
+        Shader {
+            input,
+            pda,
+            lights: pda.light_count,
+            floor,
+            spans,
+        }
+    }
+
+    fn in_span(&self, i: usize) -> bool {
+        let w = self.pda.width as usize;
+        let (x0, x1) = self.spans[i / w];
+        (x0..x1).contains(&((i % w) as u32))
+    }
+
+    /// Pixel `i`'s edge entry, if it mixes sub-pixels (edges are in pixel order).
+    fn edge_at(&self, i: usize) -> Option<EdgePixel> {
+        let edges = &self.pda.edges;
+        self.in_span(i)
+            .then(|| edges.binary_search_by_key(&(i as u32), |e| e.pixel).ok())
+            .flatten()
+            .map(|k| edges[k])
+    }
+
+    /// An edge pixel's shade, its virtual coverage and the objects' part of
+    /// it: the mean of its sub-pixels.
+    fn shade_edge(&self, i: usize, e: EdgePixel) -> (Shade, f32, DVec3) {
+        let (input, pda, lights) = (self.input, self.pda, self.lights);
+        let photo = input.photo.pixels[i].as_dvec3();
+        let mut sum = Shade {
+            value: DVec3::ZERO,
+            direct: DVec3::ZERO,
+            indirect: DVec3::ZERO,
+            copied: false,
+            fallback: false,
+            clamped: false,
+        };
+        let mut virtual_count = 0;
+        let mut object = DVec3::ZERO;
+        for k in e.start..e.start + e.count {
+            let p = &pda.edge_samples.points[k as usize];
+            let terms = match pda.real_index[i] {
+                r if p.pixel_terms && r != u32::MAX => {
+                    &pda.real.terms[r as usize * lights..(r as usize + 1) * lights]
+                }
+                _ => &pda.edge_samples.terms[k as usize * lights..(k as usize + 1) * lights],
+            };
+            let s = if p.is_virtual {
+                virtual_count += 1;
+                let s = input.shade_virtual(p, terms);
+                object += s.value;
+                s
+            } else {
+                let direct = input.irradiance(terms, input.scales_with, true);
+                input.real_pixel(p, terms, photo, self.floor).shade(
+                    input.interpolate(input.indirect_with, &p.location),
+                    photo,
+                    direct,
+                )
+            };
+            sum.value += s.value;
+            sum.direct += s.direct;
+            sum.indirect += s.indirect;
+            sum.fallback |= s.fallback;
+            sum.clamped |= s.clamped;
+        }
+        // Sub-pixels that see no surface keep the photo's background.
+        let total = (pda.supersample * pda.supersample) as f64;
+        sum.value += photo * (total - e.count as f64);
+        (
+            Shade {
+                value: sum.value / total,
+                direct: sum.direct / total,
+                indirect: sum.indirect / total,
+                ..sum
+            },
+            virtual_count as f32 / total as f32,
+            object / total,
+        )
+    }
+
+    /// A pixel's shade, its virtual coverage and the objects' part of it.
+    fn shade(&self, i: usize) -> (Shade, f32, DVec3) {
+        let (pda, lights) = (self.pda, self.lights);
+        if let Some(e) = self.edge_at(i) {
+            return self.shade_edge(i, e);
+        }
+        if pda.virtual_index[i] != u32::MAX {
+            let k = pda.virtual_index[i] as usize;
+            let s = self.input.shade_virtual(
+                &pda.virtual_samples.points[k],
+                &pda.virtual_samples.terms[k * lights..(k + 1) * lights],
+            );
+            let object = s.value;
+            return (s, 1.0, object);
+        }
+        let photo = self.input.photo.pixels[i].as_dvec3();
+        (
+            Shade {
+                value: photo,
+                direct: DVec3::ZERO,
+                indirect: DVec3::ZERO,
+                copied: true,
+                fallback: false,
+                clamped: false,
+            },
+            0.0,
+            DVec3::ZERO,
+        )
+    }
+
+    /// A pixel that shows a real point alone; None for any other.
+    pub(super) fn plain(&self, i: usize, h_with: &[[Vec3A; 4]]) -> Option<PixelShade> {
+        let (input, pda, lights) = (self.input, self.pda, self.lights);
+        let photo = &input.photo.pixels;
+        let k = pda.real_index[i];
+        if k == u32::MAX
+            || self.in_span(i) && (pda.virtual_index[i] != u32::MAX || self.edge_at(i).is_some())
+        {
+            return None;
+        }
+        let k = k as usize;
+        let terms = &pda.real.terms[k * lights..(k + 1) * lights];
+        let r = match input.known {
+            Some(known) => known.get(k),
+            None => input.real_pixel(&pda.real.points[k], terms, photo[i].as_dvec3(), self.floor),
+        };
+        let mut s = r.layers(
+            interpolate_single(&h_with[r.patch()], r.affine.weights),
+            &photo[i],
+        );
+        if input.layers {
+            s.direct = input.irradiance(terms, input.scales_with, true).as_vec3();
+        }
+        Some(s)
+    }
+
+    /// Any pixel [`Shader::plain`] does not take.
+    pub(super) fn other(&self, i: usize) -> PixelShade {
+        let (s, a, object) = self.shade(i);
+        // Copied pixels keep the photo's exact bits.
+        let value: Vec3 = if s.copied {
+            self.input.photo.pixels[i]
+        } else {
+            s.value.as_vec3()
+        };
+        PixelShade {
+            value,
+            direct: s.direct.as_vec3(),
+            indirect: s.indirect.as_vec3(),
+            alpha: a,
+            object: object.as_vec3(),
+            copied: s.copied,
+            fallback: s.fallback,
+            clamped: s.clamped,
+        }
+    }
+
+    /// An update's image alone: a row at a time over plain slices, the
+    /// prepared real pixels shaded in place (what [`Shader::plain`] does,
+    /// without a pixel's layers passed back).
+    pub(super) fn image_only(
+        &self,
+        known: &RealPixels,
+        h_with: &[[Vec3A; 4]],
+        out: &mut Composite,
+    ) {
+        let (input, pda) = (self.input, self.pda);
+        let photo = &input.photo.pixels;
+        let may_keep = known.may_keep(h_with, input.patch_vertices);
+        let tables = PlainTables {
+            affine: &known.affine,
+            bands: &known.keep,
+            h_with,
+            may_keep: &may_keep,
+            // With an object in the room nearly no patch may keep the
+            // photo: then no pixel looks its patch up.
+            any_keep: may_keep.iter().any(|k| *k),
+        };
+        let w = (pda.width as usize).max(1);
+        let rows = out
+            .image
+            .pixels
+            .par_chunks_mut(w)
+            .zip(out.alpha.par_chunks_mut(w))
+            .enumerate();
+        let counts = rows
+            .map(|(row, (image, alpha))| {
+                let at = row * w..row * w + image.len();
+                let (real, virt, photo_row) = (
+                    &pda.real_index[at.clone()],
+                    &pda.virtual_index[at.clone()],
+                    &photo[at],
+                );
+                // Outside the columns where objects or edges may show,
+                // every pixel is plain: a loop that asks nothing else.
+                let (x0, x1) = match self.spans[row] {
+                    (a, b) if a < b => (a as usize, b as usize),
+                    _ => (image.len(), image.len()),
+                };
+                let mut counts = Counts::default();
+                tables.run(
+                    &mut image[..x0],
+                    &mut alpha[..x0],
+                    &real[..x0],
+                    &photo_row[..x0],
+                    &mut counts,
+                );
+                tables.run(
+                    &mut image[x1..],
+                    &mut alpha[x1..],
+                    &real[x1..],
+                    &photo_row[x1..],
+                    &mut counts,
+                );
+                for x in x0..x1 {
+                    let k = real[x];
+                    if k == u32::MAX || virt[x] != u32::MAX || self.edge_at(row * w + x).is_some() {
+                        let s = self.other(row * w + x);
+                        image[x] = s.value;
+                        alpha[x] = s.alpha;
+                        counts.add(s.copied, s.fallback, s.clamped);
+                        continue;
+                    }
+                    tables.pixel(
+                        k as usize,
+                        &photo_row[x],
+                        &mut image[x],
+                        &mut alpha[x],
+                        &mut counts,
+                    );
+                }
+                counts
+            })
+            .reduce(Counts::default, Counts::sum);
+        (out.copied, out.ratio_fallbacks, out.clamped) =
+            (counts.copied, counts.fallbacks, counts.clamped);
+    }
+}
