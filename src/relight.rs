@@ -221,6 +221,32 @@ impl<'a> Setup<'a> {
         (patches, marks)
     }
 
+    /// The mesh with the inserted objects, the direct light through them
+    /// and the links with them (the room's as given when there is none).
+    fn with_objects(
+        &self,
+        patches: Patches,
+        direct: Vec<Vec<LightTerm>>,
+        transport: Transport,
+        marks: &SplitMarks,
+        times: &mut StageTimes,
+    ) -> (Patches, Vec<Vec<LightTerm>>, Transport) {
+        if !self.has_objects {
+            return (patches, direct, transport);
+        }
+        let (tracer, settings) = (self.tracer, self.settings);
+        let all = times.time("virtual mesh", || {
+            Patches::of_scene_refined(self.scene, true, self.patch_size, self.virtual_size, marks)
+        });
+        let direct = times.time("direct light with objects", || {
+            leaf_light(&all, &self.lights, tracer, Layer::All, settings.light_level)
+        });
+        let transport = times.time("form factors with objects", || {
+            transport.with_objects(&all, tracer, settings.link_epsilon, true)
+        });
+        (all, direct, transport)
+    }
+
     /// The photo's illumination model on the refined mesh (links at the
     /// leaves for the light sources: direct light is per leaf).
     fn real_model(&self, patches: &Patches, times: &mut StageTimes) -> RealModel {
@@ -687,7 +713,7 @@ impl TexturePath {
         times: &mut StageTimes,
     ) -> Result<TexturePath> {
         let setup = Setup::new(scene, photo, tracer, settings)?;
-        let (patch_size, virtual_size) = (setup.patch_size, setup.virtual_size);
+        let patch_size = setup.patch_size;
         let mut stats = TextureStats {
             patch_size,
             ..Default::default()
@@ -742,29 +768,8 @@ impl TexturePath {
         stats.texels = textures.iter().map(|t| t.texels.len()).sum();
         stats.texture_bytes = stats.texels * std::mem::size_of::<Vec3>();
 
-        // The mesh with the inserted objects, and the direct light through them.
-        let (patches, direct, transport) = if setup.has_objects {
-            let all = times.time("virtual mesh", || {
-                Patches::of_scene_refined(scene, true, patch_size, virtual_size, &marks)
-            });
-            let direct = times.time("direct light with objects", || {
-                leaf_light(
-                    &all,
-                    &setup.lights,
-                    tracer,
-                    Layer::All,
-                    settings.light_level,
-                )
-            });
-            let transport = times.time("form factors with objects", || {
-                model
-                    .transport
-                    .with_objects(&all, tracer, settings.link_epsilon, true)
-            });
-            (all, direct, transport)
-        } else {
-            (patches, model.direct, model.transport)
-        };
+        let (patches, direct, transport) =
+            setup.with_objects(patches, model.direct, model.transport, &marks, times);
         stats.links = transport.link_count();
         let rest_started = std::time::Instant::now();
         let visibility = vertex_visibility(&direct, &patches);

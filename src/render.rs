@@ -279,14 +279,9 @@ impl Session {
         for_updates: bool,
     ) -> Result<Session> {
         let mut left_out = Vec::new();
-        let patch_size = match settings.patch_size {
-            PatchSize::Metres(m) => m,
-            PatchSize::Auto if lights_change(scene) => fine_patch_size(scene),
-            PatchSize::Auto => room_diagonal(scene) / 6.0,
-        };
         let mut settings = RenderSettings {
             model: ModelSettings {
-                patch_size,
+                patch_size: room_patch_size(scene, settings.patch_size),
                 ..settings.model
             },
             ..*settings
@@ -300,14 +295,7 @@ impl Session {
         if lamps.is_none() {
             left_out.push("lamps in view: no rect light is seen".to_string());
         }
-        let mut model = Model::build(scene, &photo, &tracer, &settings.model, times)?;
-        if settings.patch_size == PatchSize::Auto && !lights_change(scene) {
-            let finer = settings.model.patch_size * interreflection_scale(&model);
-            if finer < 0.9 * settings.model.patch_size {
-                settings.model.patch_size = finer.max(fine_patch_size(scene));
-                model = Model::build(scene, &photo, &tracer, &settings.model, times)?;
-            }
-        }
+        let model = photo_model(scene, &photo, &tracer, &mut settings, times)?;
         let scales_without: Vec<f64> = model.lights.iter().map(|l| l.photo_scale()).collect();
         let scales_with: Vec<f64> = model.lights.iter().map(|l| l.scale).collect();
         let active: Vec<bool> = scales_with
@@ -328,28 +316,21 @@ impl Session {
         let link_facts = crate::radiosity::RoomLinkFacts::new(&model.transport);
         let bounds = VirtualBounds::of(&scene.virtual_world_surfaces())
             .with_room(&model.patches.real_root_polygons(), &model.lights);
-        let objects = object_patches(
-            scene,
-            &model.patches,
-            tracer.virtual_objects.is_some(),
-            &settings,
-            times,
-        );
+        let has_objects = tracer.virtual_objects.is_some();
+        let objects = object_patches(scene, &model.patches, has_objects, &settings, times);
         let mut gather_directions = GatherDirections::default();
-        let changes = solve_changes(
+        let input = ChangeInput {
             scene,
-            &photo,
-            &tracer,
-            &model,
-            &scales_with,
-            &settings,
-            &bounds,
-            &link_facts,
-            objects.as_ref(),
-            &mut gather_directions,
-            times,
-        )
-        .with_patches(objects);
+            photo: &photo,
+            tracer: &tracer,
+            model: &model,
+            scales_with: &scales_with,
+            settings: &settings,
+            bounds: &bounds,
+            link_facts: &link_facts,
+        };
+        let changes = solve_changes(&input, objects.as_ref(), &mut gather_directions, times)
+            .with_patches(objects);
         let patches = changes.own.as_ref().map_or(&model.patches, |o| &o.0);
         let pda = times.time("pixel data array", || {
             PixelDataArray::build(&PdaInput {
@@ -565,118 +546,31 @@ impl Session {
         self.bounds = bounds;
         // The Pixel Data Array does not depend on the radiosity solution:
         // the two are computed side by side.
-        let (solved, (touched, pixel_rays, retraced)) = {
-            let (
-                scene,
-                photo,
-                tracer,
-                model,
-                scales_with,
-                settings,
-                bounds,
-                link_facts,
-                directions,
-            ) = (
-                &self.scene,
-                &self.photo,
-                &self.tracer,
-                &self.model,
-                &self.scales_with,
-                &self.settings,
-                &self.bounds,
-                &self.link_facts,
-                &mut self.gather_directions,
-            );
-            let (pda, blocks, active, stats, reached) = (
-                &mut self.pda,
-                self.blocks.as_ref().expect("prepared above"),
-                &self.active,
-                &mut stats,
-                &mut self.reached,
-            );
-            let block_shafts = &mut self.block_shafts;
-            let objects = objects.as_ref();
-            times.concurrently(
-                "radiosity | pixels",
-                |times| {
-                    solve_changes(
-                        scene,
-                        photo,
-                        tracer,
-                        model,
-                        scales_with,
-                        settings,
-                        bounds,
-                        link_facts,
-                        objects,
-                        directions,
-                        times,
-                    )
-                },
-                |times| {
-                    let input = PdaInput {
-                        camera: &scene.camera,
-                        tracer,
-                        patches: objects.unwrap_or(&model.patches),
-                        lights: &model.lights,
-                        active,
-                        bounds,
-                        settings: settings.pda,
-                        for_updates: true,
-                    };
-                    let (mut rays, retraced) =
-                        times.time("re-trace objects and edges", || pda.rebuild_virtual(&input));
-                    // The pixels whose shafts may meet the objects' old
-                    // bounds are those the last update (or the hierarchy's
-                    // building) reached against them: only the new bounds
-                    // are traversed.
-                    let traversals: Vec<Option<(crate::blocks::Traversal, Vec<u32>)>> =
-                        times.time("pixel-block traversal", || {
-                            use rayon::prelude::*;
-                            input
-                                .lights
-                                .par_iter()
-                                .zip(std::mem::take(reached))
-                                .zip(block_shafts.par_iter_mut())
-                                .enumerate()
-                                .map(|(l, ((light, before), shafts))| {
-                                    input.active[l].then(|| {
-                                        let mut t = blocks.traverse(light, &bounds.objects, shafts);
-                                        let mut now = std::mem::take(&mut t.pixels);
-                                        now.sort_unstable();
-                                        // Both lists sorted: merged, not sorted again.
-                                        t.pixels = merge_sorted(&now, &before);
-                                        (t, now)
-                                    })
-                                })
-                                .collect()
-                        });
-                    let (traversals, now): (Vec<Option<crate::blocks::Traversal>>, Vec<Vec<u32>>) =
-                        traversals
-                            .into_iter()
-                            .map(|t| t.map_or((None, Vec::new()), |(t, now)| (Some(t), now)))
-                            .unzip();
-                    let touched = times.time("recompute pixels", || {
-                        let mut touched: Vec<u32> = Vec::new();
-                        for (l, t) in traversals.into_iter().enumerate() {
-                            let Some(t) = t else {
-                                stats.skipped_blocks.push(Vec::new());
-                                continue;
-                            };
-                            stats.shaft_tests += t.shaft_tests;
-                            rays += pda.recompute_real_terms(&input, &t.pixels, &now[l], l);
-                            // A pixel found for several lights counts once.
-                            touched = merge_sorted(&touched, &t.pixels);
-                            stats.skipped_blocks.push(t.skipped);
-                        }
-                        stats.pixels_recomputed = touched.len();
-                        touched
-                    });
-                    *reached = now;
-                    (touched, rays, retraced)
-                },
-            )
+        let input = ChangeInput {
+            scene: &self.scene,
+            photo: &self.photo,
+            tracer: &self.tracer,
+            model: &self.model,
+            scales_with: &self.scales_with,
+            settings: &self.settings,
+            bounds: &self.bounds,
+            link_facts: &self.link_facts,
         };
+        let pixels = PixelUpdate {
+            pda: &mut self.pda,
+            blocks: self.blocks.as_ref().expect("prepared above"),
+            active: &self.active,
+            reached: &mut self.reached,
+            block_shafts: &mut self.block_shafts,
+            stats: &mut stats,
+        };
+        let directions = &mut self.gather_directions;
+        let objects_ref = objects.as_ref();
+        let (solved, (touched, pixel_rays, retraced)) = times.concurrently(
+            "radiosity | pixels",
+            |times| solve_changes(&input, objects_ref, directions, times),
+            |times| pixels.run(&input, objects_ref, times),
+        );
         self.changes = solved.with_patches(objects);
         stats.rays += pixel_rays;
         stats.pixels_retraced = retraced;
@@ -709,6 +603,130 @@ impl Session {
             texture: None,
         }
     }
+}
+
+/// The room's largest patch edge: the user's, or from what the scene changes.
+fn room_patch_size(scene: &Scene, patch_size: PatchSize) -> f64 {
+    match patch_size {
+        PatchSize::Metres(m) => m,
+        PatchSize::Auto if lights_change(scene) => fine_patch_size(scene),
+        PatchSize::Auto => room_diagonal(scene) / 6.0,
+    }
+}
+
+/// The photo's model; with an automatic patch size and no light change,
+/// built again finer where the room's interreflection asks for it.
+fn photo_model(
+    scene: &Scene,
+    photo: &Image,
+    tracer: &crate::trace::Tracer,
+    settings: &mut RenderSettings,
+    times: &mut StageTimes,
+) -> Result<Model> {
+    let mut model = Model::build(scene, photo, tracer, &settings.model, times)?;
+    if settings.patch_size == PatchSize::Auto && !lights_change(scene) {
+        let finer = settings.model.patch_size * interreflection_scale(&model);
+        if finer < 0.9 * settings.model.patch_size {
+            settings.model.patch_size = finer.max(fine_patch_size(scene));
+            model = Model::build(scene, photo, tracer, &settings.model, times)?;
+        }
+    }
+    Ok(model)
+}
+
+/// An update's pixel side: what it changes in the session.
+struct PixelUpdate<'a> {
+    pda: &'a mut PixelDataArray,
+    blocks: &'a crate::blocks::BlockHierarchy,
+    active: &'a [bool],
+    reached: &'a mut Vec<Vec<u32>>,
+    block_shafts: &'a mut Vec<crate::blocks::BlockShafts>,
+    stats: &'a mut UpdateStats,
+}
+
+impl PixelUpdate<'_> {
+    /// Re-traces the objects' image and edges and recomputes the real
+    /// pixels whose shafts to a light may meet the objects' old or new
+    /// bounds: the pixels touched (sorted), the rays cast, the pixels re-traced.
+    fn run(
+        self,
+        changes: &ChangeInput,
+        objects: Option<&Patches>,
+        times: &mut StageTimes,
+    ) -> (Vec<u32>, u64, u64) {
+        let model = changes.model;
+        let input = PdaInput {
+            camera: &changes.scene.camera,
+            tracer: changes.tracer,
+            patches: objects.unwrap_or(&model.patches),
+            lights: &model.lights,
+            active: self.active,
+            bounds: changes.bounds,
+            settings: changes.settings.pda,
+            for_updates: true,
+        };
+        let pda = self.pda;
+        let (mut rays, retraced) =
+            times.time("re-trace objects and edges", || pda.rebuild_virtual(&input));
+        // The pixels whose shafts may meet the objects' old bounds are those
+        // the last update (or the hierarchy's building) reached against
+        // them: only the new bounds are traversed.
+        let (traversals, now) = times.time("pixel-block traversal", || {
+            traverse(&input, self.blocks, self.reached, self.block_shafts)
+        });
+        let stats = self.stats;
+        let touched = times.time("recompute pixels", || {
+            let mut touched: Vec<u32> = Vec::new();
+            for (l, t) in traversals.into_iter().enumerate() {
+                let Some(t) = t else {
+                    stats.skipped_blocks.push(Vec::new());
+                    continue;
+                };
+                stats.shaft_tests += t.shaft_tests;
+                rays += pda.recompute_real_terms(&input, &t.pixels, &now[l], l);
+                // A pixel found for several lights counts once.
+                touched = merge_sorted(&touched, &t.pixels);
+                stats.skipped_blocks.push(t.skipped);
+            }
+            stats.pixels_recomputed = touched.len();
+            touched
+        });
+        *self.reached = now;
+        (touched, rays, retraced)
+    }
+}
+
+/// Per active light, the blocks' traversal against the objects' new
+/// bounds with the pixels reached before merged in, and the pixels reached
+/// now (sorted); `reached` is taken.
+fn traverse(
+    input: &PdaInput,
+    blocks: &crate::blocks::BlockHierarchy,
+    reached: &mut Vec<Vec<u32>>,
+    block_shafts: &mut [crate::blocks::BlockShafts],
+) -> (Vec<Option<crate::blocks::Traversal>>, Vec<Vec<u32>>) {
+    use rayon::prelude::*;
+    let traversals: Vec<Option<(crate::blocks::Traversal, Vec<u32>)>> = input
+        .lights
+        .par_iter()
+        .zip(std::mem::take(reached))
+        .zip(block_shafts.par_iter_mut())
+        .enumerate()
+        .map(|(l, ((light, before), shafts))| {
+            input.active[l].then(|| {
+                let mut t = blocks.traverse(light, &input.bounds.objects, shafts);
+                let mut now = std::mem::take(&mut t.pixels);
+                now.sort_unstable();
+                // Both lists sorted: merged, not sorted again.
+                t.pixels = merge_sorted(&now, &before);
+                (t, now)
+            })
+        })
+        .collect();
+    traversals
+        .into_iter()
+        .map(|t| t.map_or((None, Vec::new()), |(t, now)| (Some(t), now)))
+        .unzip()
 }
 
 /// Whether the scene switches, scales or adds a light.

@@ -98,58 +98,38 @@ impl Solved {
     }
 }
 
+/// What the radiosity with changes reads besides the objects' patches.
+pub(super) struct ChangeInput<'a> {
+    pub(super) scene: &'a Scene,
+    pub(super) photo: &'a Image,
+    pub(super) tracer: &'a crate::trace::Tracer,
+    pub(super) model: &'a Model,
+    pub(super) scales_with: &'a [f64],
+    pub(super) settings: &'a RenderSettings,
+    pub(super) bounds: &'a VirtualBounds,
+    pub(super) link_facts: &'a crate::radiosity::RoomLinkFacts,
+}
+
 /// Radiosity with the changes: the virtual objects' patches (`objects`,
 /// from [`object_patches`]) join the room's with their own reflectance and
 /// shadow its exchanges; lights at their new scales; the objects' own
 /// indirect light gathered from the photo.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn solve_changes(
-    scene: &Scene,
-    photo: &Image,
-    tracer: &crate::trace::Tracer,
-    model: &Model,
-    scales_with: &[f64],
-    settings: &RenderSettings,
-    bounds: &VirtualBounds,
-    link_facts: &crate::radiosity::RoomLinkFacts,
+    input: &ChangeInput,
     objects: Option<&Patches>,
     directions: &mut GatherDirections,
     times: &mut StageTimes,
 ) -> Solved {
-    let lights = &model.lights;
-    let has_virtual = objects.is_some();
+    let (model, settings) = (input.model, input.settings);
     let own: Option<(&Patches, Vec<Vec<DVec3>>, Transport)> = objects.map(|patches| {
-        let direct = times.time("direct light with objects", || {
-            direct_irradiance_with_objects(
-                patches,
-                lights,
-                tracer,
-                settings.model.light_level,
-                &model.direct_per_light,
-                bounds,
-            )
-        });
-        let epsilon = match settings.model.transport {
-            TransportMethod::Full => crate::radiosity::DEFAULT_LINK_EPSILON,
-            TransportMethod::Hierarchical { epsilon } => epsilon,
-        };
-        // With final gathering the objects' light comes from the photo: they need no links to gather through.
-        let transport = times.time("form factors with objects", || {
-            model.transport.with_objects_using(
-                patches,
-                tracer,
-                epsilon,
-                settings.gather_rays == 0,
-                Some(link_facts),
-            )
-        });
+        let (direct, transport) = object_links(input, patches, times);
         (patches, direct, transport)
     });
     let (patches, direct_per_light, transport) = match &own {
         Some((p, d, t)) => (*p, d, t),
         None => (&model.patches, &model.direct_per_light, &model.transport),
     };
-    let virtual_rgb: HashMap<u32, DVec3> = scene.virtual_surface_rgb();
+    let virtual_rgb: HashMap<u32, DVec3> = input.scene.virtual_surface_rgb();
     let real_count = model.patches.patch_count();
     let reflectance: Vec<DVec3> = (0..patches.patch_count())
         .map(|k| {
@@ -160,8 +140,8 @@ pub(super) fn solve_changes(
             }
         })
         .collect();
-    let e = total_direct(scales_with, direct_per_light);
-    let mut b: Vec<DVec3> = reflectance.iter().zip(&e).map(|(r, e)| *r * *e).collect();
+    let e = total_direct(input.scales_with, direct_per_light);
+    let b: Vec<DVec3> = reflectance.iter().zip(&e).map(|(r, e)| *r * *e).collect();
     let tolerance = settings.model.estimate.solve_tolerance;
     let with = times.time("solve with changes", || {
         let mut guess = model.estimate.solution.radiosity.clone();
@@ -177,49 +157,22 @@ pub(super) fn solve_changes(
         )
     });
     let mut indirect_with = patches.vertex_values(&with.indirect_irradiance);
-    if has_virtual && settings.gather_rays > 0 {
-        let real_vertices = model.patches.vertices.len();
-        let gathered = times.time("final gather on objects", || {
-            final_gather(
-                scene,
-                tracer,
-                patches,
-                real_vertices,
-                photo,
-                &with.radiosity,
-                &model.estimate.solution.radiosity,
-                settings.gather_rays,
-                directions,
-            )
-        });
-        for (v, h) in gathered {
-            indirect_with[v] = h;
-        }
-        // The objects have no links to gather through: their radiosity is
-        // their direct light plus what they gathered, and the room takes it
-        // from there in a second solve (from the first: a few iterations).
-        let again = times.time("solve with changes", || {
-            for k in real_count..patches.patch_count() {
-                let corners = patches.patch_vertices[k].iter().filter(|&&v| v != u32::MAX);
-                let h = corners
-                    .clone()
-                    .map(|&v| indirect_with[v as usize])
-                    .sum::<DVec3>()
-                    / corners.count().max(1) as f64;
-                b[k] = reflectance[k] * (e[k] + h);
-            }
-            solve_from(
-                patches,
-                transport,
-                &reflectance,
-                &b,
-                Some(&with.radiosity),
-                tolerance,
-                500,
-            )
-        });
-        let room = patches.vertex_values(&again.indirect_irradiance);
-        indirect_with[..real_vertices].copy_from_slice(&room[..real_vertices]);
+    if objects.is_some() && settings.gather_rays > 0 {
+        let system = System {
+            patches,
+            transport,
+            reflectance: &reflectance,
+            direct: &e,
+            tolerance,
+        };
+        gather_objects(
+            input,
+            &system,
+            &with.radiosity,
+            &mut indirect_with,
+            directions,
+            times,
+        );
     }
     Solved {
         own: own.map(|(_, d, t)| (d, t)),
@@ -228,44 +181,176 @@ pub(super) fn solve_changes(
     }
 }
 
+/// The objects' direct light and the room's links re-refined with them.
+fn object_links(
+    input: &ChangeInput,
+    patches: &Patches,
+    times: &mut StageTimes,
+) -> (Vec<Vec<DVec3>>, Transport) {
+    let (model, settings) = (input.model, input.settings);
+    let direct = times.time("direct light with objects", || {
+        direct_irradiance_with_objects(
+            patches,
+            &model.lights,
+            input.tracer,
+            settings.model.light_level,
+            &model.direct_per_light,
+            input.bounds,
+        )
+    });
+    let epsilon = match settings.model.transport {
+        TransportMethod::Full => crate::radiosity::DEFAULT_LINK_EPSILON,
+        TransportMethod::Hierarchical { epsilon } => epsilon,
+    };
+    // With final gathering the objects' light comes from the photo: they need no links to gather through.
+    let transport = times.time("form factors with objects", || {
+        model.transport.with_objects_using(
+            patches,
+            input.tracer,
+            epsilon,
+            settings.gather_rays == 0,
+            Some(input.link_facts),
+        )
+    });
+    (direct, transport)
+}
+
+/// The radiosity system with the objects.
+struct System<'a> {
+    patches: &'a Patches,
+    transport: &'a Transport,
+    reflectance: &'a [DVec3],
+    /// Direct irradiance per patch at the new scales.
+    direct: &'a [DVec3],
+    tolerance: f64,
+}
+
+/// The objects' indirect light gathered from the photo into
+/// `indirect_with` (vertex values), and the room's solved again with the
+/// objects' radiosity that follows.
+fn gather_objects(
+    input: &ChangeInput,
+    system: &System,
+    radiosity_with: &[DVec3],
+    indirect_with: &mut [DVec3],
+    directions: &mut GatherDirections,
+    times: &mut StageTimes,
+) {
+    let (model, patches) = (input.model, system.patches);
+    let real_vertices = model.patches.vertices.len();
+    let real_count = model.patches.patch_count();
+    let gathered = times.time("final gather on objects", || {
+        let gather = Gather {
+            camera: &input.scene.camera,
+            tracer: input.tracer,
+            patches,
+            real_vertices,
+            photo: input.photo,
+            radiosity_with,
+            radiosity_without: &model.estimate.solution.radiosity,
+            rays: input.settings.gather_rays,
+        };
+        final_gather(&gather, directions)
+    });
+    for (v, h) in gathered {
+        indirect_with[v] = h;
+    }
+    // The objects have no links to gather through: their radiosity is
+    // their direct light plus what they gathered, and the room takes it
+    // from there in a second solve (from the first: a few iterations).
+    let again = times.time("solve with changes", || {
+        let mut b: Vec<DVec3> = system
+            .reflectance
+            .iter()
+            .zip(system.direct)
+            .map(|(r, e)| *r * *e)
+            .collect();
+        for k in real_count..patches.patch_count() {
+            let corners = patches.patch_vertices[k].iter().filter(|&&v| v != u32::MAX);
+            let h = corners
+                .clone()
+                .map(|&v| indirect_with[v as usize])
+                .sum::<DVec3>()
+                / corners.count().max(1) as f64;
+            b[k] = system.reflectance[k] * (system.direct[k] + h);
+        }
+        solve_from(
+            patches,
+            system.transport,
+            system.reflectance,
+            &b,
+            Some(radiosity_with),
+            system.tolerance,
+            500,
+        )
+    });
+    let room = patches.vertex_values(&again.indirect_irradiance);
+    indirect_with[..real_vertices].copy_from_slice(&room[..real_vertices]);
+}
+
+/// What final gathering reads.
+pub(super) struct Gather<'a> {
+    pub(super) camera: &'a crate::camera::Camera,
+    pub(super) tracer: &'a crate::trace::Tracer,
+    /// The room's patches and then the objects'.
+    pub(super) patches: &'a Patches,
+    /// Vertices from this one on are the objects'.
+    pub(super) real_vertices: usize,
+    pub(super) photo: &'a Image,
+    /// Radiosity per patch with the changes, and in the photo's model.
+    pub(super) radiosity_with: &'a [DVec3],
+    pub(super) radiosity_without: &'a [DVec3],
+    /// Rays per vertex.
+    pub(super) rays: u32,
+}
+
 /// Indirect irradiance at the virtual objects' vertices gathered from the
 /// photograph (final gathering, Grosch §4 after Loscos): `rays` cosine-
 /// distributed rays per vertex; where one meets a real surface the camera
 /// sees, the light leaving it is the photo's pixel there, times the change
 /// the objects make to that patch's radiosity (with / without); elsewhere
 /// the radiosity solution's B/π. Returns (vertex, irradiance) pairs.
-#[allow(clippy::too_many_arguments)]
-pub(super) fn final_gather(
-    scene: &Scene,
-    tracer: &crate::trace::Tracer,
-    patches: &Patches,
-    real_vertices: usize,
-    photo: &Image,
-    radiosity_with: &[DVec3],
-    radiosity_without: &[DVec3],
-    rays: u32,
-    directions: &mut GatherDirections,
-) -> Vec<(usize, DVec3)> {
-    use crate::light::offset_origin;
-    use crate::trace::TraceRay;
+pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec<(usize, DVec3)> {
     use rayon::prelude::*;
-    // Each virtual vertex with the normal of the plane it lies in.
+    let vertices = gather_vertices(g);
+    let clear_of_object = object_clearance(g.patches, vertices.len());
+    directions.keep(&vertices);
+    let directions = &*directions;
+    vertices
+        .par_iter()
+        .map(|&(v, n, side)| {
+            let layer = if clear_of_object(g.patches.vertices[v as usize], n) {
+                Layer::Real
+            } else {
+                Layer::All
+            };
+            (
+                v as usize,
+                gather_at(g, v, n, directions.of(v, n, side), layer),
+            )
+        })
+        .collect()
+}
+
+/// Each virtual vertex with the normal of the plane it lies in and its
+/// strata per side.
+fn gather_vertices(g: &Gather) -> Vec<(u32, DVec3, u32)> {
+    let patches = g.patches;
     let mut normal_of: HashMap<u32, DVec3> = HashMap::new();
     for (k, ids) in patches.patch_vertices.iter().enumerate() {
         let el = patches.patch(k);
         for &v in ids
             .iter()
-            .filter(|&&v| v != u32::MAX && v as usize >= real_vertices)
+            .filter(|&&v| v != u32::MAX && v as usize >= g.real_vertices)
         {
             normal_of.entry(v).or_insert(el.normal);
         }
     }
-    let cam = &scene.camera;
     // A vertex on a face turned from the camera shows in no pixel: its
     // light reaches the image only through what it sends the room, a small
     // part of the room's own indirect light, and a quarter of the rays
     // estimate it well enough (the box's hidden faces: half its vertices).
-    let side = (rays as f64).sqrt().ceil() as u32;
+    let side = (g.rays as f64).sqrt().ceil() as u32;
     let hidden_side = side.div_ceil(2);
     // Normals rounded to 2^-16: a moved object's are recomputed from its
     // moved single-precision corners and differ by ~1e-7 from pose to pose,
@@ -275,21 +360,19 @@ pub(super) fn final_gather(
     let mut vertices: Vec<(u32, DVec3, u32)> = normal_of
         .into_iter()
         .map(|(v, n)| {
-            (
-                v,
-                steady(n),
-                if n.dot(cam.position - patches.vertices[v as usize]) > 0.0 {
-                    side
-                } else {
-                    hidden_side
-                },
-            )
+            let faces_camera = n.dot(g.camera.position - patches.vertices[v as usize]) > 0.0;
+            (v, steady(n), if faces_camera { side } else { hidden_side })
         })
         .collect();
     vertices.sort_by_key(|(v, ..)| *v);
-    // A ray leaving a face that its whole solid lies behind cannot meet
-    // that solid (it starts in front of the plane and moves away): with no
-    // other object, such a vertex traces the room alone.
+    vertices
+}
+
+/// Whether a vertex's rays may skip the objects: a ray leaving a face that
+/// its whole solid lies behind cannot meet that solid (it starts in front
+/// of the plane and moves away), so with no other object such a vertex
+/// traces the room alone.
+fn object_clearance(patches: &Patches, vertices: usize) -> impl Fn(DVec3, DVec3) -> bool + Sync {
     let object_roots: Vec<&crate::patches::Element> = patches
         .roots
         .iter()
@@ -303,73 +386,59 @@ pub(super) fn final_gather(
         .iter()
         .flat_map(|e| e.shape.corners().to_vec())
         .collect();
-    let clear_of_object = |p: DVec3, n: DVec3| {
-        one_object
-            && vertices.len() * corners.len() <= CLEAR_TEST_LIMIT
-            && crate::gather::clear_of_solid(&corners, p, n)
-    };
+    let test = one_object && vertices * corners.len() <= CLEAR_TEST_LIMIT;
+    move |p: DVec3, n: DVec3| test && crate::gather::clear_of_solid(&corners, p, n)
+}
+
+/// The irradiance gathered at vertex `v` (normal `n`) along `dirs` through `layer`.
+fn gather_at(g: &Gather, v: u32, n: DVec3, dirs: &[DVec3], layer: Layer) -> DVec3 {
+    use crate::light::offset_origin;
+    use crate::trace::TraceRay;
     let pi = std::f64::consts::PI;
-    directions.keep(&vertices);
-    let directions = &*directions;
-    vertices
-        .par_iter()
-        .map(|&(v, n, side)| {
-            let p = patches.vertices[v as usize];
-            // Faces are one-sided here (solids face out, open surfaces face the camera).
-            let origin = offset_origin(p, n, p + n);
-            let dirs = directions.of(v, n, side);
-            let traced: Vec<TraceRay> = dirs
-                .iter()
-                .map(|d| TraceRay::new(origin.as_vec3(), d.as_vec3()))
-                .collect();
-            let mut hits = vec![None; traced.len()];
-            tracer.intersect_batch(
-                &traced,
-                if clear_of_object(p, n) {
-                    Layer::Real
-                } else {
-                    Layer::All
-                },
-                &mut hits,
-            );
-            // Where each ray lands and on which patch; the real points' photo radiance in one batch.
-            let landed: Vec<Option<(DVec3, usize, bool)>> = dirs
-                .iter()
-                .zip(&hits)
-                .map(|(d, hit)| {
-                    let hit = hit.as_ref()?;
-                    let y = origin + *d * hit.t as f64;
-                    let at = patches.locate(hit.surface, hit.triangle, y)?;
-                    Some((y, at.patch as usize, hit.is_virtual))
-                })
-                .collect();
-            let real_points: Vec<DVec3> = landed
-                .iter()
-                .flatten()
-                .filter(|l| !l.2)
-                .map(|l| l.0)
-                .collect();
-            let mut seen =
-                crate::gather::photo_radiances(cam, tracer, photo, &real_points).into_iter();
-            let mut sum = DVec3::ZERO;
-            for &(_, k, is_virtual) in landed.iter().flatten() {
-                let model = radiosity_with[k] / pi;
-                if is_virtual {
-                    sum += model;
-                    continue;
-                }
-                // Seen by the camera? Then the photo knows its radiance.
-                sum += match seen.next().flatten() {
-                    Some(radiance) => {
-                        let ratio = (radiosity_with[k]
-                            / radiosity_without[k].max(DVec3::splat(1e-12)))
-                        .min(DVec3::splat(4.0));
-                        radiance * ratio
-                    }
-                    None => model,
-                };
-            }
-            (v as usize, sum * (pi / dirs.len() as f64))
+    let p = g.patches.vertices[v as usize];
+    // Faces are one-sided here (solids face out, open surfaces face the camera).
+    let origin = offset_origin(p, n, p + n);
+    let traced: Vec<TraceRay> = dirs
+        .iter()
+        .map(|d| TraceRay::new(origin.as_vec3(), d.as_vec3()))
+        .collect();
+    let mut hits = vec![None; traced.len()];
+    g.tracer.intersect_batch(&traced, layer, &mut hits);
+    // Where each ray lands and on which patch; the real points' photo radiance in one batch.
+    let landed: Vec<Option<(DVec3, usize, bool)>> = dirs
+        .iter()
+        .zip(&hits)
+        .map(|(d, hit)| {
+            let hit = hit.as_ref()?;
+            let y = origin + *d * hit.t as f64;
+            let at = g.patches.locate(hit.surface, hit.triangle, y)?;
+            Some((y, at.patch as usize, hit.is_virtual))
         })
-        .collect()
+        .collect();
+    let real_points: Vec<DVec3> = landed
+        .iter()
+        .flatten()
+        .filter(|l| !l.2)
+        .map(|l| l.0)
+        .collect();
+    let mut seen =
+        crate::gather::photo_radiances(g.camera, g.tracer, g.photo, &real_points).into_iter();
+    let mut sum = DVec3::ZERO;
+    for &(_, k, is_virtual) in landed.iter().flatten() {
+        let model = g.radiosity_with[k] / pi;
+        if is_virtual {
+            sum += model;
+            continue;
+        }
+        // Seen by the camera? Then the photo knows its radiance.
+        sum += match seen.next().flatten() {
+            Some(radiance) => {
+                let ratio = (g.radiosity_with[k] / g.radiosity_without[k].max(DVec3::splat(1e-12)))
+                    .min(DVec3::splat(4.0));
+                radiance * ratio
+            }
+            None => model,
+        };
+    }
+    sum * (pi / dirs.len() as f64)
 }
