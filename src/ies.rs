@@ -201,59 +201,9 @@ impl IesProfile {
                 )
             })?;
 
-        let mut version = String::new();
-        let mut keywords = Vec::new();
-        for (k, &(_, line)) in lines[..tilt_at].iter().enumerate() {
-            let l = line.trim();
-            let upper = l.to_ascii_uppercase();
-            if k == 0 && (upper.starts_with("IESNA") || upper.starts_with("IES:")) {
-                version = l.to_string();
-            } else if let Some(rest) = l.strip_prefix('[') {
-                let (key, value) = rest.split_once(']').unwrap_or((rest, ""));
-                keywords.push((key.trim().to_string(), value.trim().to_string()));
-            } else if !l.is_empty() {
-                keywords.push((String::new(), l.to_string()));
-            }
-        }
-
-        let (tilt_line_no, tilt_line) = lines[tilt_at];
-        let tilt_value = tilt_line
-            .trim()
-            .split_once('=')
-            .map(|(_, v)| v.trim())
-            .ok_or_else(|| {
-                Error::line(
-                    path,
-                    tilt_line_no,
-                    "TILT line needs '=': TILT=NONE, TILT=INCLUDE or TILT=<file>",
-                )
-            })?;
+        let (version, keywords) = header(&lines[..tilt_at]);
         let mut tokens = Tokens::new(path, &lines[tilt_at + 1..]);
-        let tilt = match tilt_value.to_ascii_uppercase().as_str() {
-            "NONE" => None,
-            "INCLUDE" => Some(read_tilt(&mut tokens)?),
-            "" => {
-                return Err(Error::line(
-                    path,
-                    tilt_line_no,
-                    "TILT= is empty: give NONE, INCLUDE or a file",
-                ));
-            }
-            _ => {
-                let tilt_path = path.parent().unwrap_or(Path::new("")).join(tilt_value);
-                let tilt_text = std::fs::read_to_string(&tilt_path).map_err(|e| {
-                    Error::io(&tilt_path, &e).within(path, format!("line {tilt_line_no}: TILT"))
-                })?;
-                let tilt_lines: Vec<(usize, &str)> = tilt_text
-                    .lines()
-                    .enumerate()
-                    .map(|(i, l)| (i + 1, l))
-                    .collect();
-                let mut t = Tokens::new(&tilt_path, &tilt_lines);
-                Some(read_tilt(&mut t)?)
-            }
-        };
-
+        let tilt = tilt(path, lines[tilt_at], &mut tokens)?;
         let (lamps, _) = tokens.count("number of lamps")?;
         let (lumens_per_lamp, _) = tokens.number("lumens per lamp")?;
         let (multiplier, ml) = tokens.number("candela multiplier")?;
@@ -567,6 +517,63 @@ impl IesProfile {
             row(&mut out, h);
         }
         out
+    }
+}
+
+/// The lines before TILT: the version line and the keywords.
+fn header(lines: &[(usize, &str)]) -> (String, Vec<(String, String)>) {
+    let mut version = String::new();
+    let mut keywords = Vec::new();
+    for (k, &(_, line)) in lines.iter().enumerate() {
+        let l = line.trim();
+        let upper = l.to_ascii_uppercase();
+        if k == 0 && (upper.starts_with("IESNA") || upper.starts_with("IES:")) {
+            version = l.to_string();
+        } else if let Some(rest) = l.strip_prefix('[') {
+            let (key, value) = rest.split_once(']').unwrap_or((rest, ""));
+            keywords.push((key.trim().to_string(), value.trim().to_string()));
+        } else if !l.is_empty() {
+            keywords.push((String::new(), l.to_string()));
+        }
+    }
+    (version, keywords)
+}
+
+/// The TILT line's tilt: none, included (read from `tokens`) or from the
+/// file it names, beside `path`.
+fn tilt(path: &Path, (line_no, line): (usize, &str), tokens: &mut Tokens) -> Result<Option<Tilt>> {
+    let value = line
+        .trim()
+        .split_once('=')
+        .map(|(_, v)| v.trim())
+        .ok_or_else(|| {
+            Error::line(
+                path,
+                line_no,
+                "TILT line needs '=': TILT=NONE, TILT=INCLUDE or TILT=<file>",
+            )
+        })?;
+    match value.to_ascii_uppercase().as_str() {
+        "NONE" => Ok(None),
+        "INCLUDE" => Ok(Some(read_tilt(tokens)?)),
+        "" => Err(Error::line(
+            path,
+            line_no,
+            "TILT= is empty: give NONE, INCLUDE or a file",
+        )),
+        _ => {
+            let tilt_path = path.parent().unwrap_or(Path::new("")).join(value);
+            let tilt_text = std::fs::read_to_string(&tilt_path).map_err(|e| {
+                Error::io(&tilt_path, &e).within(path, format!("line {line_no}: TILT"))
+            })?;
+            let tilt_lines: Vec<(usize, &str)> = tilt_text
+                .lines()
+                .enumerate()
+                .map(|(i, l)| (i + 1, l))
+                .collect();
+            let mut t = Tokens::new(&tilt_path, &tilt_lines);
+            Ok(Some(read_tilt(&mut t)?))
+        }
     }
 }
 

@@ -290,8 +290,6 @@ impl PixelDataArray {
     pub fn build(input: &PdaInput) -> PixelDataArray {
         let cam = input.camera;
         let (w, h) = (cam.width, cam.height);
-        let lights = input.lights.len();
-        let has_virtual = input.tracer.virtual_objects.is_some();
         // Pixels near a virtual object's image are tested for mixed sub-pixels.
         let near_virtual = screen_boxes(cam, input.bounds);
         let candidates = if near_virtual.is_empty() {
@@ -299,154 +297,18 @@ impl PixelDataArray {
         } else {
             edge_candidates(input)
         };
-        let candidate = |pixel: u32| candidates.as_ref().is_none_or(|m| m[pixel as usize]);
-        let window = input
-            .settings
-            .crop
-            .and_then(|c| c.pixels(w, h))
-            .unwrap_or(PixelRect::full(w, h));
-
-        struct Row {
-            real: Vec<(u32, SurfacePoint)>,
-            real_terms: Vec<LightTerm>,
-            real_masks: Vec<RealMask>,
-            virt: Vec<(u32, SurfacePoint)>,
-            virt_terms: Vec<LightTerm>,
-            edges: Vec<(u32, Vec<SurfacePoint>)>,
-            edge_terms: Vec<LightTerm>,
-            real_t: Vec<f32>,
-            rays: u64,
-        }
-        let rows: Vec<Row> = (0..h)
-            .into_par_iter()
-            .map(|row| {
-                let mut r = Row {
-                    real: vec![],
-                    real_terms: vec![],
-                    real_masks: vec![],
-                    virt: vec![],
-                    virt_terms: vec![],
-                    edges: vec![],
-                    edge_terms: vec![],
-                    real_t: vec![],
-                    rays: 0,
-                };
-                if !(window.y0..window.y1).contains(&row) {
-                    r.real_t = vec![f32::INFINITY; w as usize];
-                    return r;
-                }
-                let rays: Vec<TraceRay> = (0..w)
-                    .map(|col| {
-                        let ray = cam.pixel_ray(col, row);
-                        TraceRay::new(ray.origin.as_vec3(), ray.direction.as_vec3())
-                    })
-                    .collect();
-                let mut real_hits = vec![None; w as usize];
-                input
-                    .tracer
-                    .intersect_batch(&rays, Layer::Real, &mut real_hits);
-                let real_t: Vec<f32> = rays
-                    .iter()
-                    .zip(&real_hits)
-                    .map(|(r, h)| h.map_or(r.tfar, |h| h.t))
-                    .collect();
-                // What a query through both layers gives, its real half kept from above.
-                let mut all_hits = real_hits.clone();
-                if has_virtual {
-                    input
-                        .tracer
-                        .put_virtual_in_front(&rays, &real_t, &mut all_hits);
-                }
-                r.real_t = real_t;
-                for col in window.x0..window.x1 {
-                    let pixel = row * w + col;
-                    let seed = hash2(pixel as u64, 0x5A17);
-                    let ray = cam.pixel_ray(col, row);
-                    let real = real_hits[col as usize]
-                        .as_ref()
-                        .and_then(|hit| input.point(hit, ray.origin, ray.direction));
-                    if let Some(p) = real {
-                        r.rays += input.terms(
-                            &p,
-                            seed,
-                            &mut r.real_terms,
-                            input.for_updates.then_some(&mut r.real_masks),
-                        );
-                        r.real.push((pixel, p));
-                    }
-                    if let Some(hit) = all_hits[col as usize].as_ref().filter(|h| h.is_virtual)
-                        && let Some(p) = input.point(hit, ray.origin, ray.direction)
-                    {
-                        r.rays += input.terms(&p, hash2(seed, 1), &mut r.virt_terms, None);
-                        r.virt.push((pixel, p));
-                    }
-                    if near_virtual.iter().any(|b| b.contains(col, row)) && candidate(pixel) {
-                        // Only a real point the pixel's centre sees: one behind an object may be in its shadow.
-                        let seen = all_hits[col as usize]
-                            .as_ref()
-                            .is_some_and(|h| !h.is_virtual);
-                        let (kept, rays) = edge_samples(
-                            input,
-                            col,
-                            row,
-                            seed,
-                            real.as_ref().filter(|_| seen),
-                            &mut r.edge_terms,
-                        );
-                        r.rays += rays;
-                        if let Some(kept) = kept {
-                            r.edges.push((pixel, kept));
-                        }
-                    }
-                }
-                r
-            })
-            .collect();
-
-        let n = (w * h) as usize;
-        let mut pda = PixelDataArray {
-            width: w,
-            height: h,
-            light_count: lights,
-            supersample: input.settings.supersample.max(1),
-            real_index: vec![NONE; n],
-            real_t: Vec::with_capacity(n),
-            real: Samples::default(),
-            real_masks: Vec::new(),
-            virtual_index: vec![NONE; n],
-            virtual_pixels: Vec::new(),
-            virtual_samples: Samples::default(),
-            edges: Vec::new(),
-            edge_samples: Samples::default(),
-            rays: 0,
+        let tracer = RowTracer {
+            input,
+            near_virtual,
+            candidates,
+            window: input
+                .settings
+                .crop
+                .and_then(|c| c.pixels(w, h))
+                .unwrap_or(PixelRect::full(w, h)),
         };
-        for r in rows {
-            for (pixel, p) in r.real {
-                pda.real_index[pixel as usize] = pda.real.points.len() as u32;
-                pda.real.points.push(p);
-            }
-            pda.real.terms.extend(r.real_terms);
-            pda.real_masks.extend(r.real_masks);
-            for (pixel, p) in r.virt {
-                pda.virtual_index[pixel as usize] = pda.virtual_samples.points.len() as u32;
-                pda.virtual_pixels.push(pixel);
-                pda.virtual_samples.points.push(p);
-            }
-            pda.virtual_samples.terms.extend(r.virt_terms);
-            for (pixel, subs) in r.edges {
-                let start = pda.edge_samples.points.len() as u32;
-                pda.edges.push(EdgePixel {
-                    pixel,
-                    start,
-                    count: subs.len() as u32,
-                });
-                pda.edge_samples.points.extend(subs);
-            }
-            pda.edge_samples.terms.extend(r.edge_terms);
-            pda.real_t.extend(r.real_t);
-            pda.rays += r.rays;
-        }
-        pda
+        let rows: Vec<Row> = (0..h).into_par_iter().map(|row| tracer.row(row)).collect();
+        PixelDataArray::assemble(input, rows)
     }
 
     /// Recomputes the light terms of the real points at `pixels` for
@@ -520,7 +382,6 @@ impl PixelDataArray {
     ///
     /// [`build`]: PixelDataArray::build
     pub fn rebuild_virtual(&mut self, input: &PdaInput) -> (u64, u64) {
-        let cam = input.camera;
         let n = (self.width * self.height) as usize;
         // Reset in place, where the last placement set it: a fresh 0.8 MB
         // each update faulted its pages in again, and filling it all
@@ -536,109 +397,14 @@ impl PixelDataArray {
             samples.terms.clear();
         }
         self.edges.clear();
-        let boxes = screen_boxes(cam, input.bounds);
+        let boxes = screen_boxes(input.camera, input.bounds);
         let candidates = if boxes.is_empty() {
             None
         } else {
             edge_candidates(input)
         };
-        let candidate = |pixel: u32| candidates.as_ref().is_none_or(|m| m[pixel as usize]);
-        // The nearest any object can be to the camera: a pixel whose real
-        // surface (and its neighbours', which its sub-pixels may reach) is
-        // nearer hides every object, and needs no ray.
-        let nearest = input
-            .bounds
-            .objects
-            .iter()
-            .map(|o| (cam.position.clamp(o.aabb.0, o.aabb.1) - cam.position).length())
-            .fold(f64::INFINITY, f64::min);
-        let hidden = |x: u32, y: u32| {
-            let (x0, x1, y0, y1) = (
-                x.saturating_sub(1),
-                (x + 1).min(self.width - 1),
-                y.saturating_sub(1),
-                (y + 1).min(self.height - 1),
-            );
-            (y0..=y1).all(|yy| {
-                (x0..=x1).all(|xx| {
-                    let k = self.real_index[(yy * self.width + xx) as usize];
-                    k != NONE
-                        && (self.real.points[k as usize].position.as_dvec3() - cam.position)
-                            .length()
-                            < nearest
-                })
-            })
-        };
-        let mut pixels: Vec<u32> = Vec::new();
-        for b in &boxes {
-            for y in b.y0..=b.y1 {
-                for x in b.x0..=b.x1 {
-                    if !hidden(x, y) {
-                        pixels.push(y * self.width + x);
-                    }
-                }
-            }
-        }
-        pixels.sort_unstable();
-        pixels.dedup();
-        type Found = (
-            u32,
-            Option<(SurfacePoint, Vec<LightTerm>)>,
-            Option<(Vec<SurfacePoint>, Vec<LightTerm>)>,
-            u64,
-        );
-        // Centre rays in packets of 16 (the kernel `build` traces with, so
-        // the same bits), through the objects only as far as the real hit
-        // `build` found; then each pixel's shading and edge test.
-        let real_t = &self.real_t;
-        let found: Vec<Found> = pixels
-            .par_chunks(16)
-            .flat_map_iter(|chunk| {
-                let traced: Vec<TraceRay> = chunk
-                    .iter()
-                    .map(|&pixel| {
-                        let ray = cam.pixel_ray(pixel % self.width, pixel / self.width);
-                        TraceRay::new(ray.origin.as_vec3(), ray.direction.as_vec3())
-                    })
-                    .collect();
-                let before: Vec<f32> = chunk.iter().map(|&pixel| real_t[pixel as usize]).collect();
-                let mut hits = vec![None; chunk.len()];
-                input
-                    .tracer
-                    .intersect_virtual_before(&traced, &before, &mut hits);
-                chunk.iter().copied().zip(hits).collect::<Vec<_>>()
-            })
-            .collect::<Vec<_>>()
-            .into_par_iter()
-            .map(|(pixel, hit)| {
-                let (col, row) = (pixel % self.width, pixel / self.width);
-                let seed = hash2(pixel as u64, 0x5A17);
-                let ray = cam.pixel_ray(col, row);
-                let mut rays = 0;
-                let virt = hit
-                    .filter(|h| h.is_virtual)
-                    .and_then(|h| input.point(&h, ray.origin, ray.direction))
-                    .map(|p| {
-                        let mut terms = Vec::with_capacity(input.lights.len());
-                        rays += input.terms(&p, hash2(seed, 1), &mut terms, None);
-                        (p, terms)
-                    });
-                let mut edge_terms = Vec::new();
-                // No object in front: the centre sees the real hit, if there is one.
-                let seen = hit.is_none() && real_t[pixel as usize].is_finite();
-                let real = Some(self.real_index[pixel as usize])
-                    .filter(|&k| k != NONE && seen)
-                    .map(|k| &self.real.points[k as usize]);
-                let (kept, r) = if candidate(pixel) {
-                    edge_samples(input, col, row, seed, real, &mut edge_terms)
-                } else {
-                    (None, 0)
-                };
-                rays += r;
-                let edge = kept.map(|kept| (kept, edge_terms));
-                (pixel, virt, edge, rays)
-            })
-            .collect();
+        let pixels = self.pixels_to_retrace(input, &boxes);
+        let found = self.retrace(input, &pixels, candidates.as_deref());
         let mut rays = 0;
         for (pixel, virt, edge, r) in found {
             rays += r;
@@ -691,9 +457,11 @@ impl PixelDataArray {
 }
 
 mod edges;
+mod rows;
 mod terms;
 
 use edges::*;
+use rows::*;
 use terms::*;
 
 #[cfg(test)]
