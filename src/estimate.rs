@@ -137,28 +137,20 @@ pub fn estimate_reflectances(
     settings: EstimateSettings,
 ) -> Estimate {
     let n = patches.patch_count();
-    let pi = std::f64::consts::PI;
     let surface = |k: usize| patches.patch(k).surface;
-    let seen: Vec<bool> = (0..n)
-        .map(|k| photo.pixels[k] > 0 && !known.contains_key(&surface(k)))
-        .collect();
-
-    // Loscos Eq. 1 with ρ̂ the mean known reflectance (0.5 when none is known).
-    let rho_hat = if known.is_empty() {
-        DVec3::splat(0.5)
-    } else {
-        known.values().copied().sum::<DVec3>() / known.len() as f64
+    let eq2 = Eq2 {
+        patches,
+        transport,
+        direct,
+        photo,
+        known,
+        seen: (0..n)
+            .map(|k| photo.pixels[k] > 0 && !known.contains_key(&surface(k)))
+            .collect(),
+        solve_tolerance: settings.solve_tolerance,
     };
-    let mean = photo.image_mean.max(DVec3::splat(1e-30));
-    let mut rho: Vec<DVec3> = (0..n)
-        .map(|k| match known.get(&surface(k)) {
-            Some(r) => *r,
-            None if seen[k] => (photo.radiance[k] / mean * rho_hat)
-                .clamp(DVec3::ZERO, DVec3::splat(MAX_REFLECTANCE)),
-            None => DVec3::ZERO,
-        })
-        .collect();
-    let mut estimated = seen.clone();
+    let mut rho = eq2.first_guess();
+    let mut estimated = eq2.seen.clone();
     fill_unseen(patches, &mut rho, &estimated, known);
 
     let (mut iterations, mut change, mut clamped) = (0, f64::INFINITY, 0);
@@ -173,53 +165,19 @@ pub fn estimate_reflectances(
     let mut step = 1.0f64;
     while iterations < settings.max_iterations && change > settings.tolerance {
         iterations += 1;
-        let emission: Vec<DVec3> = rho.iter().zip(direct).map(|(r, e)| *r * *e).collect();
-        let model = solve_from(
-            patches,
-            transport,
-            &rho,
-            &emission,
-            previous.as_deref(),
-            settings.solve_tolerance,
-            500,
-        );
+        let model = eq2.solve(&rho, previous.as_deref());
         let mixed: Vec<DVec3> = (0..n)
             .map(|k| {
                 if photo.pixels[k] > 0 {
-                    photo.radiance[k] * pi
+                    photo.radiance[k] * std::f64::consts::PI
                 } else {
                     model.radiosity[k]
                 }
             })
             .collect();
         previous = Some(model.radiosity);
-        let gathered = transport.gather_rgb(patches, &mixed);
-        // A patch must receive light for EQ2 to say anything: a hundred-
-        // thousandth of the scene's mean irradiance, per channel.
-        let floor = direct.iter().copied().sum::<DVec3>() / n.max(1) as f64 * 1e-5;
         let mut next = rho.clone();
-        clamped = 0;
-        pinned.clear();
-        for k in 0..n {
-            estimated[k] = false;
-            if !seen[k] {
-                continue;
-            }
-            let irradiance = direct[k] + gathered[k];
-            if irradiance.cmplt(floor.max(DVec3::splat(1e-300))).any() {
-                continue;
-            }
-            let raw = photo.radiance[k] * pi / irradiance;
-            let r = raw.clamp(DVec3::ZERO, DVec3::splat(MAX_REFLECTANCE));
-            if r != raw {
-                clamped += 1;
-                if raw.max_element() > MAX_REFLECTANCE {
-                    pinned.push((photo.pixels[k], raw.max_element() / MAX_REFLECTANCE));
-                }
-            }
-            next[k] = r;
-            estimated[k] = true;
-        }
+        (clamped, pinned) = eq2.round(&mixed, &mut next, &mut estimated);
         fill_unseen(patches, &mut next, &estimated, known);
         let asked = next
             .iter()
@@ -237,33 +195,15 @@ pub fn estimate_reflectances(
         }
         rho = next;
     }
-    let emission: Vec<DVec3> = rho.iter().zip(direct).map(|(r, e)| *r * *e).collect();
-    let solution = solve_from(
-        patches,
-        transport,
-        &rho,
-        &emission,
-        previous.as_deref(),
-        settings.solve_tolerance,
-        500,
-    );
+    let solution = eq2.solve(&rho, previous.as_deref());
     let unseen = (0..n)
         .filter(|&k| !estimated[k] && !known.contains_key(&surface(k)))
         .count();
     let seen_pixels: u64 = (0..n)
-        .filter(|&k| seen[k])
+        .filter(|&k| eq2.seen[k])
         .map(|k| photo.pixels[k] as u64)
         .sum();
-    let pinned_pixels: u64 = pinned.iter().map(|p| p.0 as u64).sum();
-    pinned.sort_by(|a, b| a.1.total_cmp(&b.1));
-    let mut below = 0u64;
-    let pinned_factor = pinned
-        .iter()
-        .find(|p| {
-            below += p.0 as u64;
-            2 * below >= pinned_pixels
-        })
-        .map_or(1.0, |p| p.1);
+    let (pinned_share, pinned_factor) = pinned_median(pinned, seen_pixels);
     Estimate {
         reflectance: rho,
         solution,
@@ -271,9 +211,114 @@ pub fn estimate_reflectances(
         unseen,
         iterations,
         change,
-        pinned_share: pinned_pixels as f64 / seen_pixels.max(1) as f64,
+        pinned_share,
         pinned_factor,
     }
+}
+
+/// What EQ2's fixed point reads.
+struct Eq2<'a> {
+    patches: &'a Patches,
+    transport: &'a Transport,
+    direct: &'a [DVec3],
+    photo: &'a PhotoPatches,
+    known: &'a HashMap<u32, DVec3>,
+    /// Patches the photo sees whose reflectance is not known.
+    seen: Vec<bool>,
+    solve_tolerance: f64,
+}
+
+impl Eq2<'_> {
+    /// Loscos Eq. 1 with ρ̂ the mean known reflectance (0.5 when none is
+    /// known); zero where unseen.
+    fn first_guess(&self) -> Vec<DVec3> {
+        let (photo, known) = (self.photo, self.known);
+        let rho_hat = if known.is_empty() {
+            DVec3::splat(0.5)
+        } else {
+            known.values().copied().sum::<DVec3>() / known.len() as f64
+        };
+        let mean = photo.image_mean.max(DVec3::splat(1e-30));
+        (0..self.patches.patch_count())
+            .map(|k| match known.get(&self.patches.patch(k).surface) {
+                Some(r) => *r,
+                None if self.seen[k] => (photo.radiance[k] / mean * rho_hat)
+                    .clamp(DVec3::ZERO, DVec3::splat(MAX_REFLECTANCE)),
+                None => DVec3::ZERO,
+            })
+            .collect()
+    }
+
+    /// The forward solution with reflectances `rho`.
+    fn solve(&self, rho: &[DVec3], previous: Option<&[DVec3]>) -> Solution {
+        let emission: Vec<DVec3> = rho.iter().zip(self.direct).map(|(r, e)| *r * *e).collect();
+        solve_from(
+            self.patches,
+            self.transport,
+            rho,
+            &emission,
+            previous,
+            self.solve_tolerance,
+            500,
+        )
+    }
+
+    /// One round of EQ2 into `next`: each seen patch's reflectance from its
+    /// photo radiance over its irradiance (direct, and gathered from
+    /// `mixed`: the photo's radiosity where it sees a patch, the model's
+    /// elsewhere); `estimated` marks the patches it set. Returns the
+    /// patches clamped, and the pinned ones (pixels, raw ρ / clamp).
+    fn round(
+        &self,
+        mixed: &[DVec3],
+        next: &mut [DVec3],
+        estimated: &mut [bool],
+    ) -> (usize, Vec<(u32, f64)>) {
+        let (n, photo, direct) = (self.patches.patch_count(), self.photo, self.direct);
+        let gathered = self.transport.gather_rgb(self.patches, mixed);
+        // A patch must receive light for EQ2 to say anything: a hundred-
+        // thousandth of the scene's mean irradiance, per channel.
+        let floor = direct.iter().copied().sum::<DVec3>() / n.max(1) as f64 * 1e-5;
+        let mut clamped = 0;
+        let mut pinned = Vec::new();
+        for k in 0..n {
+            estimated[k] = false;
+            if !self.seen[k] {
+                continue;
+            }
+            let irradiance = direct[k] + gathered[k];
+            if irradiance.cmplt(floor.max(DVec3::splat(1e-300))).any() {
+                continue;
+            }
+            let raw = photo.radiance[k] * std::f64::consts::PI / irradiance;
+            let r = raw.clamp(DVec3::ZERO, DVec3::splat(MAX_REFLECTANCE));
+            if r != raw {
+                clamped += 1;
+                if raw.max_element() > MAX_REFLECTANCE {
+                    pinned.push((photo.pixels[k], raw.max_element() / MAX_REFLECTANCE));
+                }
+            }
+            next[k] = r;
+            estimated[k] = true;
+        }
+        (clamped, pinned)
+    }
+}
+
+/// The share of the seen pixels on pinned patches, and the pixel-weighted
+/// median of their raw ρ / clamp.
+fn pinned_median(mut pinned: Vec<(u32, f64)>, seen_pixels: u64) -> (f64, f64) {
+    let pinned_pixels: u64 = pinned.iter().map(|p| p.0 as u64).sum();
+    pinned.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let mut below = 0u64;
+    let factor = pinned
+        .iter()
+        .find(|p| {
+            below += p.0 as u64;
+            2 * below >= pinned_pixels
+        })
+        .map_or(1.0, |p| p.1);
+    (pinned_pixels as f64 / seen_pixels.max(1) as f64, factor)
 }
 
 /// Gives every patch that has no estimate (and no known value) the

@@ -56,75 +56,22 @@ impl Evidence {
         let mut unit_scene = scene.clone();
         unit_scene.lights[index].intensity = Intensity::Uniform(DVec3::ONE);
         let unit = LightSource::from_scene(&unit_scene, index)?;
-        let position = unit.position;
         let others: Vec<LightSource> = (0..scene.lights.len())
             .filter(|&j| j != index && scene.lights[j].real)
             .map(|j| LightSource::from_scene(scene, j))
             .collect::<Result<_>>()?;
         let patches = Patches::of_scene(scene, false, settings.patch_size);
         let cam = &scene.camera;
-        let level = settings.light_level;
-        let pi = std::f64::consts::PI;
+        let sampler = Sampler {
+            photo,
+            tracer,
+            unit: &unit,
+            others: &others,
+            level: settings.light_level,
+        };
         let mut samples: Vec<Sample> = (0..cam.height)
             .into_par_iter()
-            .flat_map_iter(|row| {
-                let hits = row_hits(cam, tracer, Layer::Real, row);
-                let mut out = Vec::new();
-                for (col, hit) in hits.iter().enumerate() {
-                    let Some(hit) = hit else { continue };
-                    let ray = cam.pixel_ray(col as u32, row);
-                    let x = ray.origin + ray.direction * hit.t as f64;
-                    // The hit normal faces the camera: a light behind the surface does not light what the photo shows.
-                    let n = hit.normal.as_dvec3();
-                    let seed = hash2(
-                        (row as usize * cam.width as usize + col) as u64,
-                        0x0060_1110,
-                    );
-                    let g = if (position - x).dot(n) > 0.0 {
-                        let d = unit.direct(tracer, Layer::Real, x, n, level, seed);
-                        (d.unoccluded * d.visibility).x
-                    } else {
-                        0.0
-                    };
-                    let mut e_known = DVec3::ZERO;
-                    for (j, l) in others.iter().enumerate() {
-                        if (l.position - x).dot(n) > 0.0 {
-                            let d = l.direct(
-                                tracer,
-                                Layer::Real,
-                                x,
-                                n,
-                                level,
-                                hash2(seed, j as u64 + 1),
-                            );
-                            e_known += d.unoccluded * d.visibility;
-                        }
-                    }
-                    let b = photo.get(col as u32, row).as_dvec3() * pi;
-                    if !b.is_finite() || (g <= 0.0 && e_known == DVec3::ZERO) {
-                        continue;
-                    }
-                    let (v, h) = angles((x - position).normalize_or_zero());
-                    let area = (hit.t as f64).powi(2) / n.dot(ray.direction).abs().max(0.05);
-                    let pixel = row * cam.width + col as u32;
-                    out.push(Sample {
-                        surface: hit.surface,
-                        v,
-                        h,
-                        g,
-                        e_known,
-                        b,
-                        h_ind: DVec3::ZERO,
-                        pixel,
-                        x,
-                        n,
-                        area,
-                        gathered_photo: DVec3::ZERO,
-                        unseen: (0, 0),
-                    });
-                }
-                out
-            })
+            .flat_map_iter(|row| sampler.row(cam, row))
             .collect();
         let mixed = mixed_pixels(&samples, cam.width, cam.height);
         let sharp = sharp_pixels(&samples, cam.width, cam.height);
@@ -271,5 +218,71 @@ impl Evidence {
             self.height,
             settings.texture_edge,
         );
+    }
+}
+
+/// What a pixel's sample reads: the unknown light at unit intensity, the
+/// known lights, and the photo.
+struct Sampler<'a> {
+    photo: &'a Image,
+    tracer: &'a Tracer,
+    unit: &'a LightSource,
+    others: &'a [LightSource],
+    /// 2^level shadow rays towards area lights.
+    level: usize,
+}
+
+impl Sampler<'_> {
+    /// The samples of row `row`: each pixel whose surface some light reaches.
+    fn row(&self, cam: &crate::camera::Camera, row: u32) -> Vec<Sample> {
+        let (tracer, position, level) = (self.tracer, self.unit.position, self.level);
+        let hits = row_hits(cam, tracer, Layer::Real, row);
+        let mut out = Vec::new();
+        for (col, hit) in hits.iter().enumerate() {
+            let Some(hit) = hit else { continue };
+            let ray = cam.pixel_ray(col as u32, row);
+            let x = ray.origin + ray.direction * hit.t as f64;
+            // The hit normal faces the camera: a light behind the surface does not light what the photo shows.
+            let n = hit.normal.as_dvec3();
+            let seed = hash2(
+                (row as usize * cam.width as usize + col) as u64,
+                0x0060_1110,
+            );
+            let g = if (position - x).dot(n) > 0.0 {
+                let d = self.unit.direct(tracer, Layer::Real, x, n, level, seed);
+                (d.unoccluded * d.visibility).x
+            } else {
+                0.0
+            };
+            let mut e_known = DVec3::ZERO;
+            for (j, l) in self.others.iter().enumerate() {
+                if (l.position - x).dot(n) > 0.0 {
+                    let d = l.direct(tracer, Layer::Real, x, n, level, hash2(seed, j as u64 + 1));
+                    e_known += d.unoccluded * d.visibility;
+                }
+            }
+            let b = self.photo.get(col as u32, row).as_dvec3() * std::f64::consts::PI;
+            if !b.is_finite() || (g <= 0.0 && e_known == DVec3::ZERO) {
+                continue;
+            }
+            let (v, h) = angles((x - position).normalize_or_zero());
+            let area = (hit.t as f64).powi(2) / n.dot(ray.direction).abs().max(0.05);
+            out.push(Sample {
+                surface: hit.surface,
+                v,
+                h,
+                g,
+                e_known,
+                b,
+                h_ind: DVec3::ZERO,
+                pixel: row * cam.width + col as u32,
+                x,
+                n,
+                area,
+                gathered_photo: DVec3::ZERO,
+                unseen: (0, 0),
+            });
+        }
+        out
     }
 }

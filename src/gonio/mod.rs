@@ -52,11 +52,13 @@ mod evidence;
 mod grid;
 mod plot;
 mod poisson;
+mod propagate;
 mod texture;
 
 use evidence::Evidence;
 use grid::{Fit, Grid, nearby_intensity};
 pub use plot::polar_plot;
+use propagate::propagate;
 use texture::{PenumbraModel, Texture, mixed_pixels, sharp_pixels, textured, unreadable_pixels};
 
 /// Bumped whenever the reconstruction's results change, so that a cached
@@ -330,139 +332,6 @@ const MIN_LIGHT_SHARE: f64 = 0.05;
 
 /// Samples' worth of weight a node needs before EQ2 may lean on it.
 const WELL_KNOWN_SAMPLES: f64 = 4.0;
-
-/// One pass of Grosch's propagation over the samples, given their
-/// indirect light. Returns the fitted RGB table and each surface's reflectance.
-fn propagate(
-    grid: &Grid,
-    samples: &[Sample],
-    known_rho: &HashMap<u32, DVec3>,
-    surfaces: &[u32],
-) -> (Fit, HashMap<u32, (DVec3, ReflectanceSource)>) {
-    let mut fit = Fit::new(grid.len());
-    let mut rho: HashMap<u32, (DVec3, ReflectanceSource)> = HashMap::new();
-    let mut by_surface: HashMap<u32, Vec<usize>> = HashMap::new();
-    for (i, s) in samples.iter().enumerate() {
-        by_surface.entry(s.surface).or_default().push(i);
-    }
-    let eq1 = |s: &Sample, r: DVec3| -> (DVec3, DVec3) {
-        let safe = r.max(DVec3::splat(1e-6));
-        (s.b / safe - s.e_known - s.h_ind, s.b / safe)
-    };
-    for (&surface, &r) in known_rho {
-        rho.insert(surface, (r, ReflectanceSource::Known));
-        for &i in by_surface.get(&surface).into_iter().flatten() {
-            if samples[i].g > 0.0 {
-                let (y, total) = eq1(&samples[i], r);
-                fit.add(grid, &samples[i], y, total);
-            }
-        }
-    }
-    let mut step = 0;
-    loop {
-        // Propagate only from nodes many pixels agree on: a node touched by
-        // a few samples at a surface's rim is where EQ1 is least reliable.
-        let known = fit.well_known(WELL_KNOWN_SAMPLES);
-        if !known.iter().any(|&k| k) {
-            break;
-        }
-        let values = fit.values();
-        let (dist, from) = grid.distance_field(&known);
-        let slopes = grid.slopes(&values, &known);
-        let peak = (0..grid.len())
-            .filter(|&k| known[k])
-            .map(|k| values[k].element_sum() / 3.0)
-            .fold(0.0, f64::max);
-        let half_node = 0.5 * (grid.dv.powi(2) + grid.dh.powi(2)).sqrt().to_radians();
-        // For each surface still unknown: its samples' (risk, ρ estimate).
-        let mut best: Option<(f64, u32, DVec3, usize, f64)> = None;
-        for &surface in surfaces {
-            if rho.contains_key(&surface) {
-                continue;
-            }
-            let Some(ids) = by_surface.get(&surface) else {
-                continue;
-            };
-            let mut ranked: Vec<(f64, f64, DVec3)> = ids
-                .iter()
-                .filter_map(|&i| {
-                    let s = &samples[i];
-                    let (intensity, angle) = if s.g > 0.0 {
-                        nearby_intensity(grid, s, &values, &known, &dist, &from)?
-                    } else {
-                        (DVec3::ZERO, 0.0)
-                    };
-                    let irradiance = intensity * s.g + s.e_known + s.h_ind;
-                    if irradiance.min_element() <= 0.0 {
-                        return None;
-                    }
-                    // The error EQ2 inherits from the assumed intensity: how
-                    // fast the table changes where it is taken from, over the
-                    // angle to it (plus half a node: the table is bilinear),
-                    // as a share of the sample's light. A sample the light
-                    // does not reach carries none.
-                    let risk = if s.g > 0.0 {
-                        let src = from[grid.nearest(s.v, s.h)];
-                        let reach = angle + half_node;
-                        let slope = if src == usize::MAX { 0.0 } else { slopes[src] };
-                        // Beyond the known directions the light may be anything
-                        // up to the brightest seen: as much doubt per radian.
-                        let doubt = slope * reach + peak * angle;
-                        s.g * doubt / (irradiance.element_sum() / 3.0)
-                    } else {
-                        0.0
-                    };
-                    // Gathered indirect light is noisy per pixel: prefer direct.
-                    let indirect_share = s.h_ind.element_sum() / irradiance.element_sum();
-                    Some((
-                        risk + INDIRECT_DOUBT * indirect_share,
-                        angle,
-                        s.b / irradiance,
-                    ))
-                })
-                .collect();
-            if ranked.is_empty() {
-                continue;
-            }
-            ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
-            // Every sample at most twice as doubtful as the EQ2_SAMPLES-th
-            // (or as SAFE_RISK): many average out what is left of the texture.
-            let risk = ranked[EQ2_SAMPLES.min(ranked.len()) - 1].0;
-            let take = ranked
-                .iter()
-                .take_while(|x| x.0 <= SAFE_RISK.max(2.0 * risk))
-                .count();
-            if best.as_ref().is_none_or(|b| risk < b.0) {
-                let r = median_rgb(&ranked[..take].iter().map(|x| x.2).collect::<Vec<_>>());
-                let angle = ranked[..take].iter().map(|x| x.1).fold(0.0, f64::max);
-                best = Some((risk, surface, r, take, angle));
-            }
-        }
-        let Some((_, surface, r, take, angle)) = best else {
-            break;
-        };
-        let r = r.clamp(DVec3::ZERO, DVec3::splat(crate::estimate::MAX_REFLECTANCE));
-        step += 1;
-        rho.insert(
-            surface,
-            (
-                r,
-                ReflectanceSource::Propagated {
-                    step,
-                    angle_deg: angle.to_degrees(),
-                    samples: take,
-                },
-            ),
-        );
-        for &i in &by_surface[&surface] {
-            if samples[i].g > 0.0 {
-                let (y, total) = eq1(&samples[i], r);
-                fit.add(grid, &samples[i], y, total);
-            }
-        }
-    }
-    (fit, rho)
-}
 
 /// Gathers each sample's indirect light per pixel (interpolating it from
 /// patches fails exactly where propagation happens: at corners and
