@@ -425,75 +425,7 @@ pub fn plot(rows: &[SweepRow], title: &str, path: &Path) -> Result<()> {
             .y_label_formatter(&|y| format!("{y:.5}"))
             .draw()
             .map_err(|e| fail(e.to_string()))?;
-        chart
-            .draw_series(
-                rows.iter()
-                    .filter(|r| r.settings.method == SweepMethod::Pda)
-                    .map(|r| {
-                        Circle::new((lt(r.seconds), r.rmse), 3, RGBColor(120, 120, 120).filled())
-                    }),
-            )
-            .map_err(|e| fail(e.to_string()))?
-            .label("pixel path (pda)")
-            .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(120, 120, 120).filled()));
-        if rows.iter().any(|r| r.settings.method != SweepMethod::Pda) {
-            chart
-                .draw_series(
-                    rows.iter()
-                        .filter(|r| r.settings.method != SweepMethod::Pda)
-                        .map(|r| {
-                            Rectangle::new(
-                                [
-                                    (lt(r.seconds) - 0.006, r.rmse - (e_max - e_min) * 0.006),
-                                    (lt(r.seconds) + 0.006, r.rmse + (e_max - e_min) * 0.006),
-                                ],
-                                RGBColor(40, 140, 60).filled(),
-                            )
-                        }),
-                )
-                .map_err(|e| fail(e.to_string()))?
-                .label("texture path")
-                .legend(|(x, y)| {
-                    Rectangle::new(
-                        [(x + 6, y - 3), (x + 12, y + 3)],
-                        RGBColor(40, 140, 60).filled(),
-                    )
-                });
-        }
-        let mut front: Vec<&SweepRow> = rows.iter().filter(|r| r.pareto).collect();
-        front.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
-        chart
-            .draw_series(LineSeries::new(
-                front.iter().map(|r| (lt(r.seconds), r.rmse)),
-                RGBColor(220, 90, 20).stroke_width(2),
-            ))
-            .map_err(|e| fail(e.to_string()))?
-            .label("Pareto front")
-            .legend(|(x, y)| {
-                PathElement::new(
-                    vec![(x, y), (x + 20, y)],
-                    RGBColor(220, 90, 20).stroke_width(2),
-                )
-            });
-        chart
-            .draw_series(front.iter().map(|r| {
-                Circle::new(
-                    (lt(r.seconds), r.rmse),
-                    6,
-                    RGBColor(220, 90, 20).stroke_width(2),
-                )
-            }))
-            .map_err(|e| fail(e.to_string()))?;
-        let d = SweepSettings::defaults();
-        chart
-            .draw_series(
-                rows.iter()
-                    .filter(|r| r.settings == d)
-                    .map(|r| TriangleMarker::new((lt(r.seconds), r.rmse), 9, BLUE.filled())),
-            )
-            .map_err(|e| fail(e.to_string()))?
-            .label("defaults")
-            .legend(|(x, y)| TriangleMarker::new((x + 10, y), 6, BLUE.filled()));
+        draw_rows(&mut chart, rows, e_max - e_min).map_err(fail)?;
         chart
             .configure_series_labels()
             .background_style(WHITE.mix(0.8))
@@ -504,6 +436,92 @@ pub fn plot(rows: &[SweepRow], title: &str, path: &Path) -> Result<()> {
         root.present().map_err(|e| fail(e.to_string()))?;
     }
     crate::image_io::write_png_rgb8(path, w, h, buffer)
+}
+
+/// The sweep's chart: x is log10(seconds), y the RMSE.
+type Chart<'a, 'b> = plotters::chart::ChartContext<
+    'a,
+    plotters::backend::BitMapBackend<'b>,
+    plotters::coord::cartesian::Cartesian2d<
+        plotters::coord::types::RangedCoordf64,
+        plotters::coord::types::RangedCoordf64,
+    >,
+>;
+
+/// The rows on `chart`: each method's points, the Pareto front and the
+/// defaults, with their legend entries; `span` is the RMSE axis's range.
+fn draw_rows(chart: &mut Chart, rows: &[SweepRow], span: f64) -> std::result::Result<(), String> {
+    use plotters::prelude::*;
+    let lt = |t: f64| t.max(1e-4).log10();
+    let err = |e: DrawingAreaErrorKind<_>| e.to_string();
+    chart
+        .draw_series(
+            rows.iter()
+                .filter(|r| r.settings.method == SweepMethod::Pda)
+                .map(|r| Circle::new((lt(r.seconds), r.rmse), 3, RGBColor(120, 120, 120).filled())),
+        )
+        .map_err(err)?
+        .label("pixel path (pda)")
+        .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(120, 120, 120).filled()));
+    if rows.iter().any(|r| r.settings.method != SweepMethod::Pda) {
+        chart
+            .draw_series(
+                rows.iter()
+                    .filter(|r| r.settings.method != SweepMethod::Pda)
+                    .map(|r| {
+                        Rectangle::new(
+                            [
+                                (lt(r.seconds) - 0.006, r.rmse - span * 0.006),
+                                (lt(r.seconds) + 0.006, r.rmse + span * 0.006),
+                            ],
+                            RGBColor(40, 140, 60).filled(),
+                        )
+                    }),
+            )
+            .map_err(err)?
+            .label("texture path")
+            .legend(|(x, y)| {
+                Rectangle::new(
+                    [(x + 6, y - 3), (x + 12, y + 3)],
+                    RGBColor(40, 140, 60).filled(),
+                )
+            });
+    }
+    let mut front: Vec<&SweepRow> = rows.iter().filter(|r| r.pareto).collect();
+    front.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
+    chart
+        .draw_series(LineSeries::new(
+            front.iter().map(|r| (lt(r.seconds), r.rmse)),
+            RGBColor(220, 90, 20).stroke_width(2),
+        ))
+        .map_err(err)?
+        .label("Pareto front")
+        .legend(|(x, y)| {
+            PathElement::new(
+                vec![(x, y), (x + 20, y)],
+                RGBColor(220, 90, 20).stroke_width(2),
+            )
+        });
+    chart
+        .draw_series(front.iter().map(|r| {
+            Circle::new(
+                (lt(r.seconds), r.rmse),
+                6,
+                RGBColor(220, 90, 20).stroke_width(2),
+            )
+        }))
+        .map_err(err)?;
+    let d = SweepSettings::defaults();
+    chart
+        .draw_series(
+            rows.iter()
+                .filter(|r| r.settings == d)
+                .map(|r| TriangleMarker::new((lt(r.seconds), r.rmse), 9, BLUE.filled())),
+        )
+        .map_err(err)?
+        .label("defaults")
+        .legend(|(x, y)| TriangleMarker::new((x + 10, y), 6, BLUE.filled()));
+    Ok(())
 }
 
 #[cfg(test)]

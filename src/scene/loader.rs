@@ -105,68 +105,11 @@ impl Loader<'_> {
         let (camera, photo_size) = self.camera_with_lens(&top.req_table("camera")?)?;
         let photo = self.photo(&top.req_table("photo")?)?;
 
-        let mut surfaces: Vec<Surface> = Vec::new();
         let mut warnings = Vec::new();
-        let reals = top.tables("real")?;
-        if reals.is_empty() {
-            return Err(top.error(
-                "real",
-                "missing: the scene needs at least one [[real]] mesh",
-            ));
-        }
-        for r in &reals {
-            let rel = r.req_str("mesh")?;
-            let path = self.existing_path(r, "mesh", rel)?;
-            r.finish()?;
-            let mesh =
-                geometry::load_mesh(&path).map_err(|e| e.within(self.file, r.key_path("mesh")))?;
-            warnings.extend(mesh_warnings(&path, &mesh));
-            for s in mesh.surfaces {
-                if let Some(other) = surfaces.iter().find(|o| o.name == s.name) {
-                    return Err(r.error(
-                        "mesh",
-                        format!(
-                            "surface '{}' is also defined in {}; surface names must be unique",
-                            s.name,
-                            other.mesh.display()
-                        ),
-                    ));
-                }
-                surfaces.push(Surface {
-                    name: s.name,
-                    mesh: path.clone(),
-                    triangles: s.triangles,
-                });
-            }
-        }
+        let surfaces = self.real_surfaces(&top, &mut warnings)?;
 
-        let mut reflectances = Vec::new();
-        for r in top.tables("reflectance")? {
-            let (sname, surface) = real_surface(&r, &surfaces)?;
-            let rgb = r.req_rgb("rgb")?;
-            if rgb.max_element() > 1.0 {
-                return Err(r.error("rgb", "a reflectance lies in [0, 1]"));
-            }
-            if reflectances
-                .iter()
-                .any(|k: &KnownReflectance| k.surface == surface)
-            {
-                return Err(r.error("surface", format!("'{sname}' is given twice")));
-            }
-            r.finish()?;
-            reflectances.push(KnownReflectance { surface, rgb });
-        }
-
-        let mut texture_references: Vec<TextureReference> = Vec::new();
-        for r in top.tables("texture_reference")? {
-            let (sname, surface) = real_surface(&r, &surfaces)?;
-            let point = r.req_vec3("point")?;
-            if texture_references.iter().any(|k| k.surface == surface) {
-                return Err(r.error("surface", format!("'{sname}' is given twice")));
-            }
-            r.finish()?;
-            texture_references.push(TextureReference { surface, point });
-        }
+        let reflectances = known_reflectances(&top, &surfaces)?;
+        let texture_references = texture_references(&top, &surfaces)?;
 
         let mut lights: Vec<Light> = Vec::new();
         for l in top.tables("light")? {
@@ -232,6 +175,44 @@ impl Loader<'_> {
         };
         scene.check_light_clearance()?;
         Ok(scene)
+    }
+
+    /// The surfaces of the `[[real]]` meshes, their names unique.
+    fn real_surfaces(&self, top: &Fields, warnings: &mut Vec<String>) -> Result<Vec<Surface>> {
+        let reals = top.tables("real")?;
+        if reals.is_empty() {
+            return Err(top.error(
+                "real",
+                "missing: the scene needs at least one [[real]] mesh",
+            ));
+        }
+        let mut surfaces: Vec<Surface> = Vec::new();
+        for r in &reals {
+            let rel = r.req_str("mesh")?;
+            let path = self.existing_path(r, "mesh", rel)?;
+            r.finish()?;
+            let mesh =
+                geometry::load_mesh(&path).map_err(|e| e.within(self.file, r.key_path("mesh")))?;
+            warnings.extend(mesh_warnings(&path, &mesh));
+            for s in mesh.surfaces {
+                if let Some(other) = surfaces.iter().find(|o| o.name == s.name) {
+                    return Err(r.error(
+                        "mesh",
+                        format!(
+                            "surface '{}' is also defined in {}; surface names must be unique",
+                            s.name,
+                            other.mesh.display()
+                        ),
+                    ));
+                }
+                surfaces.push(Surface {
+                    name: s.name,
+                    mesh: path.clone(),
+                    triangles: s.triangles,
+                });
+            }
+        }
+        Ok(surfaces)
     }
 
     pub(super) fn camera(&self, c: &Fields) -> Result<Camera> {
@@ -750,4 +731,37 @@ impl Loader<'_> {
             references,
         })
     }
+}
+
+/// The `[[reflectance]]` tables: one per surface, each in [0, 1].
+fn known_reflectances(top: &Fields, surfaces: &[Surface]) -> Result<Vec<KnownReflectance>> {
+    let mut reflectances: Vec<KnownReflectance> = Vec::new();
+    for r in top.tables("reflectance")? {
+        let (sname, surface) = real_surface(&r, surfaces)?;
+        let rgb = r.req_rgb("rgb")?;
+        if rgb.max_element() > 1.0 {
+            return Err(r.error("rgb", "a reflectance lies in [0, 1]"));
+        }
+        if reflectances.iter().any(|k| k.surface == surface) {
+            return Err(r.error("surface", format!("'{sname}' is given twice")));
+        }
+        r.finish()?;
+        reflectances.push(KnownReflectance { surface, rgb });
+    }
+    Ok(reflectances)
+}
+
+/// The `[[texture_reference]]` tables: one per surface.
+fn texture_references(top: &Fields, surfaces: &[Surface]) -> Result<Vec<TextureReference>> {
+    let mut references: Vec<TextureReference> = Vec::new();
+    for r in top.tables("texture_reference")? {
+        let (sname, surface) = real_surface(&r, surfaces)?;
+        let point = r.req_vec3("point")?;
+        if references.iter().any(|k| k.surface == surface) {
+            return Err(r.error("surface", format!("'{sname}' is given twice")));
+        }
+        r.finish()?;
+        references.push(TextureReference { surface, point });
+    }
+    Ok(references)
 }

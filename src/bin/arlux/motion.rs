@@ -41,20 +41,80 @@ pub struct Args {
     pub json: bool,
 }
 
+/// `arlux motion`'s report.
+#[derive(serde::Serialize)]
+struct MotionReport<'a> {
+    motion: &'a str,
+    /// Every pose's time, summed.
+    seconds: f64,
+    poses: Vec<PoseReport>,
+    pda_bytes: usize,
+    /// The pixel-block hierarchy after the first pose, and at the end (it
+    /// keeps the shafts its traversals built).
+    block_bytes: usize,
+    block_bytes_end: usize,
+}
+
+/// One pose: the full render (the first) or an update.
+#[derive(serde::Serialize)]
+struct PoseReport {
+    pose: usize,
+    seconds: f64,
+    full_render: bool,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    speedup: Option<f64>,
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    update: Option<UpdateReport>,
+    comparison: Option<arlux::compare::Comparison>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    stages: Option<serde_json::Value>,
+}
+
+/// What an update recomputed.
+#[derive(serde::Serialize)]
+struct UpdateReport {
+    pixels_recomputed: usize,
+    pixels_retraced: u64,
+    shaft_tests: u64,
+    rays: u64,
+}
+
+impl PoseReport {
+    fn text(&self, pda_bytes: usize, block_bytes: usize) -> String {
+        let error = self.comparison.map_or(String::new(), |e| {
+            format!("; RMSE against its reference {:.5}", e.rmse)
+        });
+        match (&self.update, self.speedup) {
+            (Some(u), Some(speedup)) => format!(
+                "pose {}: update {:.1} ms ({speedup:.1}x faster than the full render); {} pixels recomputed, {} re-traced, {} shaft tests, {} rays{error}",
+                self.pose,
+                self.seconds * 1e3,
+                u.pixels_recomputed,
+                u.pixels_retraced,
+                u.shaft_tests,
+                u.rays,
+            ),
+            _ => format!(
+                "pose {}: full render {:.1} ms; pixel data {:.1} MB, pixel blocks {:.1} MB{error}",
+                self.pose,
+                self.seconds * 1e3,
+                pda_bytes as f64 / 1e6,
+                block_bytes as f64 / 1e6,
+            ),
+        }
+    }
+}
+
 pub fn run(args: &Args) -> Result<()> {
-    let path = args.scene.as_path();
     let name = args.motion.as_str();
     let dir = args.output.as_path();
-    let debug_blocks = args.debug_blocks.as_deref();
-    let as_json = args.json;
     use arlux::model::StageTimes;
     use arlux::render::{RenderSettings, Session};
-    let base = stage("load", || load(path, None))?;
+    let base = stage("load", || load(&args.scene, None))?;
     let motion = base.motion(name)?.clone();
     let poses = pose_range(args, motion.translations.len())?;
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: could not create the folder", dir.display()))?;
-    let settings = RenderSettings::default();
     let write = |pose: usize, c: &arlux::composite::Composite, photo: &Image| -> Result<()> {
         let file = dir.join(format!("{name}_{pose:03}.exr"));
         let meta = frame_meta(&base, json!({ "motion": name, "pose": pose }));
@@ -73,42 +133,31 @@ pub fn run(args: &Args) -> Result<()> {
     let first = base.with_motion_pose(name, poses.start)?;
     let photo = stage("read photo", || read_photo(&first))?;
     let mut times = StageTimes::default();
-    let mut session = Session::start(&first, &photo, &settings, &mut times)?;
+    let mut session = Session::start(&first, &photo, &RenderSettings::default(), &mut times)?;
     session.prepare_updates(&mut times);
     if args.image_only {
         session.image_only();
     }
     keep(&times);
-    // Speed-ups compare with what re-rendering a pose costs: the photo's
-    // calibration and a light's reconstruction are done once per scene.
-    let once: f64 = times
-        .0
-        .iter()
-        .filter(|(n, _)| matches!(*n, "bracket scale" | "goniometric"))
-        .map(|(_, d)| d.as_secs_f64())
-        .sum();
-    let full_seconds = times.total().as_secs_f64() - once;
+    let full_seconds = full_render_seconds(&times);
     stage("write", || write(poses.start, &session.composite, &photo))?;
     bar.inc(1);
     let (pda_bytes, block_bytes) = session.memory_bytes();
-    let mut rows = vec![json!({
-        "pose": poses.start, "seconds": full_seconds, "full_render": true,
-        "comparison": stage("compare", || error_at(poses.start, &session.composite.image))?,
-    })];
-    if !as_json {
-        say!(
-            "pose {}: full render {:.1} ms; pixel data {:.1} MB, pixel blocks {:.1} MB{}",
-            poses.start,
-            full_seconds * 1e3,
-            pda_bytes as f64 / 1e6,
-            block_bytes as f64 / 1e6,
-            rows[0]["comparison"]["rmse"]
-                .as_f64()
-                .map_or(String::new(), |e| format!(
-                    "; RMSE against its reference {e:.5}"
-                ))
-        );
+    let first = PoseReport {
+        pose: poses.start,
+        seconds: full_seconds,
+        full_render: true,
+        speedup: None,
+        update: None,
+        comparison: stage("compare", || {
+            error_at(poses.start, &session.composite.image)
+        })?,
+        stages: None,
+    };
+    if !args.json {
+        say!("{}", first.text(pda_bytes, block_bytes));
     }
+    let mut rows = vec![first];
     let mut last_skipped = Vec::new();
     for pose in poses.start + 1..poses.end {
         let scene = base.with_motion_pose(name, pose)?;
@@ -117,53 +166,63 @@ pub fn run(args: &Args) -> Result<()> {
         keep(&times);
         let seconds = times.total().as_secs_f64();
         stage("write", || write(pose, &session.composite, &photo))?;
-        let error = stage("compare", || error_at(pose, &session.composite.image))?;
-        if !as_json {
+        let row = PoseReport {
+            pose,
+            seconds,
+            full_render: false,
+            speedup: Some(full_seconds / seconds),
+            update: Some(UpdateReport {
+                pixels_recomputed: stats.pixels_recomputed,
+                pixels_retraced: stats.pixels_retraced,
+                shaft_tests: stats.shaft_tests,
+                rays: stats.rays,
+            }),
+            comparison: stage("compare", || error_at(pose, &session.composite.image))?,
+            stages: Some(stages_json(&times)),
+        };
+        if !args.json {
             bar.suspend(|| -> Result<()> {
-                say!(
-                "pose {pose}: update {:.1} ms ({:.1}x faster than the full render); {} pixels recomputed, {} re-traced, {} shaft tests, {} rays{}",
-                seconds * 1e3,
-                full_seconds / seconds,
-                stats.pixels_recomputed,
-                stats.pixels_retraced,
-                stats.shaft_tests,
-                stats.rays,
-                error.map_or(String::new(), |e| format!(
-                    "; RMSE against its reference {:.5}",
-                    e.rmse
-                ))
-                );
+                say!("{}", row.text(pda_bytes, block_bytes));
                 Ok(())
             })?;
         }
-        rows.push(json!({
-            "pose": pose, "seconds": seconds, "full_render": false, "speedup": full_seconds / seconds,
-            "pixels_recomputed": stats.pixels_recomputed, "pixels_retraced": stats.pixels_retraced,
-            "shaft_tests": stats.shaft_tests, "rays": stats.rays, "comparison": error,
-            "stages": stages_json(&times),
-        }));
+        rows.push(row);
         last_skipped = stats.skipped_blocks;
         bar.inc(1);
     }
     bar.finish_and_clear();
-    if let (Some(png), Some(blocks)) = (debug_blocks, session.blocks()) {
+    if let (Some(png), Some(blocks)) = (&args.debug_blocks, session.blocks()) {
         write_skipped_blocks(png, blocks, &photo, &last_skipped)?;
     }
-    // The hierarchy keeps the shafts its traversals built: what it holds at the end.
-    let block_bytes_end = session.memory_bytes().1;
-    if as_json {
-        let seconds: f64 = rows.iter().filter_map(|r| r["seconds"].as_f64()).sum();
-        emit(
-            "motion",
-            json!({ "motion": name, "seconds": seconds, "poses": rows, "pda_bytes": pda_bytes, "block_bytes": block_bytes, "block_bytes_end": block_bytes_end }),
-        )?;
+    let report = MotionReport {
+        motion: name,
+        seconds: rows.iter().map(|r| r.seconds).sum(),
+        poses: rows,
+        pda_bytes,
+        block_bytes,
+        block_bytes_end: session.memory_bytes().1,
+    };
+    if args.json {
+        emit("motion", serde_json::to_value(&report)?)?;
     } else {
         say!(
             "pixel blocks at the end: {:.1} MB",
-            block_bytes_end as f64 / 1e6
+            report.block_bytes_end as f64 / 1e6
         );
     }
     Ok(())
+}
+
+/// What re-rendering a pose costs: the full render less the photo's
+/// calibration and a light's reconstruction, done once per scene.
+fn full_render_seconds(times: &arlux::model::StageTimes) -> f64 {
+    let once: f64 = times
+        .0
+        .iter()
+        .filter(|(n, _)| matches!(*n, "bracket scale" | "goniometric"))
+        .map(|(_, d)| d.as_secs_f64())
+        .sum();
+    times.total().as_secs_f64() - once
 }
 
 /// The poses to render: all, `--frames A..B`, or a `--shard`'s share.
