@@ -72,16 +72,27 @@ fn the_desk_spot_is_recovered_within_ten_percent_where_the_photo_sees_it() {
         rec.samples,
         100.0 * rec.coverage
     );
+    directions_within_bounds(&rec, &spot, &truth_scene, &tracer);
+    reflectances_within_bounds(&rec, &spot, &truth_scene, &rec_scene, &photo, &tracer);
+    render_within_bounds(&rec, &truth_scene, &rec_scene, &photo);
+}
 
+/// The recovered table against the true spot in the directions the photo sees.
+fn directions_within_bounds(
+    rec: &arlux::gonio::Reconstruction,
+    spot: &LightSource,
+    truth_scene: &Scene,
+    tracer: &arlux::trace::Tracer,
+) {
     // Directions from the spot to the surface points the camera sees, lit by the spot.
     let cam = &truth_scene.camera;
     let (mut worst, mut count, mut over) = (0.0f64, 0usize, 0usize);
-    let peak_true = spot.intensity(spot_axis(&spot)).element_sum() / 3.0;
+    let peak_true = spot.intensity(spot_axis(spot)).element_sum() / 3.0;
     let mut errors = Vec::new();
     let mut of_peak = Vec::new();
     let mut by: std::collections::BTreeMap<(u32, u32), (usize, usize, f64)> = Default::default();
     for row in (0..cam.height).step_by(2) {
-        for (col, hit) in row_hits(cam, &tracer, Layer::Real, row)
+        for (col, hit) in row_hits(cam, tracer, Layer::Real, row)
             .iter()
             .enumerate()
             .step_by(2)
@@ -160,18 +171,28 @@ fn the_desk_spot_is_recovered_within_ten_percent_where_the_photo_sees_it() {
         "worst direction {:.1}% of the peak",
         100.0 * of_peak[count - 1]
     );
+}
 
+/// The reflectances found on the way, against two references.
+fn reflectances_within_bounds(
+    rec: &arlux::gonio::Reconstruction,
+    spot: &LightSource,
+    truth_scene: &Scene,
+    rec_scene: &Scene,
+    photo: &arlux::image_io::Image,
+    tracer: &arlux::trace::Tracer,
+) {
     // The desk ships no reflectance ground truth. Two references: arlux's
     // patch estimator given the true spot, and EQ2 per pixel given the true
     // spot on the very samples the reconstruction uses (it isolates what
     // not knowing the spot costs; the patch estimator mixes in its own
     // errors on thin surfaces, whose patches are mostly silhouette).
-    let by_patches = reference_reflectances(&truth_scene);
+    let by_patches = reference_reflectances(truth_scene);
     let by_pixels = arlux::gonio::reflectances_given(
-        &rec_scene,
+        rec_scene,
         &spot.distribution,
-        &photo,
-        &tracer,
+        photo,
+        tracer,
         &GonioSettings::default(),
     )
     .unwrap();
@@ -217,7 +238,15 @@ fn the_desk_spot_is_recovered_within_ten_percent_where_the_photo_sees_it() {
         "worst reflectance {:.1}% from the patch estimate",
         100.0 * worst_patch
     );
+}
 
+/// The box variant rendered with the recovered spot, against the true spot's render.
+fn render_within_bounds(
+    rec: &arlux::gonio::Reconstruction,
+    truth_scene: &Scene,
+    rec_scene: &Scene,
+    photo: &arlux::image_io::Image,
+) {
     // The box variant rendered with the recovered spot, against the true spot's render.
     let variant = |s: &Scene| s.with_variant("box_floor_a").unwrap();
     let settings = arlux::render::RenderSettings::default();
@@ -228,10 +257,10 @@ fn the_desk_spot_is_recovered_within_ten_percent_where_the_photo_sees_it() {
     .unwrap();
     let mut times = arlux::model::StageTimes::default();
     let with_true =
-        arlux::render::render(&variant(&truth_scene), &photo, &settings, &mut times).unwrap();
+        arlux::render::render(&variant(truth_scene), photo, &settings, &mut times).unwrap();
     let with_rec = arlux::render::render(
-        &variant(&rec.apply(&rec_scene)),
-        &photo,
+        &variant(&rec.apply(rec_scene)),
+        photo,
         &settings,
         &mut times,
     )

@@ -157,38 +157,7 @@ fn shadows_of_a_switched_off_lamp_disappear() {
             Some((hit.surface, dp.visibility, ds.visibility, ep / (ep + es)))
         })
         .collect();
-    // Pairs: a pixel in the panel's shadow and the nearest pixel of the same
-    // surface within 8 pixels that the panel lights, along a row or column,
-    // the spot's visibility alike, the panel 30% of the light or more.
-    let mut pairs = Vec::new();
-    for y in 0..h {
-        for x in 0..w {
-            let Some((s, vp, vs, _)) = points[y * w + x] else {
-                continue;
-            };
-            if vp > 0.3 {
-                continue;
-            }
-            for (dx, dy) in [(1i64, 0i64), (-1, 0), (0, 1), (0, -1)] {
-                for step in 1..=8 {
-                    let (qx, qy) = (x as i64 + dx * step, y as i64 + dy * step);
-                    if qx < 0 || qy < 0 || qx >= w as i64 || qy >= h as i64 {
-                        break;
-                    }
-                    let q = qy as usize * w + qx as usize;
-                    match points[q] {
-                        Some((qs, qp, qv, share))
-                            if qs == s && qp > 0.7 && (qv - vs).abs() < 0.01 && share > 0.3 =>
-                        {
-                            pairs.push((y * w + x, q));
-                            break;
-                        }
-                        _ => {}
-                    }
-                }
-            }
-        }
-    }
+    let pairs = shadow_pairs(&points, w, h);
     assert!(
         pairs.len() > 300,
         "{} pairs across the panel's shadow boundary",
@@ -234,6 +203,46 @@ fn shadows_of_a_switched_off_lamp_disappear() {
         (rp / rtruth - 1.0).abs() > 0.10,
         "the photo's shadow must be visible for this test to mean anything: {rp} against {rtruth}"
     );
+}
+
+/// Pairs: a pixel in the panel's shadow and the nearest pixel of the same
+/// surface within 8 pixels that the panel lights, along a row or column,
+/// the spot's visibility alike, the panel 30% of the light or more.
+fn shadow_pairs(
+    points: &[Option<(u32, f64, f64, f64)>],
+    w: usize,
+    h: usize,
+) -> Vec<(usize, usize)> {
+    let mut pairs = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            let Some((s, vp, vs, _)) = points[y * w + x] else {
+                continue;
+            };
+            if vp > 0.3 {
+                continue;
+            }
+            for (dx, dy) in [(1i64, 0i64), (-1, 0), (0, 1), (0, -1)] {
+                for step in 1..=8 {
+                    let (qx, qy) = (x as i64 + dx * step, y as i64 + dy * step);
+                    if qx < 0 || qy < 0 || qx >= w as i64 || qy >= h as i64 {
+                        break;
+                    }
+                    let q = qy as usize * w + qx as usize;
+                    match points[q] {
+                        Some((qs, qp, qv, share))
+                            if qs == s && qp > 0.7 && (qv - vs).abs() < 0.01 && share > 0.3 =>
+                        {
+                            pairs.push((y * w + x, q));
+                            break;
+                        }
+                        _ => {}
+                    }
+                }
+            }
+        }
+    }
+    pairs
 }
 
 /// D ≈ 0: where the photo's lights gave no light (here: none of the

@@ -28,17 +28,9 @@ fn quick_sweep(target: &[&str]) -> (tempfile::TempDir, String) {
 #[test]
 fn a_quick_sweep_measures_every_row_and_its_front_falls_as_cost_rises() {
     let (dir, csv) = quick_sweep(&["--variant", "box_floor_a"]);
-    let mut lines = csv.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let col = |name: &str| {
-        header
-            .iter()
-            .position(|h| *h == name)
-            .unwrap_or_else(|| panic!("no column {name}"))
-    };
-    let rows: Vec<Vec<String>> = lines
-        .map(|l| l.split(',').map(str::to_string).collect())
-        .collect();
+    let t = Table::parse(&csv);
+    let col = |name: &str| t.col(name);
+    let rows = &t.rows;
     assert!(rows.len() >= 6, "{} rows", rows.len());
     // Both methods: the texture path's defaults join the quick grid of a variant.
     assert_eq!(
@@ -49,13 +41,58 @@ fn a_quick_sweep_measures_every_row_and_its_front_falls_as_cost_rises() {
     );
     assert!(rows.iter().filter(|r| r[col("method")] == "pda").count() >= 6);
     let num = |r: &Vec<String>, name: &str| -> f64 { r[col(name)].parse().unwrap() };
-    for r in &rows {
+    for r in rows {
         assert_eq!(r[col("reference")], "truth/box_floor_a.exr");
         assert_eq!(r[col("images_compared")], "1");
         let e = num(r, "rmse");
         assert!(e.is_finite() && e > 0.0 && e < 0.01, "rmse {e}");
         assert!(num(r, "total_seconds") > 0.0);
     }
+    front_is_pareto(&t);
+    defaults_row_is_a_render(&t, dir.path());
+    let png = image::open(dir.path().join("sweep.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (900, 600));
+}
+
+/// A sweep's CSV: its header and rows.
+struct Table {
+    header: Vec<String>,
+    rows: Vec<Vec<String>>,
+}
+
+impl Table {
+    fn parse(csv: &str) -> Table {
+        let mut lines = csv.lines();
+        let header = lines
+            .next()
+            .unwrap()
+            .split(',')
+            .map(str::to_string)
+            .collect();
+        let rows = lines
+            .map(|l| l.split(',').map(str::to_string).collect())
+            .collect();
+        Table { header, rows }
+    }
+
+    fn col(&self, name: &str) -> usize {
+        self.header
+            .iter()
+            .position(|h| h == name)
+            .unwrap_or_else(|| panic!("no column {name}"))
+    }
+
+    fn num(&self, r: &[String], name: &str) -> f64 {
+        r[self.col(name)].parse().unwrap()
+    }
+}
+
+/// The rows marked Pareto form the front: falling error as cost rises,
+/// nothing off it beating it on both counts.
+fn front_is_pareto(t: &Table) {
+    let col = |name: &str| t.col(name);
+    let num = |r: &Vec<String>, name: &str| t.num(r, name);
+    let rows = &t.rows;
     let mut front: Vec<(f64, f64)> = rows
         .iter()
         .filter(|r| r[col("pareto")] == "1")
@@ -95,7 +132,13 @@ fn a_quick_sweep_measures_every_row_and_its_front_falls_as_cost_rises() {
             "row ({t}, {e}) is dominated by nothing on the front"
         );
     }
+}
 
+/// The defaults' row against an independent render + compare.
+fn defaults_row_is_a_render(t: &Table, dir: &std::path::Path) {
+    let col = |name: &str| t.col(name);
+    let num = |r: &Vec<String>, name: &str| t.num(r, name);
+    let rows = &t.rows;
     // The defaults' row against an independent render + compare (rendering is deterministic).
     let default_row = rows
         .iter()
@@ -128,7 +171,7 @@ fn a_quick_sweep_measures_every_row_and_its_front_falls_as_cost_rises() {
             .filter(|r| r[col("method")] == "texture")
             .all(|r| r[col("virtual_patch_size")].is_empty())
     );
-    let image = dir.path().join("default.exr");
+    let image = dir.join("default.exr");
     let render = Command::new(env!("CARGO_BIN_EXE_arlux"))
         .args([
             "render",
@@ -158,9 +201,6 @@ fn a_quick_sweep_measures_every_row_and_its_front_falls_as_cost_rises() {
         (independent - swept).abs() < 1e-6,
         "sweep {swept} vs render + compare {independent}"
     );
-
-    let png = image::open(dir.path().join("sweep.png")).unwrap();
-    assert_eq!((png.width(), png.height()), (900, 600));
 }
 
 #[test]

@@ -194,8 +194,8 @@ impl Tracing<'_> {
                 tracer.occluded_batch(&b.rays[..count], Layer::Virtual, virt_blocked);
                 rays_cast += count as u64;
             } else {
-                for k in 0..count {
-                    virt_blocked[k] = self.own_blocks(b.targets[k]);
+                for (blocked, &target) in virt_blocked.iter_mut().zip(&b.targets[..count]) {
+                    *blocked = self.own_blocks(target);
                 }
             }
             // Which rays the room blocks, and which it or the objects block:

@@ -265,14 +265,14 @@ fn gather_objects(
             .zip(system.direct)
             .map(|(r, e)| *r * *e)
             .collect();
-        for k in real_count..patches.patch_count() {
+        for (k, b) in b.iter_mut().enumerate().skip(real_count) {
             let corners = patches.patch_vertices[k].iter().filter(|&&v| v != u32::MAX);
             let h = corners
                 .clone()
                 .map(|&v| indirect_with[v as usize])
                 .sum::<DVec3>()
                 / corners.count().max(1) as f64;
-            b[k] = system.reflectance[k] * (system.direct[k] + h);
+            *b = system.reflectance[k] * (system.direct[k] + h);
         }
         solve_from(
             patches,

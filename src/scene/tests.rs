@@ -160,197 +160,201 @@ fn intrinsics_replace_the_field_of_view() {
     );
 }
 
+/// Edits of the desk's scene file and the error each must give.
+#[allow(clippy::type_complexity)]
+const BAD_VALUES: &[(&[(&str, &str)], &str)] = &[
+    (
+        &[(
+            "beam_deg = 15.0, cutoff_deg = 30.0",
+            "beam_deg = 35.0, cutoff_deg = 30.0",
+        )],
+        "light[1].intensity.spot.cutoff_deg: must be greater than beam_deg",
+    ),
+    (
+        &[("name = \"desk\"", "name = \"desk\"\nexposure = 2")],
+        "exposure: unknown key",
+    ),
+    (
+        &[("fov_y_deg = 55.0", "fov_y_deg = nan")],
+        "camera.fov_y_deg: must be finite",
+    ),
+    (
+        &[(
+            "fov_y_deg = 55.0",
+            "fov_y_deg = 55.0\nintrinsics = { fx = 1.0, fy = 1.0, cx = 0.0, cy = 0.0 }",
+        )],
+        "camera.intrinsics: give fov_y_deg or intrinsics",
+    ),
+    (
+        &[("position = [0.7, 1.45, 2.7]", "position = [0.7, 1.45]")],
+        "camera.position: must be an array of 3 numbers",
+    ),
+    (
+        &[("look_at = [-0.45, 0.6, -1.0]", "look_at = [0.7, 1.45, 2.7]")],
+        "camera.look_at: must differ from position",
+    ),
+    (
+        &[("width = 512", "width = -4")],
+        "camera.width: must be a positive whole number",
+    ),
+    (
+        &[("image = \"photo.exr\"", "image = \"missing.exr\"")],
+        "photo.image: file not found",
+    ),
+    (
+        &[(
+            "mesh = \"geometry/room.obj\"",
+            "mesh = \"geometry/nope.obj\"",
+        )],
+        "real[1].mesh: file not found",
+    ),
+    (
+        &[("surface = \"left_wall\"", "surface = \"right_wall\"")],
+        "reflectance[0].surface: no real surface named 'right_wall'",
+    ),
+    (
+        &[("rgb = [0.55, 0.62, 0.7]", "rgb = [0.55, 1.62, 0.7]")],
+        "reflectance[0].rgb: a reflectance lies in [0, 1]",
+    ),
+    (
+        &[(
+            "intensity = { uniform = [6.0, 5.5, 5.0] }",
+            "intensity = { uniform = [6.0, -5.5, 5.0] }",
+        )],
+        "light[2].intensity.uniform: components must not be negative",
+    ),
+    (
+        &[(
+            "intensity = { uniform = [6.0, 5.5, 5.0] }",
+            "intensity = { uniform = [6.0, 5.5, 5.0], spot = {} }",
+        )],
+        "light[2].intensity: must have exactly one of",
+    ),
+    (
+        &[(
+            "intensity = { uniform = [6.0, 5.5, 5.0] }",
+            "intensity = { uniforn = [6.0, 5.5, 5.0] }",
+        )],
+        "light[2].intensity.uniforn: unknown key",
+    ),
+    (
+        &[("normal = [0.0, -1.0, 0.0]", "normal = [0.0, 1.0, 0.0]")],
+        "light[0].intensity.lambertian.normal: disagrees with the shape",
+    ),
+    (
+        &[("v = [0.0, 0.0, 0.6]", "v = [1.2, 0.0, 0.0]")],
+        "light[0].shape.rect.v: is parallel to u: u and v must span a rectangle",
+    ),
+    (
+        &[("scale = 0.0\nintensity", "scale = -1.0\nintensity")],
+        "light[2].scale: must not be negative",
+    ),
+    (
+        &[("name = \"bulb\"", "name = \"spot\"")],
+        "light[2].name: light name 'spot' is used twice",
+    ),
+    (
+        &[("lights = { spot = 2.0 }", "lights = { sopt = 2.0 }")],
+        "variant[4].lights.sopt: no light named 'sopt'",
+    ),
+    (
+        &[("hide = [\"box\"]", "hide = [\"bx\"]")],
+        "variant[3].hide[0]: no virtual object or light named 'bx'",
+    ),
+    (
+        &[(
+            "reference = \"truth/spot_x2.exr\"",
+            "reference = \"truth/spot_x3.exr\"",
+        )],
+        "variant[4].reference: file not found",
+    ),
+    (
+        &[("object = \"box\"", "object = \"crate\"")],
+        "motion[0].object: no virtual object named 'crate'",
+    ),
+    (
+        &[("\"truth/box_slide_7.exr\"]", "]")],
+        "motion[0].references: 7 references for 8 poses",
+    ),
+    (
+        &[("[-1.3, 0.0, 0.5], ", "[-1.3, inf, 0.5], ")],
+        "motion[0].translations[0]: must be finite",
+    ),
+    (
+        &[("rgb = [0.8, 0.32, 0.06]\n", "")],
+        "virtual[0].rgb: missing, and surface 'box'",
+    ),
+    (
+        &[("scale = 1.0\nenabled", "scale = 0.0\nenabled")],
+        "virtual[0].scale: must be positive",
+    ),
+    (
+        &[(
+            "intensity = { uniform = [6.0, 5.5, 5.0] }",
+            "intensity = { ies = \"lamp.ies\", rgb = [1.0, 1.0, 1.0], direction = [0.0, -1.0, 0.0], reference = [1.0, 0.0, 0.0] }",
+        )],
+        "light[2].intensity.ies: file not found",
+    ),
+    (
+        &[
+            (
+                "intensity = { uniform = [6.0, 5.5, 5.0] }",
+                "intensity = \"reconstruct\"",
+            ),
+            (
+                "[[reflectance]]\nsurface = \"left_wall\"\nrgb = [0.55, 0.62, 0.7]\n",
+                "",
+            ),
+        ],
+        "light[2].intensity: \"reconstruct\" needs at least one [[reflectance]]",
+    ),
+    (
+        &[(
+            "image = \"photo.exr\"",
+            "brackets = [{ image = \"photo.exr\", ev = 0.0 }]",
+        )],
+        "photo.brackets: 1 exposure(s)",
+    ),
+    (
+        &[(
+            "image = \"photo.exr\"",
+            "brackets = [{ image = \"photo.exr\", ev = 0.0 }, { image = \"photo.exr\", ev = 0.0 }]",
+        )],
+        "photo.brackets[1].ev: two brackets have ev = 0",
+    ),
+    (
+        &[(
+            "image = \"photo.exr\"",
+            "image = \"photo.exr\"\nbrackets = []",
+        )],
+        "photo.brackets: give image or brackets, not both",
+    ),
+    (
+        &[(
+            "position = [0.9, 1.9, 0.3]",
+            "position = { shadow_lines = [] }",
+        )],
+        "light[2].position: needs shadow_lines or shadow_planes",
+    ),
+    (
+        &[(
+            "[[light]]\nname = \"panel\"",
+            "[[texture_reference]]\nsurface = \"flor\"\npoint = [0.0, 0.0, 0.0]\n\n[[light]]\nname = \"panel\"",
+        )],
+        "texture_reference[0].surface: no real surface named 'flor'",
+    ),
+    (
+        &[(
+            "[[light]]\nname = \"panel\"",
+            "[[texture_reference]]\nsurface = \"floor\"\npoint = [0.0, 0.0]\n\n[[light]]\nname = \"panel\"",
+        )],
+        "texture_reference[0].point: must be an array of 3 numbers",
+    ),
+];
+
 #[test]
 fn bad_values_name_the_key_path() {
-    let cases: &[(&[(&str, &str)], &str)] = &[
-        (
-            &[(
-                "beam_deg = 15.0, cutoff_deg = 30.0",
-                "beam_deg = 35.0, cutoff_deg = 30.0",
-            )],
-            "light[1].intensity.spot.cutoff_deg: must be greater than beam_deg",
-        ),
-        (
-            &[("name = \"desk\"", "name = \"desk\"\nexposure = 2")],
-            "exposure: unknown key",
-        ),
-        (
-            &[("fov_y_deg = 55.0", "fov_y_deg = nan")],
-            "camera.fov_y_deg: must be finite",
-        ),
-        (
-            &[(
-                "fov_y_deg = 55.0",
-                "fov_y_deg = 55.0\nintrinsics = { fx = 1.0, fy = 1.0, cx = 0.0, cy = 0.0 }",
-            )],
-            "camera.intrinsics: give fov_y_deg or intrinsics",
-        ),
-        (
-            &[("position = [0.7, 1.45, 2.7]", "position = [0.7, 1.45]")],
-            "camera.position: must be an array of 3 numbers",
-        ),
-        (
-            &[("look_at = [-0.45, 0.6, -1.0]", "look_at = [0.7, 1.45, 2.7]")],
-            "camera.look_at: must differ from position",
-        ),
-        (
-            &[("width = 512", "width = -4")],
-            "camera.width: must be a positive whole number",
-        ),
-        (
-            &[("image = \"photo.exr\"", "image = \"missing.exr\"")],
-            "photo.image: file not found",
-        ),
-        (
-            &[(
-                "mesh = \"geometry/room.obj\"",
-                "mesh = \"geometry/nope.obj\"",
-            )],
-            "real[1].mesh: file not found",
-        ),
-        (
-            &[("surface = \"left_wall\"", "surface = \"right_wall\"")],
-            "reflectance[0].surface: no real surface named 'right_wall'",
-        ),
-        (
-            &[("rgb = [0.55, 0.62, 0.7]", "rgb = [0.55, 1.62, 0.7]")],
-            "reflectance[0].rgb: a reflectance lies in [0, 1]",
-        ),
-        (
-            &[(
-                "intensity = { uniform = [6.0, 5.5, 5.0] }",
-                "intensity = { uniform = [6.0, -5.5, 5.0] }",
-            )],
-            "light[2].intensity.uniform: components must not be negative",
-        ),
-        (
-            &[(
-                "intensity = { uniform = [6.0, 5.5, 5.0] }",
-                "intensity = { uniform = [6.0, 5.5, 5.0], spot = {} }",
-            )],
-            "light[2].intensity: must have exactly one of",
-        ),
-        (
-            &[(
-                "intensity = { uniform = [6.0, 5.5, 5.0] }",
-                "intensity = { uniforn = [6.0, 5.5, 5.0] }",
-            )],
-            "light[2].intensity.uniforn: unknown key",
-        ),
-        (
-            &[("normal = [0.0, -1.0, 0.0]", "normal = [0.0, 1.0, 0.0]")],
-            "light[0].intensity.lambertian.normal: disagrees with the shape",
-        ),
-        (
-            &[("v = [0.0, 0.0, 0.6]", "v = [1.2, 0.0, 0.0]")],
-            "light[0].shape.rect.v: is parallel to u: u and v must span a rectangle",
-        ),
-        (
-            &[("scale = 0.0\nintensity", "scale = -1.0\nintensity")],
-            "light[2].scale: must not be negative",
-        ),
-        (
-            &[("name = \"bulb\"", "name = \"spot\"")],
-            "light[2].name: light name 'spot' is used twice",
-        ),
-        (
-            &[("lights = { spot = 2.0 }", "lights = { sopt = 2.0 }")],
-            "variant[4].lights.sopt: no light named 'sopt'",
-        ),
-        (
-            &[("hide = [\"box\"]", "hide = [\"bx\"]")],
-            "variant[3].hide[0]: no virtual object or light named 'bx'",
-        ),
-        (
-            &[(
-                "reference = \"truth/spot_x2.exr\"",
-                "reference = \"truth/spot_x3.exr\"",
-            )],
-            "variant[4].reference: file not found",
-        ),
-        (
-            &[("object = \"box\"", "object = \"crate\"")],
-            "motion[0].object: no virtual object named 'crate'",
-        ),
-        (
-            &[("\"truth/box_slide_7.exr\"]", "]")],
-            "motion[0].references: 7 references for 8 poses",
-        ),
-        (
-            &[("[-1.3, 0.0, 0.5], ", "[-1.3, inf, 0.5], ")],
-            "motion[0].translations[0]: must be finite",
-        ),
-        (
-            &[("rgb = [0.8, 0.32, 0.06]\n", "")],
-            "virtual[0].rgb: missing, and surface 'box'",
-        ),
-        (
-            &[("scale = 1.0\nenabled", "scale = 0.0\nenabled")],
-            "virtual[0].scale: must be positive",
-        ),
-        (
-            &[(
-                "intensity = { uniform = [6.0, 5.5, 5.0] }",
-                "intensity = { ies = \"lamp.ies\", rgb = [1.0, 1.0, 1.0], direction = [0.0, -1.0, 0.0], reference = [1.0, 0.0, 0.0] }",
-            )],
-            "light[2].intensity.ies: file not found",
-        ),
-        (
-            &[
-                (
-                    "intensity = { uniform = [6.0, 5.5, 5.0] }",
-                    "intensity = \"reconstruct\"",
-                ),
-                (
-                    "[[reflectance]]\nsurface = \"left_wall\"\nrgb = [0.55, 0.62, 0.7]\n",
-                    "",
-                ),
-            ],
-            "light[2].intensity: \"reconstruct\" needs at least one [[reflectance]]",
-        ),
-        (
-            &[(
-                "image = \"photo.exr\"",
-                "brackets = [{ image = \"photo.exr\", ev = 0.0 }]",
-            )],
-            "photo.brackets: 1 exposure(s)",
-        ),
-        (
-            &[(
-                "image = \"photo.exr\"",
-                "brackets = [{ image = \"photo.exr\", ev = 0.0 }, { image = \"photo.exr\", ev = 0.0 }]",
-            )],
-            "photo.brackets[1].ev: two brackets have ev = 0",
-        ),
-        (
-            &[(
-                "image = \"photo.exr\"",
-                "image = \"photo.exr\"\nbrackets = []",
-            )],
-            "photo.brackets: give image or brackets, not both",
-        ),
-        (
-            &[(
-                "position = [0.9, 1.9, 0.3]",
-                "position = { shadow_lines = [] }",
-            )],
-            "light[2].position: needs shadow_lines or shadow_planes",
-        ),
-        (
-            &[(
-                "[[light]]\nname = \"panel\"",
-                "[[texture_reference]]\nsurface = \"flor\"\npoint = [0.0, 0.0, 0.0]\n\n[[light]]\nname = \"panel\"",
-            )],
-            "texture_reference[0].surface: no real surface named 'flor'",
-        ),
-        (
-            &[(
-                "[[light]]\nname = \"panel\"",
-                "[[texture_reference]]\nsurface = \"floor\"\npoint = [0.0, 0.0]\n\n[[light]]\nname = \"panel\"",
-            )],
-            "texture_reference[0].point: must be an array of 3 numbers",
-        ),
-    ];
+    let cases = BAD_VALUES;
     for (edits, expected) in cases {
         let err = error_of(edits);
         assert!(err.contains(expected), "expected '{expected}' in: {err}");
