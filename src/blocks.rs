@@ -31,7 +31,7 @@ pub struct BlockHierarchy {
 /// light alone, and an object moving through a motion meets the same
 /// blocks pose after pose (building them was most of a traversal's work).
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct BlockShafts {
+pub(crate) struct BlockShafts {
     /// Per block (level by level), its shaft's place in `shafts`, or [`NO_SHAFT`].
     slot: Vec<u32>,
     shafts: Vec<Shaft>,
@@ -91,7 +91,7 @@ impl BlockShafts {
 
 /// What a traversal did.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct Traversal {
+pub(crate) struct Traversal {
     /// Pixels whose shaft to the light may meet the bounds.
     pub pixels: Vec<u32>,
     pub shaft_tests: u64,
@@ -153,7 +153,7 @@ impl BlockHierarchy {
     }
 
     /// An empty store of shafts to one light, for [`BlockHierarchy::traverse`].
-    pub fn no_shafts(&self) -> BlockShafts {
+    pub(crate) fn no_shafts(&self) -> BlockShafts {
         let blocks = self.levels.iter().map(|(_, _, b)| b.len()).sum();
         BlockShafts {
             slot: vec![NO_SHAFT; blocks],
@@ -166,7 +166,7 @@ impl BlockHierarchy {
     /// (a moved object's old and new bounds), found top-down; the blocks'
     /// shafts are taken from `shafts` (this light's, from
     /// [`BlockHierarchy::no_shafts`]), those missing built and kept there.
-    pub fn traverse(
+    pub(crate) fn traverse(
         &self,
         light: &LightSource,
         objects: &[ObjectBounds],

@@ -48,7 +48,7 @@ impl Distortion {
 
     /// Whether the radial part still grows at r²: beyond, a polynomial
     /// lens model folds back onto the image and means nothing.
-    pub fn is_monotonic_at(&self, r2: f64) -> bool {
+    pub(crate) fn is_monotonic_at(&self, r2: f64) -> bool {
         1.0 + r2 * (3.0 * self.k1 + r2 * (5.0 * self.k2 + r2 * 7.0 * self.k3)) > 0.0
     }
 
@@ -65,7 +65,7 @@ impl Distortion {
     /// The normalised point the lens shows at (xd, yd): Newton's method on
     /// [`Distortion::apply`] (converges in a few steps over a photo's
     /// field; OpenCV's fixed-point iteration needs tens).
-    pub fn remove(&self, xd: f64, yd: f64) -> (f64, f64) {
+    pub(crate) fn remove(&self, xd: f64, yd: f64) -> (f64, f64) {
         let (mut x, mut y) = (xd, yd);
         for _ in 0..20 {
             let (fx, fy) = self.apply(x, y);
@@ -170,7 +170,7 @@ impl Camera {
     /// Whether every corner of the image comes from a point the lens maps
     /// there one to one (true for a pinhole): a polynomial model fitted to
     /// a photo can fold back before its corners, and then means nothing.
-    pub fn lens_maps_the_image(&self) -> bool {
+    pub(crate) fn lens_maps_the_image(&self) -> bool {
         let lens = self.distortion;
         if lens.is_none() {
             return true;
@@ -187,7 +187,7 @@ impl Camera {
     }
 
     /// This camera seeing through a lens with `distortion`.
-    pub fn with_distortion(self, distortion: Distortion) -> Camera {
+    pub(crate) fn with_distortion(self, distortion: Distortion) -> Camera {
         Camera { distortion, ..self }
     }
 
@@ -210,7 +210,7 @@ impl Camera {
         }
     }
 
-    pub fn pixel_count(&self) -> usize {
+    pub(crate) fn pixel_count(&self) -> usize {
         self.width as usize * self.height as usize
     }
 
@@ -239,7 +239,7 @@ impl Camera {
     /// The image of the segment a–b as a polyline: its two ends for a
     /// pinhole (a straight line stays straight), 17 points along it through
     /// a lens (which bends it). `None` when a point is behind the camera.
-    pub fn project_path(&self, a: DVec3, b: DVec3) -> Option<Vec<(f64, f64)>> {
+    pub(crate) fn project_path(&self, a: DVec3, b: DVec3) -> Option<Vec<(f64, f64)>> {
         let n = if self.distortion.is_none() { 1 } else { 16 };
         (0..=n)
             .map(|i| {
@@ -253,7 +253,7 @@ impl Camera {
     /// `corners`: the corners themselves for a pinhole, points along every
     /// segment between two of them through a lens (whose curves may bow
     /// past the corners). `None` when a point is behind the camera.
-    pub fn project_hull(&self, corners: &[DVec3]) -> Option<Vec<(f64, f64)>> {
+    pub(crate) fn project_hull(&self, corners: &[DVec3]) -> Option<Vec<(f64, f64)>> {
         if self.distortion.is_none() {
             return corners
                 .iter()

@@ -84,7 +84,7 @@ pub struct Skill {
 
 /// The relative change under which a pixel counts as untouched, and the
 /// absolute floor added to it (radiance units).
-pub const SKILL_RELATIVE: f64 = 0.03;
+pub(crate) const SKILL_RELATIVE: f64 = 0.03;
 pub const SKILL_FLOOR: f64 = 0.002;
 
 /// Mean over a (2r+1)² window of an image-sized field, the window clamped

@@ -178,7 +178,7 @@ impl CompositeInput<'_> {
 
 /// One pixel's layers for [`Composite::fill`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PixelShade {
+pub(crate) struct PixelShade {
     pub value: Vec3,
     pub direct: Vec3,
     pub indirect: Vec3,
@@ -195,7 +195,11 @@ impl Composite {
     /// is value − photo) and counts the copied, fallen-back and clamped
     /// ones. The direct, indirect and change layers are filled when the
     /// composite holds them (see [`CompositeInput::layers`]).
-    pub fn fill(&mut self, photo: &Image, shade: impl Fn(usize) -> PixelShade + Sync + Send) {
+    pub(crate) fn fill(
+        &mut self,
+        photo: &Image,
+        shade: impl Fn(usize) -> PixelShade + Sync + Send,
+    ) {
         // By rows: a plain loop per row, rather than five zipped parallel
         // iterators per pixel (whose bookkeeping cost as much as the shading).
         let w = (self.image.width as usize).max(1);
@@ -296,7 +300,7 @@ pub fn composite(input: &CompositeInput) -> Composite {
 
 /// [`composite`] into `out`, reusing its buffers when they have the
 /// image's size (an update rewrites the same image: no new pages to fault in).
-pub fn composite_into(input: &CompositeInput, out: &mut Composite) {
+pub(crate) fn composite_into(input: &CompositeInput, out: &mut Composite) {
     let shader = Shader::new(input);
     let (w, h) = (input.pda.width, input.pda.height);
     let n = (w * h) as usize;

@@ -51,7 +51,7 @@ pub fn clear_of_solid(corners: &[DVec3], p: DVec3, n: DVec3) -> bool {
 
 /// The photo's radiance at the real point `y`, when the camera sees it
 /// (inside the frame, nothing real in between).
-pub fn photo_radiance_at(
+pub(crate) fn photo_radiance_at(
     camera: &Camera,
     tracer: &Tracer,
     photo: &Image,
@@ -62,7 +62,7 @@ pub fn photo_radiance_at(
 
 /// [`photo_radiance_at`] of many points, their rays back to the camera
 /// traced in packets.
-pub fn photo_radiances(
+pub(crate) fn photo_radiances(
     camera: &Camera,
     tracer: &Tracer,
     photo: &Image,

@@ -14,7 +14,7 @@ mod formats;
 pub use formats::load_mesh;
 
 /// A triangle's three corners, in metres.
-pub type Triangle = [Vec3; 3];
+pub(crate) type Triangle = [Vec3; 3];
 
 /// One named surface of an OBJ file (an `o` or `g` group).
 #[derive(Debug, Clone)]
@@ -44,13 +44,13 @@ impl Mesh {
 
 /// Twice the area of a triangle, in f64 so that small triangles far from the
 /// origin do not lose their area to rounding.
-pub fn double_area(t: &Triangle) -> f64 {
+pub(crate) fn double_area(t: &Triangle) -> f64 {
     let [a, b, c] = t.map(|p| p.as_dvec3());
     (b - a).cross(c - a).length()
 }
 
 /// A triangle with non-finite corners, or with (relatively) zero area.
-pub fn is_degenerate(t: &Triangle) -> bool {
+pub(crate) fn is_degenerate(t: &Triangle) -> bool {
     if !t.iter().all(|p| p.is_finite()) {
         return true;
     }
@@ -71,7 +71,7 @@ pub fn normal(t: &Triangle) -> DVec3 {
 
 /// Distance from `p` to the closest point of triangle `t` (Ericson,
 /// Real-Time Collision Detection §5.1.5), in f64.
-pub fn distance_to_triangle(p: DVec3, t: &Triangle) -> f64 {
+pub(crate) fn distance_to_triangle(p: DVec3, t: &Triangle) -> f64 {
     let [a, b, c] = t.map(|v| v.as_dvec3());
     let (ab, ac, ap) = (b - a, c - a, p - a);
     let (d1, d2) = (ab.dot(ap), ac.dot(ap));
@@ -110,7 +110,7 @@ pub fn distance_to_triangle(p: DVec3, t: &Triangle) -> f64 {
 
 /// Whether the triangles close a volume: after welding corners that coincide,
 /// every edge is shared by an even number of triangles.
-pub fn is_closed(triangles: &[Triangle]) -> bool {
+pub(crate) fn is_closed(triangles: &[Triangle]) -> bool {
     use std::collections::HashMap;
     let key = |p: Vec3| (p * 1e5).round().as_ivec3().to_array();
     let mut edges: HashMap<([i32; 3], [i32; 3]), u32> = HashMap::new();
@@ -130,7 +130,7 @@ pub fn is_closed(triangles: &[Triangle]) -> bool {
 /// (an edge crossed twice the same way). One parity test then orients
 /// every face, where a test per face cost O(n²) (80 ms for a
 /// 2,000-triangle chair, at every move).
-pub fn consistent_winding(triangles: &[Triangle]) -> Option<bool> {
+pub(crate) fn consistent_winding(triangles: &[Triangle]) -> Option<bool> {
     use std::collections::HashMap;
     let key = |p: Vec3| (p * 1e5).round().as_ivec3().to_array();
     let mut edges: HashMap<([i32; 3], [i32; 3]), i32> = HashMap::new();
@@ -170,7 +170,7 @@ pub fn consistent_winding(triangles: &[Triangle]) -> Option<bool> {
 /// Whether `p` lies inside the closed volume bounded by `triangles`, by the
 /// parity of ray crossings, voted over three skew directions so that a ray
 /// grazing an edge cannot decide alone.
-pub fn encloses(triangles: &[Triangle], p: DVec3) -> bool {
+pub(crate) fn encloses(triangles: &[Triangle], p: DVec3) -> bool {
     let dirs = [
         DVec3::new(0.5773, 0.5774, 0.5775),
         DVec3::new(-0.6123, 0.3536, 0.7072),
@@ -223,7 +223,7 @@ pub fn bounds(points: impl IntoIterator<Item = DVec3>) -> (DVec3, DVec3) {
 }
 
 /// The eight corners of the box spanned by `lo` and `hi`.
-pub fn box_corners(lo: DVec3, hi: DVec3) -> [DVec3; 8] {
+pub(crate) fn box_corners(lo: DVec3, hi: DVec3) -> [DVec3; 8] {
     std::array::from_fn(|i| {
         DVec3::new(
             if i & 1 == 0 { lo.x } else { hi.x },
@@ -235,7 +235,7 @@ pub fn box_corners(lo: DVec3, hi: DVec3) -> [DVec3; 8] {
 
 /// Whether the segment a→b meets the box [lo, hi] (slab test; the box is
 /// grown by a millionth of its size, so that touching counts).
-pub fn segment_meets_box(a: DVec3, b: DVec3, lo: DVec3, hi: DVec3) -> bool {
+pub(crate) fn segment_meets_box(a: DVec3, b: DVec3, lo: DVec3, hi: DVec3) -> bool {
     let pad = 1e-6 * (hi - lo).max_element().max(1.0);
     let (lo, hi) = (lo - pad, hi + pad);
     let d = b - a;
@@ -309,7 +309,7 @@ impl UprightBox {
     }
 
     /// `p` in the box's frame.
-    pub fn to_frame(&self, p: DVec3) -> DVec3 {
+    pub(crate) fn to_frame(self, p: DVec3) -> DVec3 {
         DVec3::new(
             self.cos * p.x + self.sin * p.z,
             p.y,
@@ -318,7 +318,7 @@ impl UprightBox {
     }
 
     /// This box grown by `pad` on every side.
-    pub fn padded(&self, pad: f64) -> UprightBox {
+    pub(crate) fn padded(&self, pad: f64) -> UprightBox {
         UprightBox {
             lo: self.lo - pad,
             hi: self.hi + pad,
@@ -338,7 +338,7 @@ impl UprightBox {
     }
 
     /// Whether the segment a→b meets the box ([`segment_meets_box`] in its frame).
-    pub fn meets_segment(&self, a: DVec3, b: DVec3) -> bool {
+    pub(crate) fn meets_segment(&self, a: DVec3, b: DVec3) -> bool {
         segment_meets_box(self.to_frame(a), self.to_frame(b), self.lo, self.hi)
     }
 }
@@ -375,7 +375,7 @@ fn plan_hull(points: &[DVec3]) -> Vec<glam::DVec2> {
 /// single precision: at 1e6 m a float steps by 6 cm, coarser than the
 /// offsets that keep a shadow ray off its own surface (and Embree aborts
 /// on rays near 1e15).
-pub const MAX_COORDINATE: f32 = 1e6;
+pub(crate) const MAX_COORDINATE: f32 = 1e6;
 
 /// Loads an OBJ file. Every `o`/`g` name is one surface; repeated names
 /// (a group split by `usemtl`, or reopened later) are merged. The file is

@@ -57,7 +57,7 @@ impl Exposure {
     }
 
     /// ln of the exposure time, t0 = 1.
-    pub fn ln_time(&self) -> f64 {
+    pub(crate) fn ln_time(&self) -> f64 {
         self.ev * std::f64::consts::LN_2
     }
 }
@@ -104,13 +104,13 @@ pub fn check_brackets(exposures: &[Exposure]) -> Result<()> {
 }
 
 /// The hat weight of Debevec & Malik: trusts mid-range codes most.
-pub fn hat(z: u8) -> f64 {
+pub(crate) fn hat(z: u8) -> f64 {
     let z = z as f64;
     if z <= 127.5 { z } else { 255.0 - z }
 }
 
 /// g(code) = ln(exposure) for codes 0..=255, per channel.
-pub type Response = [Vec<f64>; 3];
+pub(crate) type Response = [Vec<f64>; 3];
 
 /// Recovers the response of each channel from `samples` pixels spread over
 /// the code range of the middle exposure, with smoothness weight `lambda`.
@@ -285,7 +285,7 @@ pub fn merge(exposures: &[Exposure], response: &Response) -> Result<Merged> {
 
 /// Merges a scene's brackets, through a cache next to the scene: the merge
 /// is redone only when a bracket's bytes or EV change.
-pub fn merge_cached(scene_dir: &Path, brackets: &[(PathBuf, f64)]) -> Result<Image> {
+pub(crate) fn merge_cached(scene_dir: &Path, brackets: &[(PathBuf, f64)]) -> Result<Image> {
     let mut hash = ContentHash::default();
     let mut feed = |bytes: &[u8]| hash.feed(bytes);
     let mut exposures = Vec::with_capacity(brackets.len());

@@ -54,7 +54,7 @@ impl Image {
     /// This image at `width`×`height` (no larger than it), each new pixel
     /// the mean over the area of this image it covers (a box filter with
     /// fractional overlaps): a photo's pixels are means over their area.
-    pub fn area_resampled(&self, width: u32, height: u32) -> Image {
+    pub(crate) fn area_resampled(&self, width: u32, height: u32) -> Image {
         // Per new column (row), the old columns it overlaps and by how much.
         let weights = |old: u32, new: u32| -> Vec<Vec<(usize, f32)>> {
             let step = old as f64 / new as f64;
@@ -119,7 +119,7 @@ pub fn read_image(path: &Path) -> Result<Image> {
 
 /// The exposure time an image's EXIF records (`ExposureTime`, seconds):
 /// what bracketed photos differ by when their EV offsets are not given.
-pub fn exif_exposure_time(path: &Path) -> Result<f64> {
+pub(crate) fn exif_exposure_time(path: &Path) -> Result<f64> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, &e))?;
     let exif = exif::Reader::new()
         .read_from_container(&mut std::io::BufReader::new(file))
@@ -192,7 +192,7 @@ struct ExrChannels {
 /// damaged one can ask for any size (the reader then aborts the process on
 /// an allocation of tens of gigabytes). 2^30 samples is 4 GB of floats, a
 /// 24-megapixel photo with forty channels.
-pub const MAX_EXR_SAMPLES: u64 = 1 << 30;
+pub(crate) const MAX_EXR_SAMPLES: u64 = 1 << 30;
 
 /// Reads the EXR's headers alone and refuses one whose layers hold more
 /// than [`MAX_EXR_SAMPLES`].
@@ -429,7 +429,7 @@ pub fn linear_to_srgb(c: f32) -> f32 {
 }
 
 /// sRGB transfer function, decoding: encoded \[0,1\] → linear.
-pub fn srgb_to_linear(c: f32) -> f32 {
+pub(crate) fn srgb_to_linear(c: f32) -> f32 {
     if c <= 0.040_45 {
         c / 12.92
     } else {

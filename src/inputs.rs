@@ -13,7 +13,7 @@ use crate::trace::Tracer;
 /// (merged brackets are radiance up to a factor, fixed from the known
 /// reflectances) and a light to reconstruct recovered from it (Grosch
 /// §2.3). Returns the scene with the recovered light, if there was one.
-pub fn resolve_inputs(
+pub(crate) fn resolve_inputs(
     scene: &Scene,
     photo: &Image,
     tracer: &crate::trace::Tracer,
@@ -104,7 +104,7 @@ pub fn reconstruct_cached(
 
 /// Bumped when [`crate::model::bracket_scale`] changes what it returns, so
 /// that caches written by an older arlux are not read.
-pub const BRACKET_SCALE_VERSION: u32 = 3;
+pub(crate) const BRACKET_SCALE_VERSION: u32 = 3;
 
 /// [`crate::model::bracket_scale`] on a fine mesh (the factor rests on a
 /// few surfaces' estimates, which coarse patches bias), cached next to the
@@ -178,17 +178,20 @@ pub fn lamps_in_view(
 }
 
 /// Share of pixels above which a photo counts as clipped.
-pub const CLIPPED_SHARE: f64 = 0.01;
+pub(crate) const CLIPPED_SHARE: f64 = 0.01;
 /// Share of the seen area above which pinned reflectances say the lights
 /// do not fit the photo.
-pub const PINNED_SHARE: f64 = 0.03;
+pub(crate) const PINNED_SHARE: f64 = 0.03;
 
 /// Warnings about the photo and what the estimate made of it: a photo whose
 /// brightest value is shared by more than [`CLIPPED_SHARE`] of its pixels
 /// (a sensor or an 8-bit encoding clipped it: radiance there is unknown),
 /// and reflectances pinned at the clamp on more than [`PINNED_SHARE`] of
 /// the seen area (the lights are too weak for the photo).
-pub fn input_warnings(photo: &Image, estimate: Option<&crate::estimate::Estimate>) -> Vec<String> {
+pub(crate) fn input_warnings(
+    photo: &Image,
+    estimate: Option<&crate::estimate::Estimate>,
+) -> Vec<String> {
     let mut out = Vec::new();
     let peak = photo
         .pixels

@@ -4,7 +4,10 @@
 //!
 //! Data flows one way: [`scene`] → estimates → radiosity → pixel data →
 //! composite. Each stage is a module taking plain data and returning plain data.
-//! Ray tracing is Embree's, bound in [`trace`] (the crate's only `unsafe`).
+//! Ray tracing is Embree's, bound in [`trace`] (the crate's only `unsafe`,
+//! which the compiler enforces: every other module is under `deny(unsafe_code)`).
+
+#![deny(unsafe_code)]
 
 pub mod blocks;
 pub mod camera;
@@ -36,6 +39,7 @@ pub mod shadows;
 pub mod shaft;
 pub mod surface_ids;
 pub mod sweep;
+#[allow(unsafe_code)]
 pub mod trace;
 pub mod util;
 

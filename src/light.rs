@@ -96,9 +96,9 @@ pub struct JitteredGrid {
 }
 
 /// Random points kept per cell: a pixel picks one of them per cell.
-pub const POINTS_PER_CELL: usize = 8;
+pub(crate) const POINTS_PER_CELL: usize = 8;
 /// The finest level: 2^8 = 256 cells, the most shadow rays a pixel can ask.
-pub const MAX_GRID_LEVEL: usize = 8;
+pub(crate) const MAX_GRID_LEVEL: usize = 8;
 
 impl JitteredGrid {
     /// Builds the grid for a rectangle with sides |u| and |v|, from `seed`.
@@ -210,7 +210,7 @@ impl LightSource {
     }
 
     /// A rect light's four corners (None for a point light).
-    pub fn rect_corners(&self) -> Option<[DVec3; 4]> {
+    pub(crate) fn rect_corners(&self) -> Option<[DVec3; 4]> {
         match self.emitter {
             Emitter::Point => None,
             Emitter::Rect { u, v, .. } => Some(rect_quad(self.position, u, v)),
@@ -314,7 +314,7 @@ impl LightSource {
             .collect()
     }
 
-    pub fn is_on(&self) -> bool {
+    pub(crate) fn is_on(&self) -> bool {
         self.scale > 0.0
     }
 
@@ -337,7 +337,7 @@ impl LightSource {
     }
 
     /// The world point of grid sample (s, t); the centre for a point light.
-    pub fn point_at(&self, st: DVec2) -> DVec3 {
+    pub(crate) fn point_at(&self, st: DVec2) -> DVec3 {
         match self.emitter {
             Emitter::Point => self.position,
             Emitter::Rect { u, v, .. } => self.position + u * (st.x - 0.5) + v * (st.y - 0.5),
@@ -359,7 +359,7 @@ impl LightSource {
     /// before `scale`. Point lights: I·|cosθ|/d². Lambertian rects: exact,
     /// radiance × π × the point-to-polygon form factor. Other rects: the
     /// mean of I/N·|cosθ|/d² over the 16 cell centres of grid level 4.
-    pub fn unoccluded_irradiance(&self, x: DVec3, n: DVec3) -> DVec3 {
+    pub(crate) fn unoccluded_irradiance(&self, x: DVec3, n: DVec3) -> DVec3 {
         match self.emitter {
             Emitter::Point => {
                 point_contribution(self.position, x, n, |d| self.distribution.intensity(d))
@@ -409,7 +409,7 @@ impl LightSource {
     /// [`LightSource::direct`], with `occluded(targets, rays, blocked)`
     /// saying which rays (to those points of the light) are blocked; the
     /// rays are counted as cast all the same.
-    pub fn direct_by(
+    pub(crate) fn direct_by(
         &self,
         x: DVec3,
         n: DVec3,
@@ -481,7 +481,7 @@ fn rect_quad(c: DVec3, u: DVec3, v: DVec3) -> [DVec3; 4] {
 
 /// Irradiance at `x` (normal `n`, two-sided) from a point emitter at `p`
 /// with intensity function `intensity(direction from p)`: I·|cosθ|/d².
-pub fn point_contribution(
+pub(crate) fn point_contribution(
     p: DVec3,
     x: DVec3,
     n: DVec3,
@@ -531,7 +531,12 @@ pub fn polygon_form_factor(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
 
 /// [`polygon_form_factor`], with `two_sided` false counting only the part
 /// of the polygon on the side `n` points to.
-pub fn polygon_form_factor_sided(x: DVec3, n: DVec3, polygon: &[DVec3], two_sided: bool) -> f64 {
+pub(crate) fn polygon_form_factor_sided(
+    x: DVec3,
+    n: DVec3,
+    polygon: &[DVec3],
+    two_sided: bool,
+) -> f64 {
     debug_assert!(polygon.len() <= 6);
     let (mut above, mut below) = (false, false);
     for p in polygon {

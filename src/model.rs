@@ -112,12 +112,12 @@ pub struct Model {
 /// Patches above which a mesh is refused before it is built: the
 /// hierarchical links and the form factors grow faster than the patches,
 /// and at this count they would take gigabytes and hours.
-pub const MAX_PATCHES: f64 = 500_000.0;
+pub(crate) const MAX_PATCHES: f64 = 500_000.0;
 
 /// Refuses a patch size that would mesh the real surfaces into more than
 /// [`MAX_PATCHES`] patches (each surface splits into halves until no edge
 /// exceeds the size, so a patch covers at least half of size²).
-pub fn check_patch_count(scene: &Scene, patch_size: f64) -> Result<()> {
+pub(crate) fn check_patch_count(scene: &Scene, patch_size: f64) -> Result<()> {
     let area: f64 = scene
         .surfaces
         .iter()

@@ -34,7 +34,7 @@ pub struct VirtualBounds {
 /// Triangles × corners above which a solid's faces are not tested for
 /// being clear of it (each update tests them: the quadratic cost would
 /// exceed the rays it saves); its points trace it as any other object.
-pub const CLEAR_TEST_LIMIT: usize = 1 << 22;
+pub(crate) const CLEAR_TEST_LIMIT: usize = 1 << 22;
 
 impl VirtualBounds {
     pub fn of(triangles: &[(u32, Vec<crate::geometry::Triangle>)]) -> VirtualBounds {

@@ -78,7 +78,7 @@ impl Shape {
     /// close to it): the shape split into m×m parts, each with 2×2 Gauss
     /// points (triangles: the centroids of a 2m×2m split); weights sum to 1.
     /// `m` = 1 is [`Shape::quadrature`] of order 2.
-    pub fn split_quadrature(&self, m: usize) -> Vec<(DVec3, f64)> {
+    pub(crate) fn split_quadrature(&self, m: usize) -> Vec<(DVec3, f64)> {
         let m = m.max(1);
         match *self {
             Shape::Quad { origin, u, v } if m > 1 => {
@@ -147,7 +147,7 @@ impl Shape {
 }
 
 /// Closed surfaces with more triangles than this are treated as two-sided.
-pub const MAX_SOLID_TRIANGLES: usize = 20_000;
+pub(crate) const MAX_SOLID_TRIANGLES: usize = 20_000;
 
 /// An element's 3 or 4 corners.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -165,7 +165,7 @@ impl std::ops::Deref for Corners {
 
 /// Gauss-Legendre nodes on [0, 1] and weights summing to 1, tabulated
 /// once for orders up to 16.
-pub fn gauss_legendre(n: usize) -> (&'static [f64], &'static [f64]) {
+pub(crate) fn gauss_legendre(n: usize) -> (&'static [f64], &'static [f64]) {
     static TABLE: std::sync::OnceLock<Vec<(Vec<f64>, Vec<f64>)>> = std::sync::OnceLock::new();
     let table = TABLE.get_or_init(|| (0..=16).map(compute_gauss_legendre).collect());
     let (x, w) = &table[n.min(16)];
@@ -274,7 +274,7 @@ impl Patches {
     }
 
     /// Whether element `e` lies on a virtual object.
-    pub fn is_virtual_element(&self, e: u32) -> bool {
+    pub(crate) fn is_virtual_element(&self, e: u32) -> bool {
         self.is_virtual_surface(self.elements[e as usize].surface)
     }
 
@@ -330,7 +330,7 @@ impl Patches {
 
     /// [`Patches::of_scene_with`] with the real leaves in `marks` split once
     /// more (the meshes are otherwise identical: same roots, same order).
-    pub fn of_scene_refined(
+    pub(crate) fn of_scene_refined(
         scene: &crate::scene::Scene,
         with_virtual: bool,
         target_size: f64,
@@ -413,7 +413,7 @@ impl Patches {
 
     /// Makes every element of an open (two-sided) surface one-sided, facing
     /// the half-space that holds `eye`; elements seen edge-on stay two-sided.
-    pub fn face_open_surfaces_towards(&mut self, eye: DVec3) {
+    pub(crate) fn face_open_surfaces_towards(&mut self, eye: DVec3) {
         for root in self.roots.clone() {
             let el = &self.elements[root as usize];
             if el.one_sided {
@@ -437,7 +437,7 @@ impl Patches {
     }
 
     /// Meshes more surfaces into this mesh, after what it holds.
-    pub fn append(&mut self, inputs: &[SurfaceInput], target_size: f64) {
+    pub(crate) fn append(&mut self, inputs: &[SurfaceInput], target_size: f64) {
         self.append_marked(inputs, target_size, &SplitMarks::new());
     }
 
@@ -613,12 +613,12 @@ impl Patches {
     }
 
     /// A root element's place in `roots` (the same in every mesh of a scene).
-    pub fn root_ordinal(&self, root: u32) -> u32 {
+    pub(crate) fn root_ordinal(&self, root: u32) -> u32 {
         self.roots.binary_search(&root).expect("a root element") as u32
     }
 
     /// The root element holding triangle `triangle` of `surface`.
-    pub fn root_of(&self, surface: u32, triangle: u32) -> Option<u32> {
+    pub(crate) fn root_of(&self, surface: u32, triangle: u32) -> Option<u32> {
         self.root_of_triangle
             .get(surface as usize)?
             .get(triangle as usize)
@@ -627,7 +627,7 @@ impl Patches {
     }
 
     /// `x`'s parameters (s, t) in root element `root`.
-    pub fn root_params(&self, root: u32, x: DVec3) -> DVec2 {
+    pub(crate) fn root_params(&self, root: u32, x: DVec3) -> DVec2 {
         match self.elements[root as usize].shape {
             Shape::Quad { origin, u, v } => plane_params(x - origin, u, v),
             Shape::Tri([a, b, c]) => plane_params(x - a, b - a, c - a),
@@ -635,7 +635,7 @@ impl Patches {
     }
 
     /// The world point at parameters `st` of root element `root`.
-    pub fn root_point(&self, root: u32, st: DVec2) -> DVec3 {
+    pub(crate) fn root_point(&self, root: u32, st: DVec2) -> DVec3 {
         match self.elements[root as usize].shape {
             Shape::Quad { origin, u, v } => origin + u * st.x + v * st.y,
             Shape::Tri([a, b, c]) => a + (b - a) * st.x + (c - a) * st.y,
@@ -643,7 +643,7 @@ impl Patches {
     }
 
     /// The leaf of root `root` under world point `x` (in its plane).
-    pub fn locate_in_root(&self, root: u32, x: DVec3) -> Location {
+    pub(crate) fn locate_in_root(&self, root: u32, x: DVec3) -> Location {
         let st = self.root_params(root, x);
         let mut e = root;
         // Within a quad root (nearly every point), a halved quad's point lies
@@ -708,7 +708,7 @@ impl Patches {
     }
 
     /// Per-vertex values: the area-weighted mean of the patches sharing the vertex.
-    pub fn vertex_values(&self, patch_values: &[DVec3]) -> Vec<DVec3> {
+    pub(crate) fn vertex_values(&self, patch_values: &[DVec3]) -> Vec<DVec3> {
         let mut sum = vec![DVec3::ZERO; self.vertices.len()];
         let mut weight = vec![0.0; self.vertices.len()];
         for (k, ids) in self.patch_vertices.iter().enumerate() {
@@ -730,7 +730,7 @@ impl Patches {
     }
 
     /// Interpolates vertex values at a located point.
-    pub fn interpolate(&self, vertex_values: &[DVec3], at: &Location) -> DVec3 {
+    pub(crate) fn interpolate(&self, vertex_values: &[DVec3], at: &Location) -> DVec3 {
         at.weights
             .iter()
             .map(|&(v, w)| vertex_values[v as usize] * w)
@@ -740,8 +740,9 @@ impl Patches {
 
 mod split;
 
+pub use split::split;
 use split::*;
-pub use split::{SplitMarks, distance_outside, region_centre, split};
+pub(crate) use split::{SplitMarks, distance_outside, region_centre};
 
 #[cfg(test)]
 mod tests;

@@ -21,7 +21,8 @@ use crate::camera::Camera;
 use crate::geometry::box_corners;
 use crate::image_io::{CropWindow, PixelRect};
 use crate::light::{LightSource, offset_origin, segment};
-pub use crate::objects::{CLEAR_TEST_LIMIT, VirtualBounds, own_blocks};
+pub(crate) use crate::objects::CLEAR_TEST_LIMIT;
+pub use crate::objects::{VirtualBounds, own_blocks};
 use crate::patches::Patches;
 use crate::shaft::Shaft;
 use crate::trace::{Hit, Layer, TraceRay, Tracer};
@@ -318,7 +319,7 @@ impl PixelDataArray {
     /// as the pixel-block traversal found them.
     ///
     /// [`build`]: PixelDataArray::build
-    pub fn recompute_real_terms(
+    pub(crate) fn recompute_real_terms(
         &mut self,
         input: &PdaInput,
         pixels: &[u32],
@@ -381,7 +382,7 @@ impl PixelDataArray {
     /// the pixels examined.
     ///
     /// [`build`]: PixelDataArray::build
-    pub fn rebuild_virtual(&mut self, input: &PdaInput) -> (u64, u64) {
+    pub(crate) fn rebuild_virtual(&mut self, input: &PdaInput) -> (u64, u64) {
         let n = (self.width * self.height) as usize;
         // Reset in place, where the last placement set it: a fresh 0.8 MB
         // each update faulted its pages in again, and filling it all

@@ -38,7 +38,7 @@ pub const DEFAULT_LINK_EPSILON: f64 = 0.002;
 /// but the hierarchical solution drifts 5% from the full matrix; 0.1 stays
 /// within 1% with 359k links; refining every hidden pair to the leaves
 /// needs 387k links and twice the time.
-pub const VISIBILITY_REFINE_FRACTION: f64 = 0.1;
+pub(crate) const VISIBILITY_REFINE_FRACTION: f64 = 0.1;
 
 /// Below this many links a gather runs on one thread: waking the others
 /// costs more than the few microseconds of work (a solve applies it

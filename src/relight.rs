@@ -943,7 +943,7 @@ mod refine;
 mod textures;
 
 use refine::*;
-pub use refine::{cielab, colour_distance};
+pub(crate) use refine::{cielab, colour_distance};
 use textures::*;
 
 #[cfg(test)]

@@ -579,7 +579,7 @@ impl Session {
         Ok(stats)
     }
 
-    pub fn into_output(self) -> RenderOutput {
+    pub(crate) fn into_output(self) -> RenderOutput {
         let patches = self
             .changes
             .own

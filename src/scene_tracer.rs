@@ -8,7 +8,7 @@ use crate::scene::Scene;
 use crate::trace::{SurfaceTriangles, Tracer};
 
 /// The real surfaces as tracer input, each with its id.
-pub fn real_triangle_sets(scene: &Scene) -> Vec<SurfaceTriangles<'_>> {
+pub(crate) fn real_triangle_sets(scene: &Scene) -> Vec<SurfaceTriangles<'_>> {
     scene
         .surfaces
         .iter()

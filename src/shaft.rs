@@ -17,7 +17,7 @@ pub struct Shaft {
 impl Shaft {
     /// The convex hull of the given points (at most a few dozen: every
     /// plane through three of them that has all on one side is a face).
-    pub fn hull(points: &[DVec3]) -> Shaft {
+    pub(crate) fn hull(points: &[DVec3]) -> Shaft {
         // Repeated points add no face (a pixel's box is one point eight times).
         let mut unique: Vec<DVec3> = Vec::with_capacity(points.len());
         for p in points {
@@ -59,7 +59,7 @@ impl Shaft {
     /// among fewer planes: a face of the hull meets each polygon in a
     /// face of it, so it is a polygon's own plane or holds an edge of one
     /// and a corner of the other.
-    pub fn between_polygons(p: &[DVec3], q: &[DVec3]) -> Shaft {
+    pub(crate) fn between_polygons(p: &[DVec3], q: &[DVec3]) -> Shaft {
         let points: Vec<DVec3> = p.iter().chain(q).copied().collect();
         let scale = points
             .iter()
@@ -101,7 +101,7 @@ impl Shaft {
     /// The pyramid from `apex` to a planar convex polygon `base` (a pixel's
     /// shaft to a rect light): its faces written down instead of searched
     /// for. Falls back to [`Shaft::hull`] when the apex lies in the base's plane.
-    pub fn pyramid(apex: DVec3, base: &[DVec3]) -> Shaft {
+    pub(crate) fn pyramid(apex: DVec3, base: &[DVec3]) -> Shaft {
         let n = base.len();
         let normal = (base[1] - base[0]).cross(base[2] - base[0]);
         let extent = base
@@ -140,7 +140,7 @@ impl Shaft {
     /// cut by a plane through each pair of parallel edges where one box
     /// bounds the union on one face and the other box on an adjacent face.
     /// It holds the convex hull of the two boxes; built in constant time.
-    pub fn between_boxes(a: (DVec3, DVec3), b: (DVec3, DVec3)) -> Shaft {
+    pub(crate) fn between_boxes(a: (DVec3, DVec3), b: (DVec3, DVec3)) -> Shaft {
         let (lo, hi) = (a.0.min(b.0), a.1.max(b.1));
         let mid = 0.25 * (a.0 + a.1 + b.0 + b.1);
         let scale = lo.abs().max(hi.abs()).max_element().max(1.0);
@@ -208,13 +208,13 @@ impl Shaft {
     /// Whether the convex hull of `points` certainly lies outside the shaft
     /// (or only touches its boundary): all of them on or beyond one plane.
     /// May answer false for a hull that misses the shaft (conservative).
-    pub fn excludes(&self, points: &[DVec3]) -> bool {
+    pub(crate) fn excludes(&self, points: &[DVec3]) -> bool {
         self.planes
             .iter()
             .any(|(n, d)| points.iter().all(|p| n.dot(*p) - d >= -self.tolerance))
     }
 
-    pub fn plane_count(&self) -> usize {
+    pub(crate) fn plane_count(&self) -> usize {
         self.planes.len()
     }
 }
@@ -242,7 +242,7 @@ impl ObjectBounds {
     }
 
     /// Whether the segment a→b may meet the object.
-    pub fn meets_segment(&self, a: DVec3, b: DVec3) -> bool {
+    pub(crate) fn meets_segment(&self, a: DVec3, b: DVec3) -> bool {
         segment_meets_box(a, b, self.aabb.0, self.aabb.1) && self.upright.meets_segment(a, b)
     }
 

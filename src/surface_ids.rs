@@ -58,7 +58,7 @@ impl SurfaceIds {
     }
 
     /// Whether the pixel differs in id from its right or lower neighbour.
-    pub fn is_outline(&self, x: u32, y: u32) -> bool {
+    pub(crate) fn is_outline(&self, x: u32, y: u32) -> bool {
         let w = self.width as usize;
         let i = y as usize * w + x as usize;
         (x + 1 < self.width && self.ids[i + 1] != self.ids[i])

@@ -44,7 +44,7 @@ pub struct SweepSettings {
 
 impl SweepSettings {
     /// The texture path's settings at this point.
-    pub fn texture_settings(&self) -> Option<crate::relight::TextureSettings> {
+    pub(crate) fn texture_settings(&self) -> Option<crate::relight::TextureSettings> {
         match self.method {
             SweepMethod::Pda => None,
             SweepMethod::Texture { min_leaf_pixels } => Some(crate::relight::TextureSettings {
@@ -56,7 +56,7 @@ impl SweepSettings {
         }
     }
 
-    pub fn render_settings(&self) -> RenderSettings {
+    pub(crate) fn render_settings(&self) -> RenderSettings {
         let d = RenderSettings::default();
         RenderSettings {
             model: crate::model::ModelSettings {
@@ -363,7 +363,7 @@ pub fn run(
 }
 
 /// Marks the rows no other row beats on both time and error.
-pub fn mark_pareto(rows: &mut [SweepRow]) {
+pub(crate) fn mark_pareto(rows: &mut [SweepRow]) {
     let mut order: Vec<usize> = (0..rows.len()).collect();
     order.sort_by(|&a, &b| {
         rows[a]

@@ -483,7 +483,7 @@ impl Tracer {
     }
 
     /// Replaces the virtual scene (after a move); the real scene is kept.
-    pub fn rebuild_virtual(
+    pub(crate) fn rebuild_virtual(
         &mut self,
         virtual_objects: &[SurfaceTriangles],
     ) -> Result<(), TraceError> {
@@ -556,7 +556,7 @@ impl Tracer {
     /// virtual hit nearer than `before` (that hit's distance, or the ray's
     /// end), where there is one: the second half of a [`Layer::All`] query,
     /// for a caller that kept the first.
-    pub fn put_virtual_in_front(
+    pub(crate) fn put_virtual_in_front(
         &self,
         rays: &[TraceRay],
         before: &[f32],
@@ -574,7 +574,7 @@ impl Tracer {
     /// The closest virtual hit of each ray nearer than `before` (its real
     /// hit's distance, or its own end): the second half of a
     /// [`Layer::All`] query, for a caller that kept the first.
-    pub fn intersect_virtual_before(
+    pub(crate) fn intersect_virtual_before(
         &self,
         rays: &[TraceRay],
         before: &[f32],

@@ -96,7 +96,7 @@ impl RealPixels {
 
     /// The floor under which a ratio is not trusted: a thousandth of the
     /// mean "without" irradiance of the real points.
-    pub fn floor_of(input: &CompositeInput) -> DVec3 {
+    pub(crate) fn floor_of(input: &CompositeInput) -> DVec3 {
         let pda = input.pda;
         let lights = pda.light_count;
         let sum: DVec3 = pda
@@ -116,7 +116,7 @@ impl RealPixels {
     }
 
     /// Prepares again the real points of `pixels`, whose light terms changed.
-    pub fn refresh(&mut self, input: &CompositeInput, pixels: &[u32]) {
+    pub(crate) fn refresh(&mut self, input: &CompositeInput, pixels: &[u32]) {
         let pda = input.pda;
         let lights = pda.light_count;
         for &i in pixels {

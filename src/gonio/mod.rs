@@ -63,12 +63,12 @@ use texture::{PenumbraModel, Texture, mixed_pixels, sharp_pixels, textured, unre
 
 /// Bumped whenever the reconstruction's results change, so that a cached
 /// light from an earlier arlux is not taken for a current one.
-pub const ALGORITHM_VERSION: u32 = 12;
+pub(crate) const ALGORITHM_VERSION: u32 = 12;
 
 /// Photometric zero of the reconstructed table (type C nadir) and the
 /// direction of horizontal angle 0: world down and world +x.
 pub const AXIS: DVec3 = DVec3::NEG_Y;
-pub const REFERENCE: DVec3 = DVec3::X;
+pub(crate) const REFERENCE: DVec3 = DVec3::X;
 
 /// Settings of the reconstruction.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -196,7 +196,7 @@ impl Reconstruction {
 
     /// The recovered light as an IES file that also records its colour
     /// (keyword `_ARLUX_RGB`) and light index (`_ARLUX_LIGHT`), for a cache.
-    pub fn to_cache_text(&self) -> String {
+    pub(crate) fn to_cache_text(&self) -> String {
         let mut profile = self.profile.clone();
         profile.keywords.push((
             "_ARLUX_RGB".to_string(),
@@ -210,7 +210,10 @@ impl Reconstruction {
 }
 
 /// Reads what [`Reconstruction::to_cache_text`] wrote: (light, table, colour).
-pub fn from_cache_text(text: &str, path: &std::path::Path) -> Option<(usize, IesProfile, DVec3)> {
+pub(crate) fn from_cache_text(
+    text: &str,
+    path: &std::path::Path,
+) -> Option<(usize, IesProfile, DVec3)> {
     let profile = IesProfile::parse(text, path).ok()?;
     let keyword = |k: &str| {
         profile
@@ -229,7 +232,12 @@ pub fn from_cache_text(text: &str, path: &std::path::Path) -> Option<(usize, Ies
 }
 
 /// `scene` with light `light`'s intensity replaced by a recovered table.
-pub fn apply_profile(scene: &Scene, light: usize, profile: &IesProfile, colour: DVec3) -> Scene {
+pub(crate) fn apply_profile(
+    scene: &Scene,
+    light: usize,
+    profile: &IesProfile,
+    colour: DVec3,
+) -> Scene {
     let mut out = scene.clone();
     out.lights[light].intensity = Intensity::Ies {
         file: scene.dir().join("reconstructed.ies"),
@@ -626,7 +634,7 @@ pub fn peak(rec: &Reconstruction) -> (f64, DVec3) {
 }
 
 /// Unit direction of type C angles (degrees) in the reconstruction frame.
-pub fn direction_at(v_deg: f64, h_deg: f64) -> DVec3 {
+pub(crate) fn direction_at(v_deg: f64, h_deg: f64) -> DVec3 {
     let side = AXIS.cross(REFERENCE);
     let (v, h) = (v_deg.to_radians(), h_deg.to_radians());
     AXIS * v.cos() + (REFERENCE * h.cos() + side * h.sin()) * v.sin()

@@ -44,7 +44,7 @@ impl PixelRect {
         self.y1 - self.y0
     }
 
-    pub fn pixel_count(&self) -> usize {
+    pub(crate) fn pixel_count(&self) -> usize {
         self.width() as usize * self.height() as usize
     }
 

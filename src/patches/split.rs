@@ -6,7 +6,7 @@ use super::*;
 /// Which leaves to split once more: per root ordinal (its place in
 /// `roots`, stable across rebuilds, unlike its element index), (centre in
 /// the root's parameters, leaf size). See [`Patches::of_scene_refined`].
-pub type SplitMarks = HashMap<u32, Vec<(DVec2, f64)>>;
+pub(crate) type SplitMarks = HashMap<u32, Vec<(DVec2, f64)>>;
 
 /// An element's two halves: quads across their longer side, triangles
 /// across their longest edge.
@@ -67,7 +67,7 @@ pub fn split(shape: Shape, region: Region) -> [(Shape, Region); 2] {
 }
 
 /// The centre of a region, in its root's parameters.
-pub fn region_centre(region: &Region) -> DVec2 {
+pub(crate) fn region_centre(region: &Region) -> DVec2 {
     match *region {
         Region::Quad { s0, s1, t0, t1 } => DVec2::new(0.5 * (s0 + s1), 0.5 * (t0 + t1)),
         Region::Tri(q) => (q[0] + q[1] + q[2]) / 3.0,
@@ -92,7 +92,7 @@ pub(super) fn barycentric(p: DVec2, q: [DVec2; 3]) -> [f64; 3] {
 
 /// How far `st` lies outside a region (0 inside): picks the child that
 /// holds a point, robustly at shared edges.
-pub fn distance_outside(region: &Region, st: DVec2) -> f64 {
+pub(crate) fn distance_outside(region: &Region, st: DVec2) -> f64 {
     match *region {
         Region::Quad { s0, s1, t0, t1 } => {
             (s0 - st.x).max(st.x - s1).max(0.0) + (t0 - st.y).max(st.y - t1).max(0.0)

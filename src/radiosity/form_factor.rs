@@ -76,7 +76,7 @@ pub(super) fn point_factor(x: DVec3, p: &Element, q: &Element, polygon: &[DVec3]
 
 /// The unoccluded form factor from receiver `p` to source `q`: the exact
 /// point-to-polygon factor integrated over p by Gauss quadrature.
-pub fn unoccluded_form_factor(p: &Element, q: &Element) -> f64 {
+pub(crate) fn unoccluded_form_factor(p: &Element, q: &Element) -> f64 {
     if coplanar(p, q) {
         return 0.0;
     }
@@ -245,7 +245,7 @@ impl<'a> ShaftTest<'a> {
 /// The root elements among `candidates` that may block light between `p`
 /// and `q` (see `ShaftTest`). Empty means certainly visible. A child
 /// pair's shaft lies inside its parents', so their occluders are a subset.
-pub fn occluders_between(
+pub(crate) fn occluders_between(
     patches: &Patches,
     layer: Layer,
     p: &Element,
@@ -275,7 +275,7 @@ pub(super) fn occluders_between_using(
 }
 
 /// Whether any of `candidates` may block light between `p` and `q`.
-pub fn may_be_occluded(
+pub(crate) fn may_be_occluded(
     patches: &Patches,
     layer: Layer,
     p: &Element,

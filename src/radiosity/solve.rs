@@ -38,7 +38,7 @@ pub fn solve(
 }
 
 /// [`solve`] starting from a guess (a previous solution of a nearby system).
-pub fn solve_from(
+pub(crate) fn solve_from(
     patches: &Patches,
     transport: &Transport,
     reflectance: &[DVec3],

@@ -95,7 +95,7 @@ pub(super) fn element_seed(patches: &Patches, el: &Element) -> u64 {
 }
 
 /// Linear sRGB (relative to `white`) to CIELAB under D65.
-pub fn cielab(rgb: DVec3, white: f64) -> DVec3 {
+pub(crate) fn cielab(rgb: DVec3, white: f64) -> DVec3 {
     let c = rgb / white.max(1e-300);
     let x = (0.4124 * c.x + 0.3576 * c.y + 0.1805 * c.z) / 0.95047;
     let y = 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
@@ -112,7 +112,7 @@ pub fn cielab(rgb: DVec3, white: f64) -> DVec3 {
 }
 
 /// Eq. 4: distance of two CIELAB colours.
-pub fn colour_distance(a: DVec3, b: DVec3) -> f64 {
+pub(crate) fn colour_distance(a: DVec3, b: DVec3) -> f64 {
     (a - b).length()
 }
 

@@ -44,7 +44,7 @@ impl<'a> Fields<'a> {
         }
     }
 
-    pub fn of_table(file: &'a Path, path: impl Into<String>, table: &'a Table) -> Self {
+    pub(crate) fn of_table(file: &'a Path, path: impl Into<String>, table: &'a Table) -> Self {
         Fields {
             file,
             path: path.into(),
@@ -54,7 +54,7 @@ impl<'a> Fields<'a> {
     }
 
     /// The full key path of `key` in this table.
-    pub fn key_path(&self, key: &str) -> String {
+    pub(crate) fn key_path(&self, key: &str) -> String {
         if self.path.is_empty() {
             key.to_string()
         } else {
@@ -68,7 +68,7 @@ impl<'a> Fields<'a> {
     }
 
     /// An error about this table as a whole.
-    pub fn table_error(&self, message: impl Into<String>) -> Error {
+    pub(crate) fn table_error(&self, message: impl Into<String>) -> Error {
         Error::key(self.file, self.path.clone(), message)
     }
 
@@ -86,7 +86,7 @@ impl<'a> Fields<'a> {
         self.get(key).ok_or_else(|| self.error(key, "missing"))
     }
 
-    pub fn opt_str(&self, key: &'static str) -> Result<Option<&'a str>> {
+    pub(crate) fn opt_str(&self, key: &'static str) -> Result<Option<&'a str>> {
         match self.get(key) {
             None => Ok(None),
             Some(Value::String(s)) => Ok(Some(s.as_str())),
@@ -96,12 +96,12 @@ impl<'a> Fields<'a> {
         }
     }
 
-    pub fn req_str(&self, key: &'static str) -> Result<&'a str> {
+    pub(crate) fn req_str(&self, key: &'static str) -> Result<&'a str> {
         self.required(key)?;
         Ok(self.opt_str(key)?.expect("checked present"))
     }
 
-    pub fn opt_bool(&self, key: &'static str) -> Result<Option<bool>> {
+    pub(crate) fn opt_bool(&self, key: &'static str) -> Result<Option<bool>> {
         match self.get(key) {
             None => Ok(None),
             Some(Value::Boolean(b)) => Ok(Some(*b)),
@@ -113,20 +113,20 @@ impl<'a> Fields<'a> {
     }
 
     /// A finite number (TOML integers are accepted).
-    pub fn opt_f64(&self, key: &'static str) -> Result<Option<f64>> {
+    pub(crate) fn opt_f64(&self, key: &'static str) -> Result<Option<f64>> {
         match self.get(key) {
             None => Ok(None),
             Some(v) => number(v).map(Some).map_err(|m| self.error(key, m)),
         }
     }
 
-    pub fn req_f64(&self, key: &'static str) -> Result<f64> {
+    pub(crate) fn req_f64(&self, key: &'static str) -> Result<f64> {
         self.required(key)?;
         Ok(self.opt_f64(key)?.expect("checked present"))
     }
 
     /// A positive whole number.
-    pub fn req_count(&self, key: &'static str) -> Result<u32> {
+    pub(crate) fn req_count(&self, key: &'static str) -> Result<u32> {
         match self.required(key)? {
             Value::Integer(i) if *i > 0 && *i <= u32::MAX as i64 => Ok(*i as u32),
             Value::Integer(i) => {
@@ -139,7 +139,7 @@ impl<'a> Fields<'a> {
         }
     }
 
-    pub fn opt_vec3(&self, key: &'static str) -> Result<Option<DVec3>> {
+    pub(crate) fn opt_vec3(&self, key: &'static str) -> Result<Option<DVec3>> {
         match self.get(key) {
             None => Ok(None),
             Some(v) => vec3(v).map(Some).map_err(|m| self.error(key, m)),
@@ -147,25 +147,25 @@ impl<'a> Fields<'a> {
     }
 
     /// A point or offset in the world, within [`crate::geometry::MAX_COORDINATE`].
-    pub fn opt_place(&self, key: &'static str) -> Result<Option<DVec3>> {
+    pub(crate) fn opt_place(&self, key: &'static str) -> Result<Option<DVec3>> {
         match self.get(key) {
             None => Ok(None),
             Some(v) => place(v).map(Some).map_err(|m| self.error(key, m)),
         }
     }
 
-    pub fn req_place(&self, key: &'static str) -> Result<DVec3> {
+    pub(crate) fn req_place(&self, key: &'static str) -> Result<DVec3> {
         self.required(key)?;
         Ok(self.opt_place(key)?.expect("checked present"))
     }
 
-    pub fn req_vec3(&self, key: &'static str) -> Result<DVec3> {
+    pub(crate) fn req_vec3(&self, key: &'static str) -> Result<DVec3> {
         self.required(key)?;
         Ok(self.opt_vec3(key)?.expect("checked present"))
     }
 
     /// A linear RGB triple with no negative component.
-    pub fn req_rgb(&self, key: &'static str) -> Result<DVec3> {
+    pub(crate) fn req_rgb(&self, key: &'static str) -> Result<DVec3> {
         let rgb = self.req_vec3(key)?;
         if rgb.min_element() < 0.0 {
             return Err(self.error(key, "components must not be negative"));
@@ -174,14 +174,14 @@ impl<'a> Fields<'a> {
     }
 
     /// A nested table at `key`, if present.
-    pub fn opt_table(&self, key: &'static str) -> Result<Option<Fields<'a>>> {
+    pub(crate) fn opt_table(&self, key: &'static str) -> Result<Option<Fields<'a>>> {
         match self.get(key) {
             None => Ok(None),
             Some(v) => Fields::new(self.file, self.key_path(key), v).map(Some),
         }
     }
 
-    pub fn req_table(&self, key: &'static str) -> Result<Fields<'a>> {
+    pub(crate) fn req_table(&self, key: &'static str) -> Result<Fields<'a>> {
         self.required(key)?;
         Ok(self.opt_table(key)?.expect("checked present"))
     }
@@ -204,7 +204,7 @@ impl<'a> Fields<'a> {
     }
 
     /// An array at `key`, if present, with each element's path.
-    pub fn opt_array(&self, key: &'static str) -> Result<Option<Vec<(String, &'a Value)>>> {
+    pub(crate) fn opt_array(&self, key: &'static str) -> Result<Option<Vec<(String, &'a Value)>>> {
         match self.get(key) {
             None => Ok(None),
             Some(Value::Array(items)) => Ok(Some(
@@ -222,7 +222,7 @@ impl<'a> Fields<'a> {
 
     /// The (key, value) pairs of this table in file order, all marked known:
     /// for tables whose keys are names chosen by the user.
-    pub fn entries(&self) -> Vec<(&'a str, &'a Value)> {
+    pub(crate) fn entries(&self) -> Vec<(&'a str, &'a Value)> {
         self.table.iter().map(|(k, v)| (k.as_str(), v)).collect()
     }
 

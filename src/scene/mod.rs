@@ -25,7 +25,7 @@ use fields::Fields;
 
 /// Lights closer than this to a surface are refused: irradiance ~1/d² has no
 /// meaningful value there (millimetres are fine and tested).
-pub const MIN_LIGHT_CLEARANCE_M: f64 = 1e-5;
+pub(crate) const MIN_LIGHT_CLEARANCE_M: f64 = 1e-5;
 
 /// A loaded, validated scene.
 #[derive(Debug, Clone)]
@@ -102,10 +102,6 @@ pub struct Light {
 }
 
 impl Light {
-    pub fn is_on(&self) -> bool {
-        self.scale > 0.0
-    }
-
     /// The emitter's centre, when it is given rather than to be estimated.
     pub fn known_position(&self) -> Option<DVec3> {
         match self.position {
@@ -198,7 +194,7 @@ impl Pose {
     }
 
     /// The rotation about +y by `degrees`, counter-clockwise seen from above.
-    pub fn about_y(degrees: f64) -> DMat3 {
+    pub(crate) fn about_y(degrees: f64) -> DMat3 {
         DMat3::from_rotation_y(degrees.to_radians())
     }
 
@@ -250,7 +246,7 @@ impl VirtualObject {
     }
 
     /// The triangles of surface `i` placed in the world.
-    pub fn world_triangles(&self, i: usize) -> Vec<Triangle> {
+    pub(crate) fn world_triangles(&self, i: usize) -> Vec<Triangle> {
         self.surfaces[i]
             .triangles
             .iter()
@@ -269,7 +265,7 @@ pub struct PoseChange {
 
 impl PoseChange {
     /// `pose` with this change made.
-    pub fn applied_to(&self, pose: &Pose) -> Pose {
+    pub(crate) fn applied_to(&self, pose: &Pose) -> Pose {
         Pose {
             translate: self.translate.unwrap_or(pose.translate),
             rotation: self.rotation.unwrap_or(pose.rotation),
@@ -539,7 +535,7 @@ impl Scene {
     }
 
     /// Diffuse reflectance of every virtual surface id (enabled or not).
-    pub fn virtual_surface_rgb(&self) -> HashMap<u32, DVec3> {
+    pub(crate) fn virtual_surface_rgb(&self) -> HashMap<u32, DVec3> {
         let mut id = self.surfaces.len() as u32;
         let mut out = HashMap::new();
         for o in &self.objects {
@@ -553,7 +549,7 @@ impl Scene {
 
     /// Whether this scene differs from what the photo shows: an enabled
     /// virtual object, a real light not at scale 1, or a virtual light on.
-    pub fn changes_the_photo(&self) -> bool {
+    pub(crate) fn changes_the_photo(&self) -> bool {
         self.objects.iter().any(|o| o.enabled)
             || self
                 .lights

@@ -73,7 +73,7 @@ fn the_desk_loads_with_its_meanings() {
         }]
     );
     assert_eq!(s.lights.len(), 3);
-    assert!(!s.lights[2].real && !s.lights[2].is_on());
+    assert!(!s.lights[2].real && s.lights[2].scale == 0.0);
     assert!(matches!(s.lights[0].shape, LightShape::Rect { .. }));
     match &s.lights[1].intensity {
         Intensity::Spot {

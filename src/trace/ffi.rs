@@ -1,22 +1,22 @@
 use super::*;
 
-pub type RTCDevice = *mut c_void;
-pub type RTCScene = *mut c_void;
-pub type RTCGeometry = *mut c_void;
-pub type RTCErrorFunction = Option<unsafe extern "C" fn(*mut c_void, u32, *const c_char)>;
+pub(crate) type RTCDevice = *mut c_void;
+pub(crate) type RTCScene = *mut c_void;
+pub(crate) type RTCGeometry = *mut c_void;
+pub(crate) type RTCErrorFunction = Option<unsafe extern "C" fn(*mut c_void, u32, *const c_char)>;
 
-pub const RTC_GEOMETRY_TYPE_TRIANGLE: u32 = 0;
-pub const RTC_BUFFER_TYPE_INDEX: u32 = 0;
-pub const RTC_BUFFER_TYPE_VERTEX: u32 = 1;
-pub const RTC_FORMAT_UINT3: u32 = 0x5003;
-pub const RTC_FORMAT_FLOAT3: u32 = 0x9003;
-pub const RTC_BUILD_QUALITY_MEDIUM: u32 = 1;
-pub const RTC_SCENE_FLAG_ROBUST: u32 = 1 << 2;
-pub const RTC_INVALID_GEOMETRY_ID: u32 = u32::MAX;
+pub(crate) const RTC_GEOMETRY_TYPE_TRIANGLE: u32 = 0;
+pub(crate) const RTC_BUFFER_TYPE_INDEX: u32 = 0;
+pub(crate) const RTC_BUFFER_TYPE_VERTEX: u32 = 1;
+pub(crate) const RTC_FORMAT_UINT3: u32 = 0x5003;
+pub(crate) const RTC_FORMAT_FLOAT3: u32 = 0x9003;
+pub(crate) const RTC_BUILD_QUALITY_MEDIUM: u32 = 1;
+pub(crate) const RTC_SCENE_FLAG_ROBUST: u32 = 1 << 2;
+pub(crate) const RTC_INVALID_GEOMETRY_ID: u32 = u32::MAX;
 
 #[repr(C, align(16))]
 #[derive(Clone, Copy, Default)]
-pub struct RTCRay {
+pub(crate) struct RTCRay {
     pub org: [f32; 3],
     pub tnear: f32,
     pub dir: [f32; 3],
@@ -29,7 +29,7 @@ pub struct RTCRay {
 
 #[repr(C, align(16))]
 #[derive(Clone, Copy, Default)]
-pub struct RTCHit {
+pub(crate) struct RTCHit {
     pub ng: [f32; 3],
     pub u: f32,
     pub v: f32,
@@ -40,7 +40,7 @@ pub struct RTCHit {
 
 #[repr(C)]
 #[derive(Clone, Copy, Default)]
-pub struct RTCRayHit {
+pub(crate) struct RTCRayHit {
     pub ray: RTCRay,
     pub hit: RTCHit,
 }
@@ -50,7 +50,7 @@ pub struct RTCRayHit {
 /// second; both get 64.
 #[repr(C, align(64))]
 #[derive(Clone, Copy)]
-pub struct RTCRayN<const N: usize> {
+pub(crate) struct RTCRayN<const N: usize> {
     pub org_x: [f32; N],
     pub org_y: [f32; N],
     pub org_z: [f32; N],
@@ -67,7 +67,7 @@ pub struct RTCRayN<const N: usize> {
 
 impl<const N: usize> RTCRayN<N> {
     /// Every lane an inactive ray.
-    pub const EMPTY: Self = RTCRayN {
+    pub(crate) const EMPTY: Self = RTCRayN {
         org_x: [0.0; N],
         org_y: [0.0; N],
         org_z: [0.0; N],
@@ -85,7 +85,7 @@ impl<const N: usize> RTCRayN<N> {
 
 #[repr(C, align(64))]
 #[derive(Clone, Copy)]
-pub struct RTCHit16 {
+pub(crate) struct RTCHit16 {
     pub ng_x: [f32; 16],
     pub ng_y: [f32; 16],
     pub ng_z: [f32; 16],
@@ -98,14 +98,14 @@ pub struct RTCHit16 {
 
 #[repr(C)]
 #[derive(Clone, Copy)]
-pub struct RTCRayHit16 {
+pub(crate) struct RTCRayHit16 {
     pub ray: RTCRayN<16>,
     pub hit: RTCHit16,
 }
 
 /// `rtcInitIntersectContext` is an inline function in the header; this is it.
 #[repr(C)]
-pub struct RTCIntersectContext {
+pub(crate) struct RTCIntersectContext {
     pub flags: u32,
     pub filter: *const c_void,
     pub inst_id: [u32; 1],
@@ -135,16 +135,20 @@ const _: () = assert!(std::mem::size_of::<RTCHit16>() == 512);
 
 #[link(name = "embree3")]
 unsafe extern "C" {
-    pub fn rtcNewDevice(config: *const c_char) -> RTCDevice;
-    pub fn rtcGetDeviceError(device: RTCDevice) -> u32;
-    pub fn rtcSetDeviceErrorFunction(device: RTCDevice, f: RTCErrorFunction, user: *mut c_void);
-    pub fn rtcNewScene(device: RTCDevice) -> RTCScene;
-    pub fn rtcReleaseScene(scene: RTCScene);
-    pub fn rtcSetSceneBuildQuality(scene: RTCScene, quality: u32);
-    pub fn rtcSetSceneFlags(scene: RTCScene, flags: u32);
-    pub fn rtcCommitScene(scene: RTCScene);
-    pub fn rtcNewGeometry(device: RTCDevice, kind: u32) -> RTCGeometry;
-    pub fn rtcSetNewGeometryBuffer(
+    pub(crate) fn rtcNewDevice(config: *const c_char) -> RTCDevice;
+    pub(crate) fn rtcGetDeviceError(device: RTCDevice) -> u32;
+    pub(crate) fn rtcSetDeviceErrorFunction(
+        device: RTCDevice,
+        f: RTCErrorFunction,
+        user: *mut c_void,
+    );
+    pub(crate) fn rtcNewScene(device: RTCDevice) -> RTCScene;
+    pub(crate) fn rtcReleaseScene(scene: RTCScene);
+    pub(crate) fn rtcSetSceneBuildQuality(scene: RTCScene, quality: u32);
+    pub(crate) fn rtcSetSceneFlags(scene: RTCScene, flags: u32);
+    pub(crate) fn rtcCommitScene(scene: RTCScene);
+    pub(crate) fn rtcNewGeometry(device: RTCDevice, kind: u32) -> RTCGeometry;
+    pub(crate) fn rtcSetNewGeometryBuffer(
         geometry: RTCGeometry,
         kind: u32,
         slot: u32,
@@ -152,24 +156,28 @@ unsafe extern "C" {
         byte_stride: usize,
         count: usize,
     ) -> *mut c_void;
-    pub fn rtcCommitGeometry(geometry: RTCGeometry);
-    pub fn rtcAttachGeometry(scene: RTCScene, geometry: RTCGeometry) -> u32;
-    pub fn rtcReleaseGeometry(geometry: RTCGeometry);
-    pub fn rtcIntersect1(scene: RTCScene, ctx: *mut RTCIntersectContext, rayhit: *mut RTCRayHit);
-    pub fn rtcOccluded1(scene: RTCScene, ctx: *mut RTCIntersectContext, ray: *mut RTCRay);
-    pub fn rtcIntersect16(
+    pub(crate) fn rtcCommitGeometry(geometry: RTCGeometry);
+    pub(crate) fn rtcAttachGeometry(scene: RTCScene, geometry: RTCGeometry) -> u32;
+    pub(crate) fn rtcReleaseGeometry(geometry: RTCGeometry);
+    pub(crate) fn rtcIntersect1(
+        scene: RTCScene,
+        ctx: *mut RTCIntersectContext,
+        rayhit: *mut RTCRayHit,
+    );
+    pub(crate) fn rtcOccluded1(scene: RTCScene, ctx: *mut RTCIntersectContext, ray: *mut RTCRay);
+    pub(crate) fn rtcIntersect16(
         valid: *const i32,
         scene: RTCScene,
         ctx: *mut RTCIntersectContext,
         rayhit: *mut RTCRayHit16,
     );
-    pub fn rtcOccluded16(
+    pub(crate) fn rtcOccluded16(
         valid: *const i32,
         scene: RTCScene,
         ctx: *mut RTCIntersectContext,
         ray: *mut RTCRayN<16>,
     );
-    pub fn rtcOccluded4(
+    pub(crate) fn rtcOccluded4(
         valid: *const i32,
         scene: RTCScene,
         ctx: *mut RTCIntersectContext,

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 /// FNV-1a over bytes: names cache files after what they were made from.
 #[derive(Debug, Clone, Copy)]
-pub struct ContentHash(u64);
+pub(crate) struct ContentHash(u64);
 
 impl Default for ContentHash {
     fn default() -> Self {
@@ -29,12 +29,6 @@ impl ContentHash {
 }
 
 impl ContentHash {
-    /// Feeds a file's bytes; an unreadable file is an error.
-    pub fn feed_file(&mut self, path: &Path) -> std::io::Result<()> {
-        self.feed(&std::fs::read(path)?);
-        Ok(())
-    }
-
     /// The cache entry `kind-<hash>.ext` in `.arlux-cache/` next to a scene.
     pub fn entry(&self, scene_dir: &Path, kind: &str, ext: &str) -> PathBuf {
         scene_dir

@@ -2,7 +2,7 @@
 //! (no system font needed), registered once with plotters.
 
 /// Registers the shipped font as plotters' "sans-serif" (once per process).
-pub fn register_font() {
+pub(crate) fn register_font() {
     static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
     static REGISTERED: std::sync::Once = std::sync::Once::new();
     REGISTERED.call_once(|| {

@@ -13,7 +13,7 @@ pub fn hash2(a: u64, b: u64) -> u64 {
 }
 
 /// A uniform number in [0, 1) from a SplitMix64 stream.
-pub fn unit_random(state: &mut u64) -> f64 {
+pub(crate) fn unit_random(state: &mut u64) -> f64 {
     *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
     (hash2(*state, 0) >> 11) as f64 / (1u64 << 53) as f64
 }

@@ -25,6 +25,26 @@ pub(crate) fn emit(command: &str, report: serde_json::Value) -> Result<()> {
     Ok(())
 }
 
+/// A command's report: one value, printed as `--json` (`docs/json.md`) or
+/// as text for a reader.
+pub(crate) trait Report: serde::Serialize {
+    /// The command's name in the JSON.
+    const COMMAND: &'static str;
+    /// The report as lines for a reader.
+    fn text(&self) -> Vec<String>;
+}
+
+/// Prints `report`: its JSON with `--json`, else its text.
+pub(crate) fn print_report<R: Report>(report: &R, as_json: bool) -> Result<()> {
+    if as_json {
+        return emit(R::COMMAND, serde_json::to_value(report)?);
+    }
+    for line in report.text() {
+        say!("{line}");
+    }
+    Ok(())
+}
+
 pub(crate) fn load(path: &Path, variant: Option<&str>) -> Result<Scene> {
     let scene = Scene::load(path)?;
     crate::outputs::refuse_inputs(&scene.input_files())?;

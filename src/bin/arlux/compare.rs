@@ -7,9 +7,8 @@ use anyhow::{Result, bail};
 use arlux::compare::{Comparison, compare, read_mask, skill};
 use arlux::image_io::{self, Image};
 
-use crate::common::{emit, skill_line};
+use crate::common::{Report, print_report, skill_line};
 use crate::timing::*;
-use serde_json::json;
 
 /// Arguments of `arlux compare`.
 #[derive(clap::Args)]
@@ -66,26 +65,45 @@ pub fn run(args: &Args) -> Result<()> {
     let mask = mask.map(|m| read_mask(m, a.width, a.height)).transpose()?;
     let c: Comparison = stage("compare", || compare(&a, &b, mask.as_deref()));
     let s = photo.map(|p| stage("skill", || skill(&a, &b, &p)));
-    if as_json {
-        emit("compare", json!({ "comparison": c, "skill": s }))?;
-    } else {
-        say!("pixels         {}", c.pixels);
-        say!("rmse           {:.6}", c.rmse);
-        say!(
-            "relative rmse  {}",
-            c.relative_rmse
-                .map_or("n/a (black reference)".into(), |r| format!("{:.4}", r))
-        );
-        say!(
-            "psnr (sRGB)    {}",
-            c.psnr_srgb_db
-                .map_or("inf (identical)".into(), |p| format!("{p:.2} dB"))
-        );
-        say!("mean           {:.6}", c.mean);
-        say!("mean reference {:.6}", c.mean_reference);
-        if let Some(s) = &s {
-            say!("{}", skill_line(s));
-        }
+    print_report(
+        &CompareReport {
+            comparison: c,
+            skill: s,
+        },
+        as_json,
+    )
+}
+
+/// `arlux compare`'s report.
+#[derive(serde::Serialize)]
+struct CompareReport {
+    comparison: Comparison,
+    /// With `--photo`: the skill over the pixels the change touches.
+    skill: Option<arlux::compare::Skill>,
+}
+
+impl Report for CompareReport {
+    const COMMAND: &'static str = "compare";
+
+    fn text(&self) -> Vec<String> {
+        let c = &self.comparison;
+        let mut lines = vec![
+            format!("pixels         {}", c.pixels),
+            format!("rmse           {:.6}", c.rmse),
+            format!(
+                "relative rmse  {}",
+                c.relative_rmse
+                    .map_or("n/a (black reference)".into(), |r| format!("{:.4}", r))
+            ),
+            format!(
+                "psnr (sRGB)    {}",
+                c.psnr_srgb_db
+                    .map_or("inf (identical)".into(), |p| format!("{p:.2} dB"))
+            ),
+            format!("mean           {:.6}", c.mean),
+            format!("mean reference {:.6}", c.mean_reference),
+        ];
+        lines.extend(self.skill.as_ref().map(skill_line));
+        lines
     }
-    Ok(())
 }

@@ -3,9 +3,10 @@
 use std::path::PathBuf;
 
 use anyhow::{Result, bail};
-use serde_json::json;
 
 use arlux::image_io::{self};
+
+use arlux::gonio::ReflectanceSource;
 
 use crate::common::*;
 use crate::timing::*;
@@ -37,7 +38,7 @@ pub fn run(args: &Args) -> Result<()> {
     let vertical_step = args.vertical_step;
     let horizontal_step = args.horizontal_step;
     let as_json = args.json;
-    use arlux::gonio::{GonioSettings, ReflectanceSource, reconstruct};
+    use arlux::gonio::{GonioSettings, reconstruct};
     let settings = GonioSettings {
         vertical_step_deg: vertical_step,
         horizontal_step_deg: horizontal_step,
@@ -66,107 +67,150 @@ pub fn run(args: &Args) -> Result<()> {
         }
         Ok(())
     })?;
-    let light = &scene.lights[rec.light];
-    let (peak, peak_dir) = arlux::gonio::peak(&rec);
-    let surfaces: Vec<_> = rec
-        .reflectances
-        .iter()
-        .map(|r| {
-            let (source, step, angle) = match r.source {
-                ReflectanceSource::Known => ("known", None, None),
-                ReflectanceSource::Propagated { step, angle_deg, .. } => ("EQ2", Some(step), Some(angle_deg)),
-                ReflectanceSource::Unreached => ("unreached", None, None),
-            };
-            json!({ "surface": r.name, "rgb": r.rgb.map(|c| c.to_array()), "source": source, "step": step, "angle_deg": angle })
-        })
-        .collect();
     keep(&times);
-    let report = json!({
-        "light": light.name,
-        "position": rec.position.to_array(),
-        "rgb": rec.colour.to_array(),
-        "peak_candela": peak,
-        "peak_direction": peak_dir.to_array(),
-        "coverage": rec.coverage,
-        "colour_residual": rec.colour_residual,
-        "rounds": rec.rounds,
-        "last_change": rec.change,
-        "samples": rec.samples,
-        "patches": rec.patches,
-        "reconstruction_seconds": rec.seconds,
-        "paper_seconds": 97.9,
-        "reflectances": surfaces,
-        "output": output.display().to_string(),
-        "stages": stages_json(&times),
-        "seconds": times.total().as_secs_f64(),
-    });
-    if as_json {
-        return emit("gonio", report);
-    }
-    print_reconstruction(&rec, &light.name, output, times.total().as_secs_f64())
+    let report = GonioReport::new(&rec, &scene.lights[rec.light].name, output, &times);
+    print_report(&report, as_json)
 }
 
-/// The reconstruction as text, with the line that uses the file written.
-fn print_reconstruction(
-    rec: &arlux::gonio::Reconstruction,
-    light: &str,
-    output: &std::path::Path,
+/// `arlux gonio`'s report.
+#[derive(serde::Serialize)]
+struct GonioReport {
+    light: String,
+    position: [f64; 3],
+    rgb: [f64; 3],
+    peak_candela: f64,
+    peak_direction: [f64; 3],
+    /// The share of the sphere the photo tells.
+    coverage: f64,
+    colour_residual: f64,
+    rounds: usize,
+    last_change: f64,
+    samples: usize,
+    patches: usize,
+    reconstruction_seconds: f64,
+    paper_seconds: f64,
+    reflectances: Vec<SurfaceReport>,
+    output: String,
+    stages: serde_json::Value,
     seconds: f64,
-) -> Result<()> {
-    use arlux::gonio::ReflectanceSource;
-    let (peak, peak_dir) = arlux::gonio::peak(rec);
-    say!(
-        "light '{}' at {}: reconstructed from {} pixels ({} patches for the indirect light), {} rounds (last change {:.1e} of the peak)",
-        light,
-        fmt3(rec.position),
-        rec.samples,
-        rec.patches,
-        rec.rounds,
-        rec.change
-    );
-    say!(
-        "peak {:.3} × rgb {} towards {}; {:.1}% of the sphere is known from the photo (the rest is 0 and marked unknown)",
-        peak,
-        fmt3(rec.colour),
-        fmt3(peak_dir),
-        100.0 * rec.coverage
-    );
-    for r in &rec.reflectances {
-        let rgb = r.rgb.map_or("-".to_string(), |c| {
-            format!("[{:.3}, {:.3}, {:.3}]", c.x, c.y, c.z)
-        });
-        match r.source {
-            ReflectanceSource::Known => say!("  {:<14} {rgb}  known", r.name),
-            ReflectanceSource::Propagated {
-                step,
-                angle_deg,
-                samples,
-            } => {
-                say!(
-                    "  {:<14} {rgb}  EQ2 step {step}, from directions within {angle_deg:.2}° ({samples} pixels)",
-                    r.name
-                )
-            }
-            ReflectanceSource::Unreached => say!(
-                "  {:<14} -  not lit by this light where the photo sees it",
-                r.name
-            ),
+}
+
+/// A surface's reflectance and where it came from.
+#[derive(serde::Serialize)]
+struct SurfaceReport {
+    surface: String,
+    rgb: Option<[f64; 3]>,
+    source: &'static str,
+    /// For EQ2: its step, the widest angle to a known direction, and the pixels read.
+    step: Option<usize>,
+    angle_deg: Option<f64>,
+    samples: Option<usize>,
+}
+
+impl GonioReport {
+    fn new(
+        rec: &arlux::gonio::Reconstruction,
+        light: &str,
+        output: &std::path::Path,
+        times: &arlux::model::StageTimes,
+    ) -> Self {
+        let (peak, peak_dir) = arlux::gonio::peak(rec);
+        let reflectances = rec
+            .reflectances
+            .iter()
+            .map(|r| {
+                let (source, step, angle_deg, samples) = match r.source {
+                    ReflectanceSource::Known => ("known", None, None, None),
+                    ReflectanceSource::Propagated {
+                        step,
+                        angle_deg,
+                        samples,
+                    } => ("EQ2", Some(step), Some(angle_deg), Some(samples)),
+                    ReflectanceSource::Unreached => ("unreached", None, None, None),
+                };
+                SurfaceReport {
+                    surface: r.name.clone(),
+                    rgb: r.rgb.map(|c| c.to_array()),
+                    source,
+                    step,
+                    angle_deg,
+                    samples,
+                }
+            })
+            .collect();
+        GonioReport {
+            light: light.to_string(),
+            position: rec.position.to_array(),
+            rgb: rec.colour.to_array(),
+            peak_candela: peak,
+            peak_direction: peak_dir.to_array(),
+            coverage: rec.coverage,
+            colour_residual: rec.colour_residual,
+            rounds: rec.rounds,
+            last_change: rec.change,
+            samples: rec.samples,
+            patches: rec.patches,
+            reconstruction_seconds: rec.seconds,
+            paper_seconds: 97.9,
+            reflectances,
+            output: output.display().to_string(),
+            stages: stages_json(times),
+            seconds: times.total().as_secs_f64(),
         }
     }
-    say!(
-        "reconstruction {:.2} s (Grosch et al.: 97.9 s for 282 patches); total {:.2} s",
-        rec.seconds,
-        seconds
-    );
-    say!(
-        "wrote {}; use it as: intensity = {{ ies = \"{}\", rgb = [{:.4}, {:.4}, {:.4}], direction = [0.0, -1.0, 0.0], reference = [1.0, 0.0, 0.0] }}",
-        output.display(),
-        output.display(),
-        rec.colour.x,
-        rec.colour.y,
-        rec.colour.z
-    );
-    Ok(())
+}
+
+impl Report for GonioReport {
+    const COMMAND: &'static str = "gonio";
+
+    /// The reconstruction, with the line that uses the file written.
+    fn text(&self) -> Vec<String> {
+        let v = |a: [f64; 3]| fmt3(glam::DVec3::from_array(a));
+        let mut lines = vec![
+            format!(
+                "light '{}' at {}: reconstructed from {} pixels ({} patches for the indirect light), {} rounds (last change {:.1e} of the peak)",
+                self.light,
+                v(self.position),
+                self.samples,
+                self.patches,
+                self.rounds,
+                self.last_change
+            ),
+            format!(
+                "peak {:.3} × rgb {} towards {}; {:.1}% of the sphere is known from the photo (the rest is 0 and marked unknown)",
+                self.peak_candela,
+                v(self.rgb),
+                v(self.peak_direction),
+                100.0 * self.coverage
+            ),
+        ];
+        for r in &self.reflectances {
+            let rgb = r.rgb.map_or("-".to_string(), |c| {
+                format!("[{:.3}, {:.3}, {:.3}]", c[0], c[1], c[2])
+            });
+            lines.push(match (r.source, r.step, r.angle_deg, r.samples) {
+                ("EQ2", Some(step), Some(angle_deg), Some(samples)) => format!(
+                    "  {:<14} {rgb}  EQ2 step {step}, from directions within {angle_deg:.2}° ({samples} pixels)",
+                    r.surface
+                ),
+                ("known", ..) => format!("  {:<14} {rgb}  known", r.surface),
+                _ => format!(
+                    "  {:<14} -  not lit by this light where the photo sees it",
+                    r.surface
+                ),
+            });
+        }
+        lines.push(format!(
+            "reconstruction {:.2} s (Grosch et al.: {} s for 282 patches); total {:.2} s",
+            self.reconstruction_seconds, self.paper_seconds, self.seconds
+        ));
+        let c = self.rgb;
+        lines.push(format!(
+            "wrote {}; use it as: intensity = {{ ies = \"{}\", rgb = [{:.4}, {:.4}, {:.4}], direction = [0.0, -1.0, 0.0], reference = [1.0, 0.0, 0.0] }}",
+            self.output, self.output, c[0], c[1], c[2]
+        ));
+        lines
+    }
 }
 
 // One argument per command-line flag.

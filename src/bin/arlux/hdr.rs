@@ -65,26 +65,44 @@ pub fn run(args: &Args) -> Result<()> {
         }
         Ok(())
     })?;
-    let saturated = merged.saturated.iter().filter(|s| **s).count();
-    let black = merged.black.iter().filter(|s| **s).count();
-    if args.json {
-        return crate::common::emit(
-            "hdr",
-            serde_json::json!({
-                "exposures": exposures.len(), "output": output.display().to_string(),
-                "width": merged.image.width, "height": merged.image.height,
-                "saturated_pixels": saturated, "black_pixels": black, "relative_radiance": true,
-            }),
-        );
+    let report = HdrReport {
+        exposures: exposures.len(),
+        output: output.display().to_string(),
+        width: merged.image.width,
+        height: merged.image.height,
+        saturated_pixels: merged.saturated.iter().filter(|s| **s).count(),
+        black_pixels: merged.black.iter().filter(|s| **s).count(),
+        relative_radiance: true,
+    };
+    crate::common::print_report(&report, args.json)
+}
+
+/// `arlux hdr`'s report.
+#[derive(serde::Serialize)]
+struct HdrReport {
+    exposures: usize,
+    output: String,
+    width: u32,
+    height: u32,
+    /// Pixels saturated, or black, in every exposure.
+    saturated_pixels: usize,
+    black_pixels: usize,
+    /// The merge's radiance is relative: the base exposure time is unknown.
+    relative_radiance: bool,
+}
+
+impl crate::common::Report for HdrReport {
+    const COMMAND: &'static str = "hdr";
+
+    fn text(&self) -> Vec<String> {
+        vec![format!(
+            "merged {} exposures into {} ({}x{}); {} pixels saturated in every exposure, {} black in every exposure; radiance is relative (g(128) = 0, t0 = 1)",
+            self.exposures,
+            self.output,
+            self.width,
+            self.height,
+            self.saturated_pixels,
+            self.black_pixels
+        )]
     }
-    say!(
-        "merged {} exposures into {} ({}x{}); {} pixels saturated in every exposure, {} black in every exposure; radiance is relative (g(128) = 0, t0 = 1)",
-        exposures.len(),
-        output.display(),
-        merged.image.width,
-        merged.image.height,
-        saturated,
-        black
-    );
-    Ok(())
 }

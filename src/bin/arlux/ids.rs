@@ -76,37 +76,64 @@ pub fn run(args: &Args) -> Result<()> {
         .map(|(i, name)| (i, name, ids.ids.iter().filter(|&&s| s == i as i32).count()))
         .filter(|(_, _, n)| *n > 0)
         .collect();
-    if args.json {
-        let surfaces: Vec<_> = seen
+    let report = IdsReport {
+        pixels: ids.ids.len(),
+        covered: ids.covered(),
+        output: output.display().to_string(),
+        surfaces: seen
             .iter()
             .map(|(i, name, n)| {
                 let [r, g, b] = id_colour(*i as i32);
-                serde_json::json!({
-                    "id": i, "name": name, "colour": format!("#{r:02x}{g:02x}{b:02x}"),
-                    "pixels": n, "fraction": *n as f64 / total,
-                })
+                SurfaceReport {
+                    id: *i,
+                    name: name.to_string(),
+                    colour: format!("#{r:02x}{g:02x}{b:02x}"),
+                    pixels: *n,
+                    fraction: *n as f64 / total,
+                }
             })
-            .collect();
-        return emit(
-            "ids",
-            serde_json::json!({
-                "pixels": ids.ids.len(), "covered": ids.covered(),
-                "output": output.display().to_string(), "surfaces": surfaces,
-            }),
-        );
+            .collect(),
+    };
+    print_report(&report, args.json)
+}
+
+/// `arlux ids`'s report.
+#[derive(serde::Serialize)]
+struct IdsReport {
+    pixels: usize,
+    /// Pixels that see a surface.
+    covered: usize,
+    output: String,
+    surfaces: Vec<SurfaceReport>,
+}
+
+/// A surface the camera sees, in its colour of the picture.
+#[derive(serde::Serialize)]
+struct SurfaceReport {
+    id: usize,
+    name: String,
+    colour: String,
+    pixels: usize,
+    fraction: f64,
+}
+
+impl Report for IdsReport {
+    const COMMAND: &'static str = "ids";
+
+    fn text(&self) -> Vec<String> {
+        let mut lines = vec![format!(
+            "{} of {} pixels see a surface; wrote {}",
+            self.covered, self.pixels, self.output
+        )];
+        lines.extend(self.surfaces.iter().map(|s| {
+            format!(
+                "  {:>3} {:<20} {}  {:5.1}% of the image",
+                s.id,
+                s.name,
+                s.colour,
+                100.0 * s.fraction
+            )
+        }));
+        lines
     }
-    say!(
-        "{} of {} pixels see a surface; wrote {}",
-        ids.covered(),
-        ids.ids.len(),
-        output.display()
-    );
-    for (i, name, n) in seen {
-        let [r, g, b] = id_colour(i as i32);
-        say!(
-            "  {i:>3} {name:<20} #{r:02x}{g:02x}{b:02x}  {:5.1}% of the image",
-            100.0 * n as f64 / total
-        );
-    }
-    Ok(())
 }

@@ -1,6 +1,5 @@
 //! `arlux info`: Describe a scene: surfaces, triangles, lights, objects, variants, motions, the photo's range.
 
-use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::Result;
@@ -159,110 +158,130 @@ fn info_report(
         "virtual_objects": objects, "variants": variants, "motions": motions, "warnings": scene.warnings,
         "all_surface_names": names,
     });
-    if as_json {
-        return emit("info", report);
-    }
-    print_info(scene, &report, &light_lines)
+    print_report(
+        &InfoReport {
+            report,
+            light_lines,
+        },
+        as_json,
+    )
 }
 
-/// The report as text, from its JSON (the lights from their own lines).
-fn print_info(scene: &Scene, report: &serde_json::Value, light_lines: &[String]) -> Result<()> {
-    let list = |key: &str| report[key].as_array().cloned().unwrap_or_default();
-    let (surfaces, objects, variants, motions) = (
-        list("surfaces"),
-        list("virtual_objects"),
-        list("variants"),
-        list("motions"),
-    );
-    let c = &scene.camera;
-    let mut out = std::io::stdout().lock();
-    writeln!(out, "scene '{}' ({})", scene.name, scene.file.display())?;
-    writeln!(
-        out,
-        "camera: {}x{} px, fx {:.2} fy {:.2}, principal point ({:.1}, {:.1})",
-        c.width, c.height, c.fx, c.fy, c.cx, c.cy
-    )?;
-    match &report["photo"]["range"] {
-        serde_json::Value::Null => writeln!(out, "photo: {}", report["photo"])?,
-        r => writeln!(
-            out,
-            "photo: {} {}x{}, min {} max {} mean {:.5}, dynamic range {}:1",
-            report["photo"]["image"].as_str().unwrap_or(""),
-            r["width"],
-            r["height"],
-            r["min"],
-            r["max"],
-            r["mean"].as_f64().unwrap_or(0.0),
-            r["dynamic_range"]
-                .as_f64()
-                .map_or("n/a".into(), |d| format!("{d:.0}")),
-        )?,
+/// `arlux info`'s report: the scene as JSON; its text is read from that
+/// JSON (the lights from their own lines).
+#[derive(serde::Serialize)]
+struct InfoReport {
+    #[serde(flatten)]
+    report: serde_json::Value,
+    #[serde(skip)]
+    light_lines: Vec<String>,
+}
+
+impl Report for InfoReport {
+    const COMMAND: &'static str = "info";
+
+    fn text(&self) -> Vec<String> {
+        let report = &self.report;
+        let list = |key: &str| report[key].as_array().cloned().unwrap_or_default();
+        let str_of = |v: &serde_json::Value| v.as_str().unwrap_or("").to_string();
+        let (surfaces, objects, variants, motions) = (
+            list("surfaces"),
+            list("virtual_objects"),
+            list("variants"),
+            list("motions"),
+        );
+        let c = &report["camera"];
+        let f2 = |v: &serde_json::Value| v.as_f64().unwrap_or(0.0);
+        let mut out = vec![
+            format!(
+                "scene '{}' ({})",
+                str_of(&report["name"]),
+                str_of(&report["file"])
+            ),
+            format!(
+                "camera: {}x{} px, fx {:.2} fy {:.2}, principal point ({:.1}, {:.1})",
+                c["width"],
+                c["height"],
+                f2(&c["fx"]),
+                f2(&c["fy"]),
+                f2(&c["cx"]),
+                f2(&c["cy"])
+            ),
+        ];
+        out.push(match &report["photo"]["range"] {
+            serde_json::Value::Null => format!("photo: {}", report["photo"]),
+            r => format!(
+                "photo: {} {}x{}, min {} max {} mean {:.5}, dynamic range {}:1",
+                str_of(&report["photo"]["image"]),
+                r["width"],
+                r["height"],
+                r["min"],
+                r["max"],
+                f2(&r["mean"]),
+                r["dynamic_range"]
+                    .as_f64()
+                    .map_or("n/a".into(), |d| format!("{d:.0}")),
+            ),
+        });
+        out.push(format!(
+            "real surfaces: {} ({} triangles)",
+            surfaces.len(),
+            report["triangles"]
+        ));
+        for s in &surfaces {
+            let known = s["known_reflectance"]
+                .as_array()
+                .map(|k| {
+                    format!(
+                        "  known reflectance {}",
+                        serde_json::Value::Array(k.clone())
+                    )
+                })
+                .unwrap_or_default();
+            out.push(format!(
+                "  {:>3} {:<16} {:>6} triangles  {}{}",
+                s["id"],
+                str_of(&s["name"]),
+                s["triangles"],
+                str_of(&s["mesh"]),
+                known
+            ));
+        }
+        out.push(format!("lights: {}", self.light_lines.len()));
+        out.extend(self.light_lines.iter().map(|l| format!("  {l}")));
+        out.push(format!("virtual objects: {}", objects.len()));
+        for o in &objects {
+            out.push(format!(
+                "  {:<12} {} triangles, {}, at {} rotated {}° (about x, y, z)",
+                str_of(&o["name"]),
+                o["triangles"],
+                if o["enabled"].as_bool().unwrap_or(false) {
+                    "enabled"
+                } else {
+                    "disabled"
+                },
+                o["translate"],
+                o["rotate_deg"]
+            ));
+        }
+        out.push(format!("variants: {}", variants.len()));
+        for v in &variants {
+            out.push(format!(
+                "  {:<20} reference {}",
+                str_of(&v["name"]),
+                v["reference"].as_str().unwrap_or("none")
+            ));
+        }
+        out.push(format!("motions: {}", motions.len()));
+        for m in &motions {
+            out.push(format!(
+                "  {:<20} moves {} through {} poses ({} references)",
+                str_of(&m["name"]),
+                str_of(&m["object"]),
+                m["poses"],
+                m["references"]
+            ));
+        }
+        out
     }
-    writeln!(
-        out,
-        "real surfaces: {} ({} triangles)",
-        scene.surfaces.len(),
-        scene.triangle_count()
-    )?;
-    for s in &surfaces {
-        let known = s["known_reflectance"]
-            .as_array()
-            .map(|k| {
-                format!(
-                    "  known reflectance {}",
-                    serde_json::Value::Array(k.clone())
-                )
-            })
-            .unwrap_or_default();
-        writeln!(
-            out,
-            "  {:>3} {:<16} {:>6} triangles  {}{}",
-            s["id"],
-            s["name"].as_str().unwrap_or(""),
-            s["triangles"],
-            s["mesh"].as_str().unwrap_or(""),
-            known
-        )?;
-    }
-    writeln!(out, "lights: {}", light_lines.len())?;
-    for line in light_lines {
-        writeln!(out, "  {line}")?;
-    }
-    writeln!(out, "virtual objects: {}", objects.len())?;
-    for o in &objects {
-        writeln!(
-            out,
-            "  {:<12} {} triangles, {}, at {} rotated {}° (about x, y, z)",
-            o["name"].as_str().unwrap_or(""),
-            o["triangles"],
-            if o["enabled"].as_bool().unwrap_or(false) {
-                "enabled"
-            } else {
-                "disabled"
-            },
-            o["translate"],
-            o["rotate_deg"]
-        )?;
-    }
-    writeln!(out, "variants: {}", variants.len())?;
-    for v in &variants {
-        writeln!(
-            out,
-            "  {:<20} reference {}",
-            v["name"].as_str().unwrap_or(""),
-            v["reference"].as_str().unwrap_or("none")
-        )?;
-    }
-    writeln!(out, "motions: {}", motions.len())?;
-    for m in &motions {
-        writeln!(
-            out,
-            "  {:<20} moves {} through {} poses ({} references)",
-            m["name"].as_str().unwrap_or(""),
-            m["object"].as_str().unwrap_or(""),
-            m["poses"],
-            m["references"]
-        )?;
-    }
-    Ok(())
 }

@@ -1,5 +1,7 @@
 //! The `arlux` command line: parses arguments and calls the library.
 
+#![forbid(unsafe_code)]
+
 use std::process::ExitCode;
 
 use anyhow::Result;

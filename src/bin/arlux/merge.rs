@@ -3,12 +3,11 @@
 use std::path::PathBuf;
 
 use anyhow::{Result, bail};
-use serde_json::json;
 
 use arlux::image_io;
 use arlux::sweep::{SweepTable, merge_tables, plot};
 
-use crate::common::emit;
+use crate::common::{Report, print_report};
 use crate::timing::*;
 
 /// Arguments of `arlux merge`.
@@ -49,26 +48,14 @@ pub fn run(args: &Args) -> Result<()> {
         let merged = stage("merge", || {
             image_io::merge_tiles(&args.inputs, &args.output)
         })?;
-        if args.json {
-            emit(
-                "merge",
-                json!({
-                    "kind": "frame",
-                    "output": args.output.display().to_string(), "pieces": merged.tiles,
-                    "width": merged.width, "height": merged.height, "channels": merged.channels,
-                }),
-            )?;
-        } else {
-            say!(
-                "merged {} crops into {} ({}×{}, {} channels)",
-                merged.tiles,
-                args.output.display(),
-                merged.width,
-                merged.height,
-                merged.channels
-            );
-        }
-        return Ok(());
+        let report = MergeReport::Frame {
+            output: args.output.display().to_string(),
+            pieces: merged.tiles,
+            width: merged.width,
+            height: merged.height,
+            channels: merged.channels,
+        };
+        return print_report(&report, args.json);
     }
     let tables = stage("read", || -> Result<Vec<(PathBuf, SweepTable)>> {
         args.inputs
@@ -92,23 +79,57 @@ pub fn run(args: &Args) -> Result<()> {
         }
         Ok(())
     })?;
-    let front = table.rows.iter().filter(|r| r.pareto).count();
-    if args.json {
-        emit(
-            "merge",
-            json!({
-                "kind": "sweep",
-                "output": args.output.display().to_string(), "pieces": tables.len(),
-                "settings": table.rows.len(), "pareto": front,
-            }),
-        )?;
-    } else {
-        say!(
-            "merged {} shard tables into {} ({} settings, {front} on the Pareto front)",
-            tables.len(),
-            args.output.display(),
-            table.rows.len()
-        );
+    let report = MergeReport::Sweep {
+        output: args.output.display().to_string(),
+        pieces: tables.len(),
+        settings: table.rows.len(),
+        pareto: table.rows.iter().filter(|r| r.pareto).count(),
+    };
+    print_report(&report, args.json)
+}
+
+/// `arlux merge`'s report: a frame from crops, or a sweep from shard tables.
+#[derive(serde::Serialize)]
+#[serde(tag = "kind", rename_all = "lowercase")]
+enum MergeReport {
+    Frame {
+        output: String,
+        pieces: usize,
+        width: u32,
+        height: u32,
+        channels: usize,
+    },
+    Sweep {
+        output: String,
+        pieces: usize,
+        settings: usize,
+        /// Rows on the Pareto front.
+        pareto: usize,
+    },
+}
+
+impl Report for MergeReport {
+    const COMMAND: &'static str = "merge";
+
+    fn text(&self) -> Vec<String> {
+        vec![match self {
+            MergeReport::Frame {
+                output,
+                pieces,
+                width,
+                height,
+                channels,
+            } => format!(
+                "merged {pieces} crops into {output} ({width}×{height}, {channels} channels)"
+            ),
+            MergeReport::Sweep {
+                output,
+                pieces,
+                settings,
+                pareto,
+            } => format!(
+                "merged {pieces} shard tables into {output} ({settings} settings, {pareto} on the Pareto front)"
+            ),
+        }]
     }
-    Ok(())
 }

@@ -202,15 +202,19 @@ pub fn run(args: &Args) -> Result<()> {
         block_bytes,
         block_bytes_end: session.memory_bytes().1,
     };
-    if args.json {
-        emit("motion", serde_json::to_value(&report)?)?;
-    } else {
-        say!(
+    // The poses' lines were printed as they came: the text adds the end.
+    print_report(&report, args.json)
+}
+
+impl Report for MotionReport<'_> {
+    const COMMAND: &'static str = "motion";
+
+    fn text(&self) -> Vec<String> {
+        vec![format!(
             "pixel blocks at the end: {:.1} MB",
-            report.block_bytes_end as f64 / 1e6
-        );
+            self.block_bytes_end as f64 / 1e6
+        )]
     }
-    Ok(())
 }
 
 /// What re-rendering a pose costs: the full render less the photo's

@@ -3,7 +3,6 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
-use serde_json::json;
 
 use arlux::compare::compare;
 use arlux::image_io::{self};
@@ -105,55 +104,80 @@ pub fn run(args: &Args) -> Result<()> {
     })?;
     let est = &model.estimate;
     keep(&times);
-    let report = json!({
-        "patches": model.patches.patch_count(),
-        "elements": model.patches.elements.len(),
-        "transport": if full { "full" } else { "hierarchical" },
-        "links": model.transport.link_count(),
-        "transport_bytes": model.transport.memory_bytes(),
-        "estimate_iterations": est.iterations,
-        "estimate_change": est.change,
-        "clamped_patches": est.clamped,
-        "unseen_patches": est.unseen,
-        "solver_iterations": est.solution.iterations,
-        "solver_residual": est.solution.residual,
-        "shadow_rays": view.rays,
-        "comparison": error,
-        "stages": stages_json(&times),
-        "seconds": times.total().as_secs_f64(),
-    });
-    if as_json {
-        emit("radiosity", report)?;
-        return Ok(());
+    let report = RadiosityReport {
+        patches: model.patches.patch_count(),
+        elements: model.patches.elements.len(),
+        transport: if full { "full" } else { "hierarchical" },
+        links: model.transport.link_count(),
+        transport_bytes: model.transport.memory_bytes(),
+        estimate_iterations: est.iterations,
+        estimate_change: est.change,
+        clamped_patches: est.clamped,
+        unseen_patches: est.unseen,
+        solver_iterations: est.solution.iterations,
+        solver_residual: est.solution.residual,
+        shadow_rays: view.rays,
+        comparison: error,
+        stages: stages_json(&times),
+        seconds: times.total().as_secs_f64(),
+    };
+    print_report(&report, as_json)
+}
+
+/// `arlux radiosity`'s report.
+#[derive(serde::Serialize)]
+struct RadiosityReport {
+    patches: usize,
+    elements: usize,
+    transport: &'static str,
+    links: usize,
+    transport_bytes: usize,
+    estimate_iterations: usize,
+    estimate_change: f64,
+    clamped_patches: usize,
+    unseen_patches: usize,
+    solver_iterations: usize,
+    solver_residual: f64,
+    shadow_rays: u64,
+    comparison: arlux::compare::Comparison,
+    stages: serde_json::Value,
+    seconds: f64,
+}
+
+impl Report for RadiosityReport {
+    const COMMAND: &'static str = "radiosity";
+
+    fn text(&self) -> Vec<String> {
+        let error = &self.comparison;
+        vec![
+            format!(
+                "{} patches ({} elements), {} transport with {} form factors ({:.1} MB)",
+                self.patches,
+                self.elements,
+                self.transport,
+                self.links,
+                self.transport_bytes as f64 / 1e6
+            ),
+            format!(
+                "reflectances: {} fixed-point iterations (last change {:.1e}), {} patches clamped to [0, {}], {} unseen patches took their surface's mean",
+                self.estimate_iterations,
+                self.estimate_change,
+                self.clamped_patches,
+                arlux::estimate::MAX_REFLECTANCE,
+                self.unseen_patches
+            ),
+            format!(
+                "radiosity: GMRES {} iterations, residual {:.1e}",
+                self.solver_iterations, self.solver_residual
+            ),
+            format!(
+                "model against the photo: RMSE {:.5}, relative {:.3}, PSNR {}",
+                error.rmse,
+                error.relative_rmse.unwrap_or(f64::NAN),
+                error
+                    .psnr_srgb_db
+                    .map_or("inf".into(), |p| format!("{p:.2} dB"))
+            ),
+        ]
     }
-    say!(
-        "{} patches ({} elements), {} transport with {} form factors ({:.1} MB)",
-        model.patches.patch_count(),
-        model.patches.elements.len(),
-        if full { "full" } else { "hierarchical" },
-        model.transport.link_count(),
-        model.transport.memory_bytes() as f64 / 1e6
-    );
-    say!(
-        "reflectances: {} fixed-point iterations (last change {:.1e}), {} patches clamped to [0, {}], {} unseen patches took their surface's mean",
-        est.iterations,
-        est.change,
-        est.clamped,
-        arlux::estimate::MAX_REFLECTANCE,
-        est.unseen
-    );
-    say!(
-        "radiosity: GMRES {} iterations, residual {:.1e}",
-        est.solution.iterations,
-        est.solution.residual
-    );
-    say!(
-        "model against the photo: RMSE {:.5}, relative {:.3}, PSNR {}",
-        error.rmse,
-        error.relative_rmse.unwrap_or(f64::NAN),
-        error
-            .psnr_srgb_db
-            .map_or("inf".into(), |p| format!("{p:.2} dB"))
-    );
-    Ok(())
 }

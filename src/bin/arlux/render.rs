@@ -160,13 +160,8 @@ pub fn run(args: &Args) -> Result<()> {
         }))
     })?;
     keep(&times);
-    if args.json {
-        let report = report_json(variant, &out, error.as_ref(), &times, window);
-        emit("render", report)?;
-        return Ok(());
-    }
-    print_report(&out, error.as_ref())?;
-    Ok(())
+    let report = RenderReport::new(variant, &out, error, &times, window);
+    print_report(&report, args.json)
 }
 
 /// The EXR with the layers a compositor expects (see [`write_frame`]), cut
@@ -199,108 +194,177 @@ fn write_outputs(args: &Args, out: &RenderOutput, photo: &Image, meta: &ExrMeta)
     Ok(())
 }
 
-fn report_json(
-    variant: Option<&str>,
-    out: &RenderOutput,
-    error: Option<&(Comparison, Skill)>,
-    times: &StageTimes,
-    window: Option<PixelRect>,
-) -> serde_json::Value {
-    let c = &out.composite;
-    json!({
-        "variant": variant,
-        "crop": window.map(|r| json!({"x0": r.x0, "x1": r.x1, "y0": r.y0, "y1": r.y1})),
-        "pixels": out.pda_pixels,
-        "copied_from_photo": c.copied,
-        "ratio_fallbacks": c.ratio_fallbacks,
-        "clamped": c.clamped,
-        "patches": out.patches,
-        "patch_size_m": out.patch_size,
-        "links": out.links,
-        "method": if out.texture.is_some() { "texture" } else { "pda" },
-        "rays": out.texture.is_none().then_some(out.rays),
-        "pda_bytes": out.pda_bytes,
-        "pda_bytes_per_pixel": out.pda_bytes as f64 / out.pda_pixels.max(1) as f64,
-        "texture": out.texture.as_ref().map(|(s, _, change)| json!({
-            "refinement_rounds": s.rounds, "splits": s.splits, "splits_undone": s.undone, "leaves": s.leaves,
-            "occluded_leaves": s.occluded, "corrected_from_frontier": s.by_frontier,
-            "corrected_from_user_reference": s.by_user_reference, "uncorrected": s.uncorrected,
-            "texels": s.texels, "texture_bytes": s.texture_bytes, "light_change_seconds": change.as_secs_f64(),
-        })),
-        "comparison": error.map(|e| e.0),
-        "skill": error.map(|e| e.1),
-        "left_out": out.left_out,
-        "stages": stages_json(times),
-        "seconds": times.total().as_secs_f64(),
-    })
+/// `arlux render`'s report.
+#[derive(serde::Serialize)]
+struct RenderReport<'a> {
+    variant: Option<&'a str>,
+    crop: Option<Crop>,
+    pixels: usize,
+    copied_from_photo: usize,
+    ratio_fallbacks: usize,
+    clamped: usize,
+    patches: usize,
+    patch_size_m: f64,
+    links: usize,
+    method: &'static str,
+    /// Shadow and sub-pixel rays (the pixel path's).
+    rays: Option<u64>,
+    pda_bytes: usize,
+    pda_bytes_per_pixel: f64,
+    texture: Option<TextureReport>,
+    comparison: Option<Comparison>,
+    skill: Option<Skill>,
+    left_out: &'a [String],
+    stages: serde_json::Value,
+    seconds: f64,
 }
 
-fn print_report(out: &RenderOutput, error: Option<&(Comparison, Skill)>) -> Result<()> {
-    let c = &out.composite;
-    match &out.texture {
-        None => say!(
-            "{} pixels, {} copied from the photo unchanged; {} patches ({:.2} m), {} form factors; {} rays; pixel data {:.1} MB ({:.0} bytes per pixel)",
-            out.pda_pixels,
-            c.copied,
-            out.patches,
-            out.patch_size,
-            out.links,
-            out.rays,
-            out.pda_bytes as f64 / 1e6,
-            out.pda_bytes as f64 / out.pda_pixels.max(1) as f64
-        ),
-        Some((s, _, change)) => {
-            say!(
-                "texture path: {} leaves from {:.2} m patches after {} refinement rounds ({} splits, {} undone: no visibility change); {} form factors",
-                out.patches,
-                out.patch_size,
-                s.rounds,
-                s.splits,
-                s.undone,
-                out.links
-            );
-            say!(
-                "{} seen leaves in some real shadow: {} corrected from a frontier leaf, {} from the user's [[texture_reference]], {} left as Step 1 made them",
-                s.occluded,
-                s.by_frontier,
-                s.by_user_reference,
-                s.uncorrected
-            );
-            say!(
-                "textures {:.1} MB ({} texels); the light change alone (radiosity step + display): {:.3} s (Loscos: 0.8 s)",
-                s.texture_bytes as f64 / 1e6,
-                s.texels,
-                change.as_secs_f64()
-            );
+/// A crop window, pixels [x0, x1) × [y0, y1).
+#[derive(serde::Serialize)]
+struct Crop {
+    x0: u32,
+    x1: u32,
+    y0: u32,
+    y1: u32,
+}
+
+/// What the texture path did.
+#[derive(serde::Serialize)]
+struct TextureReport {
+    refinement_rounds: usize,
+    splits: usize,
+    splits_undone: usize,
+    leaves: usize,
+    occluded_leaves: usize,
+    corrected_from_frontier: usize,
+    corrected_from_user_reference: usize,
+    uncorrected: usize,
+    texels: usize,
+    texture_bytes: usize,
+    light_change_seconds: f64,
+}
+
+impl<'a> RenderReport<'a> {
+    fn new(
+        variant: Option<&'a str>,
+        out: &'a RenderOutput,
+        error: Option<(Comparison, Skill)>,
+        times: &StageTimes,
+        window: Option<PixelRect>,
+    ) -> Self {
+        let c = &out.composite;
+        RenderReport {
+            variant,
+            crop: window.map(|r| Crop {
+                x0: r.x0,
+                x1: r.x1,
+                y0: r.y0,
+                y1: r.y1,
+            }),
+            pixels: out.pda_pixels,
+            copied_from_photo: c.copied,
+            ratio_fallbacks: c.ratio_fallbacks,
+            clamped: c.clamped,
+            patches: out.patches,
+            patch_size_m: out.patch_size,
+            links: out.links,
+            method: if out.texture.is_some() {
+                "texture"
+            } else {
+                "pda"
+            },
+            rays: out.texture.is_none().then_some(out.rays),
+            pda_bytes: out.pda_bytes,
+            pda_bytes_per_pixel: out.pda_bytes as f64 / out.pda_pixels.max(1) as f64,
+            texture: out.texture.as_ref().map(|(s, _, change)| TextureReport {
+                refinement_rounds: s.rounds,
+                splits: s.splits,
+                splits_undone: s.undone,
+                leaves: s.leaves,
+                occluded_leaves: s.occluded,
+                corrected_from_frontier: s.by_frontier,
+                corrected_from_user_reference: s.by_user_reference,
+                uncorrected: s.uncorrected,
+                texels: s.texels,
+                texture_bytes: s.texture_bytes,
+                light_change_seconds: change.as_secs_f64(),
+            }),
+            comparison: error.map(|e| e.0),
+            skill: error.map(|e| e.1),
+            left_out: &out.left_out,
+            stages: stages_json(times),
+            seconds: times.total().as_secs_f64(),
         }
     }
-    if c.ratio_fallbacks > 0 || c.clamped > 0 {
-        match out.texture {
-            None => say!(
-                "{} samples fell back from the ratio to the additive form (dark before), {} were clamped at zero",
-                c.ratio_fallbacks,
-                c.clamped
-            ),
-            Some(_) => say!(
-                "{} pixels show the radiosity B/π: the photo saw them unlit (D ≈ 0)",
-                c.ratio_fallbacks
-            ),
+}
+
+impl Report for RenderReport<'_> {
+    const COMMAND: &'static str = "render";
+
+    fn text(&self) -> Vec<String> {
+        let mut lines = Vec::new();
+        match &self.texture {
+            None => lines.push(format!(
+                "{} pixels, {} copied from the photo unchanged; {} patches ({:.2} m), {} form factors; {} rays; pixel data {:.1} MB ({:.0} bytes per pixel)",
+                self.pixels,
+                self.copied_from_photo,
+                self.patches,
+                self.patch_size_m,
+                self.links,
+                self.rays.unwrap_or(0),
+                self.pda_bytes as f64 / 1e6,
+                self.pda_bytes_per_pixel
+            )),
+            Some(s) => lines.extend([
+                format!(
+                    "texture path: {} leaves from {:.2} m patches after {} refinement rounds ({} splits, {} undone: no visibility change); {} form factors",
+                    self.patches,
+                    self.patch_size_m,
+                    s.refinement_rounds,
+                    s.splits,
+                    s.splits_undone,
+                    self.links
+                ),
+                format!(
+                    "{} seen leaves in some real shadow: {} corrected from a frontier leaf, {} from the user's [[texture_reference]], {} left as Step 1 made them",
+                    s.occluded_leaves,
+                    s.corrected_from_frontier,
+                    s.corrected_from_user_reference,
+                    s.uncorrected
+                ),
+                format!(
+                    "textures {:.1} MB ({} texels); the light change alone (radiosity step + display): {:.3} s (Loscos: 0.8 s)",
+                    s.texture_bytes as f64 / 1e6,
+                    s.texels,
+                    s.light_change_seconds
+                ),
+            ]),
         }
+        if self.ratio_fallbacks > 0 || self.clamped > 0 {
+            lines.push(match self.texture {
+                None => format!(
+                    "{} samples fell back from the ratio to the additive form (dark before), {} were clamped at zero",
+                    self.ratio_fallbacks, self.clamped
+                ),
+                Some(_) => format!(
+                    "{} pixels show the radiosity B/π: the photo saw them unlit (D ≈ 0)",
+                    self.ratio_fallbacks
+                ),
+            });
+        }
+        if let (Some(e), Some(s)) = (&self.comparison, &self.skill) {
+            lines.push(format!(
+                "against the reference: RMSE {:.5}, relative {:.4}, PSNR {}, mean {:.5} (reference {:.5})",
+                e.rmse,
+                e.relative_rmse.unwrap_or(f64::NAN),
+                e.psnr_srgb_db
+                    .map_or("inf".into(), |p| format!("{p:.2} dB")),
+                e.mean,
+                e.mean_reference
+            ));
+            lines.push(skill_line(s));
+        }
+        lines.extend(self.left_out.iter().map(|l| format!("left out: {l}")));
+        lines
     }
-    if let Some((e, s)) = error {
-        say!(
-            "against the reference: RMSE {:.5}, relative {:.4}, PSNR {}, mean {:.5} (reference {:.5})",
-            e.rmse,
-            e.relative_rmse.unwrap_or(f64::NAN),
-            e.psnr_srgb_db
-                .map_or("inf".into(), |p| format!("{p:.2} dB")),
-            e.mean,
-            e.mean_reference
-        );
-        say!("{}", skill_line(s));
-    }
-    for l in &out.left_out {
-        say!("left out: {l}");
-    }
-    Ok(())
 }

@@ -3,7 +3,6 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
-use serde_json::json;
 
 use arlux::image_io::{self};
 
@@ -116,95 +115,131 @@ pub fn run(args: &Args) -> Result<()> {
         )?;
         Ok(())
     })?;
-    let plot_file = args.shard.is_none().then_some(png.as_path());
-    if as_json {
-        return emit(
-            "sweep",
-            json!({
-                "target": label, "settings": rows.len(), "csv": csv.display().to_string(),
-                "plot": plot_file.map(|p| p.display().to_string()),
-                "rows": rows.iter().map(row_json).collect::<Vec<_>>(),
-            }),
-        );
-    }
-    print_front(rows, &label, &csv, plot_file)
-}
-
-/// A measured setting for the `--json` report.
-fn row_json(r: &arlux::sweep::SweepRow) -> serde_json::Value {
-    let s = &r.settings;
-    let method = match s.method {
-        arlux::sweep::SweepMethod::Pda => json!("pda"),
-        arlux::sweep::SweepMethod::Texture { min_leaf_pixels } => {
-            json!({ "texture": { "min_leaf_pixels": min_leaf_pixels } })
-        }
+    let report = SweepReport {
+        target: label,
+        settings: rows.len(),
+        csv: csv.display().to_string(),
+        plot: args.shard.is_none().then(|| png.display().to_string()),
+        rows: rows.iter().map(RowReport::of).collect(),
     };
-    json!({
-        "method": method,
-        "shadow_rays": [1u32 << s.min_level, 1u32 << s.penumbra_level], "supersample": s.supersample,
-        "patch_size_m": s.patch_size, "virtual_patch_size_m": matches!(s.method, arlux::sweep::SweepMethod::Pda).then_some(s.virtual_patch_size),
-        "epsilon": s.epsilon, "seconds": r.seconds, "rmse": r.rmse,
-        "relative_rmse": r.relative_rmse, "pareto": r.pareto,
-    })
+    print_report(&report, as_json)
 }
 
-/// What was written, and the Pareto front as a table.
-fn print_front(
-    rows: &[arlux::sweep::SweepRow],
-    label: &str,
-    csv: &std::path::Path,
-    plot: Option<&std::path::Path>,
-) -> Result<()> {
-    let mut front: Vec<&arlux::sweep::SweepRow> = rows.iter().filter(|r| r.pareto).collect();
-    front.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
-    say!(
-        "{} settings of {label}; wrote {}{}",
-        rows.len(),
-        csv.display(),
-        plot.map_or(String::new(), |p| format!(" and {}", p.display()))
-    );
-    say!("Pareto front (faster and closer than nothing else):");
-    say!(
-        "  {:>7} {:>11} {:>10} {:>10} {:>8} {:>8} {:>9} {:>10}",
-        "method",
-        "shadow rays",
-        "supersamp.",
-        "patch",
-        "objects",
-        "epsilon",
-        "seconds",
-        "RMSE"
-    );
-    for r in front {
+/// `arlux sweep`'s report.
+#[derive(serde::Serialize)]
+struct SweepReport {
+    target: String,
+    settings: usize,
+    csv: String,
+    plot: Option<String>,
+    rows: Vec<RowReport>,
+}
+
+/// A measured setting.
+#[derive(serde::Serialize)]
+struct RowReport {
+    method: MethodReport,
+    /// Shadow rays per light where the samples agree, and in a penumbra.
+    shadow_rays: [u32; 2],
+    supersample: u32,
+    patch_size_m: Option<f64>,
+    virtual_patch_size_m: Option<f64>,
+    epsilon: f64,
+    seconds: f64,
+    rmse: f64,
+    relative_rmse: Option<f64>,
+    pareto: bool,
+}
+
+#[derive(serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+enum MethodReport {
+    Pda,
+    Texture { min_leaf_pixels: f64 },
+}
+
+impl RowReport {
+    fn of(r: &arlux::sweep::SweepRow) -> Self {
         let s = &r.settings;
-        let (method, rays, supersample) = match s.method {
-            arlux::sweep::SweepMethod::Pda => (
-                "pda",
-                format!("{}-{}", 1u32 << s.min_level, 1u32 << s.penumbra_level),
-                s.supersample.to_string(),
-            ),
-            arlux::sweep::SweepMethod::Texture { min_leaf_pixels } => (
-                "texture",
-                format!("leaf {min_leaf_pixels} px"),
-                "-".to_string(),
-            ),
+        let (method, virtual_patch_size_m) = match s.method {
+            arlux::sweep::SweepMethod::Pda => (MethodReport::Pda, Some(s.virtual_patch_size)),
+            arlux::sweep::SweepMethod::Texture { min_leaf_pixels } => {
+                (MethodReport::Texture { min_leaf_pixels }, None)
+            }
         };
-        let objects = match s.method {
-            arlux::sweep::SweepMethod::Pda => format!("{} m", s.virtual_patch_size),
-            arlux::sweep::SweepMethod::Texture { .. } => "-".to_string(),
-        };
-        say!(
-            "  {:>7} {:>11} {:>10} {:>10} {:>8} {:>8} {:>9.3} {:>10.6}",
+        RowReport {
             method,
-            rays,
-            supersample,
-            s.patch_size
-                .map_or("auto".to_string(), |m| format!("{m} m")),
-            objects,
-            s.epsilon,
-            r.seconds,
-            r.rmse
-        );
+            shadow_rays: [1u32 << s.min_level, 1u32 << s.penumbra_level],
+            supersample: s.supersample,
+            patch_size_m: s.patch_size,
+            virtual_patch_size_m,
+            epsilon: s.epsilon,
+            seconds: r.seconds,
+            rmse: r.rmse,
+            relative_rmse: r.relative_rmse,
+            pareto: r.pareto,
+        }
     }
-    Ok(())
+}
+
+impl Report for SweepReport {
+    const COMMAND: &'static str = "sweep";
+
+    /// What was written, and the Pareto front as a table.
+    fn text(&self) -> Vec<String> {
+        let mut front: Vec<&RowReport> = self.rows.iter().filter(|r| r.pareto).collect();
+        front.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
+        let mut lines = vec![
+            format!(
+                "{} settings of {}; wrote {}{}",
+                self.settings,
+                self.target,
+                self.csv,
+                self.plot
+                    .as_ref()
+                    .map_or(String::new(), |p| format!(" and {p}"))
+            ),
+            "Pareto front (faster and closer than nothing else):".to_string(),
+            format!(
+                "  {:>7} {:>11} {:>10} {:>10} {:>8} {:>8} {:>9} {:>10}",
+                "method",
+                "shadow rays",
+                "supersamp.",
+                "patch",
+                "objects",
+                "epsilon",
+                "seconds",
+                "RMSE"
+            ),
+        ];
+        for r in front {
+            let (method, rays, supersample, objects) = match (&r.method, r.virtual_patch_size_m) {
+                (MethodReport::Texture { min_leaf_pixels }, _) => (
+                    "texture",
+                    format!("leaf {min_leaf_pixels} px"),
+                    "-".to_string(),
+                    "-".to_string(),
+                ),
+                (MethodReport::Pda, objects) => (
+                    "pda",
+                    format!("{}-{}", r.shadow_rays[0], r.shadow_rays[1]),
+                    r.supersample.to_string(),
+                    objects.map_or("-".to_string(), |m| format!("{m} m")),
+                ),
+            };
+            lines.push(format!(
+                "  {:>7} {:>11} {:>10} {:>10} {:>8} {:>8} {:>9.3} {:>10.6}",
+                method,
+                rays,
+                supersample,
+                r.patch_size_m
+                    .map_or("auto".to_string(), |m| format!("{m} m")),
+                objects,
+                r.epsilon,
+                r.seconds,
+                r.rmse
+            ));
+        }
+        lines
+    }
 }
