@@ -38,6 +38,10 @@ pub enum CompositeMode {
 pub struct CompositeInput<'a> {
     pub pda: &'a PixelDataArray,
     pub photo: &'a Image,
+    /// The photo with its grain smoothed out ([`grain::smoothed`]): where
+    /// a change adds direct light, the added part is this times the ratio,
+    /// so the photo's grain is not scaled up with it. None: the photo.
+    pub photo_base: Option<&'a Image>,
     pub lights: &'a [LightSource],
     /// Each light's scale in the photo, and in the augmented scene.
     pub scales_without: &'a [f64],
@@ -114,11 +118,21 @@ impl CompositeInput<'_> {
 
     /// A real surface point under the photo pixel `photo`, prepared for any
     /// indirect light; `floor` is the irradiance below which a ratio is not trusted.
+    /// Pixel `i`'s photo value and the base a brightening scales.
+    fn photo_at(&self, i: usize) -> (DVec3, DVec3) {
+        let photo = self.photo.pixels[i].as_dvec3();
+        (
+            photo,
+            self.photo_base.map_or(photo, |b| b.pixels[i].as_dvec3()),
+        )
+    }
+
+    /// A real point's composite, from its pixel's photo value and base ([`CompositeInput::photo_at`]).
     fn real_pixel(
         &self,
         p: &SurfacePoint,
         terms: &[LightTerm],
-        photo: DVec3,
+        (photo, base): (DVec3, DVec3),
         floor: DVec3,
     ) -> RealPixel {
         let e_wo = self.irradiance(terms, self.scales_without, false);
@@ -130,7 +144,11 @@ impl CompositeInput<'_> {
         let (mut offset, mut slope, mut fallback) = (DVec3::ZERO, DVec3::ZERO, false);
         for c in 0..3 {
             let ratio = self.mode == CompositeMode::Ratio;
-            if ratio && without[c] > floor[c] {
+            if ratio && without[c] > floor[c] && e_w[c] > e_wo[c] {
+                // Light added here: photo + base·(with / without − 1).
+                offset[c] = photo[c] + base[c] * (e_w[c] / without[c] - 1.0);
+                slope[c] = base[c] / without[c];
+            } else if ratio && without[c] > floor[c] {
                 offset[c] = photo[c] * e_w[c] / without[c];
                 slope[c] = photo[c] / without[c];
             } else {
@@ -333,6 +351,7 @@ pub(crate) fn composite_into(input: &CompositeInput, out: &mut Composite) {
     }
 }
 
+pub mod grain;
 mod real_pixels;
 mod shader;
 

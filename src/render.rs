@@ -209,6 +209,9 @@ pub struct Session {
     given_lights: Vec<crate::scene::Light>,
     /// The photo as the stages read it: lamps in view filled from around them.
     photo: Image,
+    /// The photo with its grain smoothed out, where a light is added or
+    /// scaled up (see [`crate::composite::grain`]).
+    photo_base: Option<Image>,
     /// The lamps in view, and the photo as shot (when there are any).
     lamps: Option<(LampPixels, Image)>,
     /// What is likely wrong with the inputs ([`crate::inputs::input_warnings`]).
@@ -306,6 +309,26 @@ impl Session {
         let indirect_without = model
             .patches
             .vertex_values(&model.estimate.solution.indirect_irradiance);
+        let brightens = scales_with
+            .iter()
+            .zip(&scales_without)
+            .any(|(w, wo)| w > wo);
+        let photo_base = brightens.then(|| {
+            times.time("photo grain", || {
+                let noise = crate::composite::grain::relative_noise(&photo);
+                let mut base = crate::composite::grain::smoothed(&photo, noise);
+                // A lamp's pixels hold a fill, not a photographed surface:
+                // smoothing it across a lamp's hot spot only biases what the
+                // lamp's scale multiplies.
+                for i in lamps.iter().flat_map(|(l, _)| l.pixel_indices()) {
+                    base.pixels[i] = photo.pixels[i];
+                }
+                base
+            })
+        });
+        if !brightens {
+            left_out.push("the photo's grain: no light is added or scaled up".to_string());
+        }
         if tracer.virtual_objects.is_none() {
             left_out.push("virtual geometry and new form factors: no virtual object (the room's transport is reused)".to_string());
             left_out.push(
@@ -352,6 +375,7 @@ impl Session {
             given_lights,
             warnings,
             photo,
+            photo_base,
             lamps,
             settings,
             tracer,
@@ -393,6 +417,7 @@ impl Session {
             let input = CompositeInput {
                 pda: &self.pda,
                 photo: &self.photo,
+                photo_base: self.photo_base.as_ref(),
                 lights: &self.model.lights,
                 scales_without: &self.scales_without,
                 scales_with: &self.scales_with,

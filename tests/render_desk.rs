@@ -81,7 +81,8 @@ fn every_variant_against_its_truth() {
         ("box_table", 0.0030),
         ("panel_off", 0.0025),
         ("spot_x2", 0.0040),
-        ("virtual_light_only", 0.0075),
+        // 0.00612 measured; 0.00668 while the ratio scaled the photo's grain up too.
+        ("virtual_light_only", 0.0065),
     ];
     for (variant, bound) in bounds {
         let (out, photo, truth, seconds) = run(&base, variant, &settings);

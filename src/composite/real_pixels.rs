@@ -75,7 +75,7 @@ impl RealPixels {
                 let r = input.real_pixel(
                     &pda.real.points[k],
                     &pda.real.terms[k * lights..(k + 1) * lights],
-                    input.photo.pixels[i as usize].as_dvec3(),
+                    input.photo_at(i as usize),
                     floor,
                 );
                 (r.affine, r.keep)
@@ -126,7 +126,7 @@ impl RealPixels {
                 let r = input.real_pixel(
                     &pda.real.points[k],
                     &pda.real.terms[k * lights..(k + 1) * lights],
-                    input.photo.pixels[i as usize].as_dvec3(),
+                    input.photo_at(i as usize),
                     self.floor,
                 );
                 (self.affine[k], self.keep[k]) = (r.affine, r.keep);

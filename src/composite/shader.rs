@@ -90,11 +90,13 @@ impl<'a> Shader<'a> {
                 s
             } else {
                 let direct = input.irradiance(terms, input.scales_with, true);
-                input.real_pixel(p, terms, photo, self.floor).shade(
-                    input.interpolate(input.indirect_with, &p.location),
-                    photo,
-                    direct,
-                )
+                input
+                    .real_pixel(p, terms, input.photo_at(i), self.floor)
+                    .shade(
+                        input.interpolate(input.indirect_with, &p.location),
+                        photo,
+                        direct,
+                    )
             };
             sum.value += s.value;
             sum.direct += s.direct;
@@ -161,7 +163,7 @@ impl<'a> Shader<'a> {
         let terms = &pda.real.terms[k * lights..(k + 1) * lights];
         let r = match input.known {
             Some(known) => known.get(k),
-            None => input.real_pixel(&pda.real.points[k], terms, photo[i].as_dvec3(), self.floor),
+            None => input.real_pixel(&pda.real.points[k], terms, input.photo_at(i), self.floor),
         };
         let mut s = r.layers(
             interpolate_single(&h_with[r.patch()], r.affine.weights),
