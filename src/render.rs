@@ -309,22 +309,10 @@ impl Session {
         let indirect_without = model
             .patches
             .vertex_values(&model.estimate.solution.indirect_irradiance);
-        let brightens = scales_with
-            .iter()
-            .zip(&scales_without)
-            .any(|(w, wo)| w > wo);
+        let brightens = (scales_with.iter().zip(&scales_without)).any(|(w, wo)| w > wo);
         let photo_base = brightens.then(|| {
-            times.time("photo grain", || {
-                let noise = crate::composite::grain::relative_noise(&photo);
-                let mut base = crate::composite::grain::smoothed(&photo, noise);
-                // A lamp's pixels hold a fill, not a photographed surface:
-                // smoothing it across a lamp's hot spot only biases what the
-                // lamp's scale multiplies.
-                for i in lamps.iter().flat_map(|(l, _)| l.pixel_indices()) {
-                    base.pixels[i] = photo.pixels[i];
-                }
-                base
-            })
+            let lamps = lamps.as_ref().map(|l| &l.0);
+            times.time("photo grain", || photo_without_grain(&photo, lamps))
         });
         if !brightens {
             left_out.push("the photo's grain: no light is added or scaled up".to_string());
@@ -628,6 +616,19 @@ impl Session {
             texture: None,
         }
     }
+}
+
+/// The photo smoothed within its own grain, what a brightening multiplies
+/// (see [`crate::composite::grain`]).
+fn photo_without_grain(photo: &Image, lamps: Option<&LampPixels>) -> Image {
+    let noise = crate::composite::grain::relative_noise(photo);
+    let mut base = crate::composite::grain::smoothed(photo, noise);
+    // A lamp's pixels hold a fill, not a photographed surface: smoothing it
+    // across a lamp's hot spot only biases what the lamp's scale multiplies.
+    for i in lamps.iter().flat_map(|l| l.pixel_indices()) {
+        base.pixels[i] = photo.pixels[i];
+    }
+    base
 }
 
 /// The room's largest patch edge: the user's, or from what the scene changes.

@@ -252,9 +252,9 @@ fn gather_objects(
         };
         final_gather(&gather, directions)
     });
-    for (v, h) in gathered {
-        indirect_with[v] = h;
-    }
+    times.time("bounces between objects", || {
+        object_bounces(system, real_count, &gathered, indirect_with)
+    });
     // The objects have no links to gather through: their radiosity is
     // their direct light plus what they gathered, and the room takes it
     // from there in a second solve (from the first: a few iterations).
@@ -310,7 +310,7 @@ pub(super) struct Gather<'a> {
 /// sees, the light leaving it is the photo's pixel there, times the change
 /// the objects make to that patch's radiosity (with / without); elsewhere
 /// the radiosity solution's B/π. Returns (vertex, irradiance) pairs.
-pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec<(usize, DVec3)> {
+pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec<Gathered> {
     use rayon::prelude::*;
     let vertices = gather_vertices(g);
     let clear_of_object = object_clearance(g.patches, vertices.len());
@@ -324,10 +324,7 @@ pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec
             } else {
                 Layer::All
             };
-            (
-                v as usize,
-                gather_at(g, v, n, directions.of(v, n, side), layer),
-            )
+            gather_at(g, v, n, directions.of(v, n, side), layer)
         })
         .collect()
 }
@@ -390,8 +387,21 @@ fn object_clearance(patches: &Patches, vertices: usize) -> impl Fn(DVec3, DVec3)
     move |p: DVec3, n: DVec3| test && crate::gather::clear_of_solid(&corners, p, n)
 }
 
+/// What a virtual vertex gathered: the irradiance from the room (and,
+/// at first, from the objects as the first solve left them), and the
+/// object patches its rays met, for the bounces between objects.
+pub(super) struct Gathered {
+    vertex: usize,
+    irradiance: DVec3,
+    /// The room's part of `irradiance`.
+    from_room: DVec3,
+    /// Object patches met, one entry per ray.
+    objects_met: Vec<u32>,
+    rays: usize,
+}
+
 /// The irradiance gathered at vertex `v` (normal `n`) along `dirs` through `layer`.
-fn gather_at(g: &Gather, v: u32, n: DVec3, dirs: &[DVec3], layer: Layer) -> DVec3 {
+fn gather_at(g: &Gather, v: u32, n: DVec3, dirs: &[DVec3], layer: Layer) -> Gathered {
     use crate::light::offset_origin;
     use crate::trace::TraceRay;
     let pi = std::f64::consts::PI;
@@ -423,11 +433,13 @@ fn gather_at(g: &Gather, v: u32, n: DVec3, dirs: &[DVec3], layer: Layer) -> DVec
         .collect();
     let mut seen =
         crate::gather::photo_radiances(g.camera, g.tracer, g.photo, &real_points).into_iter();
-    let mut sum = DVec3::ZERO;
+    let (mut sum, mut objects) = (DVec3::ZERO, DVec3::ZERO);
+    let mut objects_met = Vec::new();
     for &(_, k, is_virtual) in landed.iter().flatten() {
         let model = g.radiosity_with[k] / pi;
         if is_virtual {
-            sum += model;
+            objects += model;
+            objects_met.push(k as u32);
             continue;
         }
         // Seen by the camera? Then the photo knows its radiance.
@@ -440,5 +452,57 @@ fn gather_at(g: &Gather, v: u32, n: DVec3, dirs: &[DVec3], layer: Layer) -> DVec
             None => model,
         };
     }
-    sum * (pi / dirs.len() as f64)
+    let per_ray = pi / dirs.len() as f64;
+    Gathered {
+        vertex: v as usize,
+        irradiance: (sum + objects) * per_ray,
+        from_room: sum * per_ray,
+        objects_met,
+        rays: dirs.len(),
+    }
+}
+
+/// Light bouncing between the objects: a ray from one object that meets
+/// another (or itself: a ball on a seat, a seat under a ball) first
+/// gathered that object's radiosity as the first solve left it, its
+/// direct light alone (objects have no links). Each round takes the
+/// objects' radiosity from what their vertices gathered, ρ·(E + H), and
+/// gathers it again along the same rays: no ray is traced again. Rounds
+/// stop when no vertex moves by more than 1e-4 of its irradiance.
+fn object_bounces(
+    system: &System,
+    real_count: usize,
+    gathered: &[Gathered],
+    indirect: &mut [DVec3],
+) {
+    let patches = system.patches;
+    for g in gathered {
+        indirect[g.vertex] = g.irradiance;
+    }
+    if gathered.iter().all(|g| g.objects_met.is_empty()) {
+        return;
+    }
+    let mut radiosity = vec![DVec3::ZERO; patches.patch_count()];
+    for _ in 0..16 {
+        for (k, b) in radiosity.iter_mut().enumerate().skip(real_count) {
+            let corners = patches.patch_vertices[k].iter().filter(|&&v| v != u32::MAX);
+            let h = corners
+                .clone()
+                .map(|&v| indirect[v as usize])
+                .sum::<DVec3>()
+                / corners.count().max(1) as f64;
+            *b = system.reflectance[k] * (system.direct[k] + h);
+        }
+        let mut moved = 0.0f64;
+        for g in gathered {
+            let objects: DVec3 = g.objects_met.iter().map(|&k| radiosity[k as usize]).sum();
+            let h = g.from_room + objects / g.rays.max(1) as f64;
+            let was = indirect[g.vertex];
+            moved = moved.max(((h - was).abs() / was.abs().max(DVec3::splat(1e-12))).max_element());
+            indirect[g.vertex] = h;
+        }
+        if moved < 1e-4 {
+            break;
+        }
+    }
 }
