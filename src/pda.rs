@@ -410,20 +410,10 @@ impl PixelDataArray {
         for (pixel, virt, edge, r) in found {
             rays += r;
             if let Some((p, terms)) = virt {
-                self.virtual_index[pixel as usize] = self.virtual_samples.points.len() as u32;
-                self.virtual_pixels.push(pixel);
-                self.virtual_samples.points.push(p);
-                self.virtual_samples.terms.extend(terms);
+                self.push_virtual(pixel, p, &terms);
             }
             if let Some((kept, terms)) = edge {
-                let start = self.edge_samples.points.len() as u32;
-                self.edges.push(EdgePixel {
-                    pixel,
-                    start,
-                    count: kept.len() as u32,
-                });
-                self.edge_samples.points.extend(kept);
-                self.edge_samples.terms.extend(terms);
+                self.push_edge(pixel, kept, &terms);
             }
         }
         (rays, pixels.len() as u64)

@@ -253,6 +253,17 @@ impl<'a> Grid<'a> {
     fn sample(&self, col: u32, row: u32) -> u32 {
         self.at[(row * self.width + col) as usize]
     }
+
+    /// From sample `i` in direction `(dc, dr)`: (gap, the sample there or
+    /// u32::MAX) for gaps of 2 up to an eighth of the image, within it.
+    fn beyond(&self, i: usize, (dc, dr): (u32, u32)) -> impl Iterator<Item = (u32, u32)> + '_ {
+        let p = &self.samples[i];
+        let (col, row) = (p.pixel % self.width, p.pixel / self.width);
+        (2..=self.width.max(self.height) / 8)
+            .map(move |gap| (gap, col + dc * gap, row + dr * gap))
+            .take_while(|&(_, c, r)| c < self.width && r < self.height)
+            .map(|(gap, c, r)| (gap, self.sample(c, r)))
+    }
 }
 
 /// The neighbour relations [`remove_texture`] integrates.
@@ -364,17 +375,11 @@ fn measured_across(
     mixed: &[bool],
     m: &PenumbraModel,
     i: usize,
-    (dc, dr): (u32, u32),
+    direction: (u32, u32),
 ) -> Option<(u32, u32, [f64; 3])> {
-    let (samples, width, height) = (grid.samples, grid.width, grid.height);
+    let samples = grid.samples;
     let p = &samples[i];
-    let (col, row) = (p.pixel % width, p.pixel / width);
-    for gap in 2..=width.max(height) / 8 {
-        let (c, r) = (col + dc * gap, row + dr * gap);
-        if c >= width || r >= height {
-            return None;
-        }
-        let k = grid.sample(c, r);
+    for (gap, k) in grid.beyond(i, direction) {
         if k == u32::MAX
             || mixed[k as usize]
             || samples[k as usize].surface != p.surface
@@ -397,16 +402,10 @@ fn measured_across(
 /// direction `(dc, dr)`: a link to the surface where it shows again, if on
 /// the same plane within a gap, so that the region the occluder encloses
 /// (the wall between the legs) is not left on its own.
-fn gap_link(grid: &Grid, i: usize, (dc, dr): (u32, u32)) -> Option<(u32, u32, u32)> {
-    let (samples, width, height) = (grid.samples, grid.width, grid.height);
+fn gap_link(grid: &Grid, i: usize, direction: (u32, u32)) -> Option<(u32, u32, u32)> {
+    let samples = grid.samples;
     let p = &samples[i];
-    let (col, row) = (p.pixel % width, p.pixel / width);
-    for gap in 2..=width.max(height) / 8 {
-        let (c, r) = (col + dc * gap, row + dr * gap);
-        if c >= width || r >= height {
-            return None;
-        }
-        let k = grid.sample(c, r);
+    for (gap, k) in grid.beyond(i, direction) {
         if k != u32::MAX && samples[k as usize].surface == p.surface {
             return same_plane(p, &samples[k as usize]).then_some((i as u32, k, gap));
         }

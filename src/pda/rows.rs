@@ -147,25 +147,37 @@ impl PixelDataArray {
             pda.real.terms.extend(r.real_terms);
             pda.real_masks.extend(r.real_masks);
             for (pixel, p) in r.virt {
-                pda.virtual_index[pixel as usize] = pda.virtual_samples.points.len() as u32;
-                pda.virtual_pixels.push(pixel);
-                pda.virtual_samples.points.push(p);
+                pda.push_virtual(pixel, p, &[]);
             }
             pda.virtual_samples.terms.extend(r.virt_terms);
             for (pixel, subs) in r.edges {
-                let start = pda.edge_samples.points.len() as u32;
-                pda.edges.push(EdgePixel {
-                    pixel,
-                    start,
-                    count: subs.len() as u32,
-                });
-                pda.edge_samples.points.extend(subs);
+                pda.push_edge(pixel, subs, &[]);
             }
             pda.edge_samples.terms.extend(r.edge_terms);
             pda.real_t.extend(r.real_t);
             pda.rays += r.rays;
         }
         pda
+    }
+
+    /// Adds pixel `pixel`'s virtual point, and its terms.
+    pub(super) fn push_virtual(&mut self, pixel: u32, p: SurfacePoint, terms: &[LightTerm]) {
+        self.virtual_index[pixel as usize] = self.virtual_samples.points.len() as u32;
+        self.virtual_pixels.push(pixel);
+        self.virtual_samples.points.push(p);
+        self.virtual_samples.terms.extend_from_slice(terms);
+    }
+
+    /// Adds edge pixel `pixel`'s sub-pixel points, and their terms.
+    pub(super) fn push_edge(&mut self, pixel: u32, subs: Vec<SurfacePoint>, terms: &[LightTerm]) {
+        let start = self.edge_samples.points.len() as u32;
+        self.edges.push(EdgePixel {
+            pixel,
+            start,
+            count: subs.len() as u32,
+        });
+        self.edge_samples.points.extend(subs);
+        self.edge_samples.terms.extend_from_slice(terms);
     }
 
     /// The pixels in the objects' screen boxes that an object may show in,

@@ -266,12 +266,7 @@ fn gather_objects(
             .map(|(r, e)| *r * *e)
             .collect();
         for (k, b) in b.iter_mut().enumerate().skip(real_count) {
-            let corners = patches.patch_vertices[k].iter().filter(|&&v| v != u32::MAX);
-            let h = corners
-                .clone()
-                .map(|&v| indirect_with[v as usize])
-                .sum::<DVec3>()
-                / corners.count().max(1) as f64;
+            let h = corner_mean(patches, k, indirect_with);
             *b = system.reflectance[k] * (system.direct[k] + h);
         }
         solve_from(
@@ -286,6 +281,13 @@ fn gather_objects(
     });
     let room = patches.vertex_values(&again.indirect_irradiance);
     indirect_with[..real_vertices].copy_from_slice(&room[..real_vertices]);
+}
+
+/// The mean of patch `k`'s corner values in a vertex table.
+fn corner_mean(patches: &Patches, k: usize, vertex_values: &[DVec3]) -> DVec3 {
+    let corners = patches.patch_vertices[k].iter().filter(|&&v| v != u32::MAX);
+    let sum: DVec3 = corners.clone().map(|&v| vertex_values[v as usize]).sum();
+    sum / corners.count().max(1) as f64
 }
 
 /// What final gathering reads.
@@ -485,12 +487,7 @@ fn object_bounces(
     let mut radiosity = vec![DVec3::ZERO; patches.patch_count()];
     for _ in 0..16 {
         for (k, b) in radiosity.iter_mut().enumerate().skip(real_count) {
-            let corners = patches.patch_vertices[k].iter().filter(|&&v| v != u32::MAX);
-            let h = corners
-                .clone()
-                .map(|&v| indirect[v as usize])
-                .sum::<DVec3>()
-                / corners.count().max(1) as f64;
+            let h = corner_mean(patches, k, indirect);
             *b = system.reflectance[k] * (system.direct[k] + h);
         }
         let mut moved = 0.0f64;
