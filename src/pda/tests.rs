@@ -99,38 +99,21 @@ fn a_face_clear_of_its_solid_gets_the_light_tracing_the_solid_gives() {
             let x = a + (b - a) * s + (c - a) * r;
             for (l, light) in lights.iter().enumerate() {
                 let seed = (k * 16 + i * 4 + l) as u64;
-                let (traced, all_rays) = light_term(
-                    LightQuery {
-                        tracer: &tracer,
-                        light,
-                        bounds: &bounds,
-                        settings,
-                    },
-                    TermPoint {
-                        x,
-                        n,
-                        own: None,
-                        seed,
-                    },
-                    None,
-                    None,
-                );
-                let (known, fewer) = light_term(
-                    LightQuery {
-                        tracer: &tracer,
-                        light,
-                        bounds: &bounds,
-                        settings,
-                    },
-                    TermPoint {
-                        x,
-                        n,
-                        own: Some(0),
-                        seed,
-                    },
-                    None,
-                    None,
-                );
+                let q = LightQuery {
+                    tracer: &tracer,
+                    light,
+                    bounds: &bounds,
+                    settings,
+                };
+                let p = TermPoint {
+                    x,
+                    n,
+                    own: None,
+                    seed,
+                };
+                let (traced, all_rays) = light_term(q, p, None, None);
+                let own = TermPoint { own: Some(0), ..p };
+                let (known, fewer) = light_term(q, own, None, None);
                 assert_eq!(known, traced, "face {k}, point {i}, light {l}");
                 compared += 1;
                 saved += all_rays - fewer;
@@ -300,39 +283,21 @@ fn an_object_the_room_cannot_shadow_gets_the_light_tracing_the_room_gives() {
                 let x = a + (b - a) * s + (c - a) * r;
                 for (l, light) in lights.iter().enumerate() {
                     let seed = (k * 16 + i * 4 + l) as u64;
-                    let (traced, all_rays) = light_term(
-                        LightQuery {
-                            tracer: &tracer,
-                            light,
-                            bounds: &bounds,
-                            settings,
-                        },
-                        TermPoint {
-                            x,
-                            n,
-                            own: Some(0),
-                            seed,
-                        },
-                        None,
-                        None,
-                    );
+                    let q = LightQuery {
+                        tracer: &tracer,
+                        light,
+                        bounds: &bounds,
+                        settings,
+                    };
+                    let p = TermPoint {
+                        x,
+                        n,
+                        own: Some(0),
+                        seed,
+                    };
+                    let (traced, all_rays) = light_term(q, p, None, None);
                     let mut clear = RealMask::CLEAR;
-                    let (known, fewer) = light_term(
-                        LightQuery {
-                            tracer: &tracer,
-                            light,
-                            bounds: &bounds,
-                            settings,
-                        },
-                        TermPoint {
-                            x,
-                            n,
-                            own: Some(0),
-                            seed,
-                        },
-                        None,
-                        expected[l].then_some(&mut clear),
-                    );
+                    let (known, fewer) = light_term(q, p, None, expected[l].then_some(&mut clear));
                     assert_eq!(known, traced, "face {k}, point {i}, light {l}");
                     compared += 1;
                     saved += all_rays - fewer;
