@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{DESK, Desk, arlux};
+use common::{DESK, Desk, arlux, arlux_json};
 use std::process::Command;
 
 #[test]
@@ -11,7 +11,7 @@ fn radiosity_re_renders_the_photo_from_the_model() {
     let desk = Desk::new();
     let out = desk.path("model.exr");
     let mesh = desk.path("mesh.png");
-    let run = arlux(&[
+    let report = arlux_json(&[
         "radiosity",
         &desk.scene(),
         "-o",
@@ -22,12 +22,6 @@ fn radiosity_re_renders_the_photo_from_the_model() {
         "0.5",
         "--json",
     ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     // Measured 0.0120 at 0.5 m patches (0.0096 at 0.25 m): the model explains the photo.
     let rmse = report["comparison"]["rmse"].as_f64().unwrap();
     assert!(rmse < 0.013, "model RMSE against the photo {rmse}");
@@ -46,7 +40,7 @@ fn render_writes_layers_and_aovs_and_reports_the_error() {
     let out = desk.path("box.exr");
     let aov = desk.path("aov");
     let png = desk.path("box.png");
-    let run = arlux(&[
+    let report = arlux_json(&[
         "render",
         &desk.scene(),
         "--variant",
@@ -61,12 +55,6 @@ fn render_writes_layers_and_aovs_and_reports_the_error() {
         "0.5",
         "--json",
     ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     // Measured 0.00244 at 0.5 m patches.
     let rmse = report["comparison"]["rmse"].as_f64().unwrap();
     assert!(rmse < 0.003, "{rmse}");
@@ -112,7 +100,7 @@ fn render_method_texture_writes_the_shadow_free_texture() {
     let desk = Desk::new();
     let out = desk.path("p.exr");
     let aov = desk.path("aov");
-    let run = arlux(&[
+    let report = arlux_json(&[
         "render",
         &desk.scene(),
         "--variant",
@@ -125,12 +113,6 @@ fn render_method_texture_writes_the_shadow_free_texture() {
         aov.to_str().unwrap(),
         "--json",
     ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     assert_eq!(report["method"], "texture");
     assert!(report["rays"].is_null());
     // Measured 0.00236.
@@ -224,7 +206,7 @@ fn render_method_texture_writes_the_shadow_free_texture() {
 fn rendering_a_light_change_leaves_out_the_virtual_stages() {
     let desk = Desk::new();
     let out = desk.path("off.exr");
-    let run = arlux(&[
+    let report = arlux_json(&[
         "render",
         &desk.scene(),
         "--variant",
@@ -235,12 +217,6 @@ fn rendering_a_light_change_leaves_out_the_virtual_stages() {
         "0.5",
         "--json",
     ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     let stages: Vec<&str> = report["stages"]
         .as_array()
         .unwrap()
@@ -352,7 +328,7 @@ fn a_light_placed_by_its_shadows_renders_like_the_given_one() {
         "position = [1.5, 2.3, 1.0]",
         &format!("position = {{ shadow_lines = [{}] }}", lines.join(", ")),
     );
-    let run = arlux(&[
+    let report = arlux_json(&[
         "render",
         &desk.scene(),
         "--variant",
@@ -361,12 +337,6 @@ fn a_light_placed_by_its_shadows_renders_like_the_given_one() {
         desk.path("s.exr").to_str().unwrap(),
         "--json",
     ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     assert!(report["comparison"]["rmse"].as_f64().unwrap() < 0.003);
 
     // Two parallel lines only: an error saying what is missing, naming the key.

@@ -91,6 +91,13 @@ pub fn arlux_ok(args: &[&str]) -> Output {
     run
 }
 
+/// Runs arlux (with `--json` among `args`), asserts that it succeeded and
+/// returns its report.
+#[allow(dead_code)]
+pub fn arlux_json(args: &[&str]) -> serde_json::Value {
+    serde_json::from_slice(&arlux_ok(args).stdout).unwrap()
+}
+
 /// Renders the desk copy's `box_floor_a` to `out` with `--json`; its report.
 #[allow(dead_code)]
 pub fn render_box_floor_a(desk: &Desk, out: &Path) -> serde_json::Value {
