@@ -55,7 +55,7 @@ pub(super) fn edge_samples(
 }
 
 /// Whether some of a pixel's n×n sub-pixels see a virtual object and some
-/// do not. The sub-rays meet the objects alone first (a few triangles);
+/// do not, or all see objects but on different planes. The sub-rays meet the objects alone first (a few triangles);
 /// only those that hit one ask the room whether a real surface is nearer,
 /// with an occlusion query that stops at the object. Most pixels near an
 /// object's image are decided by the first step, or need only short rays.
@@ -109,7 +109,15 @@ pub(super) fn sub_pixels_mix(
             }
         }
     }
-    (seen > 0 && seen < count, visible, rays_cast)
+    // A pixel wholly on the objects mixes where its sub-pixels see
+    // different planes: a small curved object's facets, each lit its own
+    // way, over a pixel's area as the camera averages them.
+    let facets = seen == count
+        && visible.iter().flatten().any(|h| {
+            visible[0]
+                .is_some_and(|f| h.surface != f.surface || h.normal.dot(f.normal) < SAME_PLANE_COS)
+        });
+    (seen > 0 && seen < count || facets, visible, rays_cast)
 }
 
 /// Sub-ray k of a pixel's n×n (row by row), for the tracer and in double precision.
@@ -171,12 +179,14 @@ pub(super) fn edge_candidates(input: &PdaInput) -> Option<Vec<bool>> {
         .map(|&r| &patches.elements[r as usize])
         .collect();
     let edges = interior_edges(cam, &roots);
+    let creases = crease_edges(&roots);
     for root in &roots {
         let corners = root.shape.corners();
         for k in 0..corners.len() {
             let (a, b) = (corners[k], corners[(k + 1) % corners.len()]);
             let path = cam.project_path(a, b)?;
-            if !edges.contains(&edge_key(a, b)) {
+            let key = edge_key(a, b);
+            if !edges.contains(&key) || creases.contains(&key) {
                 for piece in path.windows(2) {
                     mark_segment(&mut marks, w, h, piece[0], piece[1], MARGIN);
                 }
@@ -238,6 +248,35 @@ pub(super) fn interior_edges(cam: &Camera, roots: &[&crate::patches::Element]) -
     sides
         .into_iter()
         .filter(|(_, (count, left, right))| *count == 2 && *left && *right)
+        .map(|(edge, _)| edge)
+        .collect()
+}
+
+/// Polygons whose planes differ by more than this (cosine of the angle
+/// between their normals) are shaded apart within a pixel: 2.6°, finer
+/// than the facets of any tessellated curve worth meshing (a 48-segment
+/// cylinder turns 7.5° per facet), coarser than rounding.
+pub(super) const SAME_PLANE_COS: f32 = 0.999;
+
+/// The objects' polygon edges held by two polygons on different planes
+/// (or of two objects): a pixel across one sees two facets whose light
+/// differs, and its sub-pixels are shaded apart ([`sub_pixels_mix`]).
+pub(super) fn crease_edges(roots: &[&crate::patches::Element]) -> HashSet<EdgeKey> {
+    let mut held: HashMap<EdgeKey, Vec<(u32, DVec3)>> = HashMap::new();
+    for e in roots {
+        let corners = e.shape.corners();
+        for k in 0..corners.len() {
+            let key = edge_key(corners[k], corners[(k + 1) % corners.len()]);
+            held.entry(key)
+                .or_default()
+                .push((e.surface, e.shape.normal()));
+        }
+    }
+    held.into_iter()
+        .filter(|(_, by)| {
+            by.iter()
+                .any(|(s, n)| *s != by[0].0 || n.dot(by[0].1).abs() < f64::from(SAME_PLANE_COS))
+        })
         .map(|(edge, _)| edge)
         .collect()
 }

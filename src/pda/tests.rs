@@ -310,3 +310,110 @@ fn an_object_the_room_cannot_shadow_gets_the_light_tracing_the_room_gives() {
         "{compared} terms, {saved} rays saved"
     );
 }
+
+#[test]
+fn pixels_across_a_crease_of_an_object_are_shaded_per_sub_pixel() {
+    let boxed = cube(Vec3::splat(-0.5), Vec3::splat(0.5));
+    let input = |triangles| crate::patches::SurfaceInput {
+        surface: 7,
+        triangles,
+        is_virtual: true,
+    };
+    // Every edge of a box is a crease; a flat panel of several polygons has none.
+    let patches = Patches::build(&[input(&boxed)], 0.25);
+    let roots: Vec<&crate::patches::Element> = patches
+        .roots
+        .iter()
+        .map(|&r| &patches.elements[r as usize])
+        .collect();
+    assert_eq!(crease_edges(&roots).len(), 12);
+    let v = |x: f32, z: f32| Vec3::new(x, 0.0, z);
+    let flat = vec![
+        [v(0.0, 0.0), v(1.0, 0.0), v(1.0, 1.0)],
+        [v(0.0, 0.0), v(1.0, 1.0), v(0.0, 1.0)],
+        [v(1.0, 0.0), v(2.0, 0.0), v(2.0, 1.0)],
+        [v(1.0, 0.0), v(2.0, 1.0), v(1.0, 1.0)],
+    ];
+    let panel = Patches::build(&[input(&flat)], 2.0);
+    let roots: Vec<&crate::patches::Element> = panel
+        .roots
+        .iter()
+        .map(|&r| &panel.elements[r as usize])
+        .collect();
+    assert!(roots.len() >= 2 && crease_edges(&roots).is_empty());
+
+    // The box seen from above a corner, lit from one side: its three
+    // faces in view take three different lights.
+    let tracer = Tracer::build(
+        &[],
+        &[SurfaceTriangles {
+            surface: 7,
+            triangles: &boxed,
+        }],
+    )
+    .unwrap();
+    let camera = Camera::new(
+        48,
+        48,
+        DVec3::new(2.0, 1.6, 2.4),
+        DVec3::ZERO,
+        DVec3::Y,
+        crate::camera::Projection::FovY { degrees: 40.0 },
+    )
+    .unwrap();
+    let bounds = VirtualBounds::of(&[(7, boxed.clone())]);
+    let pda = PixelDataArray::build(&PdaInput {
+        camera: &camera,
+        tracer: &tracer,
+        patches: &patches,
+        lights: &[test_spot(DVec3::new(2.5, 2.0, 0.3))],
+        active: &[true],
+        bounds: &bounds,
+        settings: PdaSettings::default(),
+        for_updates: false,
+    });
+    let full = pda.supersample * pda.supersample;
+    let planes = |e: &EdgePixel| {
+        let points = &pda.edge_samples.points[e.start as usize..(e.start + e.count) as usize];
+        let mut normals: Vec<Vec3> = Vec::new();
+        for p in points.iter().filter(|p| p.is_virtual) {
+            if normals.iter().all(|n| n.dot(p.normal) < 0.99) {
+                normals.push(p.normal);
+            }
+        }
+        normals.len()
+    };
+    // Pixels wholly on the box with sub-pixels on two or three faces.
+    let inside: Vec<&EdgePixel> = pda.edges.iter().filter(|e| e.count == full).collect();
+    assert!(inside.iter().all(|e| planes(e) >= 2));
+    // Every pixel a crease in view passes close to its centre is one of
+    // them or an outline pixel (the 2 × 2 sub-pixels about the centre lie
+    // either side of a line within 0.125 of it): the three edges from the
+    // corner nearest the camera.
+    let near = DVec3::splat(0.5);
+    let mut checked = 0;
+    for end in [
+        DVec3::new(-0.5, 0.5, 0.5),
+        DVec3::new(0.5, -0.5, 0.5),
+        DVec3::new(0.5, 0.5, -0.5),
+    ] {
+        for k in 1..400 {
+            let x = near + (end - near) * (k as f64 / 400.0);
+            let (px, py, _) = camera.project(x).unwrap();
+            if (px.fract() - 0.5).abs() > 0.08 || (py.fract() - 0.5).abs() > 0.08 {
+                continue;
+            }
+            checked += 1;
+            let pixel = py as u32 * 48 + px as u32;
+            assert!(
+                pda.edges.iter().any(|e| e.pixel == pixel),
+                "pixel {px:.1}, {py:.1} on the crease to {end}"
+            );
+        }
+    }
+    assert!(
+        checked >= 6 && inside.len() >= 20,
+        "{checked} checked, {} crease pixels",
+        inside.len()
+    );
+}
