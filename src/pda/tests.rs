@@ -27,6 +27,18 @@ fn cube(lo: Vec3, hi: Vec3) -> Vec<crate::geometry::Triangle> {
         .collect()
 }
 
+/// A tracer holding one virtual object (surface 7) and no room.
+fn object_only(triangles: &[crate::geometry::Triangle]) -> Tracer {
+    Tracer::build(
+        &[],
+        &[SurfaceTriangles {
+            surface: 7,
+            triangles,
+        }],
+    )
+    .unwrap()
+}
+
 #[test]
 fn a_solids_faces_are_clear_of_it_where_nothing_of_it_lies_in_front() {
     let (lo, hi) = (Vec3::ZERO, Vec3::splat(0.3));
@@ -60,14 +72,7 @@ fn a_solids_faces_are_clear_of_it_where_nothing_of_it_lies_in_front() {
 #[test]
 fn a_face_clear_of_its_solid_gets_the_light_tracing_the_solid_gives() {
     let boxed = cube(Vec3::new(-0.15, 0.0, -0.15), Vec3::new(0.15, 0.3, 0.15));
-    let tracer = Tracer::build(
-        &[],
-        &[SurfaceTriangles {
-            surface: 7,
-            triangles: &boxed,
-        }],
-    )
-    .unwrap();
+    let tracer = object_only(&boxed);
     let bounds = VirtualBounds::of(&[(7, boxed.clone())]);
     // Panels whose planes cut the box's side faces' planes: part of each
     // light lies behind a side face, where only the solid blocks it.
@@ -344,14 +349,7 @@ fn pixels_across_a_crease_of_an_object_are_shaded_per_sub_pixel() {
 
     // The box seen from above a corner, lit from one side: its three
     // faces in view take three different lights.
-    let tracer = Tracer::build(
-        &[],
-        &[SurfaceTriangles {
-            surface: 7,
-            triangles: &boxed,
-        }],
-    )
-    .unwrap();
+    let tracer = object_only(&boxed);
     let camera = Camera::new(
         48,
         48,
