@@ -349,10 +349,20 @@ pub(crate) fn composite_into(input: &CompositeInput, out: &mut Composite) {
             shader.plain(i, &h_with).unwrap_or_else(|| shader.other(i))
         }),
     }
+    let found;
+    let seams = match input.known {
+        Some(known) => &known.seams,
+        None => {
+            found = seams::seam_pixels(input.pda);
+            &found
+        }
+    };
+    seams::smooth_seams(input.pda, input.photo, seams, out);
 }
 
 pub mod grain;
 mod real_pixels;
+pub mod seams;
 mod shader;
 
 use real_pixels::*;

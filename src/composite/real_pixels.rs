@@ -57,6 +57,8 @@ pub struct RealPixels {
     /// Per patch, the corners of the indirect light without the changes.
     pub(super) without: Vec<[Vec3A; 4]>,
     pub floor: DVec3,
+    /// The pixels on the real surfaces' seams ([`super::seams::seam_pixels`]).
+    pub(super) seams: Vec<u32>,
 }
 
 impl RealPixels {
@@ -87,6 +89,7 @@ impl RealPixels {
             widest_band: vec![Vec3::splat(-1.0); input.patch_vertices.len()],
             without: patch_corners(input.indirect_without, input.patch_vertices),
             floor,
+            seams: super::seams::seam_pixels(pda),
         };
         for k in 0..known.affine.len() {
             known.widen(&known.get(k));

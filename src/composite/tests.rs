@@ -79,6 +79,7 @@ fn a_patch_said_to_keep_nothing_has_no_pixel_within_its_band() {
             widest_band: vec![Vec3::splat(-1.0)],
             without: patch_corners(&without, &[ids]),
             floor: DVec3::ZERO,
+            seams: Vec::new(),
         };
         for (r, _) in &pixels {
             known.widen(r);
@@ -99,5 +100,96 @@ fn a_patch_said_to_keep_nothing_has_no_pixel_within_its_band() {
     assert!(
         refused > 500 && kept > 500,
         "refused {refused} patches, {kept} pixels kept"
+    );
+}
+
+/// A rough model's seam one pixel off the photo's edge: the model puts
+/// surface 2 at x ≥ 8, the photo shows surface 1 up to x = 8. Surface 1's
+/// light doubles, surface 2's stays: the stray column takes most of its
+/// change from the neighbours that look like it in the photo, and the
+/// pixels off the seam keep theirs.
+#[test]
+fn a_seam_pixel_takes_the_change_of_the_side_it_shows_in_the_photo() {
+    use crate::pda::{PatchPoint, PixelDataArray, Samples, SurfacePoint};
+    let (w, h) = (16u32, 8u32);
+    let n = (w * h) as usize;
+    let on_two = |i: usize| i as u32 % w >= 8;
+    let points: Vec<SurfacePoint> = (0..n)
+        .map(|i| SurfacePoint {
+            position: Vec3::ZERO,
+            normal: Vec3::Z,
+            surface: 1 + on_two(i) as u32,
+            is_virtual: false,
+            pixel_terms: false,
+            clear_of_own: false,
+            location: PatchPoint {
+                patch: 0,
+                weights: [1.0, 0.0, 0.0, 0.0],
+            },
+        })
+        .collect();
+    let pda = PixelDataArray {
+        width: w,
+        height: h,
+        light_count: 0,
+        supersample: 4,
+        real_index: (0..n as u32).collect(),
+        real_t: vec![1.0; n],
+        real: Samples {
+            points,
+            terms: Vec::new(),
+        },
+        real_masks: Vec::new(),
+        virtual_index: vec![u32::MAX; n],
+        virtual_pixels: Vec::new(),
+        virtual_samples: Samples::default(),
+        edges: Vec::new(),
+        edge_samples: Samples::default(),
+        rays: 0,
+    };
+    let shows_one = |i: usize| i as u32 % w <= 8;
+    let mut photo = Image::new(w, h);
+    for (i, p) in photo.pixels.iter_mut().enumerate() {
+        *p = if shows_one(i) {
+            Vec3::new(0.5, 0.4, 0.3)
+        } else {
+            Vec3::new(0.1, 0.15, 0.2)
+        };
+    }
+    let mut out = Composite::empty();
+    out.image = Image::new(w, h);
+    for (i, v) in out.image.pixels.iter_mut().enumerate() {
+        *v = photo.pixels[i] * if on_two(i) { 1.0 } else { 2.0 };
+    }
+    let seams = seams::seam_pixels(&pda);
+    // Within two pixels of x = 7.5: columns 6 to 9.
+    assert!(seams.iter().all(|&i| (6..=9).contains(&(i % w))));
+    assert_eq!(seams.len(), 4 * h as usize);
+    let before = out.image.clone();
+    seams::smooth_seams(&pda, &photo, &seams, &mut out);
+    let truth = |i: usize| photo.pixels[i] * if shows_one(i) { 2.0 } else { 1.0 };
+    let error = |image: &Image| -> Vec<f32> {
+        (0..n)
+            .map(|i| ((image.pixels[i] - truth(i)).abs() / truth(i)).max_element())
+            .collect()
+    };
+    let (was, now) = (error(&before), error(&out.image));
+    for i in 0..n {
+        match i as u32 % w {
+            // The stray column: half its change missing, under a fifth now.
+            8 => assert!(was[i] == 0.5 && now[i] < 0.2, "stray: {}", now[i]),
+            // Its neighbour on the photo's side of it takes a little of its
+            // change; the other side's, none.
+            7 => assert!(now[i] < 0.1, "beside: {}", now[i]),
+            9 => assert!(now[i] < 0.01, "other side: {}", now[i]),
+            _ => assert_eq!(out.image.pixels[i], before.pixels[i]),
+        }
+    }
+    let squared = |e: &[f32]| e.iter().map(|e| e * e).sum::<f32>();
+    assert!(
+        squared(&now) * 5.0 < squared(&was),
+        "{} against {}",
+        squared(&now),
+        squared(&was)
     );
 }
