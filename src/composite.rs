@@ -362,7 +362,7 @@ pub(crate) fn composite_into(input: &CompositeInput, out: &mut Composite) {
 
 pub mod grain;
 mod real_pixels;
-pub mod seams;
+mod seams;
 mod shader;
 
 use real_pixels::*;

@@ -50,7 +50,7 @@ const DARK: f32 = 1e-6;
 /// The pixels (ascending) whose real point lies within [`REACH`] of a
 /// pixel that sees another surface, another plane, or no real surface.
 /// They depend on the real surfaces alone: a session finds them once.
-pub fn seam_pixels(pda: &PixelDataArray) -> Vec<u32> {
+pub(super) fn seam_pixels(pda: &PixelDataArray) -> Vec<u32> {
     let (w, h) = (pda.width as i64, pda.height as i64);
     let point = |x: i64, y: i64| {
         let k = pda.real_index[(y * w + x) as usize];
