@@ -200,6 +200,13 @@ pub struct PixelDataArray {
 
 const NONE: u32 = u32::MAX;
 
+/// Surface points or polygons whose normals' cosine exceeds this lie on
+/// one plane, and share their light within a pixel; beyond it (2.6°,
+/// finer than the facets of any tessellated curve worth meshing: a
+/// 48-segment cylinder turns 7.5° per facet; coarser than rounding) they
+/// are shaded apart.
+pub const SAME_PLANE_COS: f32 = 0.999;
+
 /// Everything the PDA is built from.
 pub struct PdaInput<'a> {
     pub camera: &'a Camera,

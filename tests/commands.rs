@@ -82,16 +82,17 @@ fn render_writes_layers_and_aovs_and_reports_the_error() {
     }
     assert!(png.exists());
 
-    let bad = arlux(&[
-        "render",
-        &desk.scene(),
-        "--variant",
-        "nope",
-        "-o",
-        desk.path("nope.exr").to_str().unwrap(),
-    ]);
-    assert_eq!(bad.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&bad.stderr).contains("no variant named 'nope'"));
+    common::arlux_refused(
+        &[
+            "render",
+            &desk.scene(),
+            "--variant",
+            "nope",
+            "-o",
+            desk.path("nope.exr").to_str().unwrap(),
+        ],
+        &["no variant named 'nope'"],
+    );
     assert!(!desk.path("nope.exr").exists());
 }
 
@@ -148,56 +149,49 @@ fn render_method_texture_writes_the_shadow_free_texture() {
     );
 
     // Its thresholds are flags, checked, and for the texture path only.
-    let bad = arlux(&[
-        "render",
-        &desk.scene(),
-        "--variant",
-        "panel_off",
-        "--method",
-        "texture",
-        "--visibility-threshold",
-        "0.7",
-        "-o",
-        desk.path("b.exr").to_str().unwrap(),
-    ]);
-    assert_eq!(bad.status.code(), Some(2));
-    assert!(
-        String::from_utf8_lossy(&bad.stderr)
-            .contains("--visibility-threshold must be a number in (0, 0.5), not 0.7"),
-        "{}",
-        String::from_utf8_lossy(&bad.stderr)
+    common::arlux_refused(
+        &[
+            "render",
+            &desk.scene(),
+            "--variant",
+            "panel_off",
+            "--method",
+            "texture",
+            "--visibility-threshold",
+            "0.7",
+            "-o",
+            desk.path("b.exr").to_str().unwrap(),
+        ],
+        &["--visibility-threshold must be a number in (0, 0.5), not 0.7"],
     );
-    let pda = arlux(&[
-        "render",
-        &desk.scene(),
-        "--variant",
-        "panel_off",
-        "--min-leaf-pixels",
-        "2",
-        "-o",
-        desk.path("b.exr").to_str().unwrap(),
-    ]);
-    assert_eq!(pda.status.code(), Some(2));
-    assert!(
-        String::from_utf8_lossy(&pda.stderr)
-            .contains("--min-leaf-pixels applies to --method texture")
+    common::arlux_refused(
+        &[
+            "render",
+            &desk.scene(),
+            "--variant",
+            "panel_off",
+            "--min-leaf-pixels",
+            "2",
+            "-o",
+            desk.path("b.exr").to_str().unwrap(),
+        ],
+        &["--min-leaf-pixels applies to --method texture"],
     );
     // And the pixel path's own flags are refused on the texture path, not ignored.
-    let texture = arlux(&[
-        "render",
-        &desk.scene(),
-        "--variant",
-        "panel_off",
-        "--method",
-        "texture",
-        "--supersample",
-        "3",
-        "-o",
-        desk.path("b.exr").to_str().unwrap(),
-    ]);
-    assert_eq!(texture.status.code(), Some(2));
-    assert!(
-        String::from_utf8_lossy(&texture.stderr).contains("--supersample applies to --method pda")
+    common::arlux_refused(
+        &[
+            "render",
+            &desk.scene(),
+            "--variant",
+            "panel_off",
+            "--method",
+            "texture",
+            "--supersample",
+            "3",
+            "-o",
+            desk.path("b.exr").to_str().unwrap(),
+        ],
+        &["--supersample applies to --method pda"],
     );
     assert!(!desk.path("b.exr").exists());
 }
@@ -263,15 +257,16 @@ fn hdr_merges_brackets_and_refuses_bad_ones() {
     );
     assert_eq!(arlux::image_io::read_image(&out).unwrap().width, 512);
     assert_eq!(std::fs::read_to_string(&csv).unwrap().lines().count(), 257);
-    let single = arlux(&[
-        "hdr",
-        "--bracket",
-        &b("ev+0", "0"),
-        "-o",
-        desk.path("one.exr").to_str().unwrap(),
-    ]);
-    assert_eq!(single.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&single.stderr).contains("a single exposure"));
+    common::arlux_refused(
+        &[
+            "hdr",
+            "--bracket",
+            &b("ev+0", "0"),
+            "-o",
+            desk.path("one.exr").to_str().unwrap(),
+        ],
+        &["a single exposure"],
+    );
     let same = arlux(&[
         "hdr",
         "--bracket",
@@ -346,19 +341,16 @@ fn a_light_placed_by_its_shadows_renders_like_the_given_one() {
         "position = [1.5, 2.3, 1.0]",
         "position = { shadow_lines = [{ shadow = [0, 0, 0], vertex = [0, 1, 0] }, { shadow = [1, 0, 0], vertex = [1, 1, 0] }] }",
     );
-    let run = arlux(&[
-        "render",
-        &desk.scene(),
-        "--variant",
-        "box_table",
-        "-o",
-        desk.path("p.exr").to_str().unwrap(),
-    ]);
-    let stderr = String::from_utf8_lossy(&run.stderr);
-    assert_eq!(run.status.code(), Some(2));
-    assert!(
-        stderr.contains("light[1].position") && stderr.contains("parallel"),
-        "{stderr}"
+    common::arlux_refused(
+        &[
+            "render",
+            &desk.scene(),
+            "--variant",
+            "box_table",
+            "-o",
+            desk.path("p.exr").to_str().unwrap(),
+        ],
+        &["light[1].position", "parallel"],
     );
     assert!(!desk.path("p.exr").exists());
 }

@@ -12,13 +12,7 @@ use common::{Desk, arlux};
 
 /// Runs arlux, expects status 2 with every `expected` text in the message.
 fn fails(args: &[&str], expected: &[&str]) {
-    let run = arlux(args);
-    let stderr = String::from_utf8_lossy(&run.stderr);
-    assert_eq!(run.status.code(), Some(2), "{args:?}: {stderr}");
-    for e in expected {
-        assert!(stderr.contains(e), "expected '{e}' in: {stderr}");
-    }
-    assert!(!stderr.contains("panicked"), "{stderr}");
+    common::arlux_refused(args, expected);
 }
 
 /// The names in a folder, sorted.

@@ -22,7 +22,7 @@ use rayon::prelude::*;
 
 use super::Composite;
 use crate::image_io::Image;
-use crate::pda::PixelDataArray;
+use crate::pda::{PixelDataArray, SAME_PLANE_COS};
 
 /// How near a seam (in pixels, either axis) a pixel counts as on it: a
 /// rough model's edges stray a pixel or two at the photo's resolution.
@@ -38,12 +38,10 @@ const SIGMA_SPACE: f32 = 1.5;
 /// The filter's photo σ, on the natural log of each channel: neighbours
 /// more than ~20% apart in the photo show something else.
 const SIGMA_PHOTO: f32 = 0.2;
-/// The weight of a neighbour on a seam against one off it. A weighted
-/// median instead trusts no blend: on `lounge` and the desk it is worse
-/// than the mean everywhere (desk `panel_off` RMSE 0.00149 against 0.00133).
+/// The weight of a neighbour on a seam against one off it: the stray
+/// pixels lie on seams, and at full weight would spread their change to
+/// the pixels beside them.
 const SEAM_TRUST: f32 = 0.2;
-/// Real points whose normals are closer than this (cosine) lie on one plane.
-const SAME_PLANE_COS: f32 = 0.999;
 /// Photo values below this carry no ratio.
 const DARK: f32 = 1e-6;
 
@@ -123,7 +121,7 @@ pub(super) fn smooth_seams(
             if hi - lo <= JUMP * own.abs().max(1e-3) {
                 return None;
             }
-            let log_i = photo.pixels[i].max(Vec3::splat(DARK)).ln();
+            let log_i = photo.pixels[i].ln();
             let (mut sum, mut weight) = (Vec3::ZERO, 0.0f32);
             for (u, v) in window(WINDOW).filter(inside) {
                 let j = (u + v * w) as usize;

@@ -34,12 +34,14 @@ pub(super) fn edge_samples(
         // A sub-pixel that sees nothing counts as the photo's background.
         if let Some(mut p) = s {
             p.pixel_terms = !p.is_virtual
-                && real.is_some_and(|r| r.surface == p.surface && r.normal.dot(p.normal) > 0.999);
+                && real.is_some_and(|r| {
+                    r.surface == p.surface && r.normal.dot(p.normal) > SAME_PLANE_COS
+                });
             // Sub-pixels on one plane share the light of the first of them:
             // within a pixel's footprint it differs by less than the shadow
             // rays' own noise, and each would cost a full set of rays.
             let first = kept.iter().position(|q| {
-                !q.pixel_terms && q.surface == p.surface && q.normal.dot(p.normal) > 0.999
+                !q.pixel_terms && q.surface == p.surface && q.normal.dot(p.normal) > SAME_PLANE_COS
             });
             match first {
                 _ if p.pixel_terms => {
@@ -112,11 +114,13 @@ pub(super) fn sub_pixels_mix(
     // A pixel wholly on the objects mixes where its sub-pixels see
     // different planes: a small curved object's facets, each lit its own
     // way, over a pixel's area as the camera averages them.
-    let facets = seen == count
-        && visible.iter().flatten().any(|h| {
-            visible[0]
-                .is_some_and(|f| h.surface != f.surface || h.normal.dot(f.normal) < SAME_PLANE_COS)
-        });
+    let facets = match visible.first() {
+        Some(Some(f)) if seen == count => visible
+            .iter()
+            .flatten()
+            .any(|h| h.surface != f.surface || h.normal.dot(f.normal) < SAME_PLANE_COS),
+        _ => false,
+    };
     (seen > 0 && seen < count || facets, visible, rays_cast)
 }
 
@@ -251,12 +255,6 @@ pub(super) fn interior_edges(cam: &Camera, roots: &[&crate::patches::Element]) -
         .map(|(edge, _)| edge)
         .collect()
 }
-
-/// Polygons whose planes differ by more than this (cosine of the angle
-/// between their normals) are shaded apart within a pixel: 2.6°, finer
-/// than the facets of any tessellated curve worth meshing (a 48-segment
-/// cylinder turns 7.5° per facet), coarser than rounding.
-pub(super) const SAME_PLANE_COS: f32 = 0.999;
 
 /// The objects' polygon edges held by two polygons on different planes
 /// (or of two objects): a pixel across one sees two facets whose light

@@ -91,6 +91,20 @@ pub fn arlux_ok(args: &[&str]) -> Output {
     run
 }
 
+/// Runs arlux, asserts status 2 with every `expected` text in the
+/// message and no panic; returns the message.
+#[allow(dead_code)]
+pub fn arlux_refused(args: &[&str], expected: &[&str]) -> String {
+    let run = arlux(args);
+    let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
+    assert_eq!(run.status.code(), Some(2), "{args:?}: {stderr}");
+    for e in expected {
+        assert!(stderr.contains(e), "expected '{e}' in: {stderr}");
+    }
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    stderr
+}
+
 /// Runs arlux (with `--json` among `args`), asserts that it succeeded and
 /// returns its report.
 #[allow(dead_code)]
