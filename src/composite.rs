@@ -357,7 +357,8 @@ pub(crate) fn composite_into(input: &CompositeInput, out: &mut Composite) {
             &found
         }
     };
-    seams::smooth_seams(input.pda, input.photo, seams, out);
+    let no_object = |i: usize| shader.shows_no_object(i);
+    seams::smooth_seams(input.pda, input.photo, seams, &no_object, out);
 }
 
 pub mod grain;

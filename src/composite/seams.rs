@@ -81,22 +81,17 @@ pub(super) fn seam_pixels(pda: &PixelDataArray) -> Vec<u32> {
 /// the photo and their distance, and less where they lie on a seam
 /// themselves (the stray pixels are among them, and would spread their
 /// change to the pixels beside them). Only pixels that show a real point
-/// alone take part.
+/// alone take part (`no_object`: whether a pixel shows no object).
 pub(super) fn smooth_seams(
     pda: &PixelDataArray,
     photo: &Image,
     seams: &[u32],
+    no_object: &(dyn Fn(usize) -> bool + Sync),
     out: &mut Composite,
 ) {
     let (w, h) = (pda.width as i64, pda.height as i64);
     let plain = |i: usize| {
-        pda.real_index[i] != u32::MAX
-            && pda.virtual_index[i] == u32::MAX
-            && photo.pixels[i].min_element() > DARK
-            && pda
-                .edges
-                .binary_search_by_key(&(i as u32), |e| e.pixel)
-                .is_err()
+        pda.real_index[i] != u32::MAX && photo.pixels[i].min_element() > DARK && no_object(i)
     };
     let image = &out.image.pixels;
     let gain = |i: usize| image[i] / photo.pixels[i];

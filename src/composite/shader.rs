@@ -51,6 +51,12 @@ impl<'a> Shader<'a> {
         (x0..x1).contains(&((i % w) as u32))
     }
 
+    /// Whether pixel `i` shows no object, in whole or in part (outside
+    /// the row's span: without looking it up).
+    pub(super) fn shows_no_object(&self, i: usize) -> bool {
+        !self.in_span(i) || (self.pda.virtual_index[i] == u32::MAX && self.edge_at(i).is_none())
+    }
+
     /// Pixel `i`'s edge entry, if it mixes sub-pixels (edges are in pixel order).
     fn edge_at(&self, i: usize) -> Option<EdgePixel> {
         let edges = &self.pda.edges;

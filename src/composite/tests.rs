@@ -166,7 +166,7 @@ fn a_seam_pixel_takes_the_change_of_the_side_it_shows_in_the_photo() {
     assert!(seams.iter().all(|&i| (6..=9).contains(&(i % w))));
     assert_eq!(seams.len(), 4 * h as usize);
     let before = out.image.clone();
-    seams::smooth_seams(&pda, &photo, &seams, &mut out);
+    seams::smooth_seams(&pda, &photo, &seams, &|_| true, &mut out);
     let truth = |i: usize| photo.pixels[i] * if shows_one(i) { 2.0 } else { 1.0 };
     let error = |image: &Image| -> Vec<f32> {
         (0..n)
