@@ -141,7 +141,6 @@ impl Transport {
                     tracer,
                     layer,
                     epsilon,
-                    trace_first: false,
                     objects: None,
                 };
                 for &q in &patches.roots {
@@ -338,20 +337,13 @@ fn refine(with: &Refiner, p: u32, q: u32, candidates: &[u32], out: &mut Vec<Link
 }
 
 /// What [`refine`] works with: the elements, the geometry that may block
-/// them (`layer`), ε, and how a partly hidden pair above ε's fraction is
-/// settled: split at once, or (`trace_first`) traced first and split only
-/// where its rays disagree. Tracing first saves the split wherever the
-/// rays all pass or all stop — a conservative shaft holds many roots that
-/// block nothing — at the risk of missing a small occluder all of the
-/// pair's rays pass by. The room's links are built once per scene and
-/// split at once; the objects' are rebuilt at every move and traced first.
+/// them (`layer`), ε, and the objects' clusters.
 #[derive(Clone, Copy)]
 struct Refiner<'a> {
     patches: &'a Patches,
     tracer: &'a Tracer,
     layer: Layer,
     epsilon: f64,
-    trace_first: bool,
     /// The objects' clusters: candidate occluders besides the given roots,
     /// passed down as the few clusters a pair's shaft may meet.
     objects: Option<&'a RootClusters>,
@@ -435,7 +427,6 @@ fn refine_from(
         tracer,
         layer,
         epsilon,
-        trace_first,
         objects,
     } = *with;
     let (ep, eq) = (&patches.elements[p as usize], &patches.elements[q as usize]);
@@ -478,8 +469,11 @@ fn refine_from(
         // Where the shaft between the two holds no possible occluder they
         // see each other whole. Otherwise rays estimate the visible part:
         // trusted where the exchange is small (its error is at most F), and
-        // refined where it is not (Hanrahan's BFV refinement, exact shafts)
-        // — with `trace_first`, only where the rays disagree (see [`Refiner`]).
+        // refined where it is not (Hanrahan's BFV refinement, exact shafts).
+        // A pair between ε's fraction and ε is traced first and split only
+        // where its rays disagree: a conservative shaft holds many roots
+        // that block nothing. Above ε it is split at once, as its rays
+        // could all pass by a small occluder that matters at that size.
         let occluded = !occluders.is_empty() || !object_occluders.is_empty();
         let splits = occluded && f > epsilon * VISIBILITY_REFINE_FRACTION && !(p_leaf && q_leaf);
         // A room pair's rays through the room were traced before: only the objects are left.
@@ -497,7 +491,7 @@ fn refine_from(
             }
             _ => visibility(ep, eq, tracer, layer),
         };
-        let visible = match (occluded, splits && !trace_first) {
+        let visible = match (occluded, splits && f > epsilon) {
             (false, _) => Some(1.0),
             (true, true) => None,
             (true, false) => Some(traced()),

@@ -93,7 +93,6 @@ impl Transport {
             tracer,
             layer: Layer::All,
             epsilon,
-            trace_first: true,
             objects: Some(&clusters),
         };
         let made: Vec<(Vec<Link>, Vec<ClusterLink>)> = tasks
