@@ -141,6 +141,7 @@ impl Transport {
                     tracer,
                     layer,
                     epsilon,
+                    split_above_epsilon: true,
                     objects: None,
                 };
                 for &q in &patches.roots {
@@ -337,13 +338,17 @@ fn refine(with: &Refiner, p: u32, q: u32, candidates: &[u32], out: &mut Vec<Link
 }
 
 /// What [`refine`] works with: the elements, the geometry that may block
-/// them (`layer`), ε, and the objects' clusters.
+/// them (`layer`), ε, the objects' clusters, and whether a partly hidden
+/// pair above ε is split at once (the room's links, built once per scene)
+/// or, like one below ε, traced first (the objects' links, rebuilt at
+/// every move, where each split costs the update its time).
 #[derive(Clone, Copy)]
 struct Refiner<'a> {
     patches: &'a Patches,
     tracer: &'a Tracer,
     layer: Layer,
     epsilon: f64,
+    split_above_epsilon: bool,
     /// The objects' clusters: candidate occluders besides the given roots,
     /// passed down as the few clusters a pair's shaft may meet.
     objects: Option<&'a RootClusters>,
@@ -427,6 +432,7 @@ fn refine_from(
         tracer,
         layer,
         epsilon,
+        split_above_epsilon,
         objects,
     } = *with;
     let (ep, eq) = (&patches.elements[p as usize], &patches.elements[q as usize]);
@@ -472,8 +478,9 @@ fn refine_from(
         // refined where it is not (Hanrahan's BFV refinement, exact shafts).
         // A pair between ε's fraction and ε is traced first and split only
         // where its rays disagree: a conservative shaft holds many roots
-        // that block nothing. Above ε it is split at once, as its rays
-        // could all pass by a small occluder that matters at that size.
+        // that block nothing. Above ε a room's pair is split at once, as
+        // its rays could all pass by a small occluder that matters at that
+        // size (see [`Refiner`]).
         let occluded = !occluders.is_empty() || !object_occluders.is_empty();
         let splits = occluded && f > epsilon * VISIBILITY_REFINE_FRACTION && !(p_leaf && q_leaf);
         // A room pair's rays through the room were traced before: only the objects are left.
@@ -491,7 +498,7 @@ fn refine_from(
             }
             _ => visibility(ep, eq, tracer, layer),
         };
-        let visible = match (occluded, splits && f > epsilon) {
+        let visible = match (occluded, splits && split_above_epsilon && f > epsilon) {
             (false, _) => Some(1.0),
             (true, true) => None,
             (true, false) => Some(traced()),

@@ -93,6 +93,7 @@ impl Transport {
             tracer,
             layer: Layer::All,
             epsilon,
+            split_above_epsilon: false,
             objects: Some(&clusters),
         };
         let made: Vec<(Vec<Link>, Vec<ClusterLink>)> = tasks
