@@ -324,10 +324,17 @@ impl Session {
                     .to_string(),
             );
         }
-        let link_facts = crate::radiosity::RoomLinkFacts::new(&model.transport);
+        let has_objects = tracer.virtual_objects.is_some();
+        // Kept per room link for the next pose only: a still render, or a
+        // scene without objects, would hold ~180 bytes per link for nothing
+        // (780 MB for a light change on `lounge`).
+        let link_facts = if for_updates && has_objects {
+            crate::radiosity::RoomLinkFacts::new(&model.transport)
+        } else {
+            crate::radiosity::RoomLinkFacts::default()
+        };
         let bounds = VirtualBounds::of(&scene.virtual_world_surfaces())
             .with_room(&model.patches.real_root_polygons(), &model.lights);
-        let has_objects = tracer.virtual_objects.is_some();
         let objects = object_patches(scene, &model.patches, has_objects, &settings, times);
         let mut gather_directions = GatherDirections::default();
         let input = ChangeInput {
