@@ -146,7 +146,8 @@ impl Shape {
     }
 }
 
-/// Closed surfaces with more triangles than this are treated as two-sided.
+/// Closed surfaces with more triangles than this and no consistent
+/// winding are treated as two-sided.
 pub(crate) const MAX_SOLID_TRIANGLES: usize = 20_000;
 
 /// An element's 3 or 4 corners.
@@ -449,13 +450,16 @@ impl Patches {
             self.surface_is_virtual
                 .insert(input.surface, input.is_virtual);
             // A closed surface is a solid: its faces are one-sided, facing
-            // out, or light would bounce around inside it. (The parity test
-            // is linear in the surface's triangles: large solids stay two-sided.)
-            let closed = input.triangles.len() <= MAX_SOLID_TRIANGLES
-                && crate::geometry::is_closed(input.triangles);
-            let outward = closed
+            // out, or light would bounce around inside it. A consistent
+            // winding orients every face by one parity test, linear in the
+            // triangles; without one each face takes its own, so only a
+            // small solid is oriented that way (a large one stays two-sided).
+            let watertight = crate::geometry::is_closed(input.triangles);
+            let outward = watertight
                 .then(|| crate::geometry::consistent_winding(input.triangles))
                 .flatten();
+            let closed =
+                watertight && (outward.is_some() || input.triangles.len() <= MAX_SOLID_TRIANGLES);
             for (shape, tris) in primitives(input.triangles) {
                 let root = self.elements.len() as u32;
                 let region = match shape {
