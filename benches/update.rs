@@ -238,12 +238,21 @@ fn parts(_: &mut Criterion) {
         .install(|| parts_on_one_thread(&base, &photo, &RenderSettings::default()));
 }
 
-/// `lounge`'s `stool_walk` (a 1,968-triangle stool): the same move back
-/// and forth on one session, next to a full render of the pose, and the
-/// update's indirect part (re-link, solve, gather) on its own.
+/// `lounge`'s `stool_walk` (a 1,968-triangle stool).
 fn lounge(c: &mut Criterion) {
-    let base = Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/lounge/scene.toml"))
-        .unwrap();
+    stool_walk(c, "scenes/lounge/scene.toml", "stool_walk");
+}
+
+/// `stool_walk` with the stool's ball subdivided (24,768 triangles).
+fn dense(c: &mut Criterion) {
+    stool_walk(c, "scenes/lounge/scene_dense.toml", "dense_stool_walk");
+}
+
+/// A scene's `stool_walk`: the same move back and forth on one session,
+/// next to a full render of the pose, and the update's indirect part
+/// (re-link, solve, gather) on its own; benchmarks named after `label`.
+fn stool_walk(c: &mut Criterion, scene: &str, label: &str) {
+    let base = Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join(scene)).unwrap();
     let settings = RenderSettings::default();
     let (p2, p3) = (
         base.with_motion_pose("stool_walk", 2).unwrap(),
@@ -257,35 +266,38 @@ fn lounge(c: &mut Criterion) {
     session.image_only();
     let mut forth = false;
     let mut indirect = Vec::new();
-    g.bench_function("stool_walk_poses_2_3_alternating_on_one_session", |b| {
-        b.iter(|| {
-            forth = !forth;
-            let mut times = StageTimes::default();
-            let stats = session
-                .update(if forth { &p3 } else { &p2 }, &mut times)
-                .unwrap();
-            // Inside "radiosity | pixels": the indirect stages run beside the pixels'.
-            indirect.push(
-                times
-                    .1
-                    .iter()
-                    .filter(|(n, _)| !n.contains("pixel") && !n.contains("re-trace"))
-                    .map(|(_, d)| d.as_secs_f64() * 1e3)
-                    .sum::<f64>(),
-            );
-            stats
-        })
-    });
+    g.bench_function(
+        format!("{label}_poses_2_3_alternating_on_one_session"),
+        |b| {
+            b.iter(|| {
+                forth = !forth;
+                let mut times = StageTimes::default();
+                let stats = session
+                    .update(if forth { &p3 } else { &p2 }, &mut times)
+                    .unwrap();
+                // Inside "radiosity | pixels": the indirect stages run beside the pixels'.
+                indirect.push(
+                    times
+                        .1
+                        .iter()
+                        .filter(|(n, _)| !n.contains("pixel") && !n.contains("re-trace"))
+                        .map(|(_, d)| d.as_secs_f64() * 1e3)
+                        .sum::<f64>(),
+                );
+                stats
+            })
+        },
+    );
     drop(session);
     indirect.sort_by(f64::total_cmp);
     if !indirect.is_empty() {
         println!(
-            "stool_walk update, indirect part (re-link, solve, gather): median {:.1} ms over {} updates",
+            "{label} update, indirect part (re-link, solve, gather): median {:.1} ms over {} updates",
             indirect[indirect.len() / 2],
             indirect.len()
         );
     }
-    g.bench_function("stool_walk_pose_3_full_render", |b| {
+    g.bench_function(format!("{label}_pose_3_full_render"), |b| {
         b.iter_with_large_drop(|| {
             render(&p3, &photo, &settings, &mut StageTimes::default()).unwrap()
         })
@@ -293,5 +305,5 @@ fn lounge(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench, parts, lounge);
+criterion_group!(benches, bench, parts, lounge, dense);
 criterion_main!(benches);
