@@ -279,3 +279,34 @@ fn every_face_of_the_stool_and_a_reversed_box_faces_out() {
         "{checked} out, {embedded} inside"
     );
 }
+
+#[test]
+fn a_solid_larger_than_the_per_face_limit_is_one_sided_and_faces_out() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let stool =
+        crate::geometry::load_obj(&dir.join("scenes/lounge/geometry/stool_dense.obj")).unwrap();
+    let tris = &stool.surfaces[0].triangles;
+    assert!(tris.len() > MAX_SOLID_TRIANGLES, "{} triangles", tris.len());
+    let p = Patches::build(
+        &[SurfaceInput {
+            surface: 0,
+            triangles: tris,
+            is_virtual: true,
+        }],
+        0.1,
+    );
+    assert!(p.roots.iter().all(|&r| p.elements[r as usize].one_sided));
+    // Every 97th root (each test is linear in the triangles): out, not in.
+    let mut checked = 0;
+    for &r in p.roots.iter().step_by(97) {
+        let e = &p.elements[r as usize];
+        let step = 1e-4 * e.shape.size().max(1e-3);
+        let inside = |n: DVec3| crate::geometry::encloses(tris, e.centre + n * step);
+        if inside(e.normal) && inside(-e.normal) {
+            continue;
+        }
+        assert!(!inside(e.normal), "root {r} faces in");
+        checked += 1;
+    }
+    assert!(checked > 200, "{checked} roots checked");
+}
