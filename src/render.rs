@@ -325,14 +325,7 @@ impl Session {
             );
         }
         let has_objects = tracer.virtual_objects.is_some();
-        // Kept per room link for the next pose only: a still render, or a
-        // scene without objects, would hold ~180 bytes per link for nothing
-        // (780 MB for a light change on `lounge`).
-        let link_facts = if for_updates && has_objects {
-            crate::radiosity::RoomLinkFacts::new(&model.transport)
-        } else {
-            crate::radiosity::RoomLinkFacts::default()
-        };
+        let link_facts = room_link_facts(&model, for_updates && has_objects);
         let bounds = VirtualBounds::of(&scene.virtual_world_surfaces())
             .with_room(&model.patches.real_root_polygons(), &model.lights);
         let objects = object_patches(scene, &model.patches, has_objects, &settings, times);
@@ -644,6 +637,18 @@ fn room_patch_size(scene: &Scene, patch_size: PatchSize) -> f64 {
         PatchSize::Metres(m) => m,
         PatchSize::Auto if lights_change(scene) => fine_patch_size(scene),
         PatchSize::Auto => room_diagonal(scene) / 6.0,
+    }
+}
+
+/// What re-linking the objects learns per room link, kept for the next
+/// pose only (`kept`: a session that updates a scene with objects): a
+/// still, or a scene without objects, would hold ~180 bytes per link for
+/// nothing (780 MB for a light change on `lounge`).
+fn room_link_facts(model: &Model, kept: bool) -> crate::radiosity::RoomLinkFacts {
+    if kept {
+        crate::radiosity::RoomLinkFacts::new(&model.transport)
+    } else {
+        crate::radiosity::RoomLinkFacts::default()
     }
 }
 
