@@ -113,6 +113,13 @@ pub struct PairShafts {
     pub(super) hull: std::sync::OnceLock<Shaft>,
 }
 
+/// What [`ShaftTest`] tests: a root's corners, or a box (a cluster).
+#[derive(Clone, Copy)]
+enum Held<'a> {
+    Corners(&'a [DVec3]),
+    Box(DVec3, DVec3),
+}
+
 /// Tests root elements against the shaft between two elements.
 pub(super) struct ShaftTest<'a> {
     pub(super) patches: &'a Patches,
@@ -197,7 +204,7 @@ impl<'a> ShaftTest<'a> {
         if !in_layer || coplanar(root, self.p) || coplanar(root, self.q) {
             return false;
         }
-        self.may_hold(&root.shape.corners())
+        self.may_hold(Held::Corners(&root.shape.corners()))
     }
 
     /// Whether a root inside the box [lo, hi] may block light between p and
@@ -205,9 +212,7 @@ impl<'a> ShaftTest<'a> {
     /// when they hold for its corners (the shafts and planes are convex).
     /// Clusters hold virtual roots only.
     pub(super) fn may_block_box(&self, lo: DVec3, hi: DVec3) -> bool {
-        self.layer != Layer::Real
-            && !self.outside_box(lo, hi)
-            && self.may_hold(&crate::geometry::box_corners(lo, hi))
+        self.layer != Layer::Real && !self.outside_box(lo, hi) && self.may_hold(Held::Box(lo, hi))
     }
 
     /// Whether the box [lo, hi] lies outside the pair's box (boxes that
@@ -216,29 +221,37 @@ impl<'a> ShaftTest<'a> {
         (lo - self.slack).cmpge(self.hi).any() || (hi + self.slack).cmple(self.lo).any()
     }
 
-    /// Whether the convex hull of `corners` may meet a segment carrying
+    /// Whether the convex hull of `held` may meet a segment carrying
     /// light between p and q: behind neither's plane, and excluded by
     /// neither the box shaft nor the hull.
-    fn may_hold(&self, corners: &[DVec3]) -> bool {
-        let behind =
-            |&(o, n): &(DVec3, DVec3)| corners.iter().all(|c| (*c - o).dot(n) <= self.plane_slack);
+    fn may_hold(&self, held: Held) -> bool {
+        let behind = |&(o, n): &(DVec3, DVec3)| match held {
+            Held::Corners(corners) => corners.iter().all(|c| (*c - o).dot(n) <= self.plane_slack),
+            // The corner farthest in front of the plane decides for the box.
+            Held::Box(lo, hi) => {
+                (DVec3::select(n.cmpge(DVec3::ZERO), hi, lo) - o).dot(n) <= self.plane_slack
+            }
+        };
         if self.planes.iter().flatten().any(behind) {
             return false;
         }
+        let excludes = |shaft: &Shaft| match held {
+            Held::Corners(corners) => shaft.excludes(corners),
+            Held::Box(lo, hi) => shaft.excludes_box(lo, hi),
+        };
         let (p, q) = (self.p, self.q);
-        if self
-            .shafts
-            .coarse
-            .get_or_init(|| Shaft::between_boxes(p.bounds, q.bounds))
-            .excludes(corners)
-        {
+        if excludes(
+            self.shafts
+                .coarse
+                .get_or_init(|| Shaft::between_boxes(p.bounds, q.bounds)),
+        ) {
             return false;
         }
-        !self
-            .shafts
-            .hull
-            .get_or_init(|| Shaft::between_polygons(&p.shape.corners(), &q.shape.corners()))
-            .excludes(corners)
+        !excludes(
+            self.shafts
+                .hull
+                .get_or_init(|| Shaft::between_polygons(&p.shape.corners(), &q.shape.corners())),
+        )
     }
 }
 
