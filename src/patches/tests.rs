@@ -222,6 +222,18 @@ fn a_quads_cut_sends_a_point_to_the_leaf_the_distances_choose() {
     assert!(quads > 10, "{quads} quad roots");
 }
 
+/// One virtual surface meshed at 0.1 m.
+fn mesh_object(triangles: &[crate::geometry::Triangle]) -> Patches {
+    Patches::build(
+        &[SurfaceInput {
+            surface: 0,
+            triangles,
+            is_virtual: true,
+        }],
+        0.1,
+    )
+}
+
 #[test]
 fn every_face_of_the_stool_and_a_reversed_box_faces_out() {
     // One parity test orients a consistently wound solid: each root's
@@ -248,14 +260,7 @@ fn every_face_of_the_stool_and_a_reversed_box_faces_out() {
     solids.push(inward);
     let (mut checked, mut embedded) = (0, 0);
     for tris in &solids {
-        let p = Patches::build(
-            &[SurfaceInput {
-                surface: 0,
-                triangles: tris,
-                is_virtual: true,
-            }],
-            0.1,
-        );
+        let p = mesh_object(tris);
         for &r in &p.roots {
             let e = &p.elements[r as usize];
             if !e.one_sided {
@@ -287,14 +292,7 @@ fn a_solid_larger_than_the_per_face_limit_is_one_sided_and_faces_out() {
         crate::geometry::load_obj(&dir.join("scenes/lounge/geometry/stool_dense.obj")).unwrap();
     let tris = &stool.surfaces[0].triangles;
     assert!(tris.len() > MAX_SOLID_TRIANGLES, "{} triangles", tris.len());
-    let p = Patches::build(
-        &[SurfaceInput {
-            surface: 0,
-            triangles: tris,
-            is_virtual: true,
-        }],
-        0.1,
-    );
+    let p = mesh_object(tris);
     assert!(p.roots.iter().all(|&r| p.elements[r as usize].one_sided));
     // Every 97th root (each test is linear in the triangles): out, not in.
     let mut checked = 0;
