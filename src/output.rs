@@ -17,6 +17,8 @@ pub struct RenderOutput {
     pub rays: u64,
     pub patches: usize,
     pub links: usize,
+    /// What the links (or the form-factor matrix) take in memory.
+    pub links_bytes: usize,
     /// The room's patch size used, metres.
     pub patch_size: f64,
     /// `--method texture`: what the preprocess did, the shadow-free texture

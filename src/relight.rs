@@ -270,6 +270,11 @@ impl TexturePath {
             + (self.display.len() + self.unoccluded.len()) * std::mem::size_of::<Vec3>()
     }
 
+    /// What the kept links take in memory.
+    pub fn links_bytes(&self) -> usize {
+        self.transport.memory_bytes()
+    }
+
     /// Leaves of the mesh, the inserted objects' included.
     pub fn patch_count(&self) -> usize {
         self.patches.patch_count()
@@ -359,6 +364,7 @@ pub fn render_texture(
         rays: 0,
         patches: path.patch_count(),
         links: path.stats.links,
+        links_bytes: path.links_bytes(),
         patch_size: path.stats.patch_size,
         texture: Some((path.stats.clone(), unoccluded, light_change)),
     };

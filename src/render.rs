@@ -193,6 +193,7 @@ fn render_reachable(
             rays: 0,
             patches: 0,
             links: 0,
+            links_bytes: 0,
             patch_size: 0.0,
             texture: None,
         });
@@ -609,6 +610,7 @@ impl Session {
             rays: self.rays,
             patches: patches.patch_count(),
             links: transport.link_count(),
+            links_bytes: transport.memory_bytes(),
             patch_size: self.settings.model.patch_size,
             composite: self.composite,
             warnings: self.warnings,

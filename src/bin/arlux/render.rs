@@ -206,6 +206,7 @@ struct RenderReport<'a> {
     patches: usize,
     patch_size_m: f64,
     links: usize,
+    links_bytes: usize,
     method: &'static str,
     /// Shadow and sub-pixel rays (the pixel path's).
     rays: Option<u64>,
@@ -268,6 +269,7 @@ impl<'a> RenderReport<'a> {
             patches: out.patches,
             patch_size_m: out.patch_size,
             links: out.links,
+            links_bytes: out.links_bytes,
             method: if out.texture.is_some() {
                 "texture"
             } else {
@@ -305,25 +307,27 @@ impl Report for RenderReport<'_> {
         let mut lines = Vec::new();
         match &self.texture {
             None => lines.push(format!(
-                "{} pixels, {} copied from the photo unchanged; {} patches ({:.2} m), {} form factors; {} rays; pixel data {:.1} MB ({:.0} bytes per pixel)",
+                "{} pixels, {} copied from the photo unchanged; {} patches ({:.2} m), {} form factors ({:.1} MB); {} rays; pixel data {:.1} MB ({:.0} bytes per pixel)",
                 self.pixels,
                 self.copied_from_photo,
                 self.patches,
                 self.patch_size_m,
                 self.links,
+                self.links_bytes as f64 / 1e6,
                 self.rays.unwrap_or(0),
                 self.pda_bytes as f64 / 1e6,
                 self.pda_bytes_per_pixel
             )),
             Some(s) => lines.extend([
                 format!(
-                    "texture path: {} leaves from {:.2} m patches after {} refinement rounds ({} splits, {} undone: no visibility change); {} form factors",
+                    "texture path: {} leaves from {:.2} m patches after {} refinement rounds ({} splits, {} undone: no visibility change); {} form factors ({:.1} MB)",
                     self.patches,
                     self.patch_size_m,
                     s.refinement_rounds,
                     s.splits,
                     s.splits_undone,
-                    self.links
+                    self.links,
+                    self.links_bytes as f64 / 1e6
                 ),
                 format!(
                     "{} seen leaves in some real shadow: {} corrected from a frontier leaf, {} from the user's [[texture_reference]], {} left as Step 1 made them",
