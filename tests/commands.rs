@@ -148,50 +148,27 @@ fn render_method_texture_writes_the_shadow_free_texture() {
         photo.mean()
     );
 
-    // Its thresholds are flags, checked, and for the texture path only.
-    common::arlux_refused(
-        &[
-            "render",
-            &desk.scene(),
-            "--variant",
-            "panel_off",
-            "--method",
-            "texture",
-            "--visibility-threshold",
-            "0.7",
-            "-o",
-            desk.path("b.exr").to_str().unwrap(),
-        ],
-        &["--visibility-threshold must be a number in (0, 0.5), not 0.7"],
+    // Its thresholds are flags, checked, and for the texture path only;
+    // the pixel path's own flags are refused on it, not ignored.
+    let scene = desk.scene();
+    let b = desk.path("b.exr");
+    let refused = |flags: &[&str], expected: &str| {
+        let mut args = vec!["render", &scene, "--variant", "panel_off"];
+        args.extend_from_slice(flags);
+        args.extend(["-o", b.to_str().unwrap()]);
+        common::arlux_refused(&args, &[expected]);
+    };
+    refused(
+        &["--method", "texture", "--visibility-threshold", "0.7"],
+        "--visibility-threshold must be a number in (0, 0.5), not 0.7",
     );
-    common::arlux_refused(
-        &[
-            "render",
-            &desk.scene(),
-            "--variant",
-            "panel_off",
-            "--min-leaf-pixels",
-            "2",
-            "-o",
-            desk.path("b.exr").to_str().unwrap(),
-        ],
-        &["--min-leaf-pixels applies to --method texture"],
+    refused(
+        &["--min-leaf-pixels", "2"],
+        "--min-leaf-pixels applies to --method texture",
     );
-    // And the pixel path's own flags are refused on the texture path, not ignored.
-    common::arlux_refused(
-        &[
-            "render",
-            &desk.scene(),
-            "--variant",
-            "panel_off",
-            "--method",
-            "texture",
-            "--supersample",
-            "3",
-            "-o",
-            desk.path("b.exr").to_str().unwrap(),
-        ],
-        &["--supersample applies to --method pda"],
+    refused(
+        &["--method", "texture", "--supersample", "3"],
+        "--supersample applies to --method pda",
     );
     assert!(!desk.path("b.exr").exists());
 }

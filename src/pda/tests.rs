@@ -222,11 +222,7 @@ fn only_edges_with_a_polygon_on_either_side_in_the_image_are_no_outline() {
             0.5,
         );
         patches.face_open_surfaces_towards(at);
-        let roots: Vec<&crate::patches::Element> = patches
-            .roots
-            .iter()
-            .map(|&r| &patches.elements[r as usize])
-            .collect();
+        let roots = root_elements(&patches);
         assert!(roots.len() == 2 && roots.iter().all(|e| (at - e.centre).dot(e.normal) > 0.0));
         assert_eq!(interior_edges(&eye(at), &roots), expected, "seen from {at}");
     }
@@ -326,12 +322,7 @@ fn pixels_across_a_crease_of_an_object_are_shaded_per_sub_pixel() {
     };
     // Every edge of a box is a crease; a flat panel of several polygons has none.
     let patches = Patches::build(&[input(&boxed)], 0.25);
-    let roots: Vec<&crate::patches::Element> = patches
-        .roots
-        .iter()
-        .map(|&r| &patches.elements[r as usize])
-        .collect();
-    assert_eq!(crease_edges(&roots).len(), 12);
+    assert_eq!(crease_edges(&root_elements(&patches)).len(), 12);
     let v = |x: f32, z: f32| Vec3::new(x, 0.0, z);
     let flat = vec![
         [v(0.0, 0.0), v(1.0, 0.0), v(1.0, 1.0)],
@@ -340,11 +331,7 @@ fn pixels_across_a_crease_of_an_object_are_shaded_per_sub_pixel() {
         [v(1.0, 0.0), v(2.0, 1.0), v(1.0, 1.0)],
     ];
     let panel = Patches::build(&[input(&flat)], 2.0);
-    let roots: Vec<&crate::patches::Element> = panel
-        .roots
-        .iter()
-        .map(|&r| &panel.elements[r as usize])
-        .collect();
+    let roots = root_elements(&panel);
     assert!(roots.len() >= 2 && crease_edges(&roots).is_empty());
 
     // The box seen from above a corner, lit from one side: its three
@@ -414,4 +401,13 @@ fn pixels_across_a_crease_of_an_object_are_shaded_per_sub_pixel() {
         "{checked} checked, {} crease pixels",
         inside.len()
     );
+}
+
+/// A mesh's root elements.
+fn root_elements(patches: &Patches) -> Vec<&crate::patches::Element> {
+    patches
+        .roots
+        .iter()
+        .map(|&r| &patches.elements[r as usize])
+        .collect()
 }
