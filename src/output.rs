@@ -17,6 +17,9 @@ pub struct RenderOutput {
     pub rays: u64,
     pub patches: usize,
     pub links: usize,
+    /// Elements of the mesh's hierarchy (patches and the elements above
+    /// them) that links may join.
+    pub elements: usize,
     /// What the links (or the form-factor matrix) take in memory.
     pub links_bytes: usize,
     /// The room's patch size used, metres.

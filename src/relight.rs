@@ -364,6 +364,7 @@ pub fn render_texture(
         rays: 0,
         patches: path.patch_count(),
         links: path.stats.links,
+        elements: path.patches.elements.len(),
         links_bytes: path.links_bytes(),
         patch_size: path.stats.patch_size,
         texture: Some((path.stats.clone(), unoccluded, light_change)),

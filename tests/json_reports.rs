@@ -85,6 +85,10 @@ fn every_command_s_report_follows_its_documented_schema() {
         links > 0 && bytes >= 12 * links && bytes < 24 * links,
         "{r}"
     );
+    // Every patch is an element, and a root split in two has three.
+    let elements = r["elements"].as_u64().unwrap();
+    let patches = r["patches"].as_u64().unwrap();
+    assert!(elements >= patches && elements < 2 * patches, "{r}");
     report(
         "render",
         &[

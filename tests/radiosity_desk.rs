@@ -451,3 +451,30 @@ fn what_the_box_sends_the_room_through_its_clusters_agrees_with_the_full_matrix(
     );
     assert!(worst < 0.05 * peak, "a patch off by {worst} (peak {peak})");
 }
+
+#[test]
+fn links_per_element_grow_slowly_as_the_room_is_meshed_finer() {
+    // Hierarchical radiosity links each receiver to the sources at the
+    // level its oracle asks for, not to every patch: meshed 4× finer, the
+    // links per element may grow only by the few extra levels the oracle
+    // now reaches (a full matrix's grow 4×).
+    let scene = desk();
+    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
+    let per_element = |size: f64| {
+        let patches = Patches::of_scene(&scene, false, size);
+        let hier = Transport::hierarchical(&patches, &tracer, Layer::Real, DEFAULT_LINK_EPSILON);
+        let ratio = hier.link_count() as f64 / patches.elements.len() as f64;
+        println!(
+            "{size} m: {} elements, {} links, {ratio:.1} per element",
+            patches.elements.len(),
+            hier.link_count()
+        );
+        ratio
+    };
+    let (coarse, fine) = (per_element(0.25), per_element(0.125));
+    assert!(fine < 150.0, "{fine:.1} links per element at 0.125 m");
+    assert!(
+        fine < 1.3 * coarse,
+        "links per element {coarse:.1} → {fine:.1} when meshed 4× finer"
+    );
+}

@@ -206,6 +206,7 @@ struct RenderReport<'a> {
     patches: usize,
     patch_size_m: f64,
     links: usize,
+    elements: usize,
     links_bytes: usize,
     method: &'static str,
     /// Shadow and sub-pixel rays (the pixel path's).
@@ -269,6 +270,7 @@ impl<'a> RenderReport<'a> {
             patches: out.patches,
             patch_size_m: out.patch_size,
             links: out.links,
+            elements: out.elements,
             links_bytes: out.links_bytes,
             method: if out.texture.is_some() {
                 "texture"
@@ -307,13 +309,14 @@ impl Report for RenderReport<'_> {
         let mut lines = Vec::new();
         match &self.texture {
             None => lines.push(format!(
-                "{} pixels, {} copied from the photo unchanged; {} patches ({:.2} m), {} form factors ({:.1} MB); {} rays; pixel data {:.1} MB ({:.0} bytes per pixel)",
+                "{} pixels, {} copied from the photo unchanged; {} patches ({:.2} m), {} form factors ({:.1} MB, {:.0} per element); {} rays; pixel data {:.1} MB ({:.0} bytes per pixel)",
                 self.pixels,
                 self.copied_from_photo,
                 self.patches,
                 self.patch_size_m,
                 self.links,
                 self.links_bytes as f64 / 1e6,
+                self.links as f64 / self.elements.max(1) as f64,
                 self.rays.unwrap_or(0),
                 self.pda_bytes as f64 / 1e6,
                 self.pda_bytes_per_pixel
