@@ -40,6 +40,10 @@ pub struct ModelSettings {
     /// 2^level shadow rays per point towards rect lights.
     pub light_level: usize,
     pub estimate: EstimateSettings,
+    /// Keep the room's hierarchical links in `.arlux-cache/` next to the
+    /// scene and read them from there when the room, its mesh and ε are
+    /// the same (see [`links_cache`]).
+    pub cache_links: bool,
 }
 
 impl Default for ModelSettings {
@@ -51,6 +55,7 @@ impl Default for ModelSettings {
             },
             light_level: 4,
             estimate: EstimateSettings::default(),
+            cache_links: false,
         }
     }
 }
@@ -137,6 +142,49 @@ pub(crate) fn check_patch_count(scene: &Scene, patch_size: f64) -> Result<()> {
     Ok(())
 }
 
+/// The light transport between the room's patches, as `settings` ask:
+/// hierarchical links are read from the cache when it holds them (the
+/// stage is then "links from the cache") and written to it when made.
+fn room_transport(
+    scene: &Scene,
+    patches: &Patches,
+    tracer: &Tracer,
+    settings: &ModelSettings,
+    times: &mut StageTimes,
+) -> Transport {
+    let epsilon = match settings.transport {
+        TransportMethod::Full => {
+            return times.time("form factors", || {
+                Transport::full(patches, tracer, Layer::Real)
+            });
+        }
+        TransportMethod::Hierarchical { epsilon } => epsilon,
+    };
+    if !settings.cache_links {
+        return times.time("form factors", || {
+            Transport::hierarchical(patches, tracer, Layer::Real, epsilon)
+        });
+    }
+    crate::util::stages::started("form factors");
+    let t0 = Instant::now();
+    let entry = links_cache::entry(scene, settings.patch_size, epsilon);
+    let (stage, transport) = match links_cache::read(&entry, patches) {
+        Some(links) => (
+            "links from the cache",
+            Transport::hierarchical_from_links(links),
+        ),
+        None => {
+            let transport = Transport::hierarchical(patches, tracer, Layer::Real, epsilon);
+            if let Transport::Hierarchical { links, .. } = &transport {
+                links_cache::write(&entry, links);
+            }
+            ("form factors", transport)
+        }
+    };
+    times.0.push((stage, t0.elapsed()));
+    transport
+}
+
 impl Model {
     /// Builds the model of `scene`'s real surfaces under its lights as the
     /// photo shows them (real lights at scale 1, virtual lights off).
@@ -155,12 +203,7 @@ impl Model {
         let direct_per_light = times.time("direct light", || {
             direct_irradiance(&patches, &lights, tracer, Layer::Real, settings.light_level)
         });
-        let transport = times.time("form factors", || match settings.transport {
-            TransportMethod::Full => Transport::full(&patches, tracer, Layer::Real),
-            TransportMethod::Hierarchical { epsilon } => {
-                Transport::hierarchical(&patches, tracer, Layer::Real, epsilon)
-            }
-        });
+        let transport = room_transport(scene, &patches, tracer, settings, times);
         let photo = times.time("photo per patch", || {
             PhotoPatches::measure(&scene.camera, tracer, &patches, photo)
         });
@@ -307,12 +350,13 @@ pub fn bracket_scale(
     let per_light = direct_irradiance(&patches, &lights, tracer, Layer::Real, settings.light_level);
     let scales: Vec<f64> = lights.iter().map(|l| l.photo_scale()).collect();
     let direct = total_direct(&scales, &per_light);
-    let transport = match settings.transport {
-        TransportMethod::Full => Transport::full(&patches, tracer, Layer::Real),
-        TransportMethod::Hierarchical { epsilon } => {
-            Transport::hierarchical(&patches, tracer, Layer::Real, epsilon)
-        }
-    };
+    let transport = room_transport(
+        scene,
+        &patches,
+        tracer,
+        settings,
+        &mut StageTimes::default(),
+    );
     let measured = PhotoPatches::measure(&scene.camera, tracer, &patches, photo);
     let known: HashMap<u32, DVec3> = scene
         .reflectances
@@ -372,3 +416,5 @@ pub fn bracket_scale(
     let scale = x1.exp();
     scale.is_finite().then_some(scale)
 }
+
+mod links_cache;

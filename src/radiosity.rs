@@ -155,7 +155,7 @@ impl Transport {
         Transport::hierarchical_from_links(links)
     }
 
-    pub(super) fn hierarchical_from_links(mut links: Vec<Link>) -> Transport {
+    pub(crate) fn hierarchical_from_links(mut links: Vec<Link>) -> Transport {
         links.sort_by_key(|l| (l.receiver, l.source));
         let mut ranges: Vec<(u32, u32, u32)> = Vec::new();
         for (i, l) in links.iter().enumerate() {

@@ -87,6 +87,11 @@ pub struct RenderOptions {
     /// Not serialised: a tile's settings are the whole frame's.
     #[serde(skip)]
     pub crop: Option<CropWindow>,
+    /// Keep the room's links next to the scene and read them back when the
+    /// room, its mesh and ε are the same. Not serialised: the image is the
+    /// same either way.
+    #[serde(skip)]
+    pub cache: bool,
 }
 
 impl Default for RenderOptions {
@@ -107,6 +112,7 @@ impl Default for RenderOptions {
             reference_colour_threshold: None,
             min_leaf_pixels: None,
             crop: None,
+            cache: true,
         }
     }
 }
@@ -185,6 +191,7 @@ impl RenderOptions {
                         epsilon: self.epsilon,
                     }
                 },
+                cache_links: self.cache,
                 ..ModelSettings::default()
             },
             patch_size: self.patch_size.map_or(PatchSize::Auto, PatchSize::Metres),

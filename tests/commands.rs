@@ -58,14 +58,10 @@ fn render_writes_layers_and_aovs_and_reports_the_error() {
     // Measured 0.00244 at 0.5 m patches.
     let rmse = report["comparison"]["rmse"].as_f64().unwrap();
     assert!(rmse < 0.003, "{rmse}");
-    let stages: Vec<&str> = report["stages"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s["stage"].as_str().unwrap())
-        .collect();
+    let stages = stage_names(&report);
     assert!(
-        stages.contains(&"pixel data array") && stages.contains(&"form factors with objects"),
+        stages.iter().any(|s| s == "pixel data array")
+            && stages.iter().any(|s| s == "form factors with objects"),
         "{stages:?}"
     );
     for layer in ["R", "direct.G", "indirect.B", "change.R", "A"] {
@@ -188,14 +184,11 @@ fn rendering_a_light_change_leaves_out_the_virtual_stages() {
         "0.5",
         "--json",
     ]);
-    let stages: Vec<&str> = report["stages"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s["stage"].as_str().unwrap())
-        .collect();
+    let stages = stage_names(&report);
     assert!(
-        !stages.contains(&"form factors with objects") && !stages.contains(&"virtual mesh"),
+        !stages
+            .iter()
+            .any(|s| s == "form factors with objects" || s == "virtual mesh"),
         "{stages:?}"
     );
     assert!(
@@ -484,4 +477,71 @@ fn radiosity_recovers_a_light_marked_reconstruct_first() {
     // The model with the recovered spot explains the photo about as well as with the true one (0.0096).
     let rmse = report["comparison"]["rmse"].as_f64().unwrap();
     assert!(rmse < 0.012, "model against the photo {rmse}");
+}
+
+/// The names of a report's stages.
+fn stage_names(report: &serde_json::Value) -> Vec<String> {
+    report["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["stage"].as_str().unwrap().to_string())
+        .collect()
+}
+
+#[test]
+fn a_second_render_of_the_room_reads_its_links_from_the_cache() {
+    let desk = Desk::new();
+    let render = |variant: &str, out: &str, extra: &[&str]| {
+        let out = desk.path(out);
+        let mut args = vec![
+            "render",
+            &desk.scene(),
+            "--variant",
+            variant,
+            "-o",
+            out.to_str().unwrap(),
+            "--json",
+        ]
+        .into_iter()
+        .map(str::to_string)
+        .collect::<Vec<_>>();
+        args.extend(extra.iter().map(|a| a.to_string()));
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let report = arlux_json(&args);
+        (stage_names(&report), std::fs::read(out).unwrap())
+    };
+    let cache = desk.path(".arlux-cache");
+    let entries = || -> Vec<std::path::PathBuf> {
+        std::fs::read_dir(&cache)
+            .map(|d| d.map(|e| e.unwrap().path()).collect())
+            .unwrap_or_default()
+    };
+    let (first, image) = render("panel_off", "a.exr", &["--no-cache"]);
+    assert!(first.iter().any(|s| s == "form factors"), "{first:?}");
+    assert!(entries().is_empty(), "--no-cache wrote {:?}", entries());
+    let (cold, cold_image) = render("panel_off", "b.exr", &[]);
+    assert!(cold.iter().any(|s| s == "form factors"), "{cold:?}");
+    assert_eq!(entries().len(), 1, "{:?}", entries());
+    // Another variant of the same room reads the links; the image is the
+    // one refinement gives, bit for bit.
+    let (warm, warm_image) = render("panel_off", "c.exr", &[]);
+    assert!(
+        warm.iter().any(|s| s == "links from the cache")
+            && !warm.iter().any(|s| s == "form factors"),
+        "{warm:?}"
+    );
+    assert!(image == cold_image && image == warm_image);
+    let (spot, _) = render("spot_x2", "d.exr", &[]);
+    assert!(spot.iter().any(|s| s == "links from the cache"), "{spot:?}");
+    // A damaged entry is refined again, and the image is still the same.
+    let entry = &entries()[0];
+    let bytes = std::fs::read(entry).unwrap();
+    std::fs::write(entry, &bytes[..bytes.len() - 5]).unwrap();
+    let (damaged, damaged_image) = render("panel_off", "e.exr", &[]);
+    assert!(damaged.iter().any(|s| s == "form factors"), "{damaged:?}");
+    assert!(damaged_image == image);
+    // Another mesh size is another entry.
+    render("panel_off", "f.exr", &["--patch-size", "0.5"]);
+    assert_eq!(entries().len(), 2, "{:?}", entries());
 }

@@ -34,6 +34,10 @@ pub struct Args {
     /// 2^level shadow rays per point towards area lights.
     #[arg(long, default_value_t = 4)]
     pub light_level: usize,
+    /// Refine the room's links again rather than read them from
+    /// `.arlux-cache/` next to the scene (nor keep them there).
+    #[arg(long)]
+    pub no_cache: bool,
     #[arg(long)]
     pub json: bool,
 }
@@ -56,6 +60,7 @@ pub fn run(args: &Args) -> Result<()> {
             TransportMethod::Hierarchical { epsilon }
         },
         light_level,
+        cache_links: !args.no_cache,
         ..ModelSettings::default()
     };
     settings.validate()?;

@@ -84,6 +84,10 @@ pub struct Args {
     /// assembles tiles.
     #[arg(long, num_args = 4, value_names = ["X0", "X1", "Y0", "Y1"], allow_negative_numbers = true)]
     pub crop: Option<Vec<f64>>,
+    /// Refine the room's links again rather than read them from
+    /// `.arlux-cache/` next to the scene (nor keep them there).
+    #[arg(long)]
+    pub no_cache: bool,
     #[arg(long)]
     pub json: bool,
 }
@@ -110,6 +114,7 @@ impl Args {
                 y0: c[2],
                 y1: c[3],
             }),
+            cache: !self.no_cache,
         }
     }
 }
