@@ -126,6 +126,22 @@ impl Default for EstimateSettings {
     }
 }
 
+/// The step after one of length `step` asked for `ask` where the round
+/// before asked for `last`: were each round's ask the last one's times c,
+/// c = 1 − step·(1 − λ) for the map's gain λ, and the step that cancels
+/// it is step / (1 − c). An ask that does not shrink along the last keeps
+/// the step.
+fn secant_step(step: f64, ask: &[DVec3], last: &[DVec3]) -> f64 {
+    let dot = |a: &[DVec3], b: &[DVec3]| a.iter().zip(b).map(|(x, y)| x.dot(*y)).sum::<f64>();
+    let norm = dot(last, last);
+    let c = if norm > 0.0 {
+        dot(ask, last) / norm
+    } else {
+        1.0
+    };
+    if c < 1.0 { step / (1.0 - c) } else { step }
+}
+
 /// Estimates a reflectance per patch. `direct` is the total direct
 /// irradiance per patch; `known` maps surface ids to known reflectances.
 pub fn estimate_reflectances(
@@ -147,7 +163,6 @@ pub fn estimate_reflectances(
         seen: (0..n)
             .map(|k| photo.pixels[k] > 0 && !known.contains_key(&surface(k)))
             .collect(),
-        solve_tolerance: settings.solve_tolerance,
     };
     let mut rho = eq2.first_guess();
     let mut estimated = eq2.seen.clone();
@@ -161,11 +176,17 @@ pub fn estimate_reflectances(
     // white room the unseen patches (which take their surface's mean) feed
     // back on the seen ones' indirect light with a gain above one, and the
     // full step oscillates for ever: the step halves whenever the largest
-    // change grows instead of shrinking.
+    // change grows instead of shrinking, and is otherwise set by the secant
+    // rule (Irons & Tuck's form of Aitken's Δ², one step length for every
+    // patch) from how far this round's ask goes along the last one's.
     let mut step = 1.0f64;
+    let mut last_ask: Option<Vec<DVec3>> = None;
     while iterations < settings.max_iterations && change > settings.tolerance {
         iterations += 1;
-        let model = eq2.solve(&rho, previous.as_deref());
+        // A forward solve finer than a hundredth of the last round's change
+        // moves no reflectance; the final solve meets the full tolerance.
+        let tolerance = (change * 1e-2).clamp(settings.solve_tolerance, 1e-3);
+        let model = eq2.solve(&rho, previous.as_deref(), tolerance);
         let mixed: Vec<DVec3> = (0..n)
             .map(|k| {
                 if photo.pixels[k] > 0 {
@@ -179,14 +200,18 @@ pub fn estimate_reflectances(
         let mut next = rho.clone();
         (clamped, pinned) = eq2.round(&mixed, &mut next, &mut estimated);
         fill_unseen(patches, &mut next, &estimated, known);
-        let asked = next
+        let ask: Vec<DVec3> = next.iter().zip(&rho).map(|(a, b)| *a - *b).collect();
+        let asked = ask
             .iter()
-            .zip(&rho)
-            .map(|(a, b)| (*a - *b).abs().max_element())
+            .map(|d| d.abs().max_element())
             .fold(0.0, f64::max);
-        if asked > change {
-            step = (step * 0.5).max(1.0 / 64.0);
+        step = if asked > change {
+            step * 0.5
+        } else {
+            last_ask.map_or(step, |last| secant_step(step, &ask, &last))
         }
+        .clamp(1.0 / 64.0, 1.0);
+        last_ask = Some(ask);
         change = asked;
         if step < 1.0 {
             for (n, r) in next.iter_mut().zip(&rho) {
@@ -195,7 +220,7 @@ pub fn estimate_reflectances(
         }
         rho = next;
     }
-    let solution = eq2.solve(&rho, previous.as_deref());
+    let solution = eq2.solve(&rho, previous.as_deref(), settings.solve_tolerance);
     let unseen = (0..n)
         .filter(|&k| !estimated[k] && !known.contains_key(&surface(k)))
         .count();
@@ -225,7 +250,6 @@ struct Eq2<'a> {
     known: &'a HashMap<u32, DVec3>,
     /// Patches the photo sees whose reflectance is not known.
     seen: Vec<bool>,
-    solve_tolerance: f64,
 }
 
 impl Eq2<'_> {
@@ -250,7 +274,7 @@ impl Eq2<'_> {
     }
 
     /// The forward solution with reflectances `rho`.
-    fn solve(&self, rho: &[DVec3], previous: Option<&[DVec3]>) -> Solution {
+    fn solve(&self, rho: &[DVec3], previous: Option<&[DVec3]>, tolerance: f64) -> Solution {
         let emission: Vec<DVec3> = rho.iter().zip(self.direct).map(|(r, e)| *r * *e).collect();
         solve_from(
             self.patches,
@@ -258,7 +282,7 @@ impl Eq2<'_> {
             rho,
             &emission,
             previous,
-            self.solve_tolerance,
+            tolerance,
             500,
         )
     }
