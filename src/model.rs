@@ -41,8 +41,9 @@ pub struct ModelSettings {
     pub light_level: usize,
     pub estimate: EstimateSettings,
     /// Keep the room's hierarchical links in `.arlux-cache/` next to the
-    /// scene and read them from there when the room, its mesh and ε are
-    /// the same (see [`links_cache`]).
+    /// scene and read them from there when the room (its real surfaces'
+    /// vertices and the camera's side of them), the patch size and ε are
+    /// the same, and this build wrote them.
     pub cache_links: bool,
 }
 

@@ -2,7 +2,8 @@
 //! they depend on the real surfaces, the camera's side of them, the patch
 //! size and ε only, not on the lights, the photo or the variant, so a
 //! second render of the same room (another light change, another object)
-//! reads them instead of refining again (9.6 s on `lounge`'s light changes).
+//! reads them instead of refining again (about 10 s on `lounge`'s light
+//! changes).
 //!
 //! A flat binary file rather than a serde format: 12 bytes per link and
 //! millions of links, read and checked in one pass.
