@@ -1,9 +1,10 @@
-//! Per-stage medians of the desk's box moving back and forth between two
-//! poses of `box_slide` on one session: for A/B comparisons of an update's
+//! Per-stage medians of an object moving back and forth between two
+//! poses of a motion on one session (by default the desk's box between
+//! poses 3 and 4 of `box_slide`): for A/B comparisons of an update's
 //! stages (run the old and the new binary alternately; this machine's
 //! timings move by ±15–30% between runs).
 //!
-//! `cargo run --release --example update_stages [UPDATES]`
+//! `cargo run --release --example update_stages [UPDATES [SCENE MOTION A B]]`
 
 use std::collections::BTreeMap;
 
@@ -12,13 +13,17 @@ use arlux::render::{RenderSettings, Session};
 use arlux::scene::Scene;
 
 fn main() -> anyhow::Result<()> {
-    let base = Scene::load(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/scenes/desk/scene.toml"
-    ))?;
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let updates: usize = args.first().map_or(Ok(60), |a| a.parse())?;
+    let desk = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/desk/scene.toml");
+    let (scene, motion, a, b) = match &args[..] {
+        [_, scene, motion, a, b] => (scene.as_str(), motion.as_str(), a.parse()?, b.parse()?),
+        _ => (desk, "box_slide", 3, 4),
+    };
+    let base = Scene::load(scene)?;
     let (p3, p4) = (
-        base.with_motion_pose("box_slide", 3)?,
-        base.with_motion_pose("box_slide", 4)?,
+        base.with_motion_pose(motion, a)?,
+        base.with_motion_pose(motion, b)?,
     );
     let photo = p3.load_photo()?;
     let mut session = Session::start(
@@ -29,7 +34,6 @@ fn main() -> anyhow::Result<()> {
     )?;
     session.prepare_updates(&mut StageTimes::default());
     session.image_only();
-    let updates: usize = std::env::args().nth(1).map_or(Ok(60), |a| a.parse())?;
     let (mut stages, mut totals): (BTreeMap<String, Vec<f64>>, Vec<f64>) = Default::default();
     for i in 0..updates {
         let mut times = StageTimes::default();

@@ -41,9 +41,8 @@ pub struct ModelSettings {
     pub light_level: usize,
     pub estimate: EstimateSettings,
     /// Keep the room's hierarchical links in `.arlux-cache/` next to the
-    /// scene and read them from there when the room (its real surfaces'
-    /// vertices and the camera's side of them), the patch size and ε are
-    /// the same, and this build wrote them.
+    /// scene and read them from there when the room's surfaces, their mesh
+    /// and ε are the same, and this build wrote them.
     pub cache_links: bool,
 }
 
@@ -143,9 +142,7 @@ pub(crate) fn check_patch_count(scene: &Scene, patch_size: f64) -> Result<()> {
     Ok(())
 }
 
-/// The light transport between the room's patches, as `settings` ask:
-/// hierarchical links are read from the cache when it holds them (the
-/// stage is then "links from the cache") and written to it when made.
+/// The light transport between the room's patches, as `settings` ask.
 fn room_transport(
     scene: &Scene,
     patches: &Patches,
@@ -153,22 +150,35 @@ fn room_transport(
     settings: &ModelSettings,
     times: &mut StageTimes,
 ) -> Transport {
-    let epsilon = match settings.transport {
-        TransportMethod::Full => {
-            return times.time("form factors", || {
-                Transport::full(patches, tracer, Layer::Real)
-            });
+    match settings.transport {
+        TransportMethod::Full => times.time("form factors", || {
+            Transport::full(patches, tracer, Layer::Real)
+        }),
+        TransportMethod::Hierarchical { epsilon } => {
+            room_links(scene, patches, tracer, epsilon, settings.cache_links, times)
         }
-        TransportMethod::Hierarchical { epsilon } => epsilon,
-    };
-    if !settings.cache_links {
+    }
+}
+
+/// Hierarchical radiosity between the room's `patches`; with `cache`,
+/// read from `.arlux-cache/` when it holds this mesh's links (the stage is
+/// then "links from the cache") and written there when refined.
+pub(crate) fn room_links(
+    scene: &Scene,
+    patches: &Patches,
+    tracer: &Tracer,
+    epsilon: f64,
+    cache: bool,
+    times: &mut StageTimes,
+) -> Transport {
+    if !cache {
         return times.time("form factors", || {
             Transport::hierarchical(patches, tracer, Layer::Real, epsilon)
         });
     }
     crate::util::stages::started("form factors");
     let t0 = Instant::now();
-    let entry = links_cache::entry(scene, settings.patch_size, epsilon);
+    let entry = links_cache::entry(scene, patches, epsilon);
     let (stage, transport) = match links_cache::read(&entry, patches) {
         Some(links) => (
             "links from the cache",

@@ -71,6 +71,9 @@ pub struct TextureSettings {
     /// 2^level shadow rays per quadrature point towards rect lights.
     pub light_level: usize,
     pub link_epsilon: f64,
+    /// Keep the room's links in `.arlux-cache/` (see
+    /// [`crate::model::ModelSettings::cache_links`]).
+    pub cache_links: bool,
 }
 
 impl Default for TextureSettings {
@@ -85,6 +88,7 @@ impl Default for TextureSettings {
             max_rounds: 16,
             light_level: 4,
             link_epsilon: DEFAULT_LINK_EPSILON,
+            cache_links: false,
         }
     }
 }

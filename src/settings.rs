@@ -232,6 +232,7 @@ impl RenderOptions {
                 .reference_colour_threshold
                 .unwrap_or(t.reference_colour_threshold),
             min_leaf_pixels: self.min_leaf_pixels.unwrap_or(t.min_leaf_pixels),
+            cache_links: self.cache,
             ..t
         })
     }

@@ -544,4 +544,13 @@ fn a_second_render_of_the_room_reads_its_links_from_the_cache() {
     // Another mesh size is another entry.
     render("panel_off", "f.exr", &["--patch-size", "0.5"]);
     assert_eq!(entries().len(), 2, "{:?}", entries());
+    // The texture path's mesh, refined from the photo, is another again,
+    // read back the same way.
+    let texture = ["--method", "texture"];
+    let (cold, cold_image) = render("panel_off", "g.exr", &texture);
+    let (warm, warm_image) = render("panel_off", "h.exr", &texture);
+    assert!(cold.iter().any(|s| s == "form factors"), "{cold:?}");
+    assert!(warm.iter().any(|s| s == "links from the cache"), "{warm:?}");
+    assert!(cold_image == warm_image);
+    assert_eq!(entries().len(), 3, "{:?}", entries());
 }

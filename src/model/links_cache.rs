@@ -1,9 +1,8 @@
 //! The room's hierarchical links kept in `.arlux-cache/` next to the scene:
-//! they depend on the real surfaces, the camera's side of them, the patch
-//! size and ε only, not on the lights, the photo or the variant, so a
-//! second render of the same room (another light change, another object)
-//! reads them instead of refining again (about 10 s on `lounge`'s light
-//! changes).
+//! they depend on the real surfaces, their mesh and ε only, not on the
+//! lights or the variant, so a second render of the same room (another
+//! light change, another object) reads them instead of refining again
+//! (about 10 s on `lounge`'s light changes).
 //!
 //! A flat binary file rather than a serde format: 12 bytes per link and
 //! millions of links, read and checked in one pass.
@@ -17,16 +16,14 @@ use crate::util::cache::ContentHash;
 
 const FORMAT: &[u8; 8] = b"ARLXLNK1";
 
-/// The cache entry of `scene`'s room meshed at `patch_size` and refined to
-/// `epsilon`: one file per room and settings, whichever build wrote it.
-pub(super) fn entry(scene: &Scene, patch_size: f64, epsilon: f64) -> PathBuf {
+/// The cache entry of the links between `patches` (a mesh of `scene`'s
+/// real surfaces) refined to `epsilon`: named after the surfaces (what
+/// blocks light) and every element's corners, normal, sidedness and
+/// children (what is linked, and the indices the links hold).
+pub(super) fn entry(scene: &Scene, patches: &Patches, epsilon: f64) -> PathBuf {
     let mut hash = ContentHash::default();
     hash.feed(FORMAT);
-    hash.feed(&patch_size.to_le_bytes());
     hash.feed(&epsilon.to_le_bytes());
-    for c in scene.camera.position.to_array() {
-        hash.feed(&c.to_le_bytes());
-    }
     for (id, s) in scene.surfaces.iter().enumerate() {
         hash.feed(&(id as u64).to_le_bytes());
         hash.feed(&(s.triangles.len() as u64).to_le_bytes());
@@ -35,6 +32,18 @@ pub(super) fn entry(scene: &Scene, patch_size: f64, epsilon: f64) -> PathBuf {
                 hash.feed(&c.to_le_bytes());
             }
         }
+    }
+    for e in &patches.elements {
+        let corners = e.shape.corners();
+        for x in corners.iter().chain([&e.normal]) {
+            for c in x.to_array() {
+                hash.feed(&c.to_le_bytes());
+            }
+        }
+        let [c0, c1] = e.children.unwrap_or([u32::MAX; 2]);
+        hash.feed(&[corners.len() as u8, e.one_sided as u8]);
+        hash.feed(&c0.to_le_bytes());
+        hash.feed(&c1.to_le_bytes());
     }
     hash.entry(scene.dir(), "links", "bin")
 }

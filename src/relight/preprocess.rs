@@ -135,9 +135,14 @@ impl<'a> Setup<'a> {
                 self.settings.light_level,
             )
         });
-        let transport = times.time("form factors", || {
-            Transport::hierarchical(patches, tracer, Layer::Real, self.settings.link_epsilon)
-        });
+        let transport = crate::model::room_links(
+            self.scene,
+            patches,
+            tracer,
+            self.settings.link_epsilon,
+            self.settings.cache_links,
+            times,
+        );
         let measured = times.time("photo per patch", || {
             PhotoPatches::measure(&self.scene.camera, tracer, patches, self.photo)
         });
