@@ -553,4 +553,18 @@ fn a_second_render_of_the_room_reads_its_links_from_the_cache() {
     assert!(warm.iter().any(|s| s == "links from the cache"), "{warm:?}");
     assert!(cold_image == warm_image);
     assert_eq!(entries().len(), 3, "{:?}", entries());
+    // A folder keeps the four entries used last: older ones go when a new
+    // one is written.
+    let long_ago = std::time::UNIX_EPOCH + std::time::Duration::from_secs(1_000_000);
+    let stale: Vec<_> = (0..3)
+        .map(|i| cache.join(format!("links-{i:016x}.bin")))
+        .collect();
+    for path in &stale {
+        std::fs::write(path, b"old").unwrap();
+        let file = std::fs::File::options().write(true).open(path).unwrap();
+        file.set_modified(long_ago).unwrap();
+    }
+    render("panel_off", "i.exr", &["--patch-size", "0.35"]);
+    assert_eq!(entries().len(), 4, "{:?}", entries());
+    assert!(stale.iter().all(|p| !p.exists()), "{:?}", entries());
 }

@@ -16,6 +16,11 @@ use crate::util::cache::ContentHash;
 
 const FORMAT: &[u8; 8] = b"ARLXLNK1";
 
+/// Link entries kept per scene folder, the most recently used: a room
+/// edited again and again would otherwise leave one per version (52 MB
+/// each for `lounge`'s light changes).
+const KEPT: usize = 4;
+
 /// The cache entry of the links between `patches` (a mesh of `scene`'s
 /// real surfaces) refined to `epsilon`: named after the surfaces (what
 /// blocks light) and every element's corners, normal, sidedness and
@@ -74,6 +79,10 @@ pub(super) fn read(path: &Path, patches: &Patches) -> Option<Vec<Link>> {
         return None;
     }
     let n = patches.elements.len() as u32;
+    // Marked as used, so that pruning keeps it.
+    if let Ok(f) = std::fs::File::options().write(true).open(path) {
+        let _ = f.set_modified(std::time::SystemTime::now());
+    }
     let word = |c: &[u8], i: usize| u32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap());
     body.chunks_exact(12)
         .map(|c| {
@@ -108,5 +117,26 @@ pub(super) fn write(path: &Path, links: &[Link]) {
         .is_some_and(|d| std::fs::create_dir_all(d).is_ok())
     {
         let _ = crate::image_io::write_atomic(path, &bytes);
+        prune(path.parent().expect("checked above"));
+    }
+}
+
+/// Removes all but the [`KEPT`] most recently used link entries in `dir`.
+fn prune(dir: &Path) {
+    let Ok(listing) = std::fs::read_dir(dir) else {
+        return;
+    };
+    let mut entries: Vec<(std::time::SystemTime, PathBuf)> = listing
+        .flatten()
+        .filter(|e| {
+            let name = e.file_name();
+            let name = name.to_string_lossy();
+            name.starts_with("links-") && name.ends_with(".bin")
+        })
+        .filter_map(|e| Some((e.metadata().ok()?.modified().ok()?, e.path())))
+        .collect();
+    entries.sort_by_key(|e| std::cmp::Reverse(e.0));
+    for (_, old) in entries.into_iter().skip(KEPT) {
+        let _ = std::fs::remove_file(old);
     }
 }
