@@ -377,6 +377,14 @@ fn pause_for_tests() {
 /// Writes `bytes` to `path` through a temporary file in the same folder and
 /// a rename, so that `path` holds either its old content or the new, whole.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_atomic_with(path, |f| f.write_all(bytes))
+}
+
+/// [`write_atomic`], with `fill` writing the content (buffered) as it is made.
+pub fn write_atomic_with(
+    path: &Path,
+    fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<()> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
@@ -391,8 +399,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     ));
     crate::util::cleanup::register(&tmp);
     let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
+        let mut f = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+        fill(&mut f)?;
+        let f = f.into_inner().map_err(|e| e.into_error())?;
         f.sync_all()?;
         pause_for_tests();
         std::fs::rename(&tmp, path)

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{DESK, Desk, arlux, arlux_json};
+use common::{DESK, Desk, arlux, arlux_json, stage_names};
 use std::process::Command;
 
 #[test]
@@ -477,94 +477,4 @@ fn radiosity_recovers_a_light_marked_reconstruct_first() {
     // The model with the recovered spot explains the photo about as well as with the true one (0.0096).
     let rmse = report["comparison"]["rmse"].as_f64().unwrap();
     assert!(rmse < 0.012, "model against the photo {rmse}");
-}
-
-/// The names of a report's stages.
-fn stage_names(report: &serde_json::Value) -> Vec<String> {
-    report["stages"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s["stage"].as_str().unwrap().to_string())
-        .collect()
-}
-
-#[test]
-fn a_second_render_of_the_room_reads_its_links_from_the_cache() {
-    let desk = Desk::new();
-    let render = |variant: &str, out: &str, extra: &[&str]| {
-        let out = desk.path(out);
-        let mut args = vec![
-            "render",
-            &desk.scene(),
-            "--variant",
-            variant,
-            "-o",
-            out.to_str().unwrap(),
-            "--json",
-        ]
-        .into_iter()
-        .map(str::to_string)
-        .collect::<Vec<_>>();
-        args.extend(extra.iter().map(|a| a.to_string()));
-        let args: Vec<&str> = args.iter().map(String::as_str).collect();
-        let report = arlux_json(&args);
-        (stage_names(&report), std::fs::read(out).unwrap())
-    };
-    let cache = desk.path(".arlux-cache");
-    let entries = || -> Vec<std::path::PathBuf> {
-        std::fs::read_dir(&cache)
-            .map(|d| d.map(|e| e.unwrap().path()).collect())
-            .unwrap_or_default()
-    };
-    let (first, image) = render("panel_off", "a.exr", &["--no-cache"]);
-    assert!(first.iter().any(|s| s == "form factors"), "{first:?}");
-    assert!(entries().is_empty(), "--no-cache wrote {:?}", entries());
-    let (cold, cold_image) = render("panel_off", "b.exr", &[]);
-    assert!(cold.iter().any(|s| s == "form factors"), "{cold:?}");
-    assert_eq!(entries().len(), 1, "{:?}", entries());
-    // Another variant of the same room reads the links; the image is the
-    // one refinement gives, bit for bit.
-    let (warm, warm_image) = render("panel_off", "c.exr", &[]);
-    assert!(
-        warm.iter().any(|s| s == "links from the cache")
-            && !warm.iter().any(|s| s == "form factors"),
-        "{warm:?}"
-    );
-    assert!(image == cold_image && image == warm_image);
-    let (spot, _) = render("spot_x2", "d.exr", &[]);
-    assert!(spot.iter().any(|s| s == "links from the cache"), "{spot:?}");
-    // A damaged entry is refined again, and the image is still the same.
-    let entry = &entries()[0];
-    let bytes = std::fs::read(entry).unwrap();
-    std::fs::write(entry, &bytes[..bytes.len() - 5]).unwrap();
-    let (damaged, damaged_image) = render("panel_off", "e.exr", &[]);
-    assert!(damaged.iter().any(|s| s == "form factors"), "{damaged:?}");
-    assert!(damaged_image == image);
-    // Another mesh size is another entry.
-    render("panel_off", "f.exr", &["--patch-size", "0.5"]);
-    assert_eq!(entries().len(), 2, "{:?}", entries());
-    // The texture path's mesh, refined from the photo, is another again,
-    // read back the same way.
-    let texture = ["--method", "texture"];
-    let (cold, cold_image) = render("panel_off", "g.exr", &texture);
-    let (warm, warm_image) = render("panel_off", "h.exr", &texture);
-    assert!(cold.iter().any(|s| s == "form factors"), "{cold:?}");
-    assert!(warm.iter().any(|s| s == "links from the cache"), "{warm:?}");
-    assert!(cold_image == warm_image);
-    assert_eq!(entries().len(), 3, "{:?}", entries());
-    // A folder keeps the four entries used last: older ones go when a new
-    // one is written.
-    let long_ago = std::time::UNIX_EPOCH + std::time::Duration::from_secs(1_000_000);
-    let stale: Vec<_> = (0..3)
-        .map(|i| cache.join(format!("links-{i:016x}.bin")))
-        .collect();
-    for path in &stale {
-        std::fs::write(path, b"old").unwrap();
-        let file = std::fs::File::options().write(true).open(path).unwrap();
-        file.set_modified(long_ago).unwrap();
-    }
-    render("panel_off", "i.exr", &["--patch-size", "0.35"]);
-    assert_eq!(entries().len(), 4, "{:?}", entries());
-    assert!(stale.iter().all(|p| !p.exists()), "{:?}", entries());
 }

@@ -69,23 +69,30 @@ fn build_id() -> u64 {
 }
 
 /// The links stored at `path`, if this build wrote it whole and every link
-/// joins elements of `patches` with a finite, non-negative factor.
+/// joins elements of `patches` with a finite, non-negative factor. Read in
+/// blocks: the file's bytes are never held beside the links.
 pub(super) fn read(path: &Path, patches: &Patches) -> Option<Vec<Link>> {
-    let bytes = std::fs::read(path).ok()?;
-    let (head, body) = bytes.split_at_checked(24)?;
+    use std::io::Read;
+    let mut file = std::fs::File::open(path).ok()?;
+    let mut head = [0u8; 24];
+    file.read_exact(&mut head).ok()?;
     let number = |i: usize| u64::from_le_bytes(head[i..i + 8].try_into().unwrap());
-    let count = number(16) as usize;
-    if &head[..8] != FORMAT || number(8) != build_id() || body.len() != count.checked_mul(12)? {
+    let count = usize::try_from(number(16)).ok()?;
+    let size = file.metadata().ok()?.len();
+    if &head[..8] != FORMAT
+        || number(8) != build_id()
+        || Some(size) != (count as u64).checked_mul(12).map(|b| b + 24)
+    {
         return None;
     }
     let n = patches.elements.len() as u32;
-    // Marked as used, so that pruning keeps it.
-    if let Ok(f) = std::fs::File::options().write(true).open(path) {
-        let _ = f.set_modified(std::time::SystemTime::now());
-    }
     let word = |c: &[u8], i: usize| u32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap());
-    body.chunks_exact(12)
-        .map(|c| {
+    let mut links = Vec::with_capacity(count);
+    let mut block = vec![0u8; 12 * 8192];
+    while links.len() < count {
+        let take = 12 * (count - links.len()).min(8192);
+        file.read_exact(&mut block[..take]).ok()?;
+        for c in block[..take].chunks_exact(12) {
             let link = Link {
                 receiver: word(c, 0),
                 source: word(c, 1),
@@ -95,29 +102,33 @@ pub(super) fn read(path: &Path, patches: &Patches) -> Option<Vec<Link>> {
                 && link.source < n
                 && link.form_factor.is_finite()
                 && link.form_factor >= 0.0;
-            valid.then_some(link)
-        })
-        .collect()
+            links.push(valid.then_some(link)?);
+        }
+    }
+    // Marked as used, so that pruning keeps it.
+    let _ = file.set_modified(std::time::SystemTime::now());
+    Some(links)
 }
 
-/// Stores `links` at `path` (atomically; a cache that cannot be written is
-/// no error).
+/// Stores `links` at `path` (atomically, written as it is encoded; a cache
+/// that cannot be written is no error), then prunes the folder.
 pub(super) fn write(path: &Path, links: &[Link]) {
-    let mut bytes = Vec::with_capacity(24 + 12 * links.len());
-    bytes.extend_from_slice(FORMAT);
-    bytes.extend_from_slice(&build_id().to_le_bytes());
-    bytes.extend_from_slice(&(links.len() as u64).to_le_bytes());
-    for l in links {
-        bytes.extend_from_slice(&l.receiver.to_le_bytes());
-        bytes.extend_from_slice(&l.source.to_le_bytes());
-        bytes.extend_from_slice(&l.form_factor.to_bits().to_le_bytes());
-    }
-    if path
-        .parent()
-        .is_some_and(|d| std::fs::create_dir_all(d).is_ok())
-    {
-        let _ = crate::image_io::write_atomic(path, &bytes);
-        prune(path.parent().expect("checked above"));
+    let Some(dir) = path.parent().filter(|d| std::fs::create_dir_all(d).is_ok()) else {
+        return;
+    };
+    let written = crate::image_io::write_atomic_with(path, |f| {
+        f.write_all(FORMAT)?;
+        f.write_all(&build_id().to_le_bytes())?;
+        f.write_all(&(links.len() as u64).to_le_bytes())?;
+        for l in links {
+            f.write_all(&l.receiver.to_le_bytes())?;
+            f.write_all(&l.source.to_le_bytes())?;
+            f.write_all(&l.form_factor.to_bits().to_le_bytes())?;
+        }
+        Ok(())
+    });
+    if written.is_ok() {
+        prune(dir);
     }
 }
 

@@ -152,3 +152,14 @@ pub fn rendered(base: &Scene, variant: &str) -> (Image, Image, Image) {
     );
     (image, truth, photo)
 }
+
+/// The names of a report's stages.
+#[allow(dead_code)]
+pub fn stage_names(report: &serde_json::Value) -> Vec<String> {
+    report["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["stage"].as_str().unwrap().to_string())
+        .collect()
+}
