@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{Desk, arlux_json, stage_names};
+use common::{Desk, arlux_json, arlux_ok, stage_names};
 
 #[test]
 fn a_second_render_of_the_room_reads_its_links_from_the_cache() {
@@ -85,4 +85,38 @@ fn a_second_render_of_the_room_reads_its_links_from_the_cache() {
     render("panel_off", "i.exr", &["--patch-size", "0.35"]);
     assert_eq!(entries().len(), 4, "{:?}", entries());
     assert!(stale.iter().all(|p| !p.exists()), "{:?}", entries());
+}
+
+#[test]
+fn a_motion_s_first_pose_reads_the_room_s_links_from_the_cache() {
+    let desk = Desk::new();
+    let scene = desk.scene();
+    let run = |out: &str, extra: &[&str]| {
+        let dir = desk.path(out);
+        let dir_arg = dir.display().to_string();
+        let mut args = vec![
+            "--timings",
+            "motion",
+            &scene,
+            "--motion",
+            "box_slide",
+            "--frames",
+            "0..2",
+            "-o",
+            &dir_arg,
+        ];
+        args.extend_from_slice(extra);
+        let run = arlux_ok(&args);
+        let frames: Vec<Vec<u8>> = (0..2)
+            .map(|i| std::fs::read(dir.join(format!("box_slide_{i:03}.exr"))).unwrap())
+            .collect();
+        (String::from_utf8_lossy(&run.stderr).into_owned(), frames)
+    };
+    let (uncached, frames) = run("a", &["--no-cache"]);
+    assert!(!desk.path(".arlux-cache").exists(), "{uncached}");
+    let (cold, cold_frames) = run("b", &[]);
+    let (warm, warm_frames) = run("c", &[]);
+    assert!(!cold.contains("links from the cache"), "{cold}");
+    assert!(warm.contains("links from the cache"), "{warm}");
+    assert!(frames == cold_frames && frames == warm_frames);
 }

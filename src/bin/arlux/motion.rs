@@ -37,6 +37,10 @@ pub struct Args {
     /// layers `render` writes (a tenth to a fifth less work per update).
     #[arg(long)]
     pub image_only: bool,
+    /// Refine the room's links again rather than read them from
+    /// `.arlux-cache/` next to the scene (nor keep them there).
+    #[arg(long)]
+    pub no_cache: bool,
     #[arg(long)]
     pub json: bool,
 }
@@ -133,7 +137,17 @@ pub fn run(args: &Args) -> Result<()> {
     let first = base.with_motion_pose(name, poses.start)?;
     let photo = stage("read photo", || read_photo(&first))?;
     let mut times = StageTimes::default();
-    let mut session = Session::start(&first, &photo, &RenderSettings::default(), &mut times)?;
+    // Each shard of a farm starts with a full render of its first pose:
+    // all but the first read the room's links.
+    let defaults = RenderSettings::default();
+    let settings = RenderSettings {
+        model: arlux::model::ModelSettings {
+            cache_links: !args.no_cache,
+            ..defaults.model
+        },
+        ..defaults
+    };
+    let mut session = Session::start(&first, &photo, &settings, &mut times)?;
     session.prepare_updates(&mut times);
     if args.image_only {
         session.image_only();
