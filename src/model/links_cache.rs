@@ -55,17 +55,20 @@ pub(super) fn entry(scene: &Scene, patches: &Patches, epsilon: f64) -> PathBuf {
 
 /// The running program: its version, size and time of build. Another
 /// build may refine differently, and links it did not make must never be
-/// read as this one's.
-fn build_id() -> u64 {
+/// read as this one's: where the program's file cannot be read, nothing is
+/// kept or read.
+fn build_id() -> Option<u64> {
+    let exe = std::env::current_exe().ok()?.metadata().ok()?;
+    let built = exe
+        .modified()
+        .ok()?
+        .duration_since(std::time::UNIX_EPOCH)
+        .ok()?;
     let mut hash = ContentHash::default();
     hash.feed(env!("CARGO_PKG_VERSION").as_bytes());
-    if let Some(exe) = std::env::current_exe().ok().and_then(|e| e.metadata().ok()) {
-        hash.feed(&exe.len().to_le_bytes());
-        let built = exe.modified().ok();
-        let since = built.and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
-        hash.feed(&since.unwrap_or_default().as_nanos().to_le_bytes());
-    }
-    hash.value()
+    hash.feed(&exe.len().to_le_bytes());
+    hash.feed(&built.as_nanos().to_le_bytes());
+    Some(hash.value())
 }
 
 /// The links stored at `path`, if this build wrote it whole and every link
@@ -80,7 +83,7 @@ pub(super) fn read(path: &Path, patches: &Patches) -> Option<Vec<Link>> {
     let count = usize::try_from(number(16)).ok()?;
     let size = file.metadata().ok()?.len();
     if &head[..8] != FORMAT
-        || number(8) != build_id()
+        || Some(number(8)) != build_id()
         || Some(size) != (count as u64).checked_mul(12).map(|b| b + 24)
     {
         return None;
@@ -113,12 +116,15 @@ pub(super) fn read(path: &Path, patches: &Patches) -> Option<Vec<Link>> {
 /// Stores `links` at `path` (atomically, written as it is encoded; a cache
 /// that cannot be written is no error), then prunes the folder.
 pub(super) fn write(path: &Path, links: &[Link]) {
+    let Some(build) = build_id() else {
+        return;
+    };
     let Some(dir) = path.parent().filter(|d| std::fs::create_dir_all(d).is_ok()) else {
         return;
     };
     let written = crate::image_io::write_atomic_with(path, |f| {
         f.write_all(FORMAT)?;
-        f.write_all(&build_id().to_le_bytes())?;
+        f.write_all(&build.to_le_bytes())?;
         f.write_all(&(links.len() as u64).to_le_bytes())?;
         for l in links {
             f.write_all(&l.receiver.to_le_bytes())?;

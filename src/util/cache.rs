@@ -1,8 +1,8 @@
 //! The caches arlux keeps next to a scene (`.arlux-cache/`): a merged HDR
-//! photo, a recovered goniometric, a brackets' scale, the room's links. Each entry is named
-//! after a hash of everything it was made from, so a changed input is a new
-//! entry and a stale one is never read. A cache is a convenience: failing
-//! to write one is not an error.
+//! photo, a recovered goniometric, a brackets' scale, the room's links.
+//! Each entry is named after a hash of everything it was made from, so a
+//! changed input is a new entry and a stale one is never read. A cache is
+//! a convenience: failing to write one is not an error.
 
 use std::path::{Path, PathBuf};
 
