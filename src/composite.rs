@@ -57,6 +57,9 @@ pub struct CompositeInput<'a> {
     /// Every real point's composite as prepared before (see
     /// [`RealPixels`]), kept between updates; None: prepared here.
     pub known: Option<&'a RealPixels>,
+    /// Objects with materials, shaded per pixel by their BRDF (None: every
+    /// object is diffuse clay, `reflectance × (E + H) / π`).
+    pub objects: Option<&'a crate::object_shading::ObjectShading<'a>>,
     /// Fill the direct, indirect and change layers too; without them the
     /// composite holds them empty (a motion writes its images only, and
     /// filling them is a tenth to a fifth of an update's composite).
@@ -178,11 +181,15 @@ impl CompositeInput<'_> {
         }
     }
 
-    fn shade_virtual(&self, p: &SurfacePoint, terms: &[LightTerm]) -> Shade {
+    /// A virtual point's shade; `share`: the fraction of its pixel it stands for.
+    fn shade_virtual(&self, p: &SurfacePoint, terms: &[LightTerm], share: f64) -> Shade {
         let e_w = self.irradiance(terms, self.scales_with, true);
         let h_w = self.interpolate(self.indirect_with, &p.location);
         let rho = self.reflectance[p.location.patch as usize];
-        let value = rho * (e_w + h_w) / std::f64::consts::PI;
+        let value = self
+            .objects
+            .and_then(|o| o.radiance(p, share))
+            .unwrap_or_else(|| rho * (e_w + h_w) / std::f64::consts::PI);
         Shade {
             value,
             direct: e_w,

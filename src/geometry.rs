@@ -11,6 +11,8 @@ use glam::{DVec3, Vec3};
 use crate::error::{Error, Result};
 
 mod formats;
+mod gltf_material;
+mod obj_material;
 pub use formats::load_mesh;
 
 /// A triangle's three corners, in metres.
@@ -23,6 +25,11 @@ pub struct MeshSurface {
     pub triangles: Vec<Triangle>,
     /// The diffuse colour (`Kd`) of the group's material, when the OBJ has one.
     pub material_rgb: Option<Vec3>,
+    /// A material with more than a diffuse colour (any glTF material; an
+    /// OBJ material with `Ks`, `Ns`, `Pr`, `Pm` or `map_Kd`).
+    pub material: Option<std::sync::Arc<crate::materials::Material>>,
+    /// Per-triangle normals and texture coordinates, aligned with `triangles`.
+    pub attributes: crate::materials::Attributes,
 }
 
 /// The surfaces of one OBJ file, in order of first appearance.
@@ -32,8 +39,12 @@ pub struct Mesh {
     /// Triangles dropped because they had zero area or non-finite corners.
     pub dropped_triangles: usize,
     /// Materials the surfaces use whose texture (`map_Kd`) or specular part
-    /// (`Ks` above 0) arlux does not use, by name.
+    /// (`Ks` above 0) a real surface does not use, by name.
     pub unused_material_parts: Vec<String>,
+    /// What the file's materials ask that arlux reads but cannot honour
+    /// (glTF extensions such as transmission or clearcoat, a second set of
+    /// texture coordinates, …), each once, by name.
+    pub unsupported: Vec<String>,
 }
 
 impl Mesh {
@@ -403,6 +414,7 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
     let mut surfaces: Vec<MeshSurface> = Vec::new();
     let mut dropped = 0;
     let mut unused: Vec<String> = Vec::new();
+    let mut pbr = obj_material::ObjMaterials::new(&dir, &materials);
     for model in &models {
         let m = &model.mesh;
         let corner = |i: u32| -> Vec3 {
@@ -410,12 +422,14 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
             Vec3::new(m.positions[i], m.positions[i + 1], m.positions[i + 2])
         };
         let mut triangles = Vec::with_capacity(m.indices.len() / 3);
-        for f in m.indices.chunks_exact(3) {
+        let mut attributes = crate::materials::Attributes::default();
+        for (k, f) in m.indices.chunks_exact(3).enumerate() {
             let t = [corner(f[0]), corner(f[1]), corner(f[2])];
             if is_degenerate(&t) {
                 dropped += 1;
             } else {
                 triangles.push(t);
+                obj_material::push_attributes(m, k, &mut attributes);
             }
         }
         let material = m.material_id.and_then(|id| materials.get(id));
@@ -426,15 +440,20 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
             }
         }
         let kd = material.and_then(|mat| mat.diffuse).map(Vec3::from_array);
+        let full = m.material_id.map(|id| pbr.get(id)).transpose()?.flatten();
         match surfaces.iter_mut().find(|s| s.name == model.name) {
             Some(s) => {
                 s.triangles.extend(triangles);
                 s.material_rgb = s.material_rgb.or(kd);
+                s.material = s.material.clone().or(full);
+                s.attributes.append(attributes, s.triangles.len());
             }
             None => surfaces.push(MeshSurface {
                 name: model.name.clone(),
                 triangles,
                 material_rgb: kd,
+                material: full,
+                attributes,
             }),
         }
     }
@@ -451,6 +470,7 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
         surfaces,
         dropped_triangles: dropped,
         unused_material_parts: unused,
+        unsupported: pbr.unsupported(),
     })
 }
 

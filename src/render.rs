@@ -14,6 +14,7 @@ use crate::error::Result;
 use crate::image_io::Image;
 use crate::lamps::LampPixels;
 use crate::model::{Model, ModelSettings, StageTimes, TransportMethod};
+use crate::object_shading::ObjectShading;
 
 use crate::inputs::{fine_patch_size, lamps_in_view, resolve_inputs, room_diagonal};
 pub use crate::output::RenderOutput;
@@ -55,6 +56,8 @@ pub struct RenderSettings {
     /// noise), at 4 ms against 7 and 27; 64 and 16 lose up to 3% and 20%.
     /// Vertices on faces turned from the camera take a quarter of them.
     pub gather_rays: u32,
+    /// Samples of the objects that have materials ([`crate::object_shading`]).
+    pub shading: crate::object_shading::ShadingSettings,
 }
 
 impl Default for RenderSettings {
@@ -66,6 +69,7 @@ impl Default for RenderSettings {
             pda: PdaSettings::default(),
             mode: CompositeMode::Ratio,
             gather_rays: 144,
+            shading: crate::object_shading::ShadingSettings::default(),
         }
     }
 }
@@ -403,8 +407,24 @@ impl Session {
             .map_or(&self.model.patches, |o| &o.0);
         let known = self.known.take();
         let mut out = std::mem::replace(&mut self.composite, crate::composite::Composite::empty());
+        let materials = crate::object_shading::ObjectMaterials::of(&self.scene);
+        let shading = ObjectShading {
+            materials: &materials,
+            tracer: &self.tracer,
+            camera: &self.scene.camera,
+            photo: &self.photo,
+            lights: &self.model.lights,
+            scales_with: &self.scales_with,
+            scales_without: &self.scales_without,
+            patches,
+            indirect_with: &self.changes.indirect_with,
+            indirect_without: &self.indirect_without,
+            reflectance: &self.changes.reflectance,
+            settings: self.settings.shading,
+        };
         let known = times.time("composite", || {
             let input = CompositeInput {
+                objects: (!materials.is_empty()).then_some(&shading),
                 pda: &self.pda,
                 photo: &self.photo,
                 photo_base: self.photo_base.as_ref(),

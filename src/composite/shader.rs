@@ -91,7 +91,8 @@ impl<'a> Shader<'a> {
             };
             let s = if p.is_virtual {
                 virtual_count += 1;
-                let s = input.shade_virtual(p, terms);
+                let share = 1.0 / (pda.supersample * pda.supersample) as f64;
+                let s = input.shade_virtual(p, terms, share);
                 object += s.value;
                 s
             } else {
@@ -136,6 +137,7 @@ impl<'a> Shader<'a> {
             let s = self.input.shade_virtual(
                 &pda.virtual_samples.points[k],
                 &pda.virtual_samples.terms[k * lights..(k + 1) * lights],
+                1.0,
             );
             let object = s.value;
             return (s, 1.0, object);

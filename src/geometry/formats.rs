@@ -4,10 +4,11 @@
 
 use std::path::Path;
 
-use glam::{DMat4, Vec3};
+use glam::{DMat4, Vec2, Vec3, Vec4};
 
 use super::{MAX_COORDINATE, Mesh, MeshSurface, Triangle, is_degenerate};
 use crate::error::{Error, Result};
+use crate::materials::Attributes;
 
 /// Loads a mesh by its file's extension: `.obj`, `.gltf`/`.glb`, `.ply`.
 pub fn load_mesh(path: &Path) -> Result<Mesh> {
@@ -33,7 +34,8 @@ struct Collect {
 }
 
 impl Collect {
-    fn keep(&mut self, path: &Path, t: Triangle, out: &mut Vec<Triangle>) -> Result<()> {
+    /// Keeps `t` unless degenerate; returns whether it was kept.
+    fn keep(&mut self, path: &Path, t: Triangle, out: &mut Vec<Triangle>) -> Result<bool> {
         if let Some(far) = t
             .iter()
             .flat_map(|p| p.to_array())
@@ -48,10 +50,11 @@ impl Collect {
         }
         if is_degenerate(&t) {
             self.dropped += 1;
+            Ok(false)
         } else {
             out.push(t);
+            Ok(true)
         }
-        Ok(())
     }
 }
 
@@ -110,6 +113,7 @@ fn read_gltf(path: &Path) -> Result<Mesh> {
         .ok_or_else(|| Error::file(path, "no scene"))?;
     let mut surfaces: Vec<MeshSurface> = Vec::new();
     let mut collect = Collect { dropped: 0 };
+    let mut materials = super::gltf_material::GltfMaterials::new(path, &doc, &buffers);
     // Depth first in document order: the surfaces come in the order the file lists them.
     let mut stack: Vec<(gltf::Node, DMat4)> = scene.nodes().map(|n| (n, DMat4::IDENTITY)).collect();
     stack.reverse();
@@ -131,30 +135,54 @@ fn read_gltf(path: &Path) -> Result<Mesh> {
             .name()
             .or(mesh.name())
             .map_or_else(|| format!("mesh{}", mesh.index()), str::to_string);
-        let mut triangles = Vec::new();
-        let mut rgb = None;
+        // One surface per material the node's primitives use (named by
+        // the node alone when it uses one).
+        let mut parts: Vec<(Option<usize>, MeshSurface)> = Vec::new();
         for prim in mesh.primitives() {
             if prim.mode() != gltf::mesh::Mode::Triangles {
                 continue;
             }
+            let key = prim.material().index();
+            let at = match parts.iter().position(|(k, _)| *k == key) {
+                Some(i) => i,
+                None => {
+                    let c = prim.material().pbr_metallic_roughness().base_color_factor();
+                    parts.push((
+                        key,
+                        MeshSurface {
+                            name: name.clone(),
+                            triangles: Vec::new(),
+                            material_rgb: Some(Vec3::new(c[0], c[1], c[2])),
+                            material: Some(materials.get(prim.material())?),
+                            attributes: Attributes::default(),
+                        },
+                    ));
+                    parts.len() - 1
+                }
+            };
             let placed = Placed {
                 path,
                 name: &name,
                 world,
             };
-            placed.triangles(&prim, &buffers, &mut collect, &mut triangles)?;
-            let c = prim.material().pbr_metallic_roughness().base_color_factor();
-            rgb = rgb.or(Some(Vec3::new(c[0], c[1], c[2])));
+            let s = &mut parts[at].1;
+            placed.triangles(&prim, &buffers, &mut collect, s)?;
         }
-        if !triangles.is_empty() {
-            surfaces.push(MeshSurface {
-                name,
-                triangles,
-                material_rgb: rgb,
-            });
+        let several = parts.len() > 1;
+        for (_, mut s) in parts {
+            if several {
+                let m = s.material.as_ref().map_or("default", |m| m.name.as_str());
+                s.name = format!("{}.{m}", s.name);
+            }
+            if !s.triangles.is_empty() {
+                surfaces.push(s);
+            }
         }
     }
-    finish(path, surfaces, collect.dropped)
+    let unsupported = materials.unsupported();
+    let mut mesh = finish(path, surfaces, collect.dropped)?;
+    mesh.unsupported = unsupported;
+    Ok(mesh)
 }
 
 /// A glTF mesh node: its file, name and world transform.
@@ -171,7 +199,7 @@ impl Placed<'_> {
         prim: &gltf::Primitive,
         buffers: &[gltf::buffer::Data],
         collect: &mut Collect,
-        triangles: &mut Vec<Triangle>,
+        out: &mut MeshSurface,
     ) -> Result<()> {
         let (path, name, world) = (self.path, self.name, self.world);
         // The crate's readers assume these types (and panic otherwise).
@@ -212,6 +240,7 @@ impl Placed<'_> {
             Some(i) => i.into_u32().map(|i| i as usize).collect(),
             None => (0..points.len()).collect(),
         };
+        let vertex = VertexAttributes::read(&reader, world, points.len());
         for t in indices.chunks_exact(3) {
             let corner = |i: usize| {
                 points.get(i).copied().ok_or_else(|| {
@@ -224,13 +253,88 @@ impl Placed<'_> {
                     )
                 })
             };
-            collect.keep(
-                path,
-                [corner(t[0])?, corner(t[1])?, corner(t[2])?],
-                triangles,
-            )?;
+            let tri = [corner(t[0])?, corner(t[1])?, corner(t[2])?];
+            if collect.keep(path, tri, &mut out.triangles)? {
+                vertex.push([t[0], t[1], t[2]], &mut out.attributes);
+            }
         }
+        // A primitive without an attribute its siblings have: the surface
+        // goes without it (flat, untextured) rather than misaligned.
+        let (n, a) = (out.triangles.len(), &mut out.attributes);
+        a.normals.truncate(if a.normals.len() == n { n } else { 0 });
+        a.uvs.truncate(if a.uvs.len() == n { n } else { 0 });
+        a.tangents
+            .truncate(if a.tangents.len() == n { n } else { 0 });
         Ok(())
+    }
+}
+
+/// A primitive's per-vertex normals, texture coordinates and tangents,
+/// placed in the world (each list empty when the file has none, or too few).
+struct VertexAttributes {
+    normals: Vec<Vec3>,
+    uvs: Vec<Vec2>,
+    tangents: Vec<Vec4>,
+}
+
+impl VertexAttributes {
+    fn read<'a, 's, F>(reader: &gltf::mesh::Reader<'a, 's, F>, world: DMat4, count: usize) -> Self
+    where
+        F: Clone + Fn(gltf::Buffer<'a>) -> Option<&'s [u8]>,
+    {
+        let linear = glam::DMat3::from_mat4(world);
+        let normal_matrix = linear.inverse().transpose();
+        let full = |n: usize| n == count;
+        let normals: Vec<Vec3> = reader
+            .read_normals()
+            .map(|n| {
+                n.map(|n| {
+                    (normal_matrix * Vec3::from_array(n).as_dvec3())
+                        .normalize_or_zero()
+                        .as_vec3()
+                })
+                .collect()
+            })
+            .unwrap_or_default();
+        let uvs: Vec<Vec2> = reader
+            .read_tex_coords(0)
+            .map(|t| t.into_f32().map(Vec2::from_array).collect())
+            .unwrap_or_default();
+        let tangents: Vec<Vec4> = reader
+            .read_tangents()
+            .map(|t| {
+                t.map(|t| {
+                    let xyz = (linear * Vec3::new(t[0], t[1], t[2]).as_dvec3()).normalize_or_zero();
+                    xyz.as_vec3().extend(t[3])
+                })
+                .collect()
+            })
+            .unwrap_or_default();
+        VertexAttributes {
+            normals: if full(normals.len()) {
+                normals
+            } else {
+                Vec::new()
+            },
+            uvs: if full(uvs.len()) { uvs } else { Vec::new() },
+            tangents: if full(tangents.len()) {
+                tangents
+            } else {
+                Vec::new()
+            },
+        }
+    }
+
+    fn push(&self, t: [usize; 3], out: &mut Attributes) {
+        if !self.normals.is_empty() {
+            out.normals.push(t.map(|i| self.normals[i]));
+        }
+        if !self.uvs.is_empty() {
+            out.uvs.push(t.map(|i| self.uvs[i]));
+        }
+        if !self.tangents.is_empty() {
+            out.tangents.push(t.map(|i| self.tangents[i]));
+        }
     }
 }
 
@@ -301,6 +405,8 @@ fn load_ply(path: &Path) -> Result<Mesh> {
         name,
         triangles,
         material_rgb: None,
+        material: None,
+        attributes: Attributes::default(),
     }];
     finish(path, surfaces, collect.dropped)
 }
@@ -317,5 +423,6 @@ fn finish(path: &Path, mut surfaces: Vec<MeshSurface>, dropped: usize) -> Result
         surfaces,
         dropped_triangles: dropped,
         unused_material_parts: Vec::new(),
+        unsupported: Vec::new(),
     })
 }

@@ -38,7 +38,7 @@ fn within_reach(object: &VirtualObject, pose: &Pose) -> std::result::Result<(), 
 
 /// What a mesh held that arlux leaves out: degenerate triangles, and
 /// material parts it does not use (said once per file).
-fn mesh_warnings(path: &Path, mesh: &geometry::Mesh) -> Vec<String> {
+fn mesh_warnings(path: &Path, mesh: &geometry::Mesh, is_virtual: bool) -> Vec<String> {
     let mut out = Vec::new();
     if mesh.dropped_triangles > 0 {
         out.push(format!(
@@ -47,7 +47,14 @@ fn mesh_warnings(path: &Path, mesh: &geometry::Mesh) -> Vec<String> {
             mesh.dropped_triangles
         ));
     }
-    if !mesh.unused_material_parts.is_empty() {
+    if is_virtual && !mesh.unsupported.is_empty() {
+        out.push(format!(
+            "{}: read but not honoured: {}",
+            path.display(),
+            mesh.unsupported.join("; ")
+        ));
+    }
+    if !is_virtual && !mesh.unused_material_parts.is_empty() {
         out.push(format!(
             "{}: material {} has a texture (map_Kd) or a specular part (Ks) that arlux does not use: each surface is diffuse with its Kd (or the scene's rgb), and the photo carries the texture",
             path.display(),
@@ -55,6 +62,14 @@ fn mesh_warnings(path: &Path, mesh: &geometry::Mesh) -> Vec<String> {
         ));
     }
     out
+}
+
+/// An optional key whose value lies in [0, 1].
+fn unit_interval(v: &Fields, key: &'static str) -> Result<Option<f64>> {
+    match v.opt_f64(key)? {
+        Some(x) if !(0.0..=1.0).contains(&x) => Err(v.error(key, "lies in [0, 1]")),
+        x => Ok(x),
+    }
 }
 
 pub(super) fn list(names: &[&str]) -> String {
@@ -193,7 +208,7 @@ impl Loader<'_> {
             r.finish()?;
             let mesh =
                 geometry::load_mesh(&path).map_err(|e| e.within(self.file, r.key_path("mesh")))?;
-            warnings.extend(mesh_warnings(&path, &mesh));
+            warnings.extend(mesh_warnings(&path, &mesh, false));
             for s in mesh.surfaces {
                 if let Some(other) = surfaces.iter().find(|o| o.name == s.name) {
                     return Err(r.error(
@@ -534,16 +549,23 @@ impl Loader<'_> {
             scale: 1.0,
         });
         let enabled = v.opt_bool("enabled")?.unwrap_or(true);
+        let looks = super::materials::Overrides {
+            metallic: unit_interval(v, "metallic")?,
+            roughness: unit_interval(v, "roughness")?,
+        };
         v.finish()?;
         let mesh =
             geometry::load_mesh(&path).map_err(|e| e.within(self.file, v.key_path("mesh")))?;
-        warnings.extend(mesh_warnings(&path, &mesh));
+        warnings.extend(mesh_warnings(&path, &mesh, true));
         let mut surfaces = Vec::new();
         for s in mesh.surfaces {
-            let rgb = match (rgb, s.material_rgb) {
-                (Some(rgb), _) => rgb,
-                (None, Some(kd)) => kd.as_dvec3().clamp(DVec3::ZERO, DVec3::ONE),
-                (None, None) => {
+            let material = super::materials::surface_material(&s, rgb, looks)
+                .map_err(|m| v.error("rgb", m))?;
+            let rgb = match (&material, rgb, s.material_rgb) {
+                (Some(m), _, _) => m.material.mean_albedo(),
+                (None, Some(rgb), _) => rgb,
+                (None, None, Some(kd)) => kd.as_dvec3().clamp(DVec3::ZERO, DVec3::ONE),
+                (None, None, None) => {
                     return Err(v.error(
                         "rgb",
                         format!(
@@ -558,6 +580,7 @@ impl Loader<'_> {
                 name: s.name,
                 triangles: s.triangles,
                 rgb,
+                material,
             });
         }
         let object = VirtualObject {

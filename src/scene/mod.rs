@@ -9,6 +9,7 @@
 pub mod calibration;
 mod fields;
 mod loader;
+mod materials;
 mod placement;
 
 use std::collections::HashMap;
@@ -218,8 +219,11 @@ impl Pose {
 pub struct ObjectSurface {
     pub name: String,
     pub triangles: Vec<Triangle>,
-    /// Diffuse reflectance: the scene's `rgb`, else the OBJ material's Kd.
+    /// Diffuse reflectance as radiosity exchanges light: the scene's `rgb`,
+    /// else the OBJ material's Kd; with a material, its mean hemispherical albedo.
     pub rgb: DVec3,
+    /// The material its pixels are shaded with (None: diffuse `rgb`).
+    pub material: Option<crate::materials::SurfaceMaterial>,
 }
 
 #[derive(Debug, Clone)]

@@ -1,0 +1,199 @@
+//! Materials of virtual objects: glTF 2.0 metallic-roughness (base colour,
+//! metallic, roughness, their textures, a normal texture, emission, alpha
+//! MASK, double-sidedness) and the per-vertex attributes shading needs
+//! (smooth normals, texture coordinates, tangents). [`brdf`] holds the BRDF;
+//! [`texture`] the textures. The mesh readers fill these; the object
+//! shader ([`crate::object_shading`]) evaluates them per pixel.
+
+use std::sync::Arc;
+
+use glam::{DVec3, Vec2, Vec3, Vec4};
+
+pub mod brdf;
+pub mod texture;
+
+pub use brdf::Lobes;
+pub use texture::Texture;
+
+/// A glTF 2.0 metallic-roughness material (factors times textures).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Material {
+    pub name: String,
+    /// Linear RGBA base colour factor.
+    pub base_colour: Vec4,
+    /// sRGB-decoded base colour texture (alpha linear).
+    pub base_texture: Option<Arc<Texture>>,
+    pub metallic: f32,
+    pub roughness: f32,
+    /// glTF's metallicRoughnessTexture: roughness in G, metallic in B (linear).
+    pub metallic_roughness_texture: Option<Arc<Texture>>,
+    /// Tangent-space normal texture and its scale.
+    pub normal_texture: Option<(Arc<Texture>, f32)>,
+    /// Linear emitted radiance factor, and its sRGB texture.
+    pub emissive: Vec3,
+    pub emissive_texture: Option<Arc<Texture>>,
+    /// alphaMode MASK: texels whose alpha is below this are holes.
+    pub alpha_cutoff: Option<f32>,
+    pub double_sided: bool,
+}
+
+impl Material {
+    /// A material of one colour, no textures.
+    pub fn plain(name: &str, base: Vec3, metallic: f32, roughness: f32) -> Material {
+        Material {
+            name: name.to_string(),
+            base_colour: base.extend(1.0),
+            base_texture: None,
+            metallic: metallic.clamp(0.0, 1.0),
+            roughness: roughness.clamp(0.0, 1.0),
+            metallic_roughness_texture: None,
+            normal_texture: None,
+            emissive: Vec3::ZERO,
+            emissive_texture: None,
+            alpha_cutoff: None,
+            double_sided: false,
+        }
+    }
+
+    /// The material at texture coordinate `uv`, over a pixel footprint
+    /// `footprint` wide in texture coordinates (selects the mip level).
+    pub fn at(&self, uv: Vec2, footprint: f32) -> PointMaterial {
+        let texels = |t: &Texture| footprint * t.size().0.max(t.size().1) as f32;
+        let base = match &self.base_texture {
+            Some(t) => self.base_colour * t.sample(uv, texels(t)),
+            None => self.base_colour,
+        };
+        let (mut metallic, mut roughness) = (self.metallic, self.roughness);
+        if let Some(t) = &self.metallic_roughness_texture {
+            let s = t.sample(uv, texels(t));
+            roughness *= s.y;
+            metallic *= s.z;
+        }
+        let emissive = match &self.emissive_texture {
+            Some(t) => self.emissive * t.sample(uv, texels(t)).truncate(),
+            None => self.emissive,
+        };
+        let normal = self.normal_texture.as_ref().map(|(t, scale)| {
+            let s = t.sample(uv, texels(t));
+            let n = Vec3::new(
+                (2.0 * s.x - 1.0) * scale,
+                (2.0 * s.y - 1.0) * scale,
+                2.0 * s.z - 1.0,
+            );
+            n.normalize_or(Vec3::Z)
+        });
+        PointMaterial {
+            lobes: Lobes {
+                base: base.truncate().as_dvec3().clamp(DVec3::ZERO, DVec3::ONE),
+                metallic: metallic.clamp(0.0, 1.0) as f64,
+                roughness: roughness.clamp(0.0, 1.0) as f64,
+            },
+            emissive: emissive.as_dvec3().max(DVec3::ZERO),
+            opaque: self.alpha_cutoff.is_none_or(|c| base.w >= c),
+            tangent_normal: normal,
+        }
+    }
+
+    /// The mean colour and albedo a diffuse exchange of light sees: the base
+    /// colour's mean over its texture, through [`brdf::hemispherical_albedo`].
+    pub fn mean_albedo(&self) -> DVec3 {
+        let base = match &self.base_texture {
+            Some(t) => self.base_colour * t.mean(),
+            None => self.base_colour,
+        };
+        let (mut metallic, mut roughness) = (self.metallic, self.roughness);
+        if let Some(t) = &self.metallic_roughness_texture {
+            let m = t.mean();
+            roughness *= m.y;
+            metallic *= m.z;
+        }
+        brdf::hemispherical_albedo(&Lobes {
+            base: base.truncate().as_dvec3().clamp(DVec3::ZERO, DVec3::ONE),
+            metallic: metallic.clamp(0.0, 1.0) as f64,
+            roughness: roughness.clamp(0.0, 1.0) as f64,
+        })
+        .clamp(DVec3::ZERO, DVec3::ONE)
+    }
+
+    /// One line for `arlux info`.
+    pub fn describe(&self) -> String {
+        let c = self.base_colour;
+        let mut s = format!(
+            "'{}': base [{:.3}, {:.3}, {:.3}], metallic {:.2}, roughness {:.2}",
+            self.name, c.x, c.y, c.z, self.metallic, self.roughness
+        );
+        for (has, what) in [
+            (self.base_texture.is_some(), "base colour texture"),
+            (
+                self.metallic_roughness_texture.is_some(),
+                "metallic-roughness texture",
+            ),
+            (self.normal_texture.is_some(), "normal texture"),
+            (self.emissive != Vec3::ZERO, "emission"),
+            (self.alpha_cutoff.is_some(), "alpha mask"),
+            (self.double_sided, "double-sided"),
+        ] {
+            if has {
+                s.push_str(", ");
+                s.push_str(what);
+            }
+        }
+        s
+    }
+}
+
+/// A material evaluated at one point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PointMaterial {
+    pub lobes: Lobes,
+    pub emissive: DVec3,
+    /// False where an alpha MASK cuts the surface away.
+    pub opaque: bool,
+    /// The normal texture's normal in tangent space (z along the surface normal).
+    pub tangent_normal: Option<Vec3>,
+}
+
+/// Per-triangle shading attributes of a surface, aligned with its
+/// triangles; an empty list means the file has none (flat normals, no
+/// texture coordinates, tangents from MikkTSpace where a normal texture needs them).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Attributes {
+    pub normals: Vec<[Vec3; 3]>,
+    pub uvs: Vec<[Vec2; 3]>,
+    /// xyz the tangent, w the bitangent's sign (glTF's TANGENT).
+    pub tangents: Vec<[Vec4; 3]>,
+}
+
+impl Attributes {
+    /// Whether the lists hold one entry per triangle of `count` (or none).
+    pub fn fits(&self, count: usize) -> bool {
+        [self.normals.len(), self.uvs.len(), self.tangents.len()]
+            .iter()
+            .all(|&n| n == 0 || n == count)
+    }
+
+    /// Appends `more` (for triangles appended to a surface that now has
+    /// `count` of them): a list one part has and the other lacks is
+    /// dropped for the whole surface (flat, untextured), never misaligned.
+    pub fn append(&mut self, more: Attributes, count: usize) {
+        fn join<T>(a: &mut Vec<T>, b: Vec<T>, count: usize) {
+            a.extend(b);
+            if a.len() != count {
+                a.clear();
+            }
+        }
+        join(&mut self.normals, more.normals, count);
+        join(&mut self.uvs, more.uvs, count);
+        join(&mut self.tangents, more.tangents, count);
+    }
+}
+
+/// A virtual surface's material and attributes, as the object shader reads them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SurfaceMaterial {
+    pub material: Arc<Material>,
+    pub attributes: Arc<Attributes>,
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,153 @@
+//! A material's texture: linear RGBA levels of a mip chain, sampled
+//! bilinearly within a level and linearly between levels (trilinear), with
+//! glTF's conventions: (0, 0) is the image's top-left corner, texel centres
+//! at ((i + ½)/W, (j + ½)/H), repeat wrapping.
+//!
+//! Written here rather than taken from a crate: the image crates resize
+//! whole images; none samples a mip chain at a point, which is all this is.
+
+use glam::{Vec2, Vec4};
+
+/// One mip level.
+#[derive(Debug, Clone, PartialEq)]
+struct Level {
+    width: u32,
+    height: u32,
+    texels: Vec<Vec4>,
+}
+
+/// A texture ready to sample.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Texture {
+    levels: Vec<Level>,
+}
+
+/// The sRGB transfer function's inverse (IEC 61966-2-1), exact.
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+impl Texture {
+    /// A texture from 8-bit texels with `channels` per texel (1 to 4, in
+    /// R, G, B, A order; missing ones as glTF reads them: grey, opaque).
+    /// `srgb`: colour channels are sRGB-encoded and decoded here, before
+    /// any filtering (alpha stays linear). None for an empty or short image.
+    pub fn from_u8(
+        width: u32,
+        height: u32,
+        channels: usize,
+        data: &[u8],
+        srgb: bool,
+    ) -> Option<Texture> {
+        let n = width as usize * height as usize;
+        if n == 0 || !(1..=4).contains(&channels) || data.len() < n * channels {
+            return None;
+        }
+        let decode = |c: u8, colour: bool| {
+            let x = c as f32 / 255.0;
+            if srgb && colour { srgb_to_linear(x) } else { x }
+        };
+        let texels = data
+            .chunks_exact(channels)
+            .take(n)
+            .map(|t| {
+                let c = |i: usize| decode(t[i], true);
+                match channels {
+                    1 => Vec4::new(c(0), c(0), c(0), 1.0),
+                    2 => Vec4::new(c(0), c(0), c(0), decode(t[1], false)),
+                    3 => Vec4::new(c(0), c(1), c(2), 1.0),
+                    _ => Vec4::new(c(0), c(1), c(2), decode(t[3], false)),
+                }
+            })
+            .collect();
+        Some(Texture::from_linear(width, height, texels))
+    }
+
+    /// A texture from linear texels, row by row from the top.
+    pub fn from_linear(width: u32, height: u32, texels: Vec<Vec4>) -> Texture {
+        let mut levels = vec![Level {
+            width,
+            height,
+            texels,
+        }];
+        while let Some(next) = levels.last().and_then(half) {
+            levels.push(next);
+        }
+        Texture { levels }
+    }
+
+    /// Width and height of the full-resolution level.
+    pub fn size(&self) -> (u32, u32) {
+        (self.levels[0].width, self.levels[0].height)
+    }
+
+    /// The mean of the full-resolution texels.
+    pub fn mean(&self) -> Vec4 {
+        let l = &self.levels[0];
+        let sum: glam::DVec4 = l.texels.iter().map(|t| t.as_dvec4()).sum();
+        (sum / l.texels.len() as f64).as_vec4()
+    }
+
+    /// The value at `uv` for a footprint `texels` wide on the full level
+    /// (≤ 1: bilinear on it, as glTF's LINEAR filter without mipmaps).
+    pub fn sample(&self, uv: Vec2, texels: f32) -> Vec4 {
+        let lod = if texels.is_finite() && texels > 1.0 {
+            texels.log2().min((self.levels.len() - 1) as f32)
+        } else {
+            0.0
+        };
+        let k = lod.floor() as usize;
+        let t = lod - k as f32;
+        let a = bilinear(&self.levels[k], uv);
+        if t == 0.0 || k + 1 >= self.levels.len() {
+            return a;
+        }
+        a.lerp(bilinear(&self.levels[k + 1], uv), t)
+    }
+}
+
+/// The next mip level: 2×2 box average (an odd side keeps its last texel
+/// by itself); None once both sides are 1.
+fn half(l: &Level) -> Option<Level> {
+    if l.width == 1 && l.height == 1 {
+        return None;
+    }
+    let (w, h) = (l.width.div_ceil(2), l.height.div_ceil(2));
+    let at =
+        |x: u32, y: u32| l.texels[(y.min(l.height - 1) * l.width + x.min(l.width - 1)) as usize];
+    let texels = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            (at(2 * x, 2 * y)
+                + at(2 * x + 1, 2 * y)
+                + at(2 * x, 2 * y + 1)
+                + at(2 * x + 1, 2 * y + 1))
+                * 0.25
+        })
+        .collect();
+    Some(Level {
+        width: w,
+        height: h,
+        texels,
+    })
+}
+
+fn bilinear(l: &Level, uv: Vec2) -> Vec4 {
+    let (w, h) = (l.width as i64, l.height as i64);
+    let x = uv.x as f64 * w as f64 - 0.5;
+    let y = uv.y as f64 * h as f64 - 0.5;
+    if !x.is_finite() || !y.is_finite() {
+        return l.texels[0];
+    }
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
+    let at = |i: i64, j: i64| l.texels[(j.rem_euclid(h) * w + i.rem_euclid(w)) as usize];
+    let (i, j) = (x0 as i64, y0 as i64);
+    let top = at(i, j).lerp(at(i + 1, j), fx);
+    let bottom = at(i, j + 1).lerp(at(i + 1, j + 1), fx);
+    top.lerp(bottom, fy)
+}

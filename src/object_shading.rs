@@ -1,0 +1,326 @@
+//! Per-pixel shading of virtual objects that have a material
+//! ([`crate::materials`]): the compositor asks [`ObjectShading::radiance`]
+//! for each virtual point it shows, and shades points without one as
+//! diffuse clay, as before.
+//!
+//! At a point: the shading normal interpolated from the vertex normals (a
+//! normal texture on top), the material at its texture coordinate filtered
+//! over the pixel's footprint, then
+//! - direct light from every light through the BRDF: point lights by one
+//!   shadow ray; rect lights sampled by area and by the BRDF's specular
+//!   lobe, combined by multiple importance sampling (balance heuristic);
+//! - the room reflected in the object: directions drawn from the specular
+//!   lobe; a ray that meets a real surface takes what the photo shows
+//!   there where the camera sees that point, times the change the objects
+//!   and lights make there (with / without, as the compositor's ratio),
+//!   the model's radiosity elsewhere; one that meets another object takes
+//!   its diffuse radiosity; one that meets a lamp's emitting shape takes
+//!   its radiance;
+//! - the diffuse part's indirect light from the radiosity solution's
+//!   gathered irradiance at the object's vertices.
+//!
+//! Shadow rays leave from the point moved onto the surface the vertex
+//! normals describe (Hanika 2021, "Hacking the shadow terminator"), so a
+//! low-poly object's lit side is not darkened by its own facets.
+//! Samples are seeded by the point's position: images are bit-identical
+//! whatever the thread count and the order pixels are shaded in.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use glam::{DVec3, Vec2, Vec3};
+
+use crate::camera::Camera;
+use crate::geometry::Triangle;
+use crate::image_io::Image;
+use crate::light::LightSource;
+use crate::materials::{Attributes, Lobes, Material};
+use crate::patches::Patches;
+use crate::pda::SurfacePoint;
+use crate::scene::Scene;
+use crate::trace::{Layer, TraceRay, Tracer};
+use crate::util::rng::hash2;
+
+mod paths;
+
+/// A virtual surface with a material, placed in the world.
+#[derive(Debug, Clone)]
+pub struct PlacedSurface {
+    material: Arc<Material>,
+    triangles: Vec<Triangle>,
+    /// World-space vertex normals (empty: flat shading).
+    normals: Vec<[Vec3; 3]>,
+    attributes: Arc<Attributes>,
+    /// Tangent rotation: the pose's rotation (tangents turn with the object).
+    rotation: glam::DMat3,
+}
+
+/// The enabled objects' surfaces that have a material, by surface id.
+#[derive(Debug, Clone, Default)]
+pub struct ObjectMaterials {
+    surfaces: HashMap<u32, PlacedSurface>,
+}
+
+impl ObjectMaterials {
+    /// The scene's objects as posed now (none: no object has a material).
+    pub fn of(scene: &Scene) -> ObjectMaterials {
+        let mut id = scene.surfaces.len() as u32;
+        let mut surfaces = HashMap::new();
+        for o in &scene.objects {
+            for (i, s) in o.surfaces.iter().enumerate() {
+                if let (true, Some(m)) = (o.enabled, &s.material) {
+                    let rotation = o.pose.rotation;
+                    let normals = m
+                        .attributes
+                        .normals
+                        .iter()
+                        .map(|t| t.map(|n| (rotation * n.as_dvec3()).normalize_or_zero().as_vec3()))
+                        .collect();
+                    surfaces.insert(
+                        id,
+                        PlacedSurface {
+                            material: m.material.clone(),
+                            triangles: o.world_triangles(i),
+                            normals,
+                            attributes: m.attributes.clone(),
+                            rotation,
+                        },
+                    );
+                }
+                id += 1;
+            }
+        }
+        ObjectMaterials { surfaces }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.surfaces.is_empty()
+    }
+}
+
+/// Sample counts per shaded point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShadingSettings {
+    /// Most specular-lobe rays a pixel draws (at the roughness that needs
+    /// the most; fewer for smoother and rougher lobes, and dielectrics).
+    pub specular_rays: u32,
+    /// Points sampled on each rect light.
+    pub light_samples: u32,
+}
+
+impl Default for ShadingSettings {
+    fn default() -> Self {
+        ShadingSettings {
+            specular_rays: 48,
+            light_samples: 16,
+        }
+    }
+}
+
+/// What shading the objects' pixels reads.
+pub struct ObjectShading<'a> {
+    pub materials: &'a ObjectMaterials,
+    pub tracer: &'a Tracer,
+    pub camera: &'a Camera,
+    /// The photo as the stages read it (real radiance where the camera sees a point).
+    pub photo: &'a Image,
+    pub lights: &'a [LightSource],
+    pub scales_with: &'a [f64],
+    pub scales_without: &'a [f64],
+    /// The augmented scene's patches (real and virtual).
+    pub patches: &'a Patches,
+    /// Indirect irradiance per vertex with and without the change.
+    pub indirect_with: &'a [DVec3],
+    pub indirect_without: &'a [DVec3],
+    /// Reflectance per patch of the augmented model.
+    pub reflectance: &'a [DVec3],
+    pub settings: ShadingSettings,
+}
+
+/// A shading point: where, its frames and its material.
+struct Point {
+    x: DVec3,
+    /// Origin for rays leaving the surface (terminator-safe).
+    shadow_origin: DVec3,
+    /// Geometric normal facing the viewer, and the shading normal.
+    ng: DVec3,
+    n: DVec3,
+    v: DVec3,
+    lobes: Lobes,
+    emissive: DVec3,
+    seed: u64,
+}
+
+impl ObjectShading<'_> {
+    /// The radiance towards the camera of virtual point `p`, or None when
+    /// its surface has no material (shaded as diffuse clay). `share`: the
+    /// point stands for this fraction of its pixel (edge sub-pixels draw
+    /// fewer samples).
+    pub fn radiance(&self, p: &SurfacePoint, share: f64) -> Option<DVec3> {
+        let surface = self.materials.surfaces.get(&p.surface)?;
+        let x = p.position.as_dvec3();
+        let to = x - self.camera.position;
+        let dist = to.length();
+        if dist <= 0.0 || !dist.is_finite() {
+            return Some(DVec3::ZERO);
+        }
+        let d = to / dist;
+        let ray = TraceRay {
+            origin: self.camera.position.as_vec3(),
+            direction: d.as_vec3(),
+            tnear: 0.0,
+            tfar: (dist * 1.001 + 1e-4) as f32,
+        };
+        let hit = self
+            .tracer
+            .intersect(&ray, Layer::Virtual)
+            .filter(|h| h.surface == p.surface);
+        let triangle = hit.map_or(u32::MAX, |h| h.triangle);
+        let seed = hash2(
+            hash2(p.position.x.to_bits() as u64, p.position.y.to_bits() as u64),
+            p.position.z.to_bits() as u64,
+        );
+        let point = self.point(surface, triangle, x, d, dist, seed)?;
+        Some(self.shade(&point, share, p).max(DVec3::ZERO))
+    }
+
+    /// Everything shading needs at `x`, on `triangle` of `surface` (the
+    /// geometric normal of the sample when the triangle is unknown). None
+    /// where an alpha mask cuts the surface away: the caller then shades
+    /// what lies behind.
+    fn point(
+        &self,
+        s: &PlacedSurface,
+        triangle: u32,
+        x: DVec3,
+        d: DVec3,
+        dist: f64,
+        seed: u64,
+    ) -> Option<Point> {
+        let v = -d;
+        let t = s.triangles.get(triangle as usize);
+        let Some(t) = t else {
+            let m = s.material.at(Vec2::ZERO, 1.0);
+            return Some(Point {
+                x,
+                shadow_origin: x,
+                ng: v,
+                n: v,
+                v,
+                lobes: m.lobes,
+                emissive: m.emissive,
+                seed,
+            });
+        };
+        let k = triangle as usize;
+        let [a, b, c] = t.map(|p| p.as_dvec3());
+        let mut ng = crate::geometry::normal(t);
+        let w = barycentrics(a, b, c, x);
+        let front = ng.dot(v) > 0.0;
+        if !front {
+            ng = -ng;
+        }
+        let (n, shadow_origin) = match s.normals.get(k) {
+            Some(ns) => {
+                let ns = ns.map(|n| n.as_dvec3());
+                let n = (ns[0] * w[0] + ns[1] * w[1] + ns[2] * w[2]).normalize_or(ng);
+                (n, terminator_safe(x, [a, b, c], ns, w))
+            }
+            None => (ng, x),
+        };
+        let uv = s.attributes.uvs.get(k).map_or(Vec2::ZERO, |uv| {
+            uv[0] * w[0] as f32 + uv[1] * w[1] as f32 + uv[2] * w[2] as f32
+        });
+        let footprint = s.attributes.uvs.get(k).map_or(0.0, |uv| {
+            let world = (b - a).cross(c - a).length();
+            let tex = (uv[1] - uv[0]).perp_dot(uv[2] - uv[0]).abs() as f64;
+            let across = dist / (self.camera.fx * ng.dot(v).abs().max(0.05).sqrt());
+            (across * (tex / world.max(1e-30)).sqrt()) as f32
+        });
+        let m = s.material.at(uv, footprint);
+        if !m.opaque {
+            return None;
+        }
+        let mut n = n;
+        if let (Some(tn), Some(uvs)) = (m.tangent_normal, s.attributes.uvs.get(k)) {
+            let tangent = s
+                .attributes
+                .tangents
+                .get(k)
+                .map(|tg| {
+                    let t = tg[0] * w[0] as f32 + tg[1] * w[1] as f32 + tg[2] * w[2] as f32;
+                    ((s.rotation * t.truncate().as_dvec3()), t.w.signum() as f64)
+                })
+                .unwrap_or_else(|| uv_tangent([a, b, c], *uvs));
+            n = perturbed(n, tangent, tn.as_dvec3());
+        }
+        if s.material.double_sided && n.dot(v) < 0.0 {
+            n = -n;
+        }
+        Some(Point {
+            x,
+            shadow_origin,
+            ng,
+            n,
+            v,
+            lobes: m.lobes,
+            emissive: m.emissive,
+            seed,
+        })
+    }
+}
+
+/// Barycentric weights of `x` (in the plane of a, b, c) for a, b, c.
+fn barycentrics(a: DVec3, b: DVec3, c: DVec3, x: DVec3) -> [f64; 3] {
+    let (e1, e2, p) = (b - a, c - a, x - a);
+    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let (p1, p2) = (p.dot(e1), p.dot(e2));
+    let det = d11 * d22 - d12 * d12;
+    if det.abs() <= 1e-300 {
+        return [1.0, 0.0, 0.0];
+    }
+    let u = ((d22 * p1 - d12 * p2) / det).clamp(0.0, 1.0);
+    let v = ((d11 * p2 - d12 * p1) / det).clamp(0.0, 1.0 - u);
+    [1.0 - u - v, u, v]
+}
+
+/// Hanika's shadow-terminator point: `x` moved off its flat triangle to
+/// where the tangent planes at the corners put the smooth surface.
+fn terminator_safe(x: DVec3, corners: [DVec3; 3], normals: [DVec3; 3], w: [f64; 3]) -> DVec3 {
+    let mut out = x;
+    for i in 0..3 {
+        let below = (x - corners[i]).dot(normals[i]).min(0.0);
+        out -= normals[i] * (w[i] * below);
+    }
+    out
+}
+
+/// A triangle's tangent from its texture coordinates (u increasing), and
+/// the bitangent's sign: where the file has no tangents.
+fn uv_tangent(t: [DVec3; 3], uv: [Vec2; 3]) -> (DVec3, f64) {
+    let (e1, e2) = (t[1] - t[0], t[2] - t[0]);
+    let (d1, d2) = ((uv[1] - uv[0]).as_dvec2(), (uv[2] - uv[0]).as_dvec2());
+    let det = d1.x * d2.y - d2.x * d1.y;
+    if det.abs() < 1e-20 {
+        return (e1.normalize_or_zero(), 1.0);
+    }
+    let tangent = (e1 * d2.y - e2 * d1.y) / det;
+    let bitangent = (e2 * d1.x - e1 * d2.x) / det;
+    let sign = if tangent.cross(bitangent).dot(e1.cross(e2)) < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
+    (tangent.normalize_or_zero(), sign)
+}
+
+/// Normal `n` tilted by tangent-space normal `tn` in the frame of
+/// `tangent` (Gram-Schmidt against n) and its bitangent sign.
+fn perturbed(n: DVec3, (tangent, sign): (DVec3, f64), tn: DVec3) -> DVec3 {
+    let t = (tangent - n * n.dot(tangent)).normalize_or_zero();
+    if t == DVec3::ZERO {
+        return n;
+    }
+    let b = n.cross(t) * sign;
+    (t * tn.x + b * tn.y + n * tn.z).normalize_or(n)
+}

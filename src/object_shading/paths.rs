@@ -1,0 +1,281 @@
+//! The light arriving at a shaded point: direct from each light (MIS for
+//! rect lights), reflected from the room, the lamps and the other objects.
+
+use glam::DVec3;
+
+use super::*;
+use crate::light::{Emitter, offset_origin, segment};
+use crate::trace::Hit;
+use crate::util::rng::unit_random;
+
+/// Rays through the room per reflected point when its change is measured:
+/// the rect lights' shadow rays at grid level 2.
+const ROOM_LEVEL: usize = 2;
+
+/// A rect light's emitting rectangle, for rays that may meet it.
+struct Rect {
+    light: usize,
+    centre: DVec3,
+    u: DVec3,
+    v: DVec3,
+    normal: DVec3,
+    area: f64,
+}
+
+impl Rect {
+    /// Distance along unit `d` from `o` to the emitting side, if the ray meets it.
+    fn hit(&self, o: DVec3, d: DVec3) -> Option<f64> {
+        let denom = d.dot(self.normal);
+        if denom >= 0.0 || (o - self.centre).dot(self.normal) <= 0.0 {
+            return None;
+        }
+        let t = (self.centre - o).dot(self.normal) / denom;
+        let p = o + d * t - self.centre;
+        let (s, r) = (
+            p.dot(self.u) / self.u.length_squared(),
+            p.dot(self.v) / self.v.length_squared(),
+        );
+        (t > 0.0 && s.abs() <= 0.5 && r.abs() <= 0.5).then_some(t)
+    }
+
+    /// Solid-angle pdf of a point drawn uniformly on the rectangle seen along `d` at `t`.
+    fn pdf(&self, d: DVec3, t: f64) -> f64 {
+        let cos = -d.dot(self.normal);
+        if cos <= 0.0 {
+            0.0
+        } else {
+            t * t / (self.area * cos)
+        }
+    }
+}
+
+impl ObjectShading<'_> {
+    fn rects(&self) -> Vec<Rect> {
+        self.lights
+            .iter()
+            .enumerate()
+            .filter(|(l, _)| self.scales_with[*l] > 0.0)
+            .filter_map(|(l, light)| match light.emitter {
+                Emitter::Rect { u, v, normal } => Some(Rect {
+                    light: l,
+                    centre: light.position,
+                    u,
+                    v,
+                    normal,
+                    area: u.cross(v).length(),
+                }),
+                Emitter::Point => None,
+            })
+            .collect()
+    }
+
+    /// Radiance of light `l` leaving its rectangle towards -`d` (scaled).
+    fn emitted(&self, l: usize, d: DVec3, area: f64, normal: DVec3) -> DVec3 {
+        let cos = -d.dot(normal);
+        if cos <= 0.0 {
+            return DVec3::ZERO;
+        }
+        self.lights[l].intensity(-d) * (self.scales_with[l] / (area * cos))
+    }
+
+    /// How many specular rays point `p` draws.
+    fn specular_rays(&self, lobes: &Lobes, share: f64) -> u32 {
+        let r = lobes.roughness;
+        let need = (4.0 + 4.0 * (self.settings.specular_rays as f64 - 4.0) * r * (1.0 - r))
+            * (0.5 + 0.5 * lobes.metallic);
+        ((need * share).round() as u32).max(2)
+    }
+
+    pub(super) fn shade(&self, p: &Point, share: f64, sample: &SurfacePoint) -> DVec3 {
+        let n_dot_v = p.n.dot(p.v);
+        if n_dot_v <= 0.0 {
+            // One-sided (glTF): a shading normal turned from the viewer reflects nothing.
+            return p.emissive;
+        }
+        let rects = self.rects();
+        let light_samples = ((self.settings.light_samples as f64 * share).round() as u32).max(2);
+        let spec_rays = self.specular_rays(&p.lobes, share);
+        let mut out = p.emissive + self.direct(p, &rects, light_samples, spec_rays);
+        out += self.reflected(p, &rects, light_samples, spec_rays);
+        // The diffuse part's indirect light: the gathered irradiance at the object's vertices.
+        let h = interpolate(self.indirect_with, &sample.location, self.patches);
+        out += p.lobes.diffuse(n_dot_v) * h / std::f64::consts::PI;
+        out
+    }
+
+    /// Direct light through the BRDF: point lights by a shadow ray, rect
+    /// lights by area samples weighted against the specular sampler.
+    fn direct(&self, p: &Point, rects: &[Rect], n_l: u32, n_b: u32) -> DVec3 {
+        let mut out = DVec3::ZERO;
+        for (l, light) in self.lights.iter().enumerate() {
+            let s = self.scales_with[l];
+            if s <= 0.0 {
+                continue;
+            }
+            match (&light.emitter, rects.iter().find(|r| r.light == l)) {
+                (Emitter::Point, _) => {
+                    let to = light.position - p.x;
+                    let dist2 = to.length_squared();
+                    let ldir = to / dist2.sqrt();
+                    let (fd, fs) = p.lobes.eval(p.n, p.v, ldir);
+                    if fd + fs == DVec3::ZERO || !self.unblocked(p, light.position) {
+                        continue;
+                    }
+                    let e = light.intensity(-ldir) * (s / dist2);
+                    out += (fd + fs) * p.n.dot(ldir) * e;
+                }
+                (Emitter::Rect { .. }, Some(rect)) => {
+                    let grid = light.grid.as_ref();
+                    let level = (n_l as f64).log2().floor() as usize;
+                    let points: Vec<DVec3> = match grid {
+                        Some(g) => g
+                            .samples(level, hash2(p.seed, l as u64))
+                            .map(|st| light.point_at(st))
+                            .collect(),
+                        None => vec![light.position],
+                    };
+                    let k = points.len() as f64;
+                    for y in points {
+                        let to = y - p.x;
+                        let t = to.length();
+                        let d = to / t;
+                        let pdf_l = rect.pdf(d, t);
+                        let (fd, fs) = p.lobes.eval(p.n, p.v, d);
+                        if pdf_l <= 0.0 || fd + fs == DVec3::ZERO || !self.unblocked(p, y) {
+                            continue;
+                        }
+                        let pdf_b = p.lobes.specular_pdf(p.n, p.v, d);
+                        let le = self.emitted(l, d, rect.area, rect.normal);
+                        out += (fd + fs) * p.n.dot(d) * le / (k * pdf_l + n_b as f64 * pdf_b);
+                    }
+                }
+                _ => {}
+            }
+        }
+        out
+    }
+
+    /// Whether nothing (real or virtual) lies between the point and `y`.
+    fn unblocked(&self, p: &Point, y: DVec3) -> bool {
+        let o = offset_origin(p.shadow_origin, p.ng, y);
+        !self.tracer.occluded(&segment(o, y), Layer::All)
+    }
+
+    /// Light reflected by the specular lobe: the room, the lamps (MIS
+    /// against their area samples) and the other objects.
+    fn reflected(&self, p: &Point, rects: &[Rect], n_l: u32, n_b: u32) -> DVec3 {
+        let mut out = DVec3::ZERO;
+        let mut state = hash2(p.seed, 0x5EC);
+        let (jx, jy) = (unit_random(&mut state), unit_random(&mut state));
+        let side = (n_b as f64).sqrt().ceil() as u32;
+        for i in 0..n_b {
+            // Stratified on a side × side grid, shifted per point (Cranley-Patterson).
+            let (cx, cy) = (i % side, i / side);
+            let u1 = ((cx as f64 + jx) / side as f64).fract();
+            let u2 = ((cy as f64 + jy) / side as f64).fract();
+            let Some((d, pdf_b, weight)) = p.lobes.sample_specular(p.n, p.v, u1, u2) else {
+                continue;
+            };
+            let o = offset_origin(p.shadow_origin, p.ng, p.x + d);
+            let ray = TraceRay::new(o.as_vec3(), d.as_vec3());
+            let hit = self.tracer.intersect(&ray, Layer::All);
+            let t_geo = hit.map_or(f64::INFINITY, |h| h.t as f64);
+            let lamp = rects
+                .iter()
+                .filter_map(|r| r.hit(o, d).map(|t| (r, t)))
+                .filter(|(_, t)| *t < t_geo)
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            if let Some((rect, t)) = lamp {
+                let (fd, fs) = p.lobes.eval(p.n, p.v, d);
+                let le = self.emitted(rect.light, d, rect.area, rect.normal);
+                let k = light_count(n_l, &self.lights[rect.light]);
+                out += (fd + fs) * p.n.dot(d) * le / (k * rect.pdf(d, t) + n_b as f64 * pdf_b);
+                continue;
+            }
+            if let Some(h) = hit {
+                let l_in = self.arriving(&h, o, d, hash2(p.seed, i as u64));
+                out += weight * l_in / n_b as f64;
+            }
+        }
+        out
+    }
+
+    /// Radiance arriving along `d` from the surface `h` (from origin `o`).
+    fn arriving(&self, h: &Hit, o: DVec3, d: DVec3, seed: u64) -> DVec3 {
+        let y = o + d * h.t as f64;
+        let Some(at) = self.patches.locate(h.surface, h.triangle, y) else {
+            return DVec3::ZERO;
+        };
+        let mut n = h.normal.as_dvec3().normalize_or_zero();
+        if n.dot(d) > 0.0 {
+            n = -n;
+        }
+        let rho = self
+            .reflectance
+            .get(at.patch as usize)
+            .copied()
+            .unwrap_or(DVec3::ZERO);
+        let interp = |table: &[DVec3]| -> DVec3 {
+            at.weights
+                .iter()
+                .filter(|(_, w)| *w != 0.0)
+                .map(|&(v, w)| table.get(v as usize).copied().unwrap_or(DVec3::ZERO) * w)
+                .sum()
+        };
+        let (mut e_with, mut e_without) = (DVec3::ZERO, DVec3::ZERO);
+        for (l, light) in self.lights.iter().enumerate() {
+            let (sw, swo) = (self.scales_with[l], self.scales_without[l]);
+            if sw <= 0.0 && (swo <= 0.0 || h.is_virtual) {
+                continue;
+            }
+            let seed = hash2(seed, l as u64);
+            let all = light.direct(self.tracer, Layer::All, y, n, ROOM_LEVEL, seed);
+            e_with += all.unoccluded * (sw * all.visibility);
+            if !h.is_virtual && swo > 0.0 {
+                let real = light.direct(self.tracer, Layer::Real, y, n, ROOM_LEVEL, seed);
+                e_without += real.unoccluded * (swo * real.visibility);
+            }
+        }
+        let with = e_with + interp(self.indirect_with);
+        if h.is_virtual {
+            return rho * with / std::f64::consts::PI;
+        }
+        let without = e_without + interp(self.indirect_without);
+        match crate::gather::photo_radiance_at(self.camera, self.tracer, self.photo, y) {
+            Some(photo) => {
+                let mut out = DVec3::ZERO;
+                for c in 0..3 {
+                    out[c] = if without[c] > 1e-6 * without.max_element().max(1e-30) {
+                        photo[c] * with[c] / without[c]
+                    } else {
+                        photo[c] + rho[c] * (with[c] - without[c]) / std::f64::consts::PI
+                    };
+                }
+                out.max(DVec3::ZERO)
+            }
+            None => rho * with / std::f64::consts::PI,
+        }
+    }
+}
+
+/// Area samples [`ObjectShading::direct`] draws on `light` for a budget of `n_l`.
+fn light_count(n_l: u32, light: &LightSource) -> f64 {
+    match light.grid {
+        Some(_) => (1u64 << (n_l as f64).log2().floor() as u32) as f64,
+        None => 1.0,
+    }
+}
+
+/// Interpolates a per-vertex table at a patch point.
+fn interpolate(table: &[DVec3], at: &crate::pda::PatchPoint, patches: &Patches) -> DVec3 {
+    let vertices = patches.patch_vertices.get(at.patch as usize);
+    let Some(vertices) = vertices else {
+        return DVec3::ZERO;
+    };
+    vertices
+        .iter()
+        .zip(at.weights)
+        .filter(|(_, w)| *w != 0.0)
+        .map(|(&v, w)| table.get(v as usize).copied().unwrap_or(DVec3::ZERO) * w as f64)
+        .sum()
+}
