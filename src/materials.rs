@@ -58,7 +58,8 @@ impl Material {
     /// The material at texture coordinate `uv`, over a pixel footprint
     /// `footprint` wide in texture coordinates (selects the mip level).
     pub fn at(&self, uv: Vec2, footprint: f32) -> PointMaterial {
-        let texels = |t: &Texture| footprint * t.size().0.max(t.size().1) as f32;
+        // Texels across the footprint: texture coordinates span √(W·H) texels on average.
+        let texels = |t: &Texture| footprint * ((t.size().0 as f32) * (t.size().1 as f32)).sqrt();
         let base = match &self.base_texture {
             Some(t) => self.base_colour * t.sample(uv, texels(t)),
             None => self.base_colour,

@@ -108,11 +108,11 @@ fn a_camera_that_sees_little_of_the_model_is_reported() {
 }
 
 #[test]
-fn a_material_s_texture_and_specular_part_are_reported_once() {
+fn an_object_s_material_is_read_and_its_missing_texture_refused_by_name() {
     let desk = Desk::new();
     std::fs::write(
         desk.path("geometry/box.mtl"),
-        "newmtl wood\nKd 0.6 0.4 0.2\nKs 0.5 0.5 0.5\nmap_Kd wood.png\n",
+        "newmtl wood\nKd 0.6 0.4 0.2\nKs 0.5 0.5 0.5\nNs 100\nmap_Kd wood.png\n",
     )
     .unwrap();
     desk.edit(
@@ -122,9 +122,24 @@ fn a_material_s_texture_and_specular_part_are_reported_once() {
     );
     let run = arlux(&["info", &desk.scene()]);
     let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("wood.png"), "{stderr}");
+    image::RgbImage::from_pixel(4, 4, image::Rgb([200, 120, 40]))
+        .save(desk.path("geometry/wood.png"))
+        .unwrap();
+    let run = arlux(&["info", &desk.scene()]);
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&run.stdout),
+        String::from_utf8_lossy(&run.stderr),
+    );
     assert_eq!(run.status.code(), Some(0), "{stderr}");
-    let said = stderr
-        .matches("material wood has a texture (map_Kd) or a specular part (Ks)")
-        .count();
-    assert_eq!(said, 1, "{stderr}");
+    // The scene's rgb overrides the base colour (and its texture); Ns
+    // gives the roughness: √α with α = √(2 / 102).
+    assert!(
+        stdout.contains(
+            "box: material 'wood': base [0.800, 0.320, 0.060], metallic 0.00, roughness 0.37"
+        ),
+        "{stdout}"
+    );
+    assert!(!stderr.contains("does not use"), "{stderr}");
 }

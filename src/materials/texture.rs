@@ -92,11 +92,18 @@ impl Texture {
         (sum / l.texels.len() as f64).as_vec4()
     }
 
-    /// The value at `uv` for a footprint `texels` wide on the full level
-    /// (≤ 1: bilinear on it, as glTF's LINEAR filter without mipmaps).
+    /// The value at `uv` for a pixel footprint `texels` wide on the full
+    /// level (≤ √2: bilinear on it, as glTF's LINEAR filter without
+    /// mipmaps). The level is the one whose bilinear tent (variance 2^2k/6)
+    /// has the variance of a box over the footprint (texels²/12):
+    /// log2(texels / √2), half a level finer than the usual log2(texels),
+    /// which blurs a box-filtered pixel (on `materials`' globe, the
+    /// object's RMSE 0.030 against 0.012).
     pub fn sample(&self, uv: Vec2, texels: f32) -> Vec4 {
-        let lod = if texels.is_finite() && texels > 1.0 {
-            texels.log2().min((self.levels.len() - 1) as f32)
+        let lod = if texels.is_finite() && texels > std::f32::consts::SQRT_2 {
+            (texels * std::f32::consts::FRAC_1_SQRT_2)
+                .log2()
+                .min((self.levels.len() - 1) as f32)
         } else {
             0.0
         };

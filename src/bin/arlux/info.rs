@@ -123,7 +123,10 @@ fn info_report(
             json!({
                 "name": o.name, "mesh": rel(scene, &o.mesh), "enabled": o.enabled,
                 "triangles": o.surfaces.iter().map(|s| s.triangles.len()).sum::<usize>(),
-                "surfaces": o.surfaces.iter().map(|s| json!({ "name": s.name, "rgb": s.rgb.to_array() })).collect::<Vec<_>>(),
+                "surfaces": o.surfaces.iter().map(|s| json!({
+                    "name": s.name, "rgb": s.rgb.to_array(),
+                    "material": s.material.as_ref().map(|m| m.material.describe()),
+                })).collect::<Vec<_>>(),
                 "translate": o.pose.translate.to_array(), "rotate_deg": o.pose.euler_xyz_deg(),
                 "rotation": (0..3).map(|i| o.pose.rotation.row(i).to_array()).collect::<Vec<_>>(), "scale": o.pose.scale,
             })
@@ -263,6 +266,13 @@ impl Report for InfoReport {
                 o["translate"],
                 o["rotate_deg"]
             ));
+            for s in o["surfaces"].as_array().into_iter().flatten() {
+                let material = match s["material"].as_str() {
+                    Some(m) => format!("material {m}"),
+                    None => format!("diffuse {}", s["rgb"]),
+                };
+                out.push(format!("    {}: {material}", str_of(&s["name"])));
+            }
         }
         out.push(format!("variants: {}", variants.len()));
         for v in &variants {
