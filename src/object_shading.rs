@@ -39,7 +39,7 @@ use crate::patches::Patches;
 use crate::pda::SurfacePoint;
 use crate::scene::Scene;
 use crate::trace::{Layer, TraceRay, Tracer};
-use crate::util::rng::hash2;
+use crate::util::rng::{hash2, unit_random};
 
 mod paths;
 
@@ -148,40 +148,92 @@ struct Point {
     v: DVec3,
     lobes: Lobes,
     emissive: DVec3,
+}
+
+/// What a camera ray meets first.
+enum Seen {
+    /// A surface with a material, here.
+    Shaded(Point),
+    /// A point an alpha mask cuts away.
+    Masked,
+    /// An object without a material.
+    Clay,
+}
+
+/// Sample `j` of `n` a pixel draws, and the pixel's seed.
+#[derive(Clone, Copy)]
+struct Sample {
+    j: u32,
+    n: u32,
     seed: u64,
 }
 
 impl ObjectShading<'_> {
     /// The radiance towards the camera of virtual point `p`, or None when
     /// its surface has no material (shaded as diffuse clay). `share`: the
-    /// point stands for this fraction of its pixel (edge sub-pixels draw
-    /// fewer samples).
+    /// fraction of its pixel the point stands for (a whole pixel, or an
+    /// edge's sub-pixel). The samples spread over that part of the pixel,
+    /// each at its own point of the surface: a highlight or a texture
+    /// smaller than a pixel is averaged over it, as a camera's pixel does.
     pub fn radiance(&self, p: &SurfacePoint, share: f64) -> Option<DVec3> {
-        let surface = self.materials.surfaces.get(&p.surface)?;
+        self.materials.surfaces.get(&p.surface)?;
         let x = p.position.as_dvec3();
-        let to = x - self.camera.position;
-        let dist = to.length();
-        if dist <= 0.0 || !dist.is_finite() {
-            return Some(DVec3::ZERO);
-        }
-        let d = to / dist;
-        let ray = TraceRay {
-            origin: self.camera.position.as_vec3(),
-            direction: d.as_vec3(),
-            tnear: 0.0,
-            tfar: (dist * 1.001 + 1e-4) as f32,
-        };
-        let hit = self
-            .tracer
-            .intersect(&ray, Layer::Virtual)
-            .filter(|h| h.surface == p.surface);
-        let triangle = hit.map_or(u32::MAX, |h| h.triangle);
         let seed = hash2(
             hash2(p.position.x.to_bits() as u64, p.position.y.to_bits() as u64),
             p.position.z.to_bits() as u64,
         );
-        let point = self.point(surface, triangle, x, d, dist, seed)?;
-        Some(self.shade(&point, share, p).max(DVec3::ZERO))
+        let to = x - self.camera.position;
+        let centre = match self.seen(to.normalize_or_zero(), to.length() * 1.001 + 1e-4, 1.0) {
+            Some(Seen::Shaded(point)) => point,
+            Some(Seen::Clay) => return None,
+            // Cut away by an alpha mask, or the sample's own ray now misses it.
+            _ => return Some(self.behind(x, to.normalize_or_zero(), seed)),
+        };
+        let n = self.sample_count(&centre.lobes, share);
+        let half = 0.5 * share.sqrt();
+        let at = self.camera.project(x);
+        let rects = self.rects();
+        let side = (n as f64).sqrt().ceil() as u32;
+        let mut state = hash2(seed, 0xA11A5);
+        let mut sum = DVec3::ZERO;
+        for j in 0..n {
+            let (jx, jy) = (unit_random(&mut state), unit_random(&mut state));
+            let sub = at.and_then(|(px, py, _)| {
+                let dx = ((j % side) as f64 + jx) / side as f64;
+                let dy = ((j / side) as f64 + jy) / side as f64;
+                let ray = self
+                    .camera
+                    .ray(px + (2.0 * dx - 1.0) * half, py + (2.0 * dy - 1.0) * half);
+                match self.seen(ray.direction, f64::INFINITY, 1.0 / side as f64)? {
+                    Seen::Shaded(point) => Some(point),
+                    _ => None,
+                }
+            });
+            let point = sub.as_ref().unwrap_or(&centre);
+            sum += self.one_sample(point, &rects, Sample { j, n, seed }, &p.location);
+        }
+        Some((sum / n as f64).max(DVec3::ZERO))
+    }
+
+    /// What the camera sees along unit `d` (up to `far`) among the objects
+    /// with materials; `scale`: the pixel footprint's fraction a sample covers.
+    fn seen(&self, d: DVec3, far: f64, scale: f64) -> Option<Seen> {
+        let ray = TraceRay {
+            origin: self.camera.position.as_vec3(),
+            direction: d.as_vec3(),
+            tnear: 0.0,
+            tfar: far.min(f32::MAX as f64) as f32,
+        };
+        let hit = self.tracer.intersect(&ray, Layer::All)?;
+        if !hit.is_virtual {
+            return None;
+        }
+        let Some(s) = self.materials.surfaces.get(&hit.surface) else {
+            return Some(Seen::Clay);
+        };
+        let x = self.camera.position + d * hit.t as f64;
+        let point = self.point(s, hit.triangle, x, d, hit.t as f64 * scale);
+        Some(point.map_or(Seen::Masked, Seen::Shaded))
     }
 
     /// Everything shading needs at `x`, on `triangle` of `surface` (the
@@ -195,7 +247,6 @@ impl ObjectShading<'_> {
         x: DVec3,
         d: DVec3,
         dist: f64,
-        seed: u64,
     ) -> Option<Point> {
         let v = -d;
         let t = s.triangles.get(triangle as usize);
@@ -209,7 +260,6 @@ impl ObjectShading<'_> {
                 v,
                 lobes: m.lobes,
                 emissive: m.emissive,
-                seed,
             });
         };
         let k = triangle as usize;
@@ -265,7 +315,6 @@ impl ObjectShading<'_> {
             v,
             lobes: m.lobes,
             emissive: m.emissive,
-            seed,
         })
     }
 }

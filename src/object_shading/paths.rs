@@ -12,8 +12,11 @@ use crate::util::rng::unit_random;
 /// the rect lights' shadow rays at grid level 2.
 const ROOM_LEVEL: usize = 2;
 
+/// A sample's rect lights ([`ObjectShading::rects`]).
+pub(super) type Rects = Vec<Rect>;
+
 /// A rect light's emitting rectangle, for rays that may meet it.
-struct Rect {
+pub(super) struct Rect {
     light: usize,
     centre: DVec3,
     u: DVec3,
@@ -50,7 +53,7 @@ impl Rect {
 }
 
 impl ObjectShading<'_> {
-    fn rects(&self) -> Vec<Rect> {
+    pub(super) fn rects(&self) -> Rects {
         self.lights
             .iter()
             .enumerate()
@@ -78,78 +81,84 @@ impl ObjectShading<'_> {
         self.lights[l].intensity(-d) * (self.scales_with[l] / (area * cos))
     }
 
-    /// How many specular rays point `p` draws.
-    fn specular_rays(&self, lobes: &Lobes, share: f64) -> u32 {
+    /// How many samples a point of these lobes draws for `share` of a
+    /// pixel: most at the roughness whose lobe is both wide and peaked
+    /// (0.5), fewer for mirrors and matte surfaces, half for dielectrics
+    /// (their lobe carries 4-10% of the light); the rect lights' area
+    /// samples set a floor.
+    pub(super) fn sample_count(&self, lobes: &Lobes, share: f64) -> u32 {
         let r = lobes.roughness;
-        let need = (4.0 + 4.0 * (self.settings.specular_rays as f64 - 4.0) * r * (1.0 - r))
-            * (0.5 + 0.5 * lobes.metallic);
-        ((need * share).round() as u32).max(2)
+        let most = self.settings.specular_rays as f64;
+        let need = (4.0 + 4.0 * (most - 4.0) * r * (1.0 - r)) * (0.5 + 0.5 * lobes.metallic);
+        let need = need.max(self.settings.light_samples as f64);
+        ((need * share).round() as u32).max(4)
     }
 
-    pub(super) fn shade(&self, p: &Point, share: f64, sample: &SurfacePoint) -> DVec3 {
+    /// One sample of the light leaving point `p` towards the camera: its
+    /// emission, each light once (rect lights by one area sample, weighted
+    /// against the specular sampler), one specular ray, and the diffuse
+    /// part's indirect light from the gathered irradiance at `location`.
+    pub(super) fn one_sample(
+        &self,
+        p: &Point,
+        rects: &[Rect],
+        s: Sample,
+        location: &crate::pda::PatchPoint,
+    ) -> DVec3 {
         let n_dot_v = p.n.dot(p.v);
         if n_dot_v <= 0.0 {
             // One-sided (glTF): a shading normal turned from the viewer reflects nothing.
             return p.emissive;
         }
-        let rects = self.rects();
-        let light_samples = ((self.settings.light_samples as f64 * share).round() as u32).max(2);
-        let spec_rays = self.specular_rays(&p.lobes, share);
-        let mut out = p.emissive + self.direct(p, &rects, light_samples, spec_rays);
-        out += self.reflected(p, &rects, light_samples, spec_rays);
-        // The diffuse part's indirect light: the gathered irradiance at the object's vertices.
-        let h = interpolate(self.indirect_with, &sample.location, self.patches);
-        out += p.lobes.diffuse(n_dot_v) * h / std::f64::consts::PI;
-        out
+        let h = interpolate(self.indirect_with, location, self.patches);
+        let mut out = p.emissive + p.lobes.diffuse(n_dot_v) * h / std::f64::consts::PI;
+        out += self.direct(p, rects, s);
+        out + self.reflected(p, rects, s)
     }
 
     /// Direct light through the BRDF: point lights by a shadow ray, rect
-    /// lights by area samples weighted against the specular sampler.
-    fn direct(&self, p: &Point, rects: &[Rect], n_l: u32, n_b: u32) -> DVec3 {
+    /// lights by one area sample, weighted against the specular sampler
+    /// (balance heuristic).
+    fn direct(&self, p: &Point, rects: &[Rect], s: Sample) -> DVec3 {
         let mut out = DVec3::ZERO;
         for (l, light) in self.lights.iter().enumerate() {
-            let s = self.scales_with[l];
-            if s <= 0.0 {
+            let scale = self.scales_with[l];
+            if scale <= 0.0 {
                 continue;
             }
-            match (&light.emitter, rects.iter().find(|r| r.light == l)) {
-                (Emitter::Point, _) => {
-                    let to = light.position - p.x;
-                    let dist2 = to.length_squared();
-                    let ldir = to / dist2.sqrt();
-                    let (fd, fs) = p.lobes.eval(p.n, p.v, ldir);
-                    if fd + fs == DVec3::ZERO || !self.unblocked(p, light.position) {
+            let y = match &light.grid {
+                // The pixel's n samples take one point from each of n cells.
+                Some(grid) => {
+                    let level = (s.n as f64).log2().floor() as usize;
+                    let cells = 1u32 << level.min(crate::light::MAX_GRID_LEVEL);
+                    let st = grid
+                        .samples(level, hash2(s.seed, l as u64))
+                        .nth((s.j % cells) as usize)
+                        .unwrap_or_default();
+                    light.point_at(st)
+                }
+                None => light.position,
+            };
+            let to = y - p.x;
+            let dist2 = to.length_squared();
+            let d = to / dist2.sqrt();
+            let (fd, fs) = p.lobes.eval(p.n, p.v, d);
+            if fd + fs == DVec3::ZERO {
+                continue;
+            }
+            let radiance = match rects.iter().find(|r| r.light == l) {
+                Some(rect) => {
+                    let pdf_l = rect.pdf(d, dist2.sqrt());
+                    if pdf_l <= 0.0 {
                         continue;
                     }
-                    let e = light.intensity(-ldir) * (s / dist2);
-                    out += (fd + fs) * p.n.dot(ldir) * e;
+                    let pdf_b = p.lobes.specular_pdf(p.n, p.v, d);
+                    self.emitted(l, d, rect.area, rect.normal) / (pdf_l + pdf_b)
                 }
-                (Emitter::Rect { .. }, Some(rect)) => {
-                    let grid = light.grid.as_ref();
-                    let level = (n_l as f64).log2().floor() as usize;
-                    let points: Vec<DVec3> = match grid {
-                        Some(g) => g
-                            .samples(level, hash2(p.seed, l as u64))
-                            .map(|st| light.point_at(st))
-                            .collect(),
-                        None => vec![light.position],
-                    };
-                    let k = points.len() as f64;
-                    for y in points {
-                        let to = y - p.x;
-                        let t = to.length();
-                        let d = to / t;
-                        let pdf_l = rect.pdf(d, t);
-                        let (fd, fs) = p.lobes.eval(p.n, p.v, d);
-                        if pdf_l <= 0.0 || fd + fs == DVec3::ZERO || !self.unblocked(p, y) {
-                            continue;
-                        }
-                        let pdf_b = p.lobes.specular_pdf(p.n, p.v, d);
-                        let le = self.emitted(l, d, rect.area, rect.normal);
-                        out += (fd + fs) * p.n.dot(d) * le / (k * pdf_l + n_b as f64 * pdf_b);
-                    }
-                }
-                _ => {}
+                None => light.intensity(-d) * (scale / dist2),
+            };
+            if self.unblocked(p, y) {
+                out += (fd + fs) * p.n.dot(d) * radiance;
             }
         }
         out
@@ -161,43 +170,62 @@ impl ObjectShading<'_> {
         !self.tracer.occluded(&segment(o, y), Layer::All)
     }
 
-    /// Light reflected by the specular lobe: the room, the lamps (MIS
-    /// against their area samples) and the other objects.
-    fn reflected(&self, p: &Point, rects: &[Rect], n_l: u32, n_b: u32) -> DVec3 {
-        let mut out = DVec3::ZERO;
-        let mut state = hash2(p.seed, 0x5EC);
+    /// One ray drawn from the specular lobe: what it meets of the room,
+    /// the lamps (weighted against their area samples) and the objects.
+    fn reflected(&self, p: &Point, rects: &[Rect], s: Sample) -> DVec3 {
+        let mut state = hash2(s.seed, 0x5EC);
         let (jx, jy) = (unit_random(&mut state), unit_random(&mut state));
-        let side = (n_b as f64).sqrt().ceil() as u32;
-        for i in 0..n_b {
-            // Stratified on a side × side grid, shifted per point (Cranley-Patterson).
-            let (cx, cy) = (i % side, i / side);
-            let u1 = ((cx as f64 + jx) / side as f64).fract();
-            let u2 = ((cy as f64 + jy) / side as f64).fract();
-            let Some((d, pdf_b, weight)) = p.lobes.sample_specular(p.n, p.v, u1, u2) else {
-                continue;
-            };
-            let o = offset_origin(p.shadow_origin, p.ng, p.x + d);
-            let ray = TraceRay::new(o.as_vec3(), d.as_vec3());
-            let hit = self.tracer.intersect(&ray, Layer::All);
-            let t_geo = hit.map_or(f64::INFINITY, |h| h.t as f64);
-            let lamp = rects
-                .iter()
-                .filter_map(|r| r.hit(o, d).map(|t| (r, t)))
-                .filter(|(_, t)| *t < t_geo)
-                .min_by(|a, b| a.1.total_cmp(&b.1));
-            if let Some((rect, t)) = lamp {
-                let (fd, fs) = p.lobes.eval(p.n, p.v, d);
-                let le = self.emitted(rect.light, d, rect.area, rect.normal);
-                let k = light_count(n_l, &self.lights[rect.light]);
-                out += (fd + fs) * p.n.dot(d) * le / (k * rect.pdf(d, t) + n_b as f64 * pdf_b);
-                continue;
-            }
-            if let Some(h) = hit {
-                let l_in = self.arriving(&h, o, d, hash2(p.seed, i as u64));
-                out += weight * l_in / n_b as f64;
-            }
+        let side = (s.n as f64).sqrt().ceil() as u32;
+        // Stratified on a side × side grid, shifted per pixel (Cranley-Patterson).
+        let u1 = (((s.j % side) as f64 + jx) / side as f64).fract();
+        let u2 = (((s.j / side) as f64 + jy) / side as f64).fract();
+        let Some((d, pdf_b, weight)) = p.lobes.sample_specular(p.n, p.v, u1, u2) else {
+            return DVec3::ZERO;
+        };
+        let o = offset_origin(p.shadow_origin, p.ng, p.x + d);
+        let ray = TraceRay::new(o.as_vec3(), d.as_vec3());
+        let hit = self.tracer.intersect(&ray, Layer::All);
+        let t_geo = hit.map_or(f64::INFINITY, |h| h.t as f64);
+        let lamp = rects
+            .iter()
+            .filter_map(|r| r.hit(o, d).map(|t| (r, t)))
+            .filter(|(_, t)| *t < t_geo)
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((rect, t)) = lamp {
+            let (fd, fs) = p.lobes.eval(p.n, p.v, d);
+            let le = self.emitted(rect.light, d, rect.area, rect.normal);
+            return (fd + fs) * p.n.dot(d) * le / (rect.pdf(d, t) + pdf_b);
         }
-        out
+        match hit {
+            Some(h) => weight * self.arriving(&h, o, d, hash2(s.seed, s.j as u64)),
+            None => DVec3::ZERO,
+        }
+    }
+
+    /// What shows through a point an alpha mask cuts away, along unit `d`
+    /// from `x`: the next surface that is not cut away, as a reflection sees it.
+    pub(super) fn behind(&self, x: DVec3, d: DVec3, seed: u64) -> DVec3 {
+        let mut from = x;
+        for _ in 0..16 {
+            let o = from + d * crate::light::origin_lift(from) * 4.0;
+            let Some(h) = self
+                .tracer
+                .intersect(&TraceRay::new(o.as_vec3(), d.as_vec3()), Layer::All)
+            else {
+                return DVec3::ZERO;
+            };
+            let y = o + d * h.t as f64;
+            let masked = self
+                .materials
+                .surfaces
+                .get(&h.surface)
+                .is_some_and(|s| self.point(s, h.triangle, y, d, 0.0).is_none());
+            if !masked {
+                return self.arriving(&h, o, d, seed);
+            }
+            from = y;
+        }
+        DVec3::ZERO
     }
 
     /// Radiance arriving along `d` from the surface `h` (from origin `o`).
@@ -255,14 +283,6 @@ impl ObjectShading<'_> {
             }
             None => rho * with / std::f64::consts::PI,
         }
-    }
-}
-
-/// Area samples [`ObjectShading::direct`] draws on `light` for a budget of `n_l`.
-fn light_count(n_l: u32, light: &LightSource) -> f64 {
-    match light.grid {
-        Some(_) => (1u64 << (n_l as f64).log2().floor() as u32) as f64,
-        None => 1.0,
     }
 }
 
