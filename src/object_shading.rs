@@ -103,6 +103,10 @@ impl ObjectMaterials {
 pub struct ShadingSettings {
     /// Most specular-lobe rays a pixel draws (at the roughness that needs
     /// the most; fewer for smoother and rougher lobes, and dielectrics).
+    /// 24: on `materials`, 16 to 64 give the same error against the truth
+    /// (within 0.001 of the objects' RMSE: the truth's own noise); 16
+    /// against 256 differ by 0.045 on a chrome ball's pixels, nearly all
+    /// in its highlights.
     pub specular_rays: u32,
     /// Points sampled on each rect light.
     pub light_samples: u32,
@@ -111,7 +115,7 @@ pub struct ShadingSettings {
 impl Default for ShadingSettings {
     fn default() -> Self {
         ShadingSettings {
-            specular_rays: 48,
+            specular_rays: 24,
             light_samples: 16,
         }
     }
@@ -134,6 +138,9 @@ pub struct ObjectShading<'a> {
     pub indirect_without: &'a [DVec3],
     /// Reflectance per patch of the augmented model.
     pub reflectance: &'a [DVec3],
+    /// The pixels' real points and their light terms (a reflected real
+    /// point the camera sees takes its pixel's change from them).
+    pub pda: &'a crate::pda::PixelDataArray,
     pub settings: ShadingSettings,
 }
 
@@ -373,3 +380,6 @@ fn perturbed(n: DVec3, (tangent, sign): (DVec3, f64), tn: DVec3) -> DVec3 {
     let b = n.cross(t) * sign;
     (t * tn.x + b * tn.y + n * tn.z).normalize_or(n)
 }
+
+#[cfg(test)]
+mod tests;

@@ -420,6 +420,7 @@ impl Session {
             indirect_with: &self.changes.indirect_with,
             indirect_without: &self.indirect_without,
             reflectance: &self.changes.reflectance,
+            pda: &self.pda,
             settings: self.settings.shading,
         };
         let known = times.time("composite", || {

@@ -118,7 +118,11 @@ fn an_update_of_a_chrome_ball_equals_a_full_render_of_its_pose() {
     let mut session =
         Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
     let mut moved = first.clone();
-    let chrome = moved.objects.iter().position(|o| o.name == "chrome").unwrap();
+    let chrome = moved
+        .objects
+        .iter()
+        .position(|o| o.name == "chrome")
+        .unwrap();
     moved.objects[chrome].pose.translate += glam::DVec3::new(-0.2, 0.0, 0.15);
     session.update(&moved, &mut StageTimes::default()).unwrap();
     let full = render(&moved, &photo, &settings, &mut StageTimes::default()).unwrap();

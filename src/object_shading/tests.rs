@@ -1,0 +1,81 @@
+use super::*;
+
+#[test]
+fn barycentrics_rebuild_the_point() {
+    let (a, b, c) = (DVec3::ZERO, DVec3::X, DVec3::Y);
+    let x = DVec3::new(0.2, 0.3, 0.0);
+    let w = barycentrics(a, b, c, x);
+    let back = a * w[0] + b * w[1] + c * w[2];
+    assert!((back - x).length() < 1e-12, "{w:?}");
+}
+
+#[test]
+fn the_terminator_point_rises_to_the_smooth_surface_and_only_where_it_bulges() {
+    let corners = [DVec3::ZERO, DVec3::X, DVec3::Y];
+    let x = DVec3::new(1.0 / 3.0, 1.0 / 3.0, 0.0);
+    let w = barycentrics(corners[0], corners[1], corners[2], x);
+    // Flat normals: the point stays on its triangle.
+    let flat = [DVec3::Z; 3];
+    assert!((terminator_safe(x, corners, flat, w) - x).length() < 1e-15);
+    // Normals leaning out from the centre (a convex patch): it rises, by
+    // the mean of how far x lies below each corner's tangent plane.
+    let out = corners.map(|p| (p - x + DVec3::Z).normalize());
+    let lifted = terminator_safe(x, corners, out, w);
+    let expect: DVec3 = (0..3)
+        .map(|i| -out[i] * (w[i] * (x - corners[i]).dot(out[i]).min(0.0)))
+        .sum();
+    assert!((lifted - x - expect).length() < 1e-12);
+    assert!(lifted.z > 0.0, "{lifted}");
+    // Normals leaning in (a concave patch): the point lies above every
+    // tangent plane and stays.
+    let inward = corners.map(|p| (x - p + DVec3::Z).normalize());
+    assert!((terminator_safe(x, corners, inward, w) - x).length() < 1e-15);
+}
+
+#[test]
+fn a_normal_texture_tilts_a_plane_s_shading_as_lambert_says() {
+    // A plane facing +z, its tangent along +x from its texture coordinates.
+    let t = [DVec3::ZERO, DVec3::X, DVec3::Y];
+    let uv = [
+        Vec2::new(0.0, 0.0),
+        Vec2::new(1.0, 0.0),
+        Vec2::new(0.0, 1.0),
+    ];
+    let tangent = uv_tangent(t, uv);
+    assert!((tangent.0 - DVec3::X).length() < 1e-12);
+    // A texel tilting the normal 30° towards +x.
+    let tilt = 30f64.to_radians();
+    let tn = DVec3::new(tilt.sin(), 0.0, tilt.cos());
+    let n = perturbed(DVec3::Z, tangent, tn);
+    assert!((n - tn).length() < 1e-12, "{n}");
+    // A matte white surface lit from 60° towards +x: the diffuse radiance
+    // follows cos of the angle to the tilted normal (30°), not to the plane's (60°).
+    let lobes = Lobes {
+        base: DVec3::ONE,
+        metallic: 0.0,
+        roughness: 1.0,
+    };
+    let l = DVec3::new(60f64.to_radians().sin(), 0.0, 60f64.to_radians().cos());
+    let v = DVec3::Z;
+    let (tilted, plain) = (
+        lobes.eval(n, v, l).0.x * n.dot(l),
+        lobes.eval(DVec3::Z, v, l).0.x * l.z,
+    );
+    let ratio = tilted / plain;
+    let expect = 30f64.to_radians().cos() / 60f64.to_radians().cos();
+    // The diffuse part's Fresnel factor differs only through v·h, the same for both.
+    assert!((ratio - expect).abs() < 1e-9, "{ratio} against {expect}");
+}
+
+#[test]
+fn a_mirrored_texture_s_tangent_frame_keeps_its_handedness() {
+    let t = [DVec3::ZERO, DVec3::X, DVec3::Y];
+    let uv = [
+        Vec2::new(1.0, 0.0),
+        Vec2::new(0.0, 0.0),
+        Vec2::new(1.0, 1.0),
+    ];
+    let (tangent, sign) = uv_tangent(t, uv);
+    assert!((tangent + DVec3::X).length() < 1e-12);
+    assert_eq!(sign, -1.0);
+}
