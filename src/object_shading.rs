@@ -140,7 +140,8 @@ pub struct ObjectShading<'a> {
     pub reflectance: &'a [DVec3],
     /// The pixels' real points and their light terms (a reflected real
     /// point the camera sees takes its pixel's change from them).
-    pub pda: &'a crate::pda::PixelDataArray,
+    /// (None: every reflected real point's change is traced.)
+    pub pda: Option<&'a crate::pda::PixelDataArray>,
     pub settings: ShadingSettings,
 }
 

@@ -288,6 +288,17 @@ impl TexturePath {
     /// order): a radiosity solve on the kept mesh and links, then the display
     /// T_final × B/D (Eq. 3).
     pub fn relight(&self, scales: &[f64], times: &mut StageTimes) -> Composite {
+        self.relight_with_objects(scales, None, times)
+    }
+
+    /// [`TexturePath::relight`], the pixels of objects with materials then
+    /// shaded by their BRDF (`objects`: the scene as posed and its tracer).
+    pub fn relight_with_objects(
+        &self,
+        scales: &[f64],
+        objects: Option<(&Scene, &Tracer)>,
+        times: &mut StageTimes,
+    ) -> Composite {
         let n = self.patches.patch_count();
         let mut e = vec![DVec3::ZERO; n];
         for (l, &s) in scales.iter().enumerate() {
@@ -314,9 +325,21 @@ impl TexturePath {
                 500,
             )
         });
-        times.time("display", || {
+        let mut out = times.time("display", || {
             self.display(scales, &solution.indirect_irradiance)
-        })
+        });
+        if let Some((scene, tracer)) = objects {
+            times.time("objects' materials", || {
+                self.shade_objects(
+                    &mut out,
+                    scene,
+                    tracer,
+                    scales,
+                    &solution.indirect_irradiance,
+                )
+            });
+        }
+        out
     }
 }
 
@@ -351,7 +374,7 @@ pub fn render_texture(
     let path = TexturePath::prepare(scene, &photo, &tracer, settings, times)?;
     let scales: Vec<f64> = scene.lights.iter().map(|l| l.scale).collect();
     let before = times.total();
-    let mut composite = path.relight(&scales, times);
+    let mut composite = path.relight_with_objects(&scales, Some((scene, &tracer)), times);
     if let Some((lamps, shot)) = &lamps {
         times.time("lamps in view", || {
             lamps.apply(&mut composite, shot, &photo, &scales, &tracer)
@@ -378,6 +401,7 @@ pub fn render_texture(
 }
 
 mod display;
+mod objects;
 mod preprocess;
 mod refine;
 mod textures;

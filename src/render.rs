@@ -420,7 +420,7 @@ impl Session {
             indirect_with: &self.changes.indirect_with,
             indirect_without: &self.indirect_without,
             reflectance: &self.changes.reflectance,
-            pda: &self.pda,
+            pda: Some(&self.pda),
             settings: self.settings.shading,
         };
         let known = times.time("composite", || {
@@ -553,13 +553,7 @@ impl Session {
         self.prepare_updates(times);
         let mut stats = UpdateStats::default();
         let virt = scene.virtual_world_surfaces();
-        let sets: Vec<crate::trace::SurfaceTriangles> = virt
-            .iter()
-            .map(|(id, t)| crate::trace::SurfaceTriangles {
-                surface: *id,
-                triangles: t,
-            })
-            .collect();
+        let sets = crate::scene_tracer::virtual_triangle_sets(scene, &virt);
         // The tracer's objects, their bounds and their mesh, side by side.
         let has_objects = sets.iter().any(|s| !s.triangles.is_empty());
         let (tracer, model, settings) = (&mut self.tracer, &self.model, &self.settings);

@@ -5,7 +5,7 @@
 
 use crate::error::{Error, Result};
 use crate::scene::Scene;
-use crate::trace::{SurfaceTriangles, Tracer};
+use crate::trace::{Mask, SurfaceTriangles, Tracer};
 
 /// The real surfaces as tracer input, each with its id.
 pub(crate) fn real_triangle_sets(scene: &Scene) -> Vec<SurfaceTriangles<'_>> {
@@ -16,6 +16,7 @@ pub(crate) fn real_triangle_sets(scene: &Scene) -> Vec<SurfaceTriangles<'_>> {
         .map(|(i, s)| SurfaceTriangles {
             surface: i as u32,
             triangles: &s.triangles,
+            mask: None,
         })
         .collect()
 }
@@ -24,13 +25,57 @@ pub(crate) fn real_triangle_sets(scene: &Scene) -> Vec<SurfaceTriangles<'_>> {
 /// (none built when there are none).
 pub fn build_tracer(scene: &Scene) -> Result<Tracer> {
     let virt = scene.virtual_world_surfaces();
-    let sets: Vec<SurfaceTriangles> = virt
-        .iter()
+    Tracer::build(
+        &real_triangle_sets(scene),
+        &virtual_triangle_sets(scene, &virt),
+    )
+    .map_err(|e| Error::file(&scene.file, e.to_string()))
+}
+
+/// The enabled virtual objects' surfaces as tracer input (`virt`: their
+/// world triangles, as [`Scene::virtual_world_surfaces`] gives them), each
+/// with its material's alpha mask when it has one.
+pub(crate) fn virtual_triangle_sets<'a>(
+    scene: &Scene,
+    virt: &'a [(u32, Vec<crate::geometry::Triangle>)],
+) -> Vec<SurfaceTriangles<'a>> {
+    let masks = alpha_masks(scene);
+    virt.iter()
         .map(|(id, t)| SurfaceTriangles {
             surface: *id,
             triangles: t,
+            mask: masks.get(id).cloned(),
         })
-        .collect();
-    Tracer::build(&real_triangle_sets(scene), &sets)
-        .map_err(|e| Error::file(&scene.file, e.to_string()))
+        .collect()
+}
+
+/// Per virtual surface id, the tracer's mask of a material with alphaMode
+/// MASK: present where the base colour's alpha at the point's texture
+/// coordinate reaches the cutoff.
+fn alpha_masks(scene: &Scene) -> std::collections::HashMap<u32, Mask> {
+    let mut out = std::collections::HashMap::new();
+    let mut id = scene.surfaces.len() as u32;
+    for o in &scene.objects {
+        for s in &o.surfaces {
+            if let Some(m) = s
+                .material
+                .as_ref()
+                .filter(|m| m.material.alpha_cutoff.is_some())
+            {
+                let (material, attributes) = (m.material.clone(), m.attributes.clone());
+                let mask: Mask = std::sync::Arc::new(move |k: u32, u: f32, v: f32| {
+                    let uv = attributes
+                        .uvs
+                        .get(k as usize)
+                        .map_or(glam::Vec2::ZERO, |t| {
+                            t[0] * (1.0 - u - v) + t[1] * u + t[2] * v
+                        });
+                    material.at(uv, 0.0).opaque
+                });
+                out.insert(id, mask);
+            }
+            id += 1;
+        }
+    }
+    out
 }

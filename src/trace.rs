@@ -154,11 +154,50 @@ pub struct Hit {
 pub struct SurfaceTriangles<'a> {
     pub surface: u32,
     pub triangles: &'a [Triangle],
+    /// Where the surface is cut away (an alpha mask): rays pass there.
+    pub mask: Option<Mask>,
+}
+
+/// Whether a surface is present at barycentric (u, v) of its triangle
+/// (Embree's: the point is (1 − u − v)·a + u·b + v·c).
+pub type Mask = std::sync::Arc<dyn Fn(u32, f32, f32) -> bool + Send + Sync>;
+
+/// Embree's filter for a masked surface: hits where its mask says the
+/// surface is cut away are rejected, so rays continue past them. A mask
+/// that panics keeps the hit (unwinding must not cross into Embree).
+unsafe extern "C" fn mask_filter(args: *const ffi::RTCFilterFunctionNArguments) {
+    // SAFETY: Embree passes valid arguments: `valid` and `hit` hold N
+    // lanes, and the user pointer is the `Mask` this geometry was given,
+    // kept alive by its `Geometry`.
+    unsafe {
+        let args = &*args;
+        let mask = &*(args.geometry_user_ptr as *const Mask);
+        let n = args.n as usize;
+        let hit = args.hit as *const f32;
+        for i in 0..n {
+            let valid = args.valid.add(i);
+            if *valid == 0 {
+                continue;
+            }
+            let (u, v) = (*hit.add(3 * n + i), *hit.add(4 * n + i));
+            let prim = *(hit as *const u32).add(5 * n + i);
+            let present =
+                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| mask(prim, u, v)))
+                    .unwrap_or(true);
+            if !present {
+                *valid = 0;
+            }
+        }
+    }
 }
 
 /// One committed Embree scene.
 pub struct Geometry {
     scene: NonNull<c_void>,
+    /// The masks its filters read, boxed: Embree holds their addresses,
+    /// which must not move when the list grows.
+    #[allow(clippy::vec_box)]
+    masks: Vec<Box<Mask>>,
     /// arlux surface id of each Embree geometry id.
     surface_of_geometry: Vec<u32>,
     triangles: usize,
@@ -186,6 +225,7 @@ impl Geometry {
             .ok_or_else(|| TraceError("could not create a scene".into()))?;
         let mut g = Geometry {
             scene,
+            masks: Vec::new(),
             surface_of_geometry: Vec::new(),
             triangles: 0,
             is_virtual,
@@ -234,6 +274,14 @@ impl Geometry {
                     }
                     let base = 3 * i as u32;
                     idx[i] = [base, base + 1, base + 2];
+                }
+                if let Some(mask) = &s.mask {
+                    let boxed = Box::new(mask.clone());
+                    let user = &*boxed as *const Mask as *mut c_void;
+                    ffi::rtcSetGeometryUserData(geom, user);
+                    ffi::rtcSetGeometryIntersectFilterFunction(geom, Some(mask_filter));
+                    ffi::rtcSetGeometryOccludedFilterFunction(geom, Some(mask_filter));
+                    g.masks.push(boxed);
                 }
                 ffi::rtcCommitGeometry(geom);
                 let id = ffi::rtcAttachGeometry(scene.as_ptr(), geom);

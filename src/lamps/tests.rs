@@ -16,6 +16,7 @@ fn ceiling_and_panel() -> (Camera, Tracer, LightSource) {
         &[SurfaceTriangles {
             surface: 0,
             triangles: &ceiling,
+            mask: None,
         }],
         &[],
     )
@@ -141,10 +142,12 @@ fn an_object_in_front_of_a_lamp_hides_it() {
         &[SurfaceTriangles {
             surface: 0,
             triangles: &ceiling,
+            mask: None,
         }],
         &[SurfaceTriangles {
             surface: 1,
             triangles: &board,
+            mask: None,
         }],
     )
     .unwrap();

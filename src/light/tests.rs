@@ -177,6 +177,7 @@ fn half_a_panel_hidden_behind_a_wall_gives_half_visibility() {
         &[SurfaceTriangles {
             surface: 0,
             triangles: &wall,
+            mask: None,
         }],
         &[],
     )

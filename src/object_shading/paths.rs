@@ -286,7 +286,7 @@ impl ObjectShading<'_> {
     /// without, from the Pixel Data Array's terms: no ray but the one back
     /// to the camera).
     fn as_photographed(&self, y: DVec3, surface: u32) -> Option<DVec3> {
-        let pda = self.pda;
+        let pda = self.pda?;
         let (px, py, _) = self.camera.project(y)?;
         if px < 0.0 || py < 0.0 || px >= pda.width as f64 || py >= pda.height as f64 {
             return None;

@@ -34,6 +34,7 @@ fn object_only(triangles: &[crate::geometry::Triangle]) -> Tracer {
         &[SurfaceTriangles {
             surface: 7,
             triangles,
+            mask: None,
         }],
     )
     .unwrap()
@@ -265,10 +266,12 @@ fn an_object_the_room_cannot_shadow_gets_the_light_tracing_the_room_gives() {
             &[SurfaceTriangles {
                 surface: 1,
                 triangles: &room,
+                mask: None,
             }],
             &[SurfaceTriangles {
                 surface: 7,
                 triangles: &boxed,
+                mask: None,
             }],
         )
         .unwrap();

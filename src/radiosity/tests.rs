@@ -92,6 +92,7 @@ fn furnace(rho: f64) {
         .map(|(i, t)| SurfaceTriangles {
             surface: i as u32,
             triangles: t,
+            mask: None,
         })
         .collect();
     let tracer = Tracer::build(&sets, &[]).unwrap();
@@ -170,6 +171,7 @@ fn zero_reflectance_and_zero_emission_give_zero_not_nan() {
         .map(|(i, t)| SurfaceTriangles {
             surface: i as u32,
             triangles: t,
+            mask: None,
         })
         .collect();
     let tracer = Tracer::build(&sets, &[]).unwrap();
@@ -232,10 +234,12 @@ fn cube_on_floor(floor_start: f32, floor_end: f32, patch_size: f64) -> (Patches,
         SurfaceTriangles {
             surface: 0,
             triangles: &cube,
+            mask: None,
         },
         SurfaceTriangles {
             surface: 1,
             triangles: &floor,
+            mask: None,
         },
     ];
     (

@@ -133,6 +133,21 @@ const _: () = assert!(std::mem::size_of::<RTCRayN<16>>() == 768);
 const _: () = assert!(std::mem::size_of::<RTCRayN<4>>() == 192);
 const _: () = assert!(std::mem::size_of::<RTCHit16>() == 512);
 
+/// Embree's arguments to a geometry's filter function (rtcore_common.h).
+#[repr(C)]
+pub(crate) struct RTCFilterFunctionNArguments {
+    pub valid: *mut i32,
+    pub geometry_user_ptr: *mut c_void,
+    pub context: *mut c_void,
+    pub ray: *mut c_void,
+    /// `RTCHitN`: N normals' x, y, z, then N u, N v, N primID, … (4 bytes each).
+    pub hit: *mut c_void,
+    pub n: u32,
+}
+
+pub(crate) type RTCFilterFunctionN =
+    Option<unsafe extern "C" fn(*const RTCFilterFunctionNArguments)>;
+
 #[link(name = "embree3")]
 unsafe extern "C" {
     pub(crate) fn rtcNewDevice(config: *const c_char) -> RTCDevice;
@@ -157,6 +172,15 @@ unsafe extern "C" {
         count: usize,
     ) -> *mut c_void;
     pub(crate) fn rtcCommitGeometry(geometry: RTCGeometry);
+    pub(crate) fn rtcSetGeometryUserData(geometry: RTCGeometry, ptr: *mut c_void);
+    pub(crate) fn rtcSetGeometryIntersectFilterFunction(
+        geometry: RTCGeometry,
+        filter: RTCFilterFunctionN,
+    );
+    pub(crate) fn rtcSetGeometryOccludedFilterFunction(
+        geometry: RTCGeometry,
+        filter: RTCFilterFunctionN,
+    );
     pub(crate) fn rtcAttachGeometry(scene: RTCScene, geometry: RTCGeometry) -> u32;
     pub(crate) fn rtcReleaseGeometry(geometry: RTCGeometry);
     pub(crate) fn rtcIntersect1(

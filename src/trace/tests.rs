@@ -18,10 +18,12 @@ fn closest_hit_reports_surface_triangle_barycentrics_and_facing_normal() {
             SurfaceTriangles {
                 surface: 7,
                 triangles: &far,
+                mask: None,
             },
             SurfaceTriangles {
                 surface: 3,
                 triangles: &near,
+                mask: None,
             },
         ],
         false,
@@ -52,10 +54,12 @@ fn batches_agree_with_single_rays_and_layers_stay_apart() {
         &[SurfaceTriangles {
             surface: 0,
             triangles: &wall,
+            mask: None,
         }],
         &[SurfaceTriangles {
             surface: 1,
             triangles: &blocker,
+            mask: None,
         }],
     )
     .unwrap();
@@ -92,6 +96,7 @@ fn queries_from_rayon_threads_agree() {
         &[SurfaceTriangles {
             surface: 0,
             triangles: &wall,
+            mask: None,
         }],
         false,
     )
@@ -106,4 +111,47 @@ fn queries_from_rayon_threads_agree() {
         })
         .collect();
     assert_eq!(hits.iter().filter(|&&h| h).count(), 5000);
+}
+
+#[test]
+fn a_masked_surface_lets_rays_through_where_it_is_cut_away_in_every_query() {
+    // The blocker's points with x < 0 are cut away (world x from the
+    // barycentrics, as a texture's alpha would be read from them).
+    let (wall, blocker) = (quad(2.0, 10.0), quad(1.0, 0.5));
+    let corners = blocker.clone();
+    let mask: Mask = std::sync::Arc::new(move |k: u32, u: f32, v: f32| {
+        let t = &corners[k as usize];
+        (t[0] * (1.0 - u - v) + t[1] * u + t[2] * v).x >= 0.0
+    });
+    let tracer = Tracer::build(
+        &[SurfaceTriangles {
+            surface: 0,
+            triangles: &wall,
+            mask: None,
+        }],
+        &[SurfaceTriangles {
+            surface: 1,
+            triangles: &blocker,
+            mask: Some(mask),
+        }],
+    )
+    .unwrap();
+    let rays: Vec<TraceRay> = (0..37)
+        .map(|i| TraceRay::new(Vec3::new(-0.49 + i as f32 * 0.027, 0.1, 0.0), Vec3::Z))
+        .collect();
+    let mut hits = vec![None; rays.len()];
+    tracer.intersect_batch(&rays, Layer::All, &mut hits);
+    let mut occ = vec![false; rays.len()];
+    tracer.occluded_batch(&rays, Layer::Virtual, &mut occ);
+    for (i, r) in rays.iter().enumerate() {
+        let present = r.origin.x >= 0.0;
+        let expect = if present { 1 } else { 0 };
+        assert_eq!(hits[i].map(|h| h.surface), Some(expect), "ray {i}");
+        assert_eq!(
+            tracer.intersect(r, Layer::All).map(|h| h.surface),
+            Some(expect)
+        );
+        assert_eq!(occ[i], present, "ray {i}");
+        assert_eq!(tracer.occluded(r, Layer::Virtual), present, "ray {i}");
+    }
 }
