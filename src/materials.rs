@@ -187,6 +187,74 @@ impl Attributes {
         join(&mut self.uvs, more.uvs, count);
         join(&mut self.tangents, more.tangents, count);
     }
+
+    /// These attributes with MikkTSpace tangents for `triangles` (what
+    /// normal textures are baked against, and what glTF asks for when a
+    /// file has none), where there are texture coordinates and no tangents.
+    /// MikkTSpace reads v up (Blender's convention), glTF's flipped.
+    pub fn with_mikktspace(mut self, triangles: &[[Vec3; 3]]) -> Attributes {
+        if !self.tangents.is_empty() || self.uvs.len() != triangles.len() || triangles.is_empty() {
+            return self;
+        }
+        let mut mesh = Mikk {
+            triangles,
+            attributes: &self,
+            tangents: vec![[Vec4::ZERO; 3]; triangles.len()],
+        };
+        if bevy_mikktspace::generate_tangents(&mut mesh).is_ok() {
+            self.tangents = mesh.tangents;
+        }
+        self
+    }
+}
+
+/// A surface as `bevy_mikktspace` reads it.
+struct Mikk<'a> {
+    triangles: &'a [[Vec3; 3]],
+    attributes: &'a Attributes,
+    tangents: Vec<[Vec4; 3]>,
+}
+
+impl bevy_mikktspace::Geometry for Mikk<'_> {
+    fn num_faces(&self) -> usize {
+        self.triangles.len()
+    }
+
+    fn num_vertices_of_face(&self, _face: usize) -> usize {
+        3
+    }
+
+    fn position(&self, face: usize, vert: usize) -> [f32; 3] {
+        self.triangles[face][vert].to_array()
+    }
+
+    fn normal(&self, face: usize, vert: usize) -> [f32; 3] {
+        match self.attributes.normals.get(face) {
+            Some(n) => n[vert].to_array(),
+            None => {
+                let [a, b, c] = self.triangles[face];
+                (b - a).cross(c - a).normalize_or_zero().to_array()
+            }
+        }
+    }
+
+    fn tex_coord(&self, face: usize, vert: usize) -> [f32; 2] {
+        let uv = self.attributes.uvs[face][vert];
+        [uv.x, 1.0 - uv.y]
+    }
+
+    fn set_tangent(
+        &mut self,
+        tangent: Option<bevy_mikktspace::TangentSpace>,
+        face: usize,
+        vert: usize,
+    ) {
+        // A corner MikkTSpace leaves without one (a degenerate face) keeps
+        // zero: the shader then falls back to the face's own tangent.
+        if let Some(t) = tangent {
+            self.tangents[face][vert] = Vec4::from_array(t.tangent_encoded());
+        }
+    }
 }
 
 /// A virtual surface's material and attributes, as the object shader reads them.

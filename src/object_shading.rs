@@ -309,6 +309,7 @@ impl ObjectShading<'_> {
                     let t = tg[0] * w[0] as f32 + tg[1] * w[1] as f32 + tg[2] * w[2] as f32;
                     ((s.rotation * t.truncate().as_dvec3()), t.w.signum() as f64)
                 })
+                .filter(|(t, _)| t.length_squared() > 1e-12)
                 .unwrap_or_else(|| uv_tangent([a, b, c], *uvs));
             n = perturbed(n, tangent, tn.as_dvec3());
         }
@@ -353,10 +354,13 @@ fn terminator_safe(x: DVec3, corners: [DVec3; 3], normals: [DVec3; 3], w: [f64; 
 }
 
 /// A triangle's tangent from its texture coordinates (u increasing), and
-/// the bitangent's sign: where the file has no tangents.
+/// the sign of its bitangent, which points up the image (glTF's +Y of a
+/// normal texture: v decreasing): where the file has no tangents and
+/// MikkTSpace had no normals and coordinates to work from.
 fn uv_tangent(t: [DVec3; 3], uv: [Vec2; 3]) -> (DVec3, f64) {
     let (e1, e2) = (t[1] - t[0], t[2] - t[0]);
-    let (d1, d2) = ((uv[1] - uv[0]).as_dvec2(), (uv[2] - uv[0]).as_dvec2());
+    let up = |a: Vec2, b: Vec2| glam::DVec2::new((b.x - a.x) as f64, (a.y - b.y) as f64);
+    let (d1, d2) = (up(uv[0], uv[1]), up(uv[0], uv[2]));
     let det = d1.x * d2.y - d2.x * d1.y;
     if det.abs() < 1e-20 {
         return (e1.normalize_or_zero(), 1.0);

@@ -208,3 +208,23 @@ fn a_normal_texture_decodes_to_its_tangent_space_normal() {
     let lean = m.at(Vec2::new(0.75, 0.5), 0.0).tangent_normal.unwrap();
     assert!((lean - Vec3::new(1.0, 0.0, 0.0)).length() < 1e-6, "{lean}");
 }
+
+#[test]
+fn mikktspace_tangents_run_along_u_with_the_bitangent_up_the_image() {
+    // A unit square facing +z with its image upright on it (v = 1 at the bottom).
+    let (a, b, c, d) = (Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y);
+    let triangles = [[a, b, c], [a, c, d]];
+    let uv = |p: Vec3| Vec2::new(p.x, 1.0 - p.y);
+    let attributes = Attributes {
+        normals: vec![[Vec3::Z; 3]; 2],
+        uvs: triangles.iter().map(|t| t.map(uv)).collect(),
+        tangents: Vec::new(),
+    }
+    .with_mikktspace(&triangles);
+    assert_eq!(attributes.tangents.len(), 2);
+    for t in attributes.tangents.iter().flatten() {
+        assert!((t.truncate() - Vec3::X).length() < 1e-5, "{t}");
+        // glTF: bitangent = normal × tangent · w, up the image (+y here).
+        assert_eq!(t.w, 1.0, "{t}");
+    }
+}

@@ -68,14 +68,28 @@ fn a_normal_texture_tilts_a_plane_s_shading_as_lambert_says() {
 }
 
 #[test]
-fn a_mirrored_texture_s_tangent_frame_keeps_its_handedness() {
+fn a_texture_s_up_is_the_bitangent_mirrored_or_not() {
+    // A square facing +z with its image upright on it: v = 1 at the bottom.
     let t = [DVec3::ZERO, DVec3::X, DVec3::Y];
-    let uv = [
-        Vec2::new(1.0, 0.0),
-        Vec2::new(0.0, 0.0),
+    let upright = [
+        Vec2::new(0.0, 1.0),
         Vec2::new(1.0, 1.0),
+        Vec2::new(0.0, 0.0),
     ];
-    let (tangent, sign) = uv_tangent(t, uv);
-    assert!((tangent + DVec3::X).length() < 1e-12);
-    assert_eq!(sign, -1.0);
+    let mirrored = [
+        Vec2::new(1.0, 1.0),
+        Vec2::new(0.0, 1.0),
+        Vec2::new(1.0, 0.0),
+    ];
+    for (uv, along) in [(upright, DVec3::X), (mirrored, -DVec3::X)] {
+        let (tangent, sign) = uv_tangent(t, uv);
+        assert!((tangent - along).length() < 1e-12, "{tangent}");
+        // The normal texture's +Y (up the image) is world +y either way.
+        let up = perturbed(
+            DVec3::Z,
+            (tangent, sign),
+            DVec3::new(0.0, 1.0, 1.0).normalize(),
+        );
+        assert!(up.y > 0.7 && up.x.abs() < 1e-12, "{up}");
+    }
 }

@@ -51,8 +51,12 @@ pub(super) fn surface_material(
         material.roughness = r as f32;
         material.metallic_roughness_texture = None;
     }
+    let attributes = match material.normal_texture {
+        Some(_) => s.attributes.clone().with_mikktspace(&s.triangles),
+        None => s.attributes.clone(),
+    };
     Ok(Some(SurfaceMaterial {
         material: Arc::new(material),
-        attributes: Arc::new(s.attributes.clone()),
+        attributes: Arc::new(attributes),
     }))
 }
