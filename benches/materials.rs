@@ -76,19 +76,25 @@ fn updates(c: &mut Criterion) {
         desk.with_motion_pose("box_slide", 4).unwrap(),
     );
     alternating(c, "material_updates/desk_box_slide_3_4", &p3, &p4);
-    // The chrome ball moved by about what the box moves between poses.
-    let here = scene("materials", "scene.toml")
-        .with_variant("chrome_floor")
-        .unwrap();
+    // The chrome ball moved by about what the box moves between poses,
+    // and its flat twin the same way.
     let step = p4.objects[0].pose.translate - p3.objects[0].pose.translate;
-    let mut there = here.clone();
-    let k = there
-        .objects
-        .iter()
-        .position(|o| o.name == "chrome")
-        .unwrap();
-    there.objects[k].pose.translate += step;
-    alternating(c, "material_updates/chrome_floor_step", &here, &there);
+    for (file, name) in [
+        ("scene.toml", "chrome_floor_step"),
+        ("scene_flat.toml", "chrome_floor_step_flat"),
+    ] {
+        let here = scene("materials", file)
+            .with_variant("chrome_floor")
+            .unwrap();
+        let mut there = here.clone();
+        let k = there
+            .objects
+            .iter()
+            .position(|o| o.name == "chrome")
+            .unwrap();
+        there.objects[k].pose.translate += step;
+        alternating(c, &format!("material_updates/{name}"), &here, &there);
+    }
 }
 
 criterion_group! {

@@ -13,7 +13,7 @@ use arlux::scene::Scene;
 /// Writes `geometry/card.gltf` (+ `.bin`, `.png`): a 0.6 m square card at
 /// z = -0.6 facing +z (the camera), x from -0.3 to 0.3, y from 0.8 to 1.4;
 /// its texture is two texels across, left transparent red, right opaque green.
-fn write_card(desk: &Desk, extra: &str) {
+fn write_card(desk: &Desk, extra: &str, material: &str) {
     let positions: [[f32; 3]; 4] = [
         [-0.3, 1.4, -0.6],
         [0.3, 1.4, -0.6],
@@ -48,7 +48,7 @@ fn write_card(desk: &Desk, extra: &str) {
   "materials": [{{ "name": "cutout",
     "pbrMetallicRoughness": {{ "baseColorTexture": {{ "index": 0 }},
       "metallicFactor": 0.0, "roughnessFactor": 1.0 }},
-    "alphaMode": "MASK", "alphaCutoff": 0.5, "doubleSided": true }}],
+    "alphaMode": "MASK", "alphaCutoff": 0.5, "doubleSided": true{material} }}],
   "textures": [{{ "source": 0, "sampler": 0 }}],
   "samplers": [{{ "magFilter": 9729, "minFilter": 9729 }}],
   "images": [{{ "uri": "card.png" }}],
@@ -79,7 +79,7 @@ fn write_card(desk: &Desk, extra: &str) {
 #[test]
 fn an_alpha_mask_cuts_the_card_for_the_camera_and_its_shadow() {
     let desk = Desk::new();
-    write_card(&desk, "");
+    write_card(&desk, "", "");
     let scene = Scene::load(desk.path("scene.toml")).unwrap();
     let photo = scene.load_photo().unwrap();
     let out = render(
@@ -128,6 +128,7 @@ fn what_a_gltf_asks_and_arlux_cannot_honour_is_said_once_by_name() {
     write_card(
         &desk,
         r#" "extensionsUsed": ["KHR_materials_transmission", "KHR_materials_clearcoat"],"#,
+        "",
     );
     let scene = Scene::load(desk.path("scene.toml")).unwrap();
     let said: Vec<&String> = scene
@@ -139,4 +140,32 @@ fn what_a_gltf_asks_and_arlux_cannot_honour_is_said_once_by_name() {
     for name in ["KHR_materials_transmission", "KHR_materials_clearcoat"] {
         assert!(said[0].contains(name), "{}", said[0]);
     }
+}
+
+#[test]
+fn an_emissive_card_adds_its_emission_to_what_it_reflects() {
+    let (plain, glowing) = (Desk::new(), Desk::new());
+    write_card(&plain, "", "");
+    write_card(&glowing, "", r#", "emissiveFactor": [3.0, 0.0, 0.0]"#);
+    let shade = |desk: &Desk| {
+        let scene = Scene::load(desk.path("scene.toml")).unwrap();
+        let photo = scene.load_photo().unwrap();
+        let out = render(
+            &scene,
+            &photo,
+            &RenderSettings::default(),
+            &mut StageTimes::default(),
+        )
+        .unwrap();
+        let (px, py, _) = scene
+            .camera
+            .project(glam::DVec3::new(0.15, 1.1, -0.6))
+            .unwrap();
+        out.composite.image.pixels[py as usize * scene.camera.width as usize + px as usize]
+    };
+    // The same samples (seeded by the point), plus the emitted radiance.
+    let (a, b) = (shade(&plain), shade(&glowing));
+    let added = b - a;
+    assert!((added.x - 3.0).abs() < 1e-4, "red added {}", added.x);
+    assert!(added.y.abs() < 1e-4 && added.z.abs() < 1e-4, "{added}");
 }
