@@ -138,10 +138,6 @@ pub struct ObjectShading<'a> {
     pub indirect_without: &'a [DVec3],
     /// Reflectance per patch of the augmented model.
     pub reflectance: &'a [DVec3],
-    /// The pixels' real points and their light terms (a reflected real
-    /// point the camera sees takes its pixel's change from them).
-    /// (None: every reflected real point's change is traced.)
-    pub pda: Option<&'a crate::pda::PixelDataArray>,
     pub settings: ShadingSettings,
 }
 

@@ -420,7 +420,6 @@ impl Session {
             indirect_with: &self.changes.indirect_with,
             indirect_without: &self.indirect_without,
             reflectance: &self.changes.reflectance,
-            pda: Some(&self.pda),
             settings: self.settings.shading,
         };
         let known = times.time("composite", || {

@@ -139,3 +139,54 @@ fn an_update_of_a_chrome_ball_equals_a_full_render_of_its_pose() {
     let before = render(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
     assert_ne!(before.composite.alpha, full.composite.alpha);
 }
+
+#[test]
+fn a_tile_through_the_objects_shades_them_as_the_whole_frame_does() {
+    // A reflected point's change is traced, never read from a pixel a tile
+    // may not hold: the objects' pixels of a tile whose edge cuts the
+    // chrome ball equal the whole frame's bit for bit.
+    let base = load("materials", "scene.toml");
+    let scene = base.with_variant("trio").unwrap();
+    let photo = scene.load_photo().unwrap();
+    let whole = render(
+        &scene,
+        &photo,
+        &RenderSettings::default(),
+        &mut StageTimes::default(),
+    )
+    .unwrap();
+    let mut settings = RenderSettings::default();
+    let window = arlux::image_io::CropWindow {
+        x0: 0.69,
+        x1: 1.0,
+        y0: 0.0,
+        y1: 1.0,
+    };
+    settings.pda.crop = Some(window);
+    let tile = render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap();
+    let w = scene.camera.width as usize;
+    let x0 = window
+        .pixels(scene.camera.width, scene.camera.height)
+        .unwrap()
+        .x0 as usize;
+    let (mut compared, mut differing) = (0, 0);
+    for (i, (a, b)) in whole
+        .composite
+        .object
+        .pixels
+        .iter()
+        .zip(&tile.composite.object.pixels)
+        .enumerate()
+    {
+        if i % w >= x0 && whole.composite.alpha[i] > 0.0 {
+            compared += 1;
+            differing +=
+                (a.to_array().map(f32::to_bits) != b.to_array().map(f32::to_bits)) as usize;
+        }
+    }
+    assert!(compared > 100, "the tile holds {compared} object pixels");
+    assert_eq!(
+        differing, 0,
+        "{differing} of {compared} object pixels differ"
+    );
+}

@@ -231,11 +231,9 @@ impl ObjectShading<'_> {
     /// Radiance arriving along `d` from the surface `h` (from origin `o`).
     fn arriving(&self, h: &Hit, o: DVec3, d: DVec3, seed: u64) -> DVec3 {
         let y = o + d * h.t as f64;
-        if !h.is_virtual
-            && let Some(seen) = self.as_photographed(y, h.surface)
-        {
-            return seen;
-        }
+        // The change is traced here rather than read from the Pixel Data
+        // Array's terms at y's pixel: those exist only inside a crop, and
+        // a tile must equal the whole frame bit for bit.
         let Some(at) = self.patches.locate(h.surface, h.triangle, y) else {
             return DVec3::ZERO;
         };
@@ -278,55 +276,6 @@ impl ObjectShading<'_> {
             Some(photo) => changed(photo, with, without, rho),
             None => rho * with / std::f64::consts::PI,
         }
-    }
-
-    /// A real point `y` of `surface` as the augmented photo shows it, when
-    /// the camera sees it: the photo's pixel there times the change the
-    /// compositor applies to that pixel's real point (its light with ÷
-    /// without, from the Pixel Data Array's terms: no ray but the one back
-    /// to the camera).
-    fn as_photographed(&self, y: DVec3, surface: u32) -> Option<DVec3> {
-        let pda = self.pda?;
-        let (px, py, _) = self.camera.project(y)?;
-        if px < 0.0 || py < 0.0 || px >= pda.width as f64 || py >= pda.height as f64 {
-            return None;
-        }
-        let i = py as usize * pda.width as usize + px as usize;
-        let k = *pda.real_index.get(i)?;
-        // A pixel an object covers, in whole or in part: its real point's
-        // terms are not kept through the objects; the caller traces.
-        if k == u32::MAX
-            || pda.real.points[k as usize].surface != surface
-            || pda.virtual_index[i] != u32::MAX
-            || pda
-                .edges
-                .binary_search_by_key(&(i as u32), |e| e.pixel)
-                .is_ok()
-        {
-            return None;
-        }
-        let back = TraceRay::segment(self.camera.position.as_vec3(), y.as_vec3(), 1e-4);
-        if self.tracer.occluded(&back, Layer::Real) {
-            return None;
-        }
-        let nl = pda.light_count;
-        let terms = &pda.real.terms[k as usize * nl..(k as usize + 1) * nl];
-        let (mut with, mut without) = (DVec3::ZERO, DVec3::ZERO);
-        for ((t, light), l) in terms.iter().zip(self.lights).zip(0..) {
-            let u = light.colour() * t.unoccluded as f64;
-            with += u * (self.scales_with[l] * t.visible(true));
-            without += u * (self.scales_without[l] * t.visible(false));
-        }
-        let at = &pda.real.points[k as usize].location;
-        with += interpolate(self.indirect_with, at, self.patches);
-        without += interpolate(self.indirect_without, at, self.patches);
-        let photo = self.photo.pixels[i].as_dvec3();
-        let rho = self
-            .reflectance
-            .get(at.patch as usize)
-            .copied()
-            .unwrap_or(DVec3::ZERO);
-        Some(changed(photo, with, without, rho))
     }
 }
 

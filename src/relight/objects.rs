@@ -38,7 +38,6 @@ impl TexturePath {
             indirect_with: &h,
             indirect_without: &h,
             reflectance: &self.reflectance,
-            pda: None,
             settings: ShadingSettings::default(),
         };
         let w = self.photo.width.max(1);
