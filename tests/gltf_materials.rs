@@ -6,8 +6,6 @@
 mod common;
 use common::Desk;
 
-use arlux::model::StageTimes;
-use arlux::render::{RenderSettings, render};
 use arlux::scene::Scene;
 
 /// Writes `geometry/card.gltf` (+ `.bin`, `.png`): a 0.6 m square card at
@@ -81,14 +79,7 @@ fn an_alpha_mask_cuts_the_card_for_the_camera_and_its_shadow() {
     let desk = Desk::new();
     write_card(&desk, "", "");
     let scene = Scene::load(desk.path("scene.toml")).unwrap();
-    let photo = scene.load_photo().unwrap();
-    let out = render(
-        &scene,
-        &photo,
-        &RenderSettings::default(),
-        &mut StageTimes::default(),
-    )
-    .unwrap();
+    let (out, photo) = common::render_default(&scene);
     let c = &out.composite;
     let at = |x: f64, y: f64| {
         let (px, py, _) = scene.camera.project(glam::DVec3::new(x, y, -0.6)).unwrap();
@@ -149,14 +140,7 @@ fn an_emissive_card_adds_its_emission_to_what_it_reflects() {
     write_card(&glowing, "", r#", "emissiveFactor": [3.0, 0.0, 0.0]"#);
     let shade = |desk: &Desk| {
         let scene = Scene::load(desk.path("scene.toml")).unwrap();
-        let photo = scene.load_photo().unwrap();
-        let out = render(
-            &scene,
-            &photo,
-            &RenderSettings::default(),
-            &mut StageTimes::default(),
-        )
-        .unwrap();
+        let (out, _) = common::render_default(&scene);
         let (px, py, _) = scene
             .camera
             .project(glam::DVec3::new(0.15, 1.1, -0.6))

@@ -24,15 +24,7 @@ const VARIANTS: [&str; 7] = [
 ];
 
 fn run(base: &Scene, variant: &str) -> (RenderOutput, Image, Image) {
-    let scene = base.with_variant(variant).unwrap();
-    let photo = scene.load_photo().unwrap();
-    let out = render(
-        &scene,
-        &photo,
-        &RenderSettings::default(),
-        &mut StageTimes::default(),
-    )
-    .unwrap();
+    let (out, photo) = common::render_default(&base.with_variant(variant).unwrap());
     let truth = read_image(base.variant(variant).unwrap().reference.as_ref().unwrap()).unwrap();
     assert!(
         out.composite
@@ -147,14 +139,7 @@ fn a_tile_through_the_objects_shades_them_as_the_whole_frame_does() {
     // chrome ball equal the whole frame's bit for bit.
     let base = load("materials", "scene.toml");
     let scene = base.with_variant("trio").unwrap();
-    let photo = scene.load_photo().unwrap();
-    let whole = render(
-        &scene,
-        &photo,
-        &RenderSettings::default(),
-        &mut StageTimes::default(),
-    )
-    .unwrap();
+    let (whole, photo) = common::render_default(&scene);
     let mut settings = RenderSettings::default();
     let window = arlux::image_io::CropWindow {
         x0: 0.69,

@@ -260,10 +260,22 @@ impl ObjectShading<'_> {
                 continue;
             }
             let seed = hash2(seed, l as u64);
-            let all = light.direct(self.tracer, Layer::All, y, n, ROOM_LEVEL, seed);
+            // The room's rays once: those it lets through are then traced
+            // through the objects alone; the same targets again, untraced,
+            // weigh what the room alone lets through.
+            let mut real_blocked = Vec::new();
+            let all = light.direct_by(y, n, ROOM_LEVEL, seed, |_, rays, blocked| {
+                self.tracer.occluded_batch(rays, Layer::Real, blocked);
+                real_blocked = blocked.to_vec();
+                for (ray, b) in rays.iter().zip(blocked.iter_mut()) {
+                    *b = *b || self.tracer.occluded(ray, Layer::Virtual);
+                }
+            });
             e_with += all.unoccluded * (sw * all.visibility);
             if !h.is_virtual && swo > 0.0 {
-                let real = light.direct(self.tracer, Layer::Real, y, n, ROOM_LEVEL, seed);
+                let real = light.direct_by(y, n, ROOM_LEVEL, seed, |_, _, blocked| {
+                    blocked.copy_from_slice(&real_blocked);
+                });
                 e_without += real.unoccluded * (swo * real.visibility);
             }
         }

@@ -128,6 +128,19 @@ pub fn render_box_floor_a(desk: &Desk, out: &Path) -> serde_json::Value {
     serde_json::from_slice(&run.stdout).unwrap()
 }
 
+/// `scene` rendered with the default settings over its photo, and the photo.
+pub fn render_default(scene: &Scene) -> (arlux::render::RenderOutput, Image) {
+    let photo = scene.load_photo().unwrap();
+    let out = arlux::render::render(
+        scene,
+        &photo,
+        &arlux::render::RenderSettings::default(),
+        &mut arlux::model::StageTimes::default(),
+    )
+    .unwrap();
+    (out, photo)
+}
+
 /// A variant rendered with the defaults (every pixel checked finite and not
 /// negative), its truth and the photo.
 pub fn rendered(base: &Scene, variant: &str) -> (Image, Image, Image) {
