@@ -175,3 +175,32 @@ fn a_tile_through_the_objects_shades_them_as_the_whole_frame_does() {
         "{differing} of {compared} object pixels differ"
     );
 }
+
+#[test]
+fn the_objects_pixels_are_the_same_on_one_thread_and_on_three() {
+    let scene = load("materials", "scene.toml")
+        .with_variant("trio")
+        .unwrap();
+    let photo = scene.load_photo().unwrap();
+    let images: Vec<Image> = [1, 3]
+        .iter()
+        .map(|&t| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(t)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                render(
+                    &scene,
+                    &photo,
+                    &RenderSettings::default(),
+                    &mut StageTimes::default(),
+                )
+                .unwrap()
+                .composite
+                .image
+            })
+        })
+        .collect();
+    assert!(images[0] == images[1], "thread count changed the image");
+}
