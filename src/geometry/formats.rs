@@ -153,7 +153,13 @@ fn read_gltf(path: &Path) -> Result<Mesh> {
                             name: name.clone(),
                             triangles: Vec::new(),
                             material_rgb: Some(Vec3::new(c[0], c[1], c[2])),
-                            material: Some(materials.get(prim.material())?),
+                            // A primitive without a material takes glTF's
+                            // default (a rough white metal) only in viewers:
+                            // here it stays clay of the scene's `rgb`.
+                            material: match key {
+                                Some(_) => Some(materials.get(prim.material())?),
+                                None => None,
+                            },
                             attributes: Attributes::default(),
                         },
                     ));
