@@ -448,17 +448,7 @@ impl LightSource {
                 let rays: Vec<TraceRay> = targets.iter().map(|&t| segment(origin, t)).collect();
                 let mut blocked = vec![false; rays.len()];
                 occluded(&targets, &rays, &mut blocked);
-                // Weight each ray by its sample's contribution, so that a
-                // point near the light is not dominated by far samples.
-                let (mut seen, mut total) = (0.0, 0.0);
-                for (t, b) in targets.iter().zip(&blocked) {
-                    let w = point_contribution(*t, x, n, |d| self.intensity(d)).element_sum();
-                    total += w;
-                    if !b {
-                        seen += w;
-                    }
-                }
-                let visibility = if total > 0.0 { seen / total } else { 0.0 };
+                let visibility = self.visibility_of(x, n, &targets, &blocked);
                 DirectLight {
                     unoccluded,
                     visibility,
@@ -466,6 +456,30 @@ impl LightSource {
                 }
             }
         }
+    }
+}
+
+impl LightSource {
+    /// The fraction of this light reaching `x` (normal `n`) when the rays
+    /// to `targets` (points of it) are `blocked` as given: each ray
+    /// weighted by its sample's contribution, so that a point near the
+    /// light is not dominated by far samples.
+    pub(crate) fn visibility_of(
+        &self,
+        x: DVec3,
+        n: DVec3,
+        targets: &[DVec3],
+        blocked: &[bool],
+    ) -> f64 {
+        let (mut seen, mut total) = (0.0, 0.0);
+        for (t, b) in targets.iter().zip(blocked) {
+            let w = point_contribution(*t, x, n, |d| self.intensity(d)).element_sum();
+            total += w;
+            if !b {
+                seen += w;
+            }
+        }
+        if total > 0.0 { seen / total } else { 0.0 }
     }
 }
 

@@ -261,22 +261,20 @@ impl ObjectShading<'_> {
             }
             let seed = hash2(seed, l as u64);
             // The room's rays once: those it lets through are then traced
-            // through the objects alone; the same targets again, untraced,
-            // weigh what the room alone lets through.
-            let mut real_blocked = Vec::new();
-            let all = light.direct_by(y, n, ROOM_LEVEL, seed, |_, rays, blocked| {
+            // through the objects alone; the room's own blockers weigh what
+            // the photo's light was there.
+            let (mut targets, mut real_blocked) = (Vec::new(), Vec::new());
+            let all = light.direct_by(y, n, ROOM_LEVEL, seed, |at, rays, blocked| {
                 self.tracer.occluded_batch(rays, Layer::Real, blocked);
-                real_blocked = blocked.to_vec();
+                (targets, real_blocked) = (at.to_vec(), blocked.to_vec());
                 for (ray, b) in rays.iter().zip(blocked.iter_mut()) {
                     *b = *b || self.tracer.occluded(ray, Layer::Virtual);
                 }
             });
             e_with += all.unoccluded * (sw * all.visibility);
-            if !h.is_virtual && swo > 0.0 {
-                let real = light.direct_by(y, n, ROOM_LEVEL, seed, |_, _, blocked| {
-                    blocked.copy_from_slice(&real_blocked);
-                });
-                e_without += real.unoccluded * (swo * real.visibility);
+            if !h.is_virtual && swo > 0.0 && all.rays > 0 {
+                let real = light.visibility_of(y, n, &targets, &real_blocked);
+                e_without += all.unoccluded * (swo * real);
             }
         }
         let with = e_with + interp(self.indirect_with);
