@@ -116,6 +116,15 @@ impl Material {
         .clamp(DVec3::ZERO, DVec3::ONE)
     }
 
+    /// The mean emitted radiance: the emission factor times its texture's mean.
+    pub fn mean_emission(&self) -> DVec3 {
+        let e = match &self.emissive_texture {
+            Some(t) => self.emissive * t.mean().truncate(),
+            None => self.emissive,
+        };
+        e.as_dvec3().max(DVec3::ZERO)
+    }
+
     /// One line for `arlux info`.
     pub fn describe(&self) -> String {
         let c = self.base_colour;

@@ -141,7 +141,21 @@ pub(super) fn solve_changes(
         })
         .collect();
     let e = total_direct(input.scales_with, direct_per_light);
-    let b: Vec<DVec3> = reflectance.iter().zip(&e).map(|(r, e)| *r * *e).collect();
+    // Objects whose material glows light the room as lamps of their shape.
+    let glowing = input.scene.virtual_surface_emission();
+    let emission: Vec<DVec3> = (0..patches.patch_count())
+        .map(|k| match k < real_count || glowing.is_empty() {
+            true => DVec3::ZERO,
+            false => glowing
+                .get(&patches.patch(k).surface)
+                .copied()
+                .unwrap_or(DVec3::ZERO),
+        })
+        .collect();
+    let b: Vec<DVec3> = (reflectance.iter().zip(&e))
+        .zip(&emission)
+        .map(|((r, e), g)| *r * *e + *g)
+        .collect();
     let tolerance = settings.model.estimate.solve_tolerance;
     let with = times.time("solve with changes", || {
         let mut guess = model.estimate.solution.radiosity.clone();
@@ -163,6 +177,7 @@ pub(super) fn solve_changes(
             transport,
             reflectance: &reflectance,
             direct: &e,
+            emission: &emission,
             tolerance,
         };
         gather_objects(
@@ -222,6 +237,8 @@ struct System<'a> {
     reflectance: &'a [DVec3],
     /// Direct irradiance per patch at the new scales.
     direct: &'a [DVec3],
+    /// Radiosity each patch emits (glowing objects' materials).
+    emission: &'a [DVec3],
     tolerance: f64,
 }
 
@@ -268,7 +285,7 @@ fn gather_objects(
             .collect();
         for (k, b) in b.iter_mut().enumerate().skip(real_count) {
             let h = corner_mean(patches, k, indirect_with);
-            *b = system.reflectance[k] * (system.direct[k] + h);
+            *b = system.reflectance[k] * (system.direct[k] + h) + system.emission[k];
         }
         solve_from(
             patches,
@@ -589,7 +606,7 @@ fn object_bounces(
     for _ in 0..16 {
         for (k, b) in radiosity.iter_mut().enumerate().skip(real_count) {
             let h = corner_mean(patches, k, indirect);
-            *b = system.reflectance[k] * (system.direct[k] + h);
+            *b = system.reflectance[k] * (system.direct[k] + h) + system.emission[k];
         }
         let mut moved = 0.0f64;
         for g in gathered {

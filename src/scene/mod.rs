@@ -551,6 +551,26 @@ impl Scene {
         out
     }
 
+    /// Radiosity emitted (π × the mean emitted radiance) by every virtual
+    /// surface whose material glows; the others are absent.
+    pub(crate) fn virtual_surface_emission(&self) -> HashMap<u32, DVec3> {
+        let mut id = self.surfaces.len() as u32;
+        let mut out = HashMap::new();
+        for o in &self.objects {
+            for s in &o.surfaces {
+                let glow = s
+                    .material
+                    .as_ref()
+                    .map_or(DVec3::ZERO, |m| m.material.mean_emission());
+                if glow != DVec3::ZERO {
+                    out.insert(id, glow * std::f64::consts::PI);
+                }
+                id += 1;
+            }
+        }
+        out
+    }
+
     /// Whether this scene differs from what the photo shows: an enabled
     /// virtual object, a real light not at scale 1, or a virtual light on.
     pub(crate) fn changes_the_photo(&self) -> bool {
