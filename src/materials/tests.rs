@@ -203,10 +203,11 @@ fn a_normal_texture_decodes_to_its_tangent_space_normal() {
         normal_texture: Some((Arc::new(t), 1.0)),
         ..Material::plain("n", Vec3::ONE, 0.0, 1.0)
     };
+    // Texels are kept in 16 bits: 0.5 is 0.500008, a tilt of 1.5e-5.
     let flat = m.at(Vec2::new(0.25, 0.5), 0.0).tangent_normal.unwrap();
-    assert!((flat - Vec3::Z).length() < 1e-6);
+    assert!((flat - Vec3::Z).length() < 1e-4, "{flat}");
     let lean = m.at(Vec2::new(0.75, 0.5), 0.0).tangent_normal.unwrap();
-    assert!((lean - Vec3::new(1.0, 0.0, 0.0)).length() < 1e-6, "{lean}");
+    assert!((lean - Vec3::new(1.0, 0.0, 0.0)).length() < 1e-4, "{lean}");
 }
 
 #[test]

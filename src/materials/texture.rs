@@ -8,12 +8,25 @@
 
 use glam::{Vec2, Vec4};
 
-/// One mip level.
+/// One mip level. Texels are linear values in 16 bits (8 bytes a texel,
+/// a quarter of f32 RGBA: a 4096² texture and its mips take 180 MB, not
+/// 360): the smallest step an 8-bit sRGB texel makes in linear light
+/// (0.0003) is twenty of their steps.
 #[derive(Debug, Clone, PartialEq)]
 struct Level {
     width: u32,
     height: u32,
-    texels: Vec<Vec4>,
+    texels: Vec<[u16; 4]>,
+}
+
+fn pack(v: Vec4) -> [u16; 4] {
+    (v.clamp(Vec4::ZERO, Vec4::ONE) * 65535.0 + 0.5)
+        .to_array()
+        .map(|c| c as u16)
+}
+
+fn unpack(t: [u16; 4]) -> Vec4 {
+    Vec4::from_array(t.map(f32::from)) / 65535.0
 }
 
 /// A texture ready to sample.
@@ -67,12 +80,12 @@ impl Texture {
         Some(Texture::from_linear(width, height, texels))
     }
 
-    /// A texture from linear texels, row by row from the top.
+    /// A texture from linear texels in [0, 1], row by row from the top.
     pub fn from_linear(width: u32, height: u32, texels: Vec<Vec4>) -> Texture {
         let mut levels = vec![Level {
             width,
             height,
-            texels,
+            texels: texels.into_iter().map(pack).collect(),
         }];
         while let Some(next) = levels.last().and_then(half) {
             levels.push(next);
@@ -88,7 +101,7 @@ impl Texture {
     /// The mean of the full-resolution texels.
     pub fn mean(&self) -> Vec4 {
         let l = &self.levels[0];
-        let sum: glam::DVec4 = l.texels.iter().map(|t| t.as_dvec4()).sum();
+        let sum: glam::DVec4 = l.texels.iter().map(|t| unpack(*t).as_dvec4()).sum();
         (sum / l.texels.len() as f64).as_vec4()
     }
 
@@ -124,8 +137,9 @@ fn half(l: &Level) -> Option<Level> {
         return None;
     }
     let (w, h) = (l.width.div_ceil(2), l.height.div_ceil(2));
-    let at =
-        |x: u32, y: u32| l.texels[(y.min(l.height - 1) * l.width + x.min(l.width - 1)) as usize];
+    let at = |x: u32, y: u32| {
+        unpack(l.texels[(y.min(l.height - 1) * l.width + x.min(l.width - 1)) as usize])
+    };
     let texels = (0..h)
         .flat_map(|y| (0..w).map(move |x| (x, y)))
         .map(|(x, y)| {
@@ -135,6 +149,7 @@ fn half(l: &Level) -> Option<Level> {
                 + at(2 * x + 1, 2 * y + 1))
                 * 0.25
         })
+        .map(pack)
         .collect();
     Some(Level {
         width: w,
@@ -148,11 +163,11 @@ fn bilinear(l: &Level, uv: Vec2) -> Vec4 {
     let x = uv.x as f64 * w as f64 - 0.5;
     let y = uv.y as f64 * h as f64 - 0.5;
     if !x.is_finite() || !y.is_finite() {
-        return l.texels[0];
+        return unpack(l.texels[0]);
     }
     let (x0, y0) = (x.floor(), y.floor());
     let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
-    let at = |i: i64, j: i64| l.texels[(j.rem_euclid(h) * w + i.rem_euclid(w)) as usize];
+    let at = |i: i64, j: i64| unpack(l.texels[(j.rem_euclid(h) * w + i.rem_euclid(w)) as usize]);
     let (i, j) = (x0 as i64, y0 as i64);
     let top = at(i, j).lerp(at(i + 1, j), fx);
     let bottom = at(i, j + 1).lerp(at(i + 1, j + 1), fx);
