@@ -184,23 +184,7 @@ fn the_objects_pixels_are_the_same_on_one_thread_and_on_three() {
     let photo = scene.load_photo().unwrap();
     let images: Vec<Image> = [1, 3]
         .iter()
-        .map(|&t| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(t)
-                .build()
-                .unwrap();
-            pool.install(|| {
-                render(
-                    &scene,
-                    &photo,
-                    &RenderSettings::default(),
-                    &mut StageTimes::default(),
-                )
-                .unwrap()
-                .composite
-                .image
-            })
-        })
+        .map(|&t| common::image_on_threads(&scene, &photo, &RenderSettings::default(), t))
         .collect();
     assert!(images[0] == images[1], "thread count changed the image");
 }

@@ -153,18 +153,7 @@ fn one_and_two_threads_give_the_same_image() {
     };
     let images: Vec<Image> = [1, 2]
         .iter()
-        .map(|&t| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(t)
-                .build()
-                .unwrap();
-            pool.install(|| {
-                render(&scene, &photo, &settings, &mut StageTimes::default())
-                    .unwrap()
-                    .composite
-                    .image
-            })
-        })
+        .map(|&t| common::image_on_threads(&scene, &photo, &settings, t))
         .collect();
     assert!(images[0] == images[1], "thread count changed the image");
 }

@@ -128,6 +128,30 @@ pub fn render_box_floor_a(desk: &Desk, out: &Path) -> serde_json::Value {
     serde_json::from_slice(&run.stdout).unwrap()
 }
 
+/// `scene`'s image rendered with `settings` on a pool of `threads` threads.
+pub fn image_on_threads(
+    scene: &Scene,
+    photo: &Image,
+    settings: &arlux::render::RenderSettings,
+    threads: usize,
+) -> Image {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    pool.install(|| {
+        arlux::render::render(
+            scene,
+            photo,
+            settings,
+            &mut arlux::model::StageTimes::default(),
+        )
+        .unwrap()
+        .composite
+        .image
+    })
+}
+
 /// `scene` rendered with the default settings over its photo, and the photo.
 pub fn render_default(scene: &Scene) -> (arlux::render::RenderOutput, Image) {
     let photo = scene.load_photo().unwrap();
