@@ -197,6 +197,7 @@ impl ObjectShading<'_> {
         let half = 0.5 * share.sqrt();
         let at = self.camera.project(x);
         let rects = self.rects();
+        let h = paths::interpolate(self.indirect_with, &p.location, self.patches);
         let side = (n as f64).sqrt().ceil() as u32;
         let mut state = hash2(seed, 0xA11A5);
         let mut sum = DVec3::ZERO;
@@ -214,7 +215,7 @@ impl ObjectShading<'_> {
                 }
             });
             let point = sub.as_ref().unwrap_or(&centre);
-            sum += self.one_sample(point, &rects, Sample { j, n, seed }, &p.location);
+            sum += self.one_sample(point, &rects, Sample { j, n, seed }, h);
         }
         Some((sum / n as f64).max(DVec3::ZERO))
     }

@@ -12,9 +12,6 @@ use crate::util::rng::unit_random;
 /// the rect lights' shadow rays at grid level 2.
 const ROOM_LEVEL: usize = 2;
 
-/// A sample's rect lights ([`ObjectShading::rects`]).
-pub(super) type Rects = Vec<Rect>;
-
 /// A rect light's emitting rectangle, for rays that may meet it.
 pub(super) struct Rect {
     light: usize,
@@ -53,7 +50,7 @@ impl Rect {
 }
 
 impl ObjectShading<'_> {
-    pub(super) fn rects(&self) -> Rects {
+    pub(super) fn rects(&self) -> Vec<Rect> {
         self.lights
             .iter()
             .enumerate()
@@ -97,20 +94,14 @@ impl ObjectShading<'_> {
     /// One sample of the light leaving point `p` towards the camera: its
     /// emission, each light once (rect lights by one area sample, weighted
     /// against the specular sampler), one specular ray, and the diffuse
-    /// part's indirect light from the gathered irradiance at `location`.
-    pub(super) fn one_sample(
-        &self,
-        p: &Point,
-        rects: &[Rect],
-        s: Sample,
-        location: &crate::pda::PatchPoint,
-    ) -> DVec3 {
+    /// part's indirect light from `h`, the irradiance the radiosity stage
+    /// gathered there (the same for every sample of a pixel).
+    pub(super) fn one_sample(&self, p: &Point, rects: &[Rect], s: Sample, h: DVec3) -> DVec3 {
         let n_dot_v = p.n.dot(p.v);
         if n_dot_v <= 0.0 {
             // One-sided (glTF): a shading normal turned from the viewer reflects nothing.
             return p.emissive;
         }
-        let h = interpolate(self.indirect_with, location, self.patches);
         let mut out = p.emissive + p.lobes.diffuse(n_dot_v) * h / std::f64::consts::PI;
         out += self.direct(p, rects, s);
         out + self.reflected(p, rects, s)
@@ -246,13 +237,6 @@ impl ObjectShading<'_> {
             .get(at.patch as usize)
             .copied()
             .unwrap_or(DVec3::ZERO);
-        let interp = |table: &[DVec3]| -> DVec3 {
-            at.weights
-                .iter()
-                .filter(|(_, w)| *w != 0.0)
-                .map(|&(v, w)| table.get(v as usize).copied().unwrap_or(DVec3::ZERO) * w)
-                .sum()
-        };
         let (mut e_with, mut e_without) = (DVec3::ZERO, DVec3::ZERO);
         for (l, light) in self.lights.iter().enumerate() {
             let (sw, swo) = (self.scales_with[l], self.scales_without[l]);
@@ -277,11 +261,11 @@ impl ObjectShading<'_> {
                 e_without += all.unoccluded * (swo * real);
             }
         }
-        let with = e_with + interp(self.indirect_with);
+        let with = e_with + self.patches.interpolate(self.indirect_with, &at);
         if h.is_virtual {
             return rho * with / std::f64::consts::PI;
         }
-        let without = e_without + interp(self.indirect_without);
+        let without = e_without + self.patches.interpolate(self.indirect_without, &at);
         match crate::gather::photo_radiance_at(self.camera, self.tracer, self.photo, y) {
             Some(photo) => changed(photo, with, without, rho),
             None => rho * with / std::f64::consts::PI,
@@ -304,7 +288,11 @@ fn changed(photo: DVec3, with: DVec3, without: DVec3, rho: DVec3) -> DVec3 {
 }
 
 /// Interpolates a per-vertex table at a patch point.
-fn interpolate(table: &[DVec3], at: &crate::pda::PatchPoint, patches: &Patches) -> DVec3 {
+pub(super) fn interpolate(
+    table: &[DVec3],
+    at: &crate::pda::PatchPoint,
+    patches: &Patches,
+) -> DVec3 {
     let vertices = patches.patch_vertices.get(at.patch as usize);
     let Some(vertices) = vertices else {
         return DVec3::ZERO;
