@@ -380,6 +380,29 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic_with(path, |f| f.write_all(bytes))
 }
 
+/// Writes `bytes` to a new file `path`, whole or not at all, never
+/// replacing a file that is there (even one made meanwhile): the temporary
+/// is hard-linked to `path`, which fails when `path` exists.
+pub fn write_new(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = path.with_file_name(format!(
+        ".{}.new{}",
+        path.file_name()
+            .map_or("file".into(), |n| n.to_string_lossy()),
+        std::process::id()
+    ));
+    write_atomic(&tmp, bytes)?;
+    crate::util::cleanup::register(&tmp);
+    let linked = std::fs::hard_link(&tmp, path);
+    let _ = std::fs::remove_file(&tmp);
+    crate::util::cleanup::unregister(&tmp);
+    linked.map_err(|e| match e.kind() {
+        std::io::ErrorKind::AlreadyExists => {
+            Error::file(path, "exists: a new file is never written over one")
+        }
+        _ => Error::io(path, &e),
+    })
+}
+
 /// [`write_atomic`], with `fill` writing the content (buffered) as it is made.
 pub fn write_atomic_with(
     path: &Path,

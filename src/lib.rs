@@ -22,6 +22,7 @@ pub mod hdr;
 pub mod ies;
 pub mod image_io;
 pub mod inputs;
+pub mod interactive;
 pub mod lamps;
 pub mod light;
 pub mod materials;

@@ -395,6 +395,32 @@ impl Scene {
     /// scene, set light scales, enable and pose objects, hide what it hides.
     pub fn with_variant(&self, name: &str) -> Result<Scene> {
         let variant = self.variant(name)?.clone();
+        let key = format!(
+            "variant[{}]",
+            self.variants
+                .iter()
+                .position(|v| v.name == name)
+                .unwrap_or(0)
+        );
+        self.with_given_variant(&variant)
+            .map_err(|e| e.within(&self.file, key))
+    }
+
+    /// Reads one `[[variant]]` table as the scene file would hold it (its
+    /// names resolved against this scene's lights and objects): what a front
+    /// end that edits the scene (`arlux serve`) builds, so that what it
+    /// renders is what the variant, once written, renders.
+    pub fn parse_variant(&self, table: &toml::Table) -> Result<Variant> {
+        let loader = Loader {
+            file: &self.file,
+            dir: self.dir().to_path_buf(),
+        };
+        let fields = fields::Fields::of_table(&self.file, "variant", table);
+        loader.variant(&fields, &self.lights, &self.objects)
+    }
+
+    /// The effective scene of `variant` (see [`Scene::with_variant`]).
+    pub fn with_given_variant(&self, variant: &Variant) -> Result<Scene> {
         let mut s = self.clone();
         for &(light, scale) in &variant.lights {
             s.lights[light].scale = scale;
@@ -410,15 +436,7 @@ impl Scene {
         for &l in &variant.hide_lights {
             s.lights[l].scale = 0.0;
         }
-        let key = format!(
-            "variant[{}]",
-            self.variants
-                .iter()
-                .position(|v| v.name == name)
-                .unwrap_or(0)
-        );
-        s.check_light_clearance()
-            .map_err(|e| e.within(&self.file, key))?;
+        s.check_light_clearance()?;
         Ok(s)
     }
 

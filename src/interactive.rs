@@ -1,0 +1,512 @@
+//! An editing session over a render: a front end (`arlux serve`) places,
+//! turns, scales, shows and hides the scene's virtual objects and scales
+//! its lights, one [`Edit`] at a time, and gets the augmented photo back
+//! after each, by the cheapest path that gives the image a full render of
+//! that state gives.
+//!
+//! The state is held as the `[[variant]]` table it would be saved as, and
+//! every image is rendered from that table read back by the scene loader:
+//! what the session shows and what `arlux render --variant` renders of the
+//! saved file are the same scene, bit for bit. The module knows nothing of
+//! HTTP; it takes edits and returns plain data.
+
+use std::path::{Path, PathBuf};
+
+use glam::{DMat3, DQuat, DVec3};
+
+use crate::error::{Error, Result};
+use crate::image_io::Image;
+use crate::model::StageTimes;
+use crate::render::{RenderSettings, Session};
+use crate::scene::Scene;
+
+mod display;
+mod placement;
+
+pub use display::View;
+pub use placement::Room;
+
+/// One change a user makes. Objects and lights are indices into the
+/// scene's `objects` and `lights`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Edit {
+    /// Stand the object on the surface seen at image point (x, y)
+    /// (continuous pixel coordinates): its footprint's centre on the point.
+    Place {
+        object: usize,
+        x: f64,
+        y: f64,
+    },
+    /// The object's heading about the vertical, degrees (counter-clockwise seen from above).
+    Turn {
+        object: usize,
+        yaw_deg: f64,
+    },
+    /// The object's uniform scale.
+    Scale {
+        object: usize,
+        scale: f64,
+    },
+    Enable {
+        object: usize,
+        enabled: bool,
+    },
+    /// A light's scale: 0 switches it off; for a virtual light, its intensity.
+    Light {
+        light: usize,
+        scale: f64,
+    },
+}
+
+/// An edit that is not made, with the request field it is about.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Refusal {
+    pub field: &'static str,
+    pub message: String,
+}
+
+impl Refusal {
+    fn new(field: &'static str, message: impl Into<String>) -> Self {
+        Refusal {
+            field,
+            message: message.into(),
+        }
+    }
+}
+
+/// A light's scale the session accepts: the page's slider covers 0–4 for a
+/// real light; a virtual light's intensity may go further.
+pub const MAX_LIGHT_SCALE: f64 = 16.0;
+/// The range of an object's scale.
+pub const SCALE_RANGE: (f64, f64) = (0.05, 20.0);
+
+/// How the image after an edit was made.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum RenderPath {
+    /// Nothing changed: the image stays.
+    Unchanged,
+    /// The state is the photo's (no object, lights as shot): the photo.
+    Photo,
+    /// Pixel shafts: only what the objects' old and new places can change.
+    Update {
+        pixels_recomputed: usize,
+        pixels_retraced: u64,
+        rays: u64,
+    },
+    /// A full render of the pixel path (lights or the set of objects changed).
+    Full { reason: String },
+}
+
+/// What an edit did.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Outcome {
+    /// Raised by every edit that changes the image.
+    pub version: u64,
+    pub path: RenderPath,
+    /// Wall time of the render or update, milliseconds.
+    pub millis: f64,
+}
+
+/// Per object, what the user changed (None: as the scene has it).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct ObjectEdit {
+    translate: Option<DVec3>,
+    yaw_deg: Option<f64>,
+    scale: Option<f64>,
+    enabled: Option<bool>,
+}
+
+/// The image of the current state, and what can update it.
+enum Rendered {
+    Photo,
+    Session(Box<Session>),
+}
+
+/// An editing session (see the module's documentation).
+pub struct Interactive {
+    base: Scene,
+    photo: Image,
+    settings: RenderSettings,
+    objects: Vec<ObjectEdit>,
+    lights: Vec<Option<f64>>,
+    /// The effective scene of the state, as rendered.
+    scene: Scene,
+    rendered: Rendered,
+    room: Room,
+    version: u64,
+}
+
+impl Interactive {
+    /// Renders the scene as loaded (its base state): the preprocess
+    /// (estimation, radiosity, links) runs here.
+    pub fn new(
+        base: Scene,
+        photo: Image,
+        settings: RenderSettings,
+        times: &mut StageTimes,
+    ) -> Result<Interactive> {
+        let room = Room::new(&base)?;
+        let mut s = Interactive {
+            objects: vec![ObjectEdit::default(); base.objects.len()],
+            lights: vec![None; base.lights.len()],
+            scene: base.clone(),
+            rendered: Rendered::Photo,
+            base,
+            photo,
+            settings,
+            room,
+            version: 0,
+        };
+        let scene = s.state_scene()?;
+        s.render_full(scene, "the first image".into(), times)?;
+        Ok(s)
+    }
+
+    pub fn base(&self) -> &Scene {
+        &self.base
+    }
+
+    /// The effective scene of the current state.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    pub fn photo(&self) -> &Image {
+        &self.photo
+    }
+
+    pub fn version(&self) -> u64 {
+        self.version
+    }
+
+    /// The render's composite (None while the state is the photo's).
+    pub fn composite(&self) -> Option<&crate::composite::Composite> {
+        match &self.rendered {
+            Rendered::Photo => None,
+            Rendered::Session(s) => Some(&s.composite),
+        }
+    }
+
+    /// The augmented photo, linear.
+    pub fn image(&self) -> &Image {
+        self.composite().map_or(&self.photo, |c| &c.image)
+    }
+
+    /// Makes `edit` and renders its state; a refused edit changes nothing.
+    pub fn apply(
+        &mut self,
+        edit: Edit,
+        times: &mut StageTimes,
+    ) -> std::result::Result<Outcome, Refusal> {
+        let (objects, lights) = (self.objects.clone(), self.lights.clone());
+        let (object, field) = match edit {
+            Edit::Place { object, .. } => (Some(object), "x"),
+            Edit::Turn { object, .. } => (Some(object), "yaw_deg"),
+            Edit::Scale { object, .. } => (Some(object), "scale"),
+            Edit::Enable { object, .. } => (Some(object), "enabled"),
+            Edit::Light { .. } => (None, "scale"),
+        };
+        let result = self.edit(edit).and_then(|()| {
+            let scene = self
+                .state_scene()
+                .map_err(|e| Refusal::new(field, e.message))?;
+            if let Some(o) = object.map(|o| &scene.objects[o]).filter(|o| o.enabled) {
+                self.room
+                    .check_place(o)
+                    .map_err(|m| Refusal::new(field, m))?;
+            }
+            self.render(scene, times)
+                .map_err(|e| Refusal::new("state", e.to_string()))
+        });
+        if result.is_err() {
+            (self.objects, self.lights) = (objects, lights);
+        }
+        result
+    }
+
+    /// Records `edit` in the state, after checking its values.
+    fn edit(&mut self, edit: Edit) -> std::result::Result<(), Refusal> {
+        let object = |o: usize| {
+            (o < self.base.objects.len())
+                .then_some(o)
+                .ok_or_else(|| Refusal::new("object", format!("no virtual object {o}")))
+        };
+        let finite = |field: &'static str, v: f64| {
+            v.is_finite()
+                .then_some(v)
+                .ok_or_else(|| Refusal::new(field, "must be a finite number"))
+        };
+        match edit {
+            Edit::Place { object: o, x, y } => {
+                let o = object(o)?;
+                let pose = self.scene.objects[o].pose;
+                let translate = self.room.standing_place(
+                    &self.base.camera,
+                    &self.base.objects[o],
+                    &pose,
+                    (x, y),
+                )?;
+                self.objects[o].translate = Some(translate);
+                self.objects[o].enabled = Some(true);
+            }
+            Edit::Turn { object: o, yaw_deg } => {
+                let o = object(o)?;
+                let yaw = finite("yaw_deg", yaw_deg)?;
+                if yaw.abs() > 3600.0 {
+                    return Err(Refusal::new("yaw_deg", "must lie within ±3600 degrees"));
+                }
+                self.objects[o].yaw_deg = Some(yaw);
+            }
+            Edit::Scale { object: o, scale } => {
+                let o = object(o)?;
+                let s = finite("scale", scale)?;
+                let (lo, hi) = SCALE_RANGE;
+                if !(lo..=hi).contains(&s) {
+                    return Err(Refusal::new("scale", format!("must lie in {lo}..={hi}")));
+                }
+                self.objects[o].scale = Some(s);
+            }
+            Edit::Enable { object: o, enabled } => {
+                let o = object(o)?;
+                self.objects[o].enabled = Some(enabled);
+            }
+            Edit::Light { light, scale } => {
+                if light >= self.base.lights.len() {
+                    return Err(Refusal::new("light", format!("no light {light}")));
+                }
+                let s = finite("scale", scale)?;
+                if !(0.0..=MAX_LIGHT_SCALE).contains(&s) {
+                    return Err(Refusal::new(
+                        "scale",
+                        format!("a light's scale must lie in 0..={MAX_LIGHT_SCALE}"),
+                    ));
+                }
+                self.lights[light] = Some(s);
+            }
+        }
+        Ok(())
+    }
+
+    /// The state as the `[[variant]]` table named `name` it is saved as.
+    pub fn variant_table(&self, name: &str) -> toml::Table {
+        let mut t = toml::Table::new();
+        t.insert("name".into(), name.into());
+        let mut lights = toml::Table::new();
+        for (l, s) in self.base.lights.iter().zip(&self.lights) {
+            if let Some(s) = s.filter(|s| *s != l.scale) {
+                lights.insert(l.name.clone(), s.into());
+            }
+        }
+        let (mut objects, mut hide) = (toml::Table::new(), toml::value::Array::new());
+        for (o, e) in self.base.objects.iter().zip(&self.objects) {
+            let enabled = e.enabled.unwrap_or(o.enabled);
+            if !enabled {
+                if o.enabled {
+                    hide.push(o.name.clone().into());
+                }
+                continue;
+            }
+            let mut pose = toml::Table::new();
+            if let Some(p) = e.translate {
+                pose.insert("translate".into(), vec3(p));
+            }
+            if let Some(yaw) = e.yaw_deg {
+                rotation_keys(&mut pose, o.pose.rotation, yaw);
+            }
+            if let Some(s) = e.scale {
+                pose.insert("scale".into(), s.into());
+            }
+            if !pose.is_empty() || !o.enabled {
+                objects.insert(o.name.clone(), pose.into());
+            }
+        }
+        for (key, table) in [("lights", lights), ("objects", objects)] {
+            if !table.is_empty() {
+                t.insert(key.into(), table.into());
+            }
+        }
+        if !hide.is_empty() {
+            t.insert("hide".into(), hide.into());
+        }
+        t
+    }
+
+    /// The effective scene of the state, read back from its variant table.
+    fn state_scene(&self) -> Result<Scene> {
+        let variant = self.base.parse_variant(&self.variant_table("session"))?;
+        self.base.with_given_variant(&variant)
+    }
+
+    /// Renders `scene` by the cheapest exact path.
+    fn render(&mut self, scene: Scene, times: &mut StageTimes) -> Result<Outcome> {
+        let start = std::time::Instant::now();
+        let scales = |s: &Scene| s.lights.iter().map(|l| l.scale).collect::<Vec<_>>();
+        let enabled = |s: &Scene| s.objects.iter().map(|o| o.enabled).collect::<Vec<_>>();
+        let same_objects = self
+            .scene
+            .objects
+            .iter()
+            .zip(&scene.objects)
+            .all(|(a, b)| a.enabled == b.enabled && a.pose == b.pose);
+        if scales(&scene) == scales(&self.scene) && same_objects {
+            return Ok(self.outcome(RenderPath::Unchanged, start));
+        }
+        let path = if !scene.changes_the_photo() {
+            self.rendered = Rendered::Photo;
+            self.scene = scene;
+            RenderPath::Photo
+        } else if let (Rendered::Session(session), true) = (
+            &mut self.rendered,
+            scales(&scene) == scales(&self.scene) && enabled(&scene) == enabled(&self.scene),
+        ) {
+            let stats = session.update(&scene, times)?;
+            self.scene = scene;
+            RenderPath::Update {
+                pixels_recomputed: stats.pixels_recomputed,
+                pixels_retraced: stats.pixels_retraced,
+                rays: stats.rays,
+            }
+        } else {
+            let reason = if scales(&scene) != scales(&self.scene) {
+                "the lights changed"
+            } else {
+                "the set of objects shown changed"
+            };
+            self.render_full(scene, reason.into(), times)?
+        };
+        self.version += 1;
+        Ok(self.outcome(path, start))
+    }
+
+    fn render_full(
+        &mut self,
+        scene: Scene,
+        reason: String,
+        times: &mut StageTimes,
+    ) -> Result<RenderPath> {
+        self.rendered = if scene.changes_the_photo() {
+            Rendered::Session(Box::new(Session::start(
+                &scene,
+                &self.photo,
+                &self.settings,
+                times,
+            )?))
+        } else {
+            Rendered::Photo
+        };
+        self.scene = scene;
+        Ok(RenderPath::Full { reason })
+    }
+
+    fn outcome(&self, path: RenderPath, start: std::time::Instant) -> Outcome {
+        Outcome {
+            version: self.version,
+            path,
+            millis: start.elapsed().as_secs_f64() * 1e3,
+        }
+    }
+
+    /// The object's state as the page shows it: enabled, where it stands,
+    /// its heading and scale.
+    pub fn object_state(&self, object: usize) -> (bool, DVec3, f64, f64) {
+        let o = &self.scene.objects[object];
+        let yaw = self.objects[object]
+            .yaw_deg
+            .unwrap_or_else(|| heading_deg(o.pose.rotation));
+        (o.enabled, o.pose.translate, yaw, o.pose.scale)
+    }
+
+    /// Writes the state as a `[[variant]]` named `name` into a new file
+    /// beside the scene, `STEM.NAME.toml`: the scene file's own text with the
+    /// variant appended, so that `arlux render` accepts it as it is. The
+    /// scene file is never touched, nor an existing file replaced.
+    pub fn save_variant(&self, name: &str) -> Result<PathBuf> {
+        let valid = !name.is_empty()
+            && name.len() <= 64
+            && name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+        if !valid || self.base.variants.iter().any(|v| v.name == name) {
+            return Err(Error::key(
+                &self.base.file,
+                "variant",
+                format!(
+                    "'{name}': a variant's new name is 1-64 letters, digits, '-' or '_', not one the scene has"
+                ),
+            ));
+        }
+        let text =
+            std::fs::read_to_string(&self.base.file).map_err(|e| Error::io(&self.base.file, &e))?;
+        let mut variant = toml::Table::new();
+        variant.insert(
+            "variant".into(),
+            toml::Value::Array(vec![self.variant_table(name).into()]),
+        );
+        let appended =
+            toml::to_string(&variant).map_err(|e| Error::file(&self.base.file, e.to_string()))?;
+        let stem = self
+            .base
+            .file
+            .file_stem()
+            .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
+        let path = self.base.dir().join(format!("{stem}.{name}.toml"));
+        let content = format!("{}\n# Saved by arlux serve.\n{appended}", text.trim_end());
+        crate::image_io::write_new(&path, content.as_bytes())?;
+        Ok(path)
+    }
+
+    /// A name `session-N` no file beside the scene and no variant has.
+    pub fn next_variant_name(&self) -> String {
+        let stem = self
+            .base
+            .file
+            .file_stem()
+            .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
+        (1..)
+            .map(|n| format!("session-{n}"))
+            .find(|name| {
+                !self.base.variants.iter().any(|v| &v.name == name)
+                    && !self.base.dir().join(format!("{stem}.{name}.toml")).exists()
+            })
+            .expect("some number is free")
+    }
+
+    /// The room the edits are checked against.
+    pub fn room(&self) -> &Room {
+        &self.room
+    }
+
+    /// The scene file's folder.
+    pub fn dir(&self) -> &Path {
+        self.base.dir()
+    }
+}
+
+fn vec3(v: DVec3) -> toml::Value {
+    toml::Value::Array(v.to_array().iter().map(|&c| c.into()).collect())
+}
+
+/// The heading of a rotation about the vertical: the angle of its x axis
+/// seen from above, counter-clockwise (`rotate_y_deg`'s sense).
+fn heading_deg(r: DMat3) -> f64 {
+    let x = r.col(0);
+    (-x.z).atan2(x.x).to_degrees()
+}
+
+/// The keys that turn an object whose base rotation is `base` to heading
+/// `yaw`: `rotate_y_deg` when the base turns about the vertical only,
+/// else a quaternion of the base turned about the vertical.
+fn rotation_keys(pose: &mut toml::Table, base: DMat3, yaw: f64) {
+    let upright = (base.col(1) - DVec3::Y).length() < 1e-12;
+    if upright {
+        pose.insert("rotate_y_deg".into(), yaw.into());
+        return;
+    }
+    let turn = DMat3::from_rotation_y((yaw - heading_deg(base)).to_radians());
+    let q = DQuat::from_mat3(&(turn * base)).normalize();
+    pose.insert(
+        "quaternion".into(),
+        toml::Value::Array([q.w, q.x, q.y, q.z].iter().map(|&c| c.into()).collect()),
+    );
+}

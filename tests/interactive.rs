@@ -1,0 +1,262 @@
+//! The editing session behind `arlux serve`: an object stood where a
+//! click sees the floor, slid, the lights changed; what it shows equals
+//! the full render of the variant it saves, bit for bit; bad edits are
+//! refused and change nothing.
+
+mod common;
+use common::Desk;
+
+use arlux::interactive::{Edit, Interactive, RenderPath};
+use arlux::model::StageTimes;
+use arlux::render::RenderSettings;
+use arlux::scene::Scene;
+use glam::DVec3;
+
+fn session(desk: &Desk) -> Interactive {
+    let scene = Scene::load(desk.scene()).unwrap();
+    let photo = scene.read_photo().unwrap().0;
+    Interactive::new(
+        scene,
+        photo,
+        RenderSettings::default(),
+        &mut StageTimes::default(),
+    )
+    .unwrap()
+}
+
+/// The image point where the camera sees `p`.
+fn pixel_of(it: &Interactive, p: DVec3) -> (f64, f64) {
+    let (x, y, _) = it.base().camera.project(p).unwrap();
+    (x, y)
+}
+
+/// The centre of the object's lowest extent, in the world.
+fn footprint_centre(it: &Interactive, object: usize) -> DVec3 {
+    let o = &it.scene().objects[object];
+    let points = o
+        .surfaces
+        .iter()
+        .flat_map(|s| s.triangles.iter().flatten())
+        .map(|&p| o.pose.apply(p).as_dvec3());
+    let (lo, hi) = arlux::geometry::bounds(points);
+    DVec3::new(0.5 * (lo.x + hi.x), lo.y, 0.5 * (lo.z + hi.z))
+}
+
+fn bits(a: &arlux::image_io::Image) -> Vec<[u32; 3]> {
+    a.pixels
+        .iter()
+        .map(|p| p.to_array().map(f32::to_bits))
+        .collect()
+}
+
+#[test]
+fn what_the_session_shows_is_the_render_of_the_variant_it_saves() {
+    let desk = Desk::new();
+    let mut it = session(&desk);
+    let times = &mut StageTimes::default();
+    // Stand the box where a click sees the floor: its footprint's centre
+    // projects onto the click.
+    let click = pixel_of(&it, DVec3::new(-0.6, 0.0, 0.6));
+    let out = it
+        .apply(
+            Edit::Place {
+                object: 0,
+                x: click.0,
+                y: click.1,
+            },
+            times,
+        )
+        .unwrap();
+    assert!(matches!(out.path, RenderPath::Update { .. }), "{out:?}");
+    let (x, y) = pixel_of(&it, footprint_centre(&it, 0));
+    let off = ((x - click.0).powi(2) + (y - click.1).powi(2)).sqrt();
+    assert!(
+        off < 1.0,
+        "the footprint's centre is {off:.2} px from the click"
+    );
+    // Slide it, turn it, switch the panel off, slide again.
+    for k in 1..=5 {
+        let p = pixel_of(
+            &it,
+            DVec3::new(-0.6 + 0.1 * k as f64, 0.0, 0.6 - 0.05 * k as f64),
+        );
+        let out = it
+            .apply(
+                Edit::Place {
+                    object: 0,
+                    x: p.0,
+                    y: p.1,
+                },
+                times,
+            )
+            .unwrap();
+        assert!(matches!(out.path, RenderPath::Update { .. }), "{out:?}");
+    }
+    it.apply(
+        Edit::Turn {
+            object: 0,
+            yaw_deg: 35.0,
+        },
+        times,
+    )
+    .unwrap();
+    let out = it
+        .apply(
+            Edit::Light {
+                light: 0,
+                scale: 0.0,
+            },
+            times,
+        )
+        .unwrap();
+    assert!(matches!(out.path, RenderPath::Full { .. }), "{out:?}");
+    let p = pixel_of(&it, DVec3::new(0.2, 0.0, 0.1));
+    let out = it
+        .apply(
+            Edit::Place {
+                object: 0,
+                x: p.0,
+                y: p.1,
+            },
+            times,
+        )
+        .unwrap();
+    assert!(matches!(out.path, RenderPath::Update { .. }), "{out:?}");
+
+    let name = it.next_variant_name();
+    let file = it.save_variant(&name).unwrap();
+    let saved = Scene::load(&file).unwrap().with_variant(&name).unwrap();
+    let (full, _) = common::render_default(&saved);
+    let differ = bits(&full.composite.image)
+        .iter()
+        .zip(bits(it.image()))
+        .filter(|(a, b)| *a != b)
+        .count();
+    assert_eq!(
+        differ, 0,
+        "{differ} pixels differ from the saved variant's render"
+    );
+    // The scene file is kept as it was, and a saved file is never replaced.
+    let original = std::fs::read_to_string(common::scene_dir("desk").join("scene.toml")).unwrap();
+    assert_eq!(std::fs::read_to_string(desk.scene()).unwrap(), original);
+    assert!(
+        std::fs::read_to_string(&file)
+            .unwrap()
+            .starts_with(original.trim_end())
+    );
+    assert!(it.save_variant(&name).is_err());
+    assert_ne!(it.next_variant_name(), name);
+}
+
+#[test]
+fn bad_edits_are_refused_naming_the_field_and_change_nothing() {
+    let desk = Desk::new();
+    let mut it = session(&desk);
+    let times = &mut StageTimes::default();
+    let before = bits(it.image());
+    let version = it.version();
+    let wall = pixel_of(&it, DVec3::new(-0.5, 1.5, -2.0 + 1e-3));
+    let wall_hit = it.room().pick(&it.base().camera, wall.0, wall.1).unwrap();
+    assert!(
+        wall_hit.1.y.abs() < 0.1,
+        "a wall is seen at {wall:?}: {wall_hit:?}"
+    );
+    let cases = [
+        (
+            Edit::Place {
+                object: 0,
+                x: wall.0,
+                y: wall.1,
+            },
+            "x",
+            "floor-like",
+        ),
+        (
+            Edit::Place {
+                object: 0,
+                x: f64::NAN,
+                y: 10.0,
+            },
+            "x",
+            "pixel",
+        ),
+        (
+            Edit::Place {
+                object: 0,
+                x: 10.0,
+                y: 1e300,
+            },
+            "y",
+            "pixel",
+        ),
+        (
+            Edit::Place {
+                object: 9,
+                x: 10.0,
+                y: 10.0,
+            },
+            "object",
+            "no virtual object",
+        ),
+        (
+            Edit::Scale {
+                object: 0,
+                scale: 1e9,
+            },
+            "scale",
+            "must lie",
+        ),
+        (
+            Edit::Scale {
+                object: 0,
+                scale: 12.0,
+            },
+            "scale",
+            "box",
+        ),
+        (
+            Edit::Turn {
+                object: 0,
+                yaw_deg: f64::INFINITY,
+            },
+            "yaw_deg",
+            "finite",
+        ),
+        (
+            Edit::Light {
+                light: 7,
+                scale: 1.0,
+            },
+            "light",
+            "no light",
+        ),
+        (
+            Edit::Light {
+                light: 0,
+                scale: -1.0,
+            },
+            "scale",
+            "must lie",
+        ),
+    ];
+    for (edit, field, words) in cases {
+        let r = it.apply(edit, times).unwrap_err();
+        assert_eq!(r.field, field, "{edit:?}: {r:?}");
+        assert!(r.message.contains(words), "{edit:?}: {}", r.message);
+    }
+    // Pushed against the back wall: the box cuts into it.
+    let near = pixel_of(&it, DVec3::new(-0.5, 0.0, -1.86));
+    let r = it
+        .apply(
+            Edit::Place {
+                object: 0,
+                x: near.0,
+                y: near.1,
+            },
+            times,
+        )
+        .unwrap_err();
+    assert!(r.message.contains("cut into 'back_wall'"), "{}", r.message);
+    assert_eq!(it.version(), version);
+    assert_eq!(bits(it.image()), before);
+}
