@@ -23,7 +23,7 @@ use crate::scene::Scene;
 mod display;
 mod placement;
 
-pub use display::View;
+pub use display::{Frame, View};
 pub use placement::Room;
 
 /// One change a user makes. Objects and lights are indices into the

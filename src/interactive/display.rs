@@ -5,7 +5,7 @@ use glam::Vec3;
 
 use super::Interactive;
 use crate::image_io::{Image, linear_to_srgb};
-use crate::surface_ids::id_colour;
+use crate::surface_ids::{SurfaceIds, id_colour};
 
 /// What a page shows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -33,43 +33,71 @@ impl View {
     }
 }
 
+/// What a screen needs of one state, apart from the photo and the room's
+/// surface ids (which do not change): cheap to hand to another thread.
+#[derive(Debug, Clone)]
+pub struct Frame {
+    pub version: u64,
+    /// The augmented photo, linear.
+    pub image: Image,
+    /// The shadow-catcher factor (1 where nothing changed).
+    pub shadow: Image,
+    /// The virtual objects' coverage per pixel.
+    pub alpha: Vec<f32>,
+}
+
 impl Interactive {
+    /// The current state's [`Frame`].
+    pub fn frame(&self) -> Frame {
+        let (w, h) = (self.photo.width, self.photo.height);
+        let (shadow, alpha) = match self.composite() {
+            Some(c) => (c.shadow(&self.photo), c.alpha.clone()),
+            None => {
+                let mut ones = Image::new(w, h);
+                ones.pixels.fill(Vec3::ONE);
+                (ones, vec![0.0; (w * h) as usize])
+            }
+        };
+        Frame {
+            version: self.version,
+            image: self.image().clone(),
+            shadow,
+            alpha,
+        }
+    }
+
     /// The exposure (stops) that brings the photo's mean to mid-grey.
     pub fn auto_exposure(&self) -> f32 {
         let mean = self.photo.mean().max(1e-12);
         (0.18 / mean).log2() as f32
     }
+}
 
+impl Frame {
     /// The view's linear data: radiance for the final image and the photo,
-    /// the factor for the shadow layer (1 where nothing changed).
-    pub fn linear(&self, view: View) -> Image {
-        match (view, self.composite()) {
-            (View::Final, _) => self.image().clone(),
-            (View::Shadow, Some(c)) => c.shadow(&self.photo),
-            (View::Shadow, None) => {
-                let mut ones = Image::new(self.photo.width, self.photo.height);
-                ones.pixels.fill(Vec3::ONE);
-                ones
-            }
-            (View::Photo | View::Ids, _) => self.photo.clone(),
+    /// the factor for the shadow layer.
+    pub fn linear<'a>(&'a self, photo: &'a Image, view: View) -> &'a Image {
+        match view {
+            View::Final => &self.image,
+            View::Shadow => &self.shadow,
+            View::Photo | View::Ids => photo,
         }
     }
 
-    /// The view as 8-bit sRGB RGBA, row-major, radiance × 2^`ev` (the shadow
-    /// layer's factor is shown as it is).
-    pub fn rgba(&self, view: View, ev: f32) -> Vec<u8> {
+    /// The view as 8-bit sRGB RGBA, row-major, radiance × 2^`ev` (the
+    /// shadow layer's factor as it is); `ids`: the room's surface per pixel.
+    pub fn rgba(&self, photo: &Image, ids: &SurfaceIds, view: View, ev: f32) -> Vec<u8> {
         let gain = match view {
             View::Shadow => 1.0,
             _ => ev.exp2(),
         };
-        let image = self.linear(view);
-        let alpha = self.composite().map(|c| c.alpha.as_slice());
+        let image = self.linear(photo, view);
         let mut out = Vec::with_capacity(4 * image.pixels.len());
         for (i, p) in image.pixels.iter().enumerate() {
             let mut c = (*p * gain).to_array().map(linear_to_srgb);
             if view == View::Ids {
-                let id = id_colour(self.room.ids.ids[i]).map(|v| v as f32 / 255.0);
-                let a = alpha.and_then(|a| a.get(i)).copied().unwrap_or(0.0);
+                let id = id_colour(ids.ids[i]).map(|v| v as f32 / 255.0);
+                let a = self.alpha.get(i).copied().unwrap_or(0.0);
                 for k in 0..3 {
                     let model = 0.5 * c[k] + 0.5 * id[k];
                     c[k] = model * (1.0 - a) + a;

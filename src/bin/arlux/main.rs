@@ -28,6 +28,7 @@ mod outputs;
 mod progress;
 mod radiosity;
 mod render;
+mod serve;
 mod sweep;
 mod timing;
 
@@ -77,6 +78,8 @@ enum Command {
     Sweep(sweep::Args),
     /// Assemble a farm's pieces: crops of one frame (render --crop) into the frame's EXR, or a sweep's shard tables (sweep --shard) into the whole sweep's CSV.
     Merge(merge::Args),
+    /// A local web page over an editing session: click the photo to stand an object there, drag to slide it, turn, scale, hide it; scale the lights; save the state as a variant; write full EXRs. Each change is an incremental update.
+    Serve(serve::Args),
     /// Error of an image against a reference: RMSE and relative RMSE in linear radiance, PSNR of the sRGB-encoded images, and their means.
     Compare(compare::Args),
 }
@@ -169,6 +172,7 @@ impl Command {
             Command::Sweep(a) => ("sweep", a.json),
             Command::Merge(a) => ("merge", a.json),
             Command::Compare(a) => ("compare", a.json),
+            Command::Serve(a) => ("serve", a.json),
         };
         json.then_some(name)
     }
@@ -236,6 +240,7 @@ fn outputs(command: &Command) -> Vec<Output<'_>> {
             Some(Output::file(&a.output, "-o", &["exr", "csv"])),
             optional(&a.plot, "--plot", PNG),
         ],
+        Command::Serve(a) => vec![a.out.as_deref().map(|p| Output::folder(p, "--out"))],
         Command::Info(_) | Command::Compare(_) => vec![],
     };
     files.into_iter().flatten().collect()
@@ -256,5 +261,6 @@ fn run(cli: Cli) -> Result<()> {
         Command::Gonio(a) => gonio::run(a),
         Command::Radiosity(a) => radiosity::run(a),
         Command::Merge(a) => merge::run(a),
+        Command::Serve(a) => serve::run(a),
     }
 }

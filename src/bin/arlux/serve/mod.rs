@@ -1,0 +1,234 @@
+//! `arlux serve`: a local web page over an editing session
+//! ([`arlux::interactive`]): click to stand an object on the floor, drag to
+//! slide it, turn, scale, hide; scale the lights; save the state as a
+//! variant; write a full EXR. This module is the HTTP layer only: one worker
+//! thread owns the session and takes jobs in order; the handlers talk to it
+//! through a channel and read the latest frame without waiting for it.
+
+use std::net::{IpAddr, SocketAddr};
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex, RwLock};
+
+use anyhow::{Context, Result};
+use serde_json::{Value, json};
+
+use arlux::interactive::{Edit, Frame, Interactive, Outcome, Refusal};
+use arlux::model::StageTimes;
+
+mod api;
+mod worker;
+
+/// Arguments of `arlux serve`.
+#[derive(clap::Args)]
+pub struct Args {
+    pub scene: PathBuf,
+    /// The port to listen on (0: any free port, printed at start).
+    #[arg(long, default_value_t = 8765)]
+    pub port: u16,
+    /// The address to listen on. Anything but loopback lets other machines
+    /// in (with the token): say so on purpose.
+    #[arg(long, default_value = "127.0.0.1")]
+    pub bind: IpAddr,
+    /// Open the page in the desktop's browser (xdg-open).
+    #[arg(long)]
+    pub open: bool,
+    /// The folder the page's "Render" writes full EXRs to (without it, the
+    /// page offers no Render).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Print the address as one JSON object on stdout once listening.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// What every handler shares.
+pub(crate) struct Shared {
+    pub token: String,
+    /// The `Host` values a request may carry (a DNS-rebinding page cannot).
+    pub hosts: Vec<String>,
+    pub jobs: std::sync::mpsc::SyncSender<worker::Job>,
+    /// The latest state, published by the worker after every change.
+    pub latest: RwLock<Option<Arc<Published>>>,
+    /// The stage the preprocess is in, or its failure.
+    pub status: Mutex<Status>,
+    pub limiter: governor::DefaultDirectRateLimiter,
+    /// Fixed at start: the photo as shot and the room's surface per pixel.
+    pub fixed: std::sync::OnceLock<(arlux::image_io::Image, arlux::surface_ids::SurfaceIds)>,
+    pub can_render: bool,
+    /// The scene's virtual objects' and lights' names, by index.
+    pub objects: Vec<String>,
+    pub lights: Vec<String>,
+}
+
+/// The preprocess's progress, for the page before the first image.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Status {
+    pub stage: String,
+    pub failed: Option<String>,
+}
+
+/// One state as the page sees it.
+pub(crate) struct Published {
+    pub frame: Frame,
+    pub state: Value,
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let scene = crate::common::load(&args.scene, None)?;
+    let photo = crate::common::read_photo(&scene)?;
+    let settings = match arlux::settings::RenderOptions::default().resolve()? {
+        arlux::settings::Method::Pda(s) => s,
+        arlux::settings::Method::Texture(_) => unreachable!("the default method is the pixel path"),
+    };
+    if let Some(out) = &args.out {
+        std::fs::create_dir_all(out)
+            .with_context(|| format!("--out {}: cannot create the folder", out.display()))?;
+    }
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()?;
+    let listener = runtime
+        .block_on(tokio::net::TcpListener::bind(SocketAddr::new(
+            args.bind, args.port,
+        )))
+        .with_context(|| format!("cannot listen on {}:{}", args.bind, args.port))?;
+    let port = listener.local_addr()?.port();
+    let token = token();
+    let (jobs, queue) = std::sync::mpsc::sync_channel(worker::QUEUE);
+    let shared = Arc::new(Shared {
+        token: token.clone(),
+        hosts: [
+            args.bind.to_string(),
+            "127.0.0.1".into(),
+            "localhost".into(),
+        ]
+        .iter()
+        .map(|h| match args.bind {
+            IpAddr::V6(_) if h == &args.bind.to_string() => format!("[{h}]:{port}"),
+            _ => format!("{h}:{port}"),
+        })
+        .collect(),
+        jobs,
+        latest: RwLock::new(None),
+        status: Mutex::new(Status {
+            stage: "loading".into(),
+            failed: None,
+        }),
+        limiter: governor::RateLimiter::direct(api::quota()),
+        fixed: std::sync::OnceLock::new(),
+        can_render: args.out.is_some(),
+        objects: scene.objects.iter().map(|o| o.name.clone()).collect(),
+        lights: scene.lights.iter().map(|l| l.name.clone()).collect(),
+    });
+    let host = match args.bind {
+        IpAddr::V6(a) => format!("[{a}]"),
+        a => a.to_string(),
+    };
+    let url = format!("http://{host}:{port}/?token={token}");
+    announce(args, &url, port, &token)?;
+    let observer = Arc::clone(&shared);
+    arlux::util::stages::observe(move |stage| {
+        observer
+            .status
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .stage = stage.to_string();
+    });
+    let context = worker::Context {
+        shared: Arc::clone(&shared),
+        out: args.out.clone(),
+        meta: crate::common::frame_meta(&scene, json!({ "serve": true })),
+    };
+    std::thread::Builder::new()
+        .name("session".into())
+        .spawn(move || worker::run(scene, photo, settings, context, queue))?;
+    if args.open {
+        let _ = std::process::Command::new("xdg-open").arg(&url).spawn();
+    }
+    runtime.block_on(async move {
+        axum::serve(
+            listener,
+            api::router(shared).into_make_service_with_connect_info::<SocketAddr>(),
+        )
+        .await
+    })?;
+    Ok(())
+}
+
+/// Where the page is, on stdout: a line for a person, or one JSON object.
+fn announce(args: &Args, url: &str, port: u16, token: &str) -> Result<()> {
+    if args.json {
+        crate::common::emit(
+            "serve",
+            json!({ "url": url, "port": port, "token": token, "scene": args.scene.display().to_string() }),
+        )?;
+    } else {
+        say!("arlux serve: open {url}");
+        say!("(the token in the address is needed on every request; stop with Ctrl-C)");
+    }
+    use std::io::Write as _;
+    std::io::stdout().flush()?;
+    Ok(())
+}
+
+/// 128 random bits, hex: the secret every request must carry.
+fn token() -> String {
+    use rand::RngExt as _;
+    let bits: u128 = rand::rng().random();
+    format!("{bits:032x}")
+}
+
+/// An edit's reply: what it did and the state after it.
+pub(crate) fn outcome_json(outcome: &Outcome, server_ms: f64, state: &Value) -> Value {
+    json!({
+        "version": outcome.version,
+        "path": outcome.path,
+        "update_ms": outcome.millis,
+        "server_ms": server_ms,
+        "state": state,
+    })
+}
+
+/// A refused request's reply body.
+pub(crate) fn refusal_json(r: &Refusal) -> Value {
+    json!({ "error": { "field": r.field, "message": r.message } })
+}
+
+/// The state as the page shows it.
+pub(crate) fn state_json(it: &Interactive, last: Option<&Value>) -> Value {
+    let scene = it.scene();
+    let objects: Vec<Value> = (0..scene.objects.len())
+        .map(|k| {
+            let (enabled, t, yaw, scale) = it.object_state(k);
+            json!({
+                "name": scene.objects[k].name,
+                "enabled": enabled,
+                "translate": t.to_array(),
+                "yaw_deg": yaw,
+                "scale": scale,
+            })
+        })
+        .collect();
+    let lights: Vec<Value> = scene
+        .lights
+        .iter()
+        .map(|l| json!({ "name": l.name, "real": l.real, "scale": l.scale }))
+        .collect();
+    json!({
+        "ready": true,
+        "scene": scene.name,
+        "width": scene.camera.width,
+        "height": scene.camera.height,
+        "exposure": it.auto_exposure(),
+        "version": it.version(),
+        "objects": objects,
+        "lights": lights,
+        "last": last,
+    })
+}
+
+/// Applies `edit`, timing it.
+pub(crate) fn apply(it: &mut Interactive, edit: Edit) -> std::result::Result<Outcome, Refusal> {
+    it.apply(edit, &mut StageTimes::default())
+}

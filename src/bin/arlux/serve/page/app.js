@@ -1,0 +1,214 @@
+// The page of `arlux serve`: plain JavaScript, no build step, no network
+// beyond this server. Every request carries the token from the address.
+"use strict";
+const token = new URLSearchParams(location.search).get("token") || "";
+const $ = (id) => document.getElementById(id);
+let state = null;
+let view = "final";
+let evOffset = 0;
+let shown = -1;
+
+async function api(path, body) {
+  const init = { headers: { "x-arlux-token": token } };
+  if (body !== undefined) {
+    init.method = "POST";
+    init.headers["content-type"] = "application/json";
+    init.body = JSON.stringify(body);
+  }
+  const r = await fetch(path, init);
+  const json = await r.json().catch(() => ({ error: { message: "unreadable reply" } }));
+  if (!r.ok) {
+    const e = json.error || {};
+    throw new Error((e.field ? e.field + ": " : "") + (e.message || r.status));
+  }
+  return json;
+}
+
+async function fetchImage(which) {
+  const ev = state.exposure + evOffset;
+  const r = await fetch(`/api/image?view=${which}&ev=${ev}`, { headers: { "x-arlux-token": token } });
+  if (!r.ok) throw new Error("image: " + r.status);
+  const w = +r.headers.get("x-width"), h = +r.headers.get("x-height");
+  const version = +r.headers.get("x-version");
+  const data = new Uint8ClampedArray(await r.arrayBuffer());
+  return { image: new ImageData(data, w, h), version };
+}
+
+function draw(canvas, image) {
+  if (canvas.width !== image.width) { canvas.width = image.width; canvas.height = image.height; }
+  canvas.getContext("2d").putImageData(image, 0, 0);
+}
+
+async function refresh() {
+  const which = view === "wipe" ? "final" : view;
+  const main = await fetchImage(which);
+  draw($("view"), main.image);
+  shown = main.version;
+  $("view").dataset.version = String(main.version);
+  const before = $("before");
+  before.hidden = view !== "wipe";
+  $("wipe").hidden = view !== "wipe";
+  if (view === "wipe") {
+    draw(before, (await fetchImage("photo")).image);
+    wipe();
+  }
+}
+
+function wipe() {
+  const f = +$("wipe").value;
+  $("before").style.clipPath = `inset(0 ${100 * (1 - f)}% 0 0)`;
+}
+
+function say(text) { $("message").textContent = text; }
+
+function showOutcome(r) {
+  const p = r.path;
+  const what = p.kind === "update"
+    ? `update: ${p.pixels_recomputed} pixels recomputed, ${p.pixels_retraced} re-traced, ${p.rays} rays`
+    : p.kind === "full" ? `full render (${p.reason})` : p.kind;
+  $("last").textContent = `${what} — ${r.update_ms.toFixed(1)} ms`;
+}
+
+function selected() { return state.objects[$("object").selectedIndex]; }
+
+function fillControls() {
+  const o = selected();
+  if (!o) return;
+  $("enabled").checked = o.enabled;
+  $("yaw").value = Math.round(((o.yaw_deg + 540) % 360) - 180);
+  $("yaw-value").textContent = $("yaw").value;
+  $("scale").value = Math.log2(o.scale);
+  $("scale-value").textContent = o.scale.toFixed(2);
+  for (const l of state.lights) {
+    const row = document.querySelector(`[data-light="${CSS.escape(l.name)}"]`);
+    if (!row) continue;
+    row.querySelector("input[type=checkbox]").checked = l.scale > 0;
+    if (l.scale > 0) row.querySelector("input[type=range]").value = l.scale;
+  }
+}
+
+function buildControls() {
+  $("scene").textContent = state.scene;
+  const sel = $("object");
+  sel.replaceChildren(...state.objects.map((o) => new Option(o.name, o.name)));
+  const lights = $("lights");
+  lights.replaceChildren();
+  for (const l of state.lights) {
+    const row = document.createElement("div");
+    row.className = "light";
+    row.dataset.light = l.name;
+    const initial = l.scale > 0 ? l.scale : 1;
+    row.innerHTML = `<input type="checkbox"><span class="name"></span>` +
+      `<input type="range" min="0" max="4" step="0.05" value="${initial}"><span class="value"></span>`;
+    row.querySelector(".name").textContent = l.name + (l.real ? "" : " (virtual)");
+    const box = row.querySelector("input[type=checkbox]");
+    const range = row.querySelector("input[type=range]");
+    const value = row.querySelector(".value");
+    value.textContent = (+range.value).toFixed(2);
+    box.checked = l.scale > 0;
+    const send = () => edit("/api/light", { light: l.name, scale: box.checked ? +range.value : 0 });
+    box.addEventListener("change", send);
+    range.addEventListener("input", () => { value.textContent = (+range.value).toFixed(2); });
+    range.addEventListener("change", () => { if (box.checked) send(); });
+    lights.appendChild(row);
+  }
+  $("render").disabled = !state.can_render;
+  fillControls();
+}
+
+// One edit in flight; a drag's moves that come meanwhile keep only the latest.
+let busy = false;
+let pendingMove = null;
+
+async function edit(path, body) {
+  busy = true;
+  try {
+    const r = await api(path, body);
+    if (!r.superseded) {
+      state = Object.assign(state, r.state);
+      showOutcome(r);
+      say("");
+      fillControls();
+      await refresh();
+    }
+  } catch (e) {
+    say(e.message);
+  } finally {
+    busy = false;
+  }
+  if (pendingMove) {
+    const next = pendingMove;
+    pendingMove = null;
+    await edit("/api/place", next);
+  }
+}
+
+function pixelOf(ev) {
+  const c = $("view");
+  const r = c.getBoundingClientRect();
+  return { x: (ev.clientX - r.left) * c.width / r.width, y: (ev.clientY - r.top) * c.height / r.height };
+}
+
+let dragging = false;
+$("view").addEventListener("pointerdown", (ev) => {
+  if (!state || !selected()) return;
+  dragging = true;
+  $("view").setPointerCapture(ev.pointerId);
+  const p = pixelOf(ev);
+  const body = { object: selected().name, x: p.x, y: p.y, drag: false };
+  if (busy) pendingMove = body; else edit("/api/place", body);
+});
+$("view").addEventListener("pointermove", (ev) => {
+  if (!dragging) return;
+  const p = pixelOf(ev);
+  const body = { object: selected().name, x: p.x, y: p.y, drag: true };
+  if (busy) pendingMove = body; else edit("/api/place", body);
+});
+const stop = () => { dragging = false; };
+$("view").addEventListener("pointerup", stop);
+$("view").addEventListener("pointercancel", stop);
+
+$("object").addEventListener("change", fillControls);
+$("enabled").addEventListener("change", () => edit("/api/object", { object: selected().name, enabled: $("enabled").checked }));
+$("yaw").addEventListener("input", () => { $("yaw-value").textContent = $("yaw").value; });
+$("yaw").addEventListener("change", () => edit("/api/object", { object: selected().name, yaw_deg: +$("yaw").value }));
+$("scale").addEventListener("input", () => { $("scale-value").textContent = (2 ** +$("scale").value).toFixed(2); });
+$("scale").addEventListener("change", () => edit("/api/object", { object: selected().name, scale: 2 ** +$("scale").value }));
+for (const r of document.querySelectorAll("input[name=view]")) {
+  r.addEventListener("change", () => { view = r.value; refresh().catch((e) => say(e.message)); });
+}
+$("wipe").addEventListener("input", wipe);
+$("ev").addEventListener("change", () => { evOffset = +$("ev").value; refresh().catch((e) => say(e.message)); });
+$("save").addEventListener("click", async () => {
+  const name = $("variant-name").value.trim();
+  try {
+    const r = await api("/api/save", name ? { name } : {});
+    $("saved").textContent = `saved variant ${r.variant} in ${r.file}`;
+    $("saved").dataset.file = r.file;
+    $("saved").dataset.variant = r.variant;
+  } catch (e) { say(e.message); }
+});
+$("render").addEventListener("click", async () => {
+  try {
+    const r = await api("/api/render", {});
+    $("saved").textContent = `wrote ${r.file}`;
+  } catch (e) { say(e.message); }
+});
+
+// The preprocess's stages until the first image, then the controls.
+async function start() {
+  for (;;) {
+    let s;
+    try { s = await api("/api/state"); } catch (e) { say(e.message); return; }
+    if (s.failed) { $("status").textContent = "failed: " + s.failed; return; }
+    if (s.ready) { state = s; break; }
+    $("status").textContent = "preparing: " + s.stage;
+    await new Promise((r) => setTimeout(r, 250));
+  }
+  buildControls();
+  await refresh();
+  if (state.last) showOutcome(state.last);
+  $("status").textContent = "ready";
+  $("status").dataset.ready = "true";
+}
+start();

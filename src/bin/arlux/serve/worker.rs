@@ -1,0 +1,242 @@
+//! The one thread that owns the editing session: it takes jobs in the order
+//! they came, except that a drag's moves of one object that queued up
+//! during an update are coalesced (the latest wins; the others are told
+//! they were superseded).
+
+use std::collections::VecDeque;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::mpsc::Receiver;
+use std::time::Instant;
+
+use serde_json::{Value, json};
+use tokio::sync::oneshot;
+
+use arlux::image_io::{ExrMeta, Image};
+use arlux::interactive::{Edit, Interactive, Refusal};
+use arlux::model::StageTimes;
+use arlux::render::RenderSettings;
+use arlux::scene::Scene;
+
+use super::{Published, Shared};
+
+/// Jobs that may wait for the worker; beyond, a request is refused (503).
+pub(crate) const QUEUE: usize = 256;
+
+/// A reply: an HTTP status and a JSON body.
+pub(crate) type Reply = (u16, Value);
+
+pub(crate) enum Job {
+    Edit {
+        edit: Edit,
+        /// A drag's move: may be superseded by a later move of the same object.
+        drag: bool,
+        received: Instant,
+        reply: oneshot::Sender<Reply>,
+    },
+    Save {
+        name: Option<String>,
+        reply: oneshot::Sender<Reply>,
+    },
+    Render {
+        reply: oneshot::Sender<Reply>,
+    },
+}
+
+pub(crate) struct Context {
+    pub shared: Arc<Shared>,
+    pub out: Option<PathBuf>,
+    pub meta: ExrMeta,
+}
+
+/// Builds the session (the preprocess), then serves jobs until the server goes.
+pub(crate) fn run(
+    scene: Scene,
+    photo: Image,
+    settings: RenderSettings,
+    cx: Context,
+    queue: Receiver<Job>,
+) {
+    let started = Instant::now();
+    let mut it = match Interactive::new(scene, photo, settings, &mut StageTimes::default()) {
+        Ok(it) => it,
+        Err(e) => {
+            eprintln!("error: {e}");
+            cx.shared
+                .status
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .failed = Some(e.to_string());
+            return;
+        }
+    };
+    let _ = cx
+        .shared
+        .fixed
+        .set((it.photo().clone(), it.room().ids.clone()));
+    let first = json!({ "path": { "kind": "full", "reason": "the first image" }, "update_ms": started.elapsed().as_secs_f64() * 1e3 });
+    publish(&cx, &it, Some(&first));
+    eprintln!(
+        "arlux serve: ready ({:.1} s of preprocess)",
+        started.elapsed().as_secs_f64()
+    );
+    let mut held: VecDeque<Job> = VecDeque::new();
+    loop {
+        let job = match held.pop_front() {
+            Some(j) => j,
+            None => match queue.recv() {
+                Ok(j) => j,
+                Err(_) => return,
+            },
+        };
+        let job = coalesce(job, &queue, &mut held);
+        // A bug in a stage must not end the session: the job fails, the
+        // session goes on from its last state.
+        let job_run = std::panic::AssertUnwindSafe(|| serve_job(&cx, &mut it, job));
+        if std::panic::catch_unwind(job_run).is_err() {
+            eprintln!("arlux serve: a job failed (see above); the session goes on");
+        }
+    }
+}
+
+/// The latest of the moves of one object queued behind `job`, when `job`
+/// is a drag's move; the jobs of other kinds met on the way are kept in order.
+fn coalesce(mut job: Job, queue: &Receiver<Job>, held: &mut VecDeque<Job>) -> Job {
+    let object = |j: &Job| match j {
+        Job::Edit {
+            edit: Edit::Place { object, .. },
+            drag: true,
+            ..
+        } => Some(*object),
+        _ => None,
+    };
+    let Some(first) = object(&job) else {
+        return job;
+    };
+    if !held.is_empty() {
+        return job;
+    }
+    while let Ok(next) = queue.try_recv() {
+        if object(&next) == Some(first) {
+            if let Job::Edit { reply, .. } = std::mem::replace(&mut job, next) {
+                let _ = reply.send((200, json!({ "superseded": true })));
+            }
+        } else {
+            held.push_back(next);
+            break;
+        }
+    }
+    job
+}
+
+fn serve_job(cx: &Context, it: &mut Interactive, job: Job) {
+    match job {
+        Job::Edit {
+            edit,
+            received,
+            reply,
+            ..
+        } => {
+            let reply_body = match super::apply(it, edit) {
+                Ok(outcome) => {
+                    let server_ms = received.elapsed().as_secs_f64() * 1e3;
+                    let last = json!({ "path": outcome.path, "update_ms": outcome.millis });
+                    let state = publish(cx, it, Some(&last));
+                    (200, super::outcome_json(&outcome, server_ms, &state))
+                }
+                Err(r) => (422, super::refusal_json(&r)),
+            };
+            let _ = reply.send(reply_body);
+        }
+        Job::Save { name, reply } => {
+            let name = name.unwrap_or_else(|| it.next_variant_name());
+            let body = match it.save_variant(&name) {
+                Ok(path) => (
+                    200,
+                    json!({
+                        "file": path.file_name().map(|n| n.to_string_lossy().into_owned()),
+                        "variant": name,
+                    }),
+                ),
+                Err(e) => (
+                    409,
+                    super::refusal_json(&Refusal {
+                        field: "name",
+                        message: e.to_string(),
+                    }),
+                ),
+            };
+            let _ = reply.send(body);
+        }
+        Job::Render { reply } => {
+            let _ = reply.send(render(cx, it));
+        }
+    }
+}
+
+/// Writes the state's full EXR (every layer `arlux render` writes) into the
+/// `--out` folder, under a name no file there has.
+fn render(cx: &Context, it: &Interactive) -> Reply {
+    let Some(out) = &cx.out else {
+        return (
+            409,
+            json!({ "error": { "field": "render", "message": "the server was started without --out DIR: nowhere to write" } }),
+        );
+    };
+    let path = (0..)
+        .map(|k| {
+            let suffix = if k == 0 {
+                String::new()
+            } else {
+                format!("-{k}")
+            };
+            out.join(format!("{}-v{}{suffix}.exr", it.base().name, it.version()))
+        })
+        .find(|p| !p.exists())
+        .expect("some name is free");
+    let empty;
+    let composite = match it.composite() {
+        Some(c) => c,
+        None => {
+            empty = photo_composite(it.photo());
+            &empty
+        }
+    };
+    match crate::common::write_frame(&path, composite, it.photo(), &cx.meta) {
+        Ok(()) => (
+            200,
+            json!({ "file": path.file_name().map(|n| n.to_string_lossy().into_owned()) }),
+        ),
+        Err(e) => (
+            500,
+            json!({ "error": { "field": "render", "message": e.to_string() } }),
+        ),
+    }
+}
+
+/// The photo as a composite with its layers (no change anywhere).
+fn photo_composite(photo: &Image) -> arlux::composite::Composite {
+    let (w, h) = (photo.width, photo.height);
+    arlux::composite::Composite {
+        image: photo.clone(),
+        direct: Image::new(w, h),
+        indirect: Image::new(w, h),
+        change: Image::new(w, h),
+        object: Image::new(w, h),
+        alpha: vec![0.0; (w * h) as usize],
+        copied: (w * h) as usize,
+        ratio_fallbacks: 0,
+        clamped: 0,
+    }
+}
+
+/// Makes the current state the one the handlers read; returns its JSON.
+fn publish(cx: &Context, it: &Interactive, last: Option<&Value>) -> Value {
+    let state = super::state_json(it, last);
+    let published = Published {
+        frame: it.frame(),
+        state: state.clone(),
+    };
+    *cx.shared.latest.write().unwrap_or_else(|e| e.into_inner()) = Some(Arc::new(published));
+    state
+}
