@@ -9,6 +9,8 @@ use std::process::{Command, Output};
 use arlux::image_io::{Image, read_image};
 use arlux::scene::Scene;
 
+pub mod serve;
+
 /// The folder of the example scene `name` (`desk`, `lounge`, `whitebox`).
 pub fn scene_dir(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -1,0 +1,263 @@
+//! `arlux serve` in a real browser: headless Chromium driven through
+//! chromedriver (WebDriver). The box is clicked onto the desk's floor,
+//! dragged 30 steps, the panel switched off and the state saved; the saved
+//! variant's `arlux render` equals the server's last image bit for bit, and
+//! the box stands where the last pointer position sees the floor.
+
+mod common;
+use common::Desk;
+use common::serve::Server;
+
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use fantoccini::actions::{InputSource, MOUSE_BUTTON_LEFT, MouseActions, PointerAction};
+use fantoccini::{Client, ClientBuilder, Locator};
+use glam::DVec3;
+use serde_json::json;
+
+/// chromedriver on a free port; killed when dropped.
+struct Driver(Child, u16);
+
+impl Driver {
+    fn start() -> Option<Driver> {
+        let port = std::net::TcpListener::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .port();
+        let child = Command::new("chromedriver")
+            .arg(format!("--port={port}"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .ok()?;
+        let start = Instant::now();
+        while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+            assert!(
+                start.elapsed() < Duration::from_secs(30),
+                "chromedriver does not listen"
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        Some(Driver(child, port))
+    }
+}
+
+impl Drop for Driver {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+async fn browser(driver: &Driver, profile: &std::path::Path) -> Client {
+    let mut caps = serde_json::Map::new();
+    caps.insert(
+        "goog:chromeOptions".into(),
+        json!({
+            "binary": "/usr/bin/chromium",
+            "args": [
+                "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+                "--no-first-run", "--disable-background-networking",
+                "--disable-component-update", "--disable-sync",
+                "--window-size=1100,700",
+                format!("--user-data-dir={}", profile.display()),
+            ],
+        }),
+    );
+    let connector = hyper_util::client::legacy::connect::HttpConnector::new();
+    ClientBuilder::new(connector)
+        .capabilities(caps)
+        .connect(&format!("http://127.0.0.1:{}", driver.1))
+        .await
+        .expect("a Chromium session")
+}
+
+/// Waits until the page's script says `condition` (a JS expression) holds.
+async fn wait_until(client: &Client, condition: &str) {
+    let start = Instant::now();
+    loop {
+        let v = client
+            .execute(&format!("return !!({condition});"), vec![])
+            .await
+            .unwrap();
+        if v == json!(true) {
+            return;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "timed out waiting for {condition}"
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_box_clicked_dragged_and_saved_in_the_browser_renders_as_the_server_showed_it() {
+    let Some(driver) = Driver::start() else {
+        panic!(
+            "chromedriver is not installed: `bash .ci/setup` installs Chromium and chromedriver"
+        );
+    };
+    let desk = Desk::new();
+    let out = tempfile::tempdir().unwrap();
+    let server = Server::start(&desk.scene(), &["--out", &out.path().display().to_string()]);
+    let profile = tempfile::tempdir().unwrap();
+    let client = browser(&driver, profile.path()).await;
+    client.goto(&server.url).await.unwrap();
+    wait_until(
+        &client,
+        "document.getElementById('status').dataset.ready === 'true'",
+    )
+    .await;
+
+    // Where the canvas is in the viewport, and the image points to click.
+    let rect = client
+        .execute(
+            "const r = document.getElementById('view').getBoundingClientRect(); return [r.left, r.top, r.width];",
+            vec![],
+        )
+        .await
+        .unwrap();
+    let (left, top, width) = (
+        rect[0].as_f64().unwrap(),
+        rect[1].as_f64().unwrap(),
+        rect[2].as_f64().unwrap(),
+    );
+    assert_eq!(width, 512.0, "the canvas shows the image one to one");
+    let scene = arlux::scene::Scene::load(desk.scene()).unwrap();
+    let at = |p: DVec3| {
+        let (x, y, _) = scene.camera.project(p).unwrap();
+        (x.round(), y.round())
+    };
+    let start = at(DVec3::new(-0.9, 0.0, 0.7));
+    let end = at(DVec3::new(0.3, 0.0, 0.2));
+    let mut mouse = MouseActions::new("mouse".into())
+        .then(PointerAction::MoveTo {
+            duration: None,
+            x: left + start.0,
+            y: top + start.1,
+        })
+        .then(PointerAction::Down {
+            button: MOUSE_BUTTON_LEFT,
+        });
+    let steps = 30;
+    for k in 1..=steps {
+        let f = k as f64 / steps as f64;
+        let (x, y) = (
+            start.0 + f * (end.0 - start.0),
+            start.1 + f * (end.1 - start.1),
+        );
+        mouse = mouse.then(PointerAction::MoveTo {
+            duration: Some(Duration::from_millis(20)),
+            x: left + x.round(),
+            y: top + y.round(),
+        });
+    }
+    mouse = mouse.then(PointerAction::Up {
+        button: MOUSE_BUTTON_LEFT,
+    });
+    client.perform_actions(mouse).await.unwrap();
+    // The drag is over when the page has no edit in flight and shows the
+    // server's latest version.
+    wait_until(&client, "!busy && !pendingMove").await;
+    let state = server.get("/api/state").json();
+    let dragged = state["version"].as_u64().unwrap();
+    assert!(
+        dragged >= 2,
+        "the click and the drag changed the image: {state}"
+    );
+
+    // The page after the drag (the README's picture).
+    let shot = client.screenshot().await.unwrap();
+    std::fs::write(
+        std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("serve-page.png"),
+        &shot,
+    )
+    .unwrap();
+    // Switch the panel off with its checkbox, as a user does.
+    let panel = client
+        .find(Locator::Css("[data-light='panel'] input[type=checkbox]"))
+        .await
+        .unwrap();
+    panel.click().await.unwrap();
+    wait_until(
+        &client,
+        &format!("+document.getElementById('view').dataset.version > {dragged} && !busy"),
+    )
+    .await;
+    client
+        .find(Locator::Id("save"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    wait_until(&client, "document.getElementById('saved').dataset.file").await;
+    let file = client
+        .execute(
+            "return document.getElementById('saved').dataset.file;",
+            vec![],
+        )
+        .await
+        .unwrap();
+    let variant = client
+        .execute(
+            "return document.getElementById('saved').dataset.variant;",
+            vec![],
+        )
+        .await
+        .unwrap();
+    client.close().await.unwrap();
+
+    let (served, version) = server.linear();
+    let state = server.get("/api/state").json();
+    assert_eq!(
+        state["lights"][0]["scale"], 0.0,
+        "the panel is off: {state}"
+    );
+    assert_eq!(version, state["version"].as_u64().unwrap());
+    let saved = desk.path(file.as_str().unwrap());
+    let exr = out.path().join("render.exr");
+    common::arlux_ok(&[
+        "render",
+        saved.to_str().unwrap(),
+        "--variant",
+        variant.as_str().unwrap(),
+        "-o",
+        exr.to_str().unwrap(),
+    ]);
+    let rendered = arlux::image_io::read_image(&exr).unwrap();
+    let rendered: Vec<f32> = rendered.pixels.iter().flat_map(|p| p.to_array()).collect();
+    assert_eq!(rendered.len(), served.len());
+    let differ = rendered
+        .iter()
+        .zip(&served)
+        .filter(|(a, b)| a.to_bits() != b.to_bits())
+        .count();
+    assert_eq!(
+        differ, 0,
+        "{differ} values differ between arlux render and the server's image"
+    );
+
+    // The box's footprint centre projects onto the drag's last point.
+    let placed = arlux::scene::Scene::load(&saved)
+        .unwrap()
+        .with_variant(variant.as_str().unwrap())
+        .unwrap();
+    let o = &placed.objects[0];
+    let (lo, hi) = arlux::geometry::bounds(
+        o.surfaces
+            .iter()
+            .flat_map(|s| s.triangles.iter().flatten())
+            .map(|&p| o.pose.apply(p).as_dvec3()),
+    );
+    let footprint = DVec3::new(0.5 * (lo.x + hi.x), lo.y, 0.5 * (lo.z + hi.z));
+    let (x, y, _) = placed.camera.project(footprint).unwrap();
+    let off = ((x - end.0).powi(2) + (y - end.1).powi(2)).sqrt();
+    assert!(
+        off <= 1.0,
+        "the box stands {off:.2} px from where the drag ended"
+    );
+}
