@@ -1,0 +1,283 @@
+//! The API of `arlux serve` under bad input: 2,000 random and malformed
+//! requests (bad JSON, wrong types, unknown names, out-of-range and huge
+//! numbers, unknown fields and paths, oversized bodies, missing tokens,
+//! foreign origins, garbage bytes) are each refused with a well-formed
+//! reply, the server stays up, and its state renders the same image as
+//! before them. Then drags queued behind a slow full render are coalesced:
+//! the latest wins.
+
+mod common;
+use common::Desk;
+use common::serve::{Reply, Server};
+
+use std::io::{Read as _, Write as _};
+use std::time::Duration;
+
+use rand::{RngExt, SeedableRng};
+use serde_json::{Value, json};
+
+fn validator() -> jsonschema::Validator {
+    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/schema/serve.schema.json");
+    let schema: Value = serde_json::from_str(&std::fs::read_to_string(file).unwrap()).unwrap();
+    jsonschema::validator_for(&schema).unwrap()
+}
+
+/// A request that must be refused, drawn at random.
+fn bad_request(rng: &mut impl rand::Rng) -> (&'static str, Vec<u8>) {
+    let numbers = [
+        json!(1e308),
+        json!(-1e308),
+        json!(-1),
+        json!(1e9),
+        json!("NaN"),
+        json!(null),
+        json!([1, 2]),
+        json!({"x": 1}),
+        json!(true),
+        json!(""),
+    ];
+    let number = |rng: &mut dyn rand::Rng| numbers[rng.random_range(0..numbers.len())].clone();
+    let name = |rng: &mut dyn rand::Rng| {
+        ["nobody", "", "box ", "BOX", "../scene.toml", "panel"][rng.random_range(0..6)]
+    };
+    match rng.random_range(0..12) {
+        0 => (
+            "/api/place",
+            json!({ "object": "box", "x": number(rng), "y": 100 })
+                .to_string()
+                .into_bytes(),
+        ),
+        1 => (
+            "/api/place",
+            json!({ "object": name(rng), "x": 100, "y": 200 })
+                .to_string()
+                .into_bytes(),
+        ),
+        2 => (
+            "/api/place",
+            json!({ "object": "box", "x": 100, "y": 200, "z": 1 })
+                .to_string()
+                .into_bytes(),
+        ),
+        3 => (
+            "/api/object",
+            json!({ "object": "box", "scale": number(rng) })
+                .to_string()
+                .into_bytes(),
+        ),
+        4 => {
+            // -1° is a valid heading: the others are not.
+            let yaw = Some(number(rng))
+                .filter(|n| n != &json!(-1))
+                .unwrap_or(json!(1e5));
+            (
+                "/api/object",
+                json!({ "object": "box", "yaw_deg": yaw })
+                    .to_string()
+                    .into_bytes(),
+            )
+        }
+        5 => (
+            "/api/object",
+            json!({ "object": "box", "yaw_deg": 10, "scale": 2 })
+                .to_string()
+                .into_bytes(),
+        ),
+        6 => {
+            let light = ["nobody", "", "panel ", "PANEL", "box"][rng.random_range(0..5)];
+            (
+                "/api/light",
+                json!({ "light": light, "scale": 1 })
+                    .to_string()
+                    .into_bytes(),
+            )
+        }
+        7 => (
+            "/api/light",
+            json!({ "light": "panel", "scale": number(rng) })
+                .to_string()
+                .into_bytes(),
+        ),
+        8 => {
+            let bad = ["../x", "a b", "", "box_floor_a", "é"][rng.random_range(0..5)];
+            ("/api/save", json!({ "name": bad }).to_string().into_bytes())
+        }
+        9 => {
+            // Truncated or random bytes as JSON.
+            let text = json!({ "object": "box", "x": 100, "y": 200 }).to_string();
+            let cut = rng.random_range(0..text.len());
+            let mut b = text.into_bytes()[..cut].to_vec();
+            if rng.random_bool(0.5) {
+                b.extend((0..rng.random_range(1..40)).map(|_| rng.random::<u8>()));
+            }
+            (
+                ["/api/place", "/api/object", "/api/light"][rng.random_range(0..3)],
+                b,
+            )
+        }
+        10 => ("/api/place", vec![b'['; 20_000]),
+        _ => (
+            ["/api/nothing", "/api/../scene.toml", "/api/image/x"][rng.random_range(0..3)],
+            b"{}".to_vec(),
+        ),
+    }
+}
+
+/// Raw bytes on a new connection; the status line of the reply, if any.
+fn raw(server: &Server, bytes: &[u8]) -> Option<String> {
+    let mut s = std::net::TcpStream::connect(("127.0.0.1", server.port)).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    let _ = s.write_all(bytes);
+    let _ = s.shutdown(std::net::Shutdown::Write);
+    let mut reply = Vec::new();
+    let _ = s.read_to_end(&mut reply);
+    let text = String::from_utf8_lossy(&reply);
+    text.lines().next().map(str::to_string)
+}
+
+fn check_refused(r: &Reply, what: &str, validator: &jsonschema::Validator) {
+    assert!(
+        (400..500).contains(&r.status),
+        "{what}: status {}",
+        r.status
+    );
+    let body = r.json();
+    assert!(
+        validator.is_valid(&body),
+        "{what}: reply off the schema: {body}"
+    );
+    assert!(body["error"]["field"].is_string(), "{what}: {body}");
+}
+
+#[test]
+fn two_thousand_bad_requests_are_refused_and_change_nothing() {
+    let desk = Desk::new();
+    let mut server = Server::start(&desk.scene(), &[]);
+    let validator = validator();
+    let ready = server.wait_ready();
+    assert!(validator.is_valid(&ready), "{ready}");
+    let (before, version) = server.linear();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+    let mut counts = std::collections::BTreeMap::<u16, usize>::new();
+    for k in 0..2000 {
+        let r = match k % 10 {
+            // Without the token, or from a foreign page.
+            0 => server.post_raw("/api/place", br#"{"object":"box","x":100,"y":300}"#, false),
+            1 => {
+                let line = raw(
+                    &server,
+                    format!(
+                        "POST /api/light HTTP/1.1\r\nHost: 127.0.0.1:{}\r\nOrigin: http://evil.example\r\nx-arlux-token: {}\r\nContent-Length: 30\r\n\r\n{{\"light\":\"panel\",\"scale\":0.0}}",
+                        server.port, server.token
+                    )
+                    .as_bytes(),
+                );
+                assert!(
+                    line.as_deref().is_some_and(|l| l.contains(" 403 ")),
+                    "{line:?}"
+                );
+                continue;
+            }
+            2 => {
+                // Garbage where HTTP should be: refused or closed, never a crash.
+                let junk: Vec<u8> = (0..rng.random_range(1..200))
+                    .map(|_| rng.random())
+                    .collect();
+                if let Some(line) = raw(&server, &junk) {
+                    assert!(line.starts_with("HTTP/1.1 4"), "{line:?}");
+                }
+                continue;
+            }
+            _ => {
+                let (path, body) = bad_request(&mut rng);
+                server.post_raw(path, &body, true)
+            }
+        };
+        *counts.entry(r.status).or_default() += 1;
+        check_refused(
+            &r,
+            &format!("request {k} ({})", String::from_utf8_lossy(&r.body)),
+            &validator,
+        );
+        // Within the rate the server allows.
+        std::thread::sleep(Duration::from_millis(3));
+    }
+    println!("replies by status: {counts:?}");
+    assert!(server.alive(), "the server is still up");
+    let (after, version_after) = server.linear();
+    assert_eq!(version_after, version, "no bad request changed the state");
+    assert!(
+        before
+            .iter()
+            .zip(&after)
+            .all(|(a, b)| a.to_bits() == b.to_bits()),
+        "the image is the one before the bad requests"
+    );
+    // And it still works: a good edit goes through.
+    let r = server.post("/api/object", &json!({ "object": "box", "yaw_deg": 45.0 }));
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    assert!(validator.is_valid(&r.json()), "{}", r.json());
+}
+
+#[test]
+fn drags_queued_behind_an_update_are_coalesced_the_latest_winning() {
+    let desk = Desk::new();
+    let server = std::sync::Arc::new(Server::start(&desk.scene(), &[]));
+    server.wait_ready();
+    let scene = arlux::scene::Scene::load(desk.scene()).unwrap();
+    // A light change is a full render: the drags sent meanwhile queue up.
+    let slow = {
+        let s = std::sync::Arc::clone(&server);
+        std::thread::spawn(move || s.post("/api/light", &json!({ "light": "spot", "scale": 2.0 })))
+    };
+    std::thread::sleep(Duration::from_millis(50));
+    let points: Vec<(f64, f64)> = (0..8)
+        .map(|k| {
+            let p = glam::DVec3::new(-0.8 + 0.15 * k as f64, 0.0, 0.5);
+            let (x, y, _) = scene.camera.project(p).unwrap();
+            (x, y)
+        })
+        .collect();
+    let mut moves = Vec::new();
+    for &(x, y) in &points {
+        let s = std::sync::Arc::clone(&server);
+        moves.push(std::thread::spawn(move || {
+            s.post(
+                "/api/place",
+                &json!({ "object": "box", "x": x, "y": y, "drag": true }),
+            )
+        }));
+        std::thread::sleep(Duration::from_millis(15));
+    }
+    assert_eq!(slow.join().unwrap().status, 200);
+    let replies: Vec<Value> = moves
+        .into_iter()
+        .map(|m| m.join().unwrap().json())
+        .collect();
+    let superseded = replies.iter().filter(|r| r["superseded"] == true).count();
+    println!("{superseded} of {} moves superseded", replies.len());
+    assert!(
+        superseded >= 1,
+        "moves queued behind a render are coalesced: {replies:?}"
+    );
+    assert!(
+        replies.last().unwrap()["superseded"].is_null(),
+        "the latest move wins"
+    );
+    let state = server.get("/api/state").json();
+    let t: Vec<f64> = state["objects"][0]["translate"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let (x, y, _) = scene
+        .camera
+        .project(glam::DVec3::new(t[0], t[1], t[2]))
+        .unwrap();
+    let last = points.last().unwrap();
+    assert!(
+        (x - last.0).abs() < 40.0 && (y - last.1).abs() < 40.0,
+        "the box is near the last move's point: {x:.0},{y:.0} against {last:?}"
+    );
+}
