@@ -2,6 +2,7 @@
 //! sRGB at an exposure, for the views a page offers.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use super::Interactive;
 use crate::image_io::{Image, linear_to_srgb};
@@ -92,20 +93,27 @@ impl Frame {
             _ => ev.exp2(),
         };
         let image = self.linear(photo, view);
-        let mut out = Vec::with_capacity(4 * image.pixels.len());
-        for (i, p) in image.pixels.iter().enumerate() {
-            let mut c = (*p * gain).to_array().map(linear_to_srgb);
-            if view == View::Ids {
-                let id = id_colour(ids.ids[i]).map(|v| v as f32 / 255.0);
-                let a = self.alpha.get(i).copied().unwrap_or(0.0);
-                for k in 0..3 {
-                    let model = 0.5 * c[k] + 0.5 * id[k];
-                    c[k] = model * (1.0 - a) + a;
+        let mut out = vec![0u8; 4 * image.pixels.len()];
+        // Row by row on every core: at 0.2 MP a quarter of what the server adds to an update.
+        let width = image.width as usize;
+        out.par_chunks_mut(4 * width)
+            .enumerate()
+            .for_each(|(row, bytes)| {
+                for (k, px) in bytes.chunks_exact_mut(4).enumerate() {
+                    let i = row * width + k;
+                    let mut c = (image.pixels[i] * gain).to_array().map(linear_to_srgb);
+                    if view == View::Ids {
+                        let id = id_colour(ids.ids[i]).map(|v| v as f32 / 255.0);
+                        let a = self.alpha.get(i).copied().unwrap_or(0.0);
+                        for k in 0..3 {
+                            let model = 0.5 * c[k] + 0.5 * id[k];
+                            c[k] = model * (1.0 - a) + a;
+                        }
+                    }
+                    let [r, g, b] = c.map(|v| (v * 255.0).round() as u8);
+                    px.copy_from_slice(&[r, g, b, 255]);
                 }
-            }
-            out.extend(c.map(|v| (v * 255.0).round() as u8));
-            out.push(255);
-        }
+            });
         out
     }
 }

@@ -14,9 +14,10 @@ use crate::trace::{Layer, TraceRay, Tracer};
 const FLOOR_DEG: f64 = 30.0;
 /// Points of an object checked against the room's solids, at most.
 const CHECKED_POINTS: usize = 1024;
-/// A segment's end left out of the check, as a fraction of its length:
-/// an object standing on a surface touches it.
-const TOUCH: f32 = 1e-3;
+/// How deep an object may sink into a surface, as a fraction of its box's
+/// diagonal: one standing on a rough model's floor (vertices a few
+/// centimetres off) touches it unevenly; one pushed into a wall goes deeper.
+const TOUCH: f64 = 0.05;
 
 /// The room's real geometry, for picking and checking places.
 pub struct Room {
@@ -114,7 +115,7 @@ impl Room {
     /// Refuses `object` where it stands (its pose) when it leaves the
     /// room's box or cuts into a real surface: a segment from its centre to
     /// one of its vertices or face centres that crosses the room's geometry
-    /// before its end (a surface it merely touches does not count).
+    /// more than [`TOUCH`] of its size before its end.
     pub fn check_place(&self, object: &VirtualObject) -> std::result::Result<(), String> {
         let points: Vec<DVec3> = object_points(object, &object.pose).collect();
         let (lo, hi) = crate::geometry::bounds(points.iter().copied());
@@ -125,6 +126,7 @@ impl Room {
             ));
         }
         let centre = (0.5 * (lo + hi)).as_vec3();
+        let depth = TOUCH * (hi - lo).length();
         let centroids = object
             .surfaces
             .iter()
@@ -133,11 +135,15 @@ impl Room {
         let all: Vec<DVec3> = points.iter().copied().chain(centroids).collect();
         let step = all.len().div_ceil(CHECKED_POINTS).max(1);
         for p in all.iter().step_by(step) {
+            let length = (*p - centre.as_dvec3()).length();
+            if length <= depth {
+                continue;
+            }
             let ray = TraceRay {
                 origin: centre,
                 direction: p.as_vec3() - centre,
                 tnear: 0.0,
-                tfar: 1.0 - TOUCH,
+                tfar: (1.0 - depth / length) as f32,
             };
             if let Some(hit) = self.tracer.intersect(&ray, Layer::Real) {
                 return Err(format!(
