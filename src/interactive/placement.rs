@@ -115,7 +115,7 @@ impl Room {
     /// Refuses `object` where it stands (its pose) when it leaves the
     /// room's box or cuts into a real surface: a segment from its centre to
     /// one of its vertices or face centres that crosses the room's geometry
-    /// more than [`TOUCH`] of its size before its end.
+    /// deeper than 5% of its size (see `TOUCH`).
     pub fn check_place(&self, object: &VirtualObject) -> std::result::Result<(), String> {
         let points: Vec<DVec3> = object_points(object, &object.pose).collect();
         let (lo, hi) = crate::geometry::bounds(points.iter().copied());
