@@ -97,6 +97,15 @@ pub(crate) fn progress_bar(len: u64, unit: &str) -> ProgressBar {
 /// A spinner for a command of unknown length, saying which stage runs
 /// (the library's stages as they start) and for how long.
 pub(crate) fn spinner(command: &str) -> ProgressBar {
+    let bar = stage_spinner(command);
+    let shown = bar.clone();
+    arlux::util::stages::observe(move |stage| shown.set_message(stage.to_string()));
+    bar
+}
+
+/// A spinner for `command` whose stages the caller sets (`arlux serve`,
+/// whose stage observer also tells the page).
+pub(crate) fn stage_spinner(command: &str) -> ProgressBar {
     let bar = ProgressBar::with_draw_target(None, target());
     bar.set_style(
         ProgressStyle::with_template("{spinner} {prefix}: {msg} ({elapsed})")
@@ -104,7 +113,5 @@ pub(crate) fn spinner(command: &str) -> ProgressBar {
     );
     bar.set_prefix(command.to_string());
     bar.enable_steady_tick(Duration::from_millis(250));
-    let shown = bar.clone();
-    arlux::util::stages::observe(move |stage| shown.set_message(stage.to_string()));
     bar
 }

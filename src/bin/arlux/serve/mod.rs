@@ -127,8 +127,11 @@ pub fn run(args: &Args) -> Result<()> {
     };
     let url = format!("http://{host}:{port}/?token={token}");
     announce(args, &url, port, &token)?;
-    let observer = Arc::clone(&shared);
+    // The preprocess's stages, on the terminal and for the page.
+    let bar = crate::progress::stage_spinner("serve: preparing");
+    let (observer, shown) = (Arc::clone(&shared), bar.clone());
     arlux::util::stages::observe(move |stage| {
+        shown.set_message(stage.to_string());
         observer
             .status
             .lock()
@@ -139,6 +142,7 @@ pub fn run(args: &Args) -> Result<()> {
         shared: Arc::clone(&shared),
         out: args.out.clone(),
         meta: crate::common::frame_meta(&scene, json!({ "serve": true })),
+        bar,
     };
     std::thread::Builder::new()
         .name("session".into())

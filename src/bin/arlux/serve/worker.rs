@@ -47,6 +47,8 @@ pub(crate) struct Context {
     pub shared: Arc<Shared>,
     pub out: Option<PathBuf>,
     pub meta: ExrMeta,
+    /// The preprocess's progress on the terminal, cleared at the first image.
+    pub bar: indicatif::ProgressBar,
 }
 
 /// Builds the session (the preprocess), then serves jobs until the server goes.
@@ -58,7 +60,9 @@ pub(crate) fn run(
     queue: Receiver<Job>,
 ) {
     let started = Instant::now();
-    let mut it = match Interactive::new(scene, photo, settings, &mut StageTimes::default()) {
+    let made = Interactive::new(scene, photo, settings, &mut StageTimes::default());
+    cx.bar.finish_and_clear();
+    let mut it = match made {
         Ok(it) => it,
         Err(e) => {
             eprintln!("error: {e}");
