@@ -211,8 +211,9 @@ pub enum Target<'a> {
     Motion { name: &'a str },
 }
 
-/// The references a sweep of `target` measures against; an error naming
-/// the key when the variant or motion is missing or has none.
+/// The references a sweep of `target` measures against, each read and
+/// checked; an error naming the key when the variant or motion is missing,
+/// has none, or one cannot be read or is not the camera's size.
 pub fn reference_files(scene: &Scene, target: &Target) -> Result<Vec<std::path::PathBuf>> {
     match target {
         Target::Variant { name } => {
@@ -224,6 +225,7 @@ pub fn reference_files(scene: &Scene, target: &Target) -> Result<Vec<std::path::
                     "a sweep measures error: the variant needs a reference",
                 ));
             };
+            scene.check_reference(&format!("variant '{name}'.reference"), r)?;
             Ok(vec![r.clone()])
         }
         Target::Motion { name } => {
@@ -234,6 +236,9 @@ pub fn reference_files(scene: &Scene, target: &Target) -> Result<Vec<std::path::
                     format!("motion '{name}'.references"),
                     "a sweep measures error: the motion needs references",
                 ));
+            }
+            for (i, r) in m.references.iter().enumerate() {
+                scene.check_reference(&format!("motion '{name}'.references[{i}]"), r)?;
             }
             Ok(m.references.clone())
         }

@@ -191,6 +191,48 @@ fn read_gltf(path: &Path) -> Result<Mesh> {
     Ok(mesh)
 }
 
+/// Refuses an accessor whose elements do not all lie within its
+/// bufferView, or a bufferView that does not lie within its buffer: the
+/// crate's reader would give fewer elements than the accessor claims, and
+/// a surface would lose triangles, or its normals, without a word.
+fn check_accessor(a: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> std::result::Result<(), String> {
+    let Some(view) = a.view() else {
+        // No bufferView: all zeros (or a sparse accessor), per the specification.
+        return Ok(());
+    };
+    let b = view.buffer().index();
+    let held = buffers.get(b).map_or(0, |d| d.len());
+    let view_end = view.offset().checked_add(view.length());
+    if view_end.is_none_or(|end| end > held) {
+        return Err(format!(
+            "bufferView {} spans bytes {}..{} of buffer {b}, which holds {held}",
+            view.index(),
+            view.offset(),
+            view.offset().saturating_add(view.length())
+        ));
+    }
+    let element = a.size();
+    let stride = view.stride().unwrap_or(element).max(element);
+    let needed = match a.count() {
+        0 => Some(a.offset()),
+        n => (n - 1)
+            .checked_mul(stride)
+            .and_then(|x| x.checked_add(element))
+            .and_then(|x| x.checked_add(a.offset())),
+    };
+    if needed.is_none_or(|n| n > view.length()) {
+        return Err(format!(
+            "accessor {} claims {} elements from byte {} of bufferView {}, past its {} bytes",
+            a.index(),
+            a.count(),
+            a.offset(),
+            view.index(),
+            view.length()
+        ));
+    }
+    Ok(())
+}
+
 /// A glTF mesh node: its file, name and world transform.
 struct Placed<'a> {
     path: &'a Path,
@@ -212,6 +254,7 @@ impl Placed<'_> {
         use gltf::accessor::{DataType, Dimensions};
         let position = prim.get(&gltf::Semantic::Positions);
         if position
+            .as_ref()
             .is_some_and(|a| a.data_type() != DataType::F32 || a.dimensions() != Dimensions::Vec3)
         {
             return Err(Error::file(
@@ -228,9 +271,29 @@ impl Placed<'_> {
                 format!("malformed glTF: mesh '{name}': indices are not unsigned integer scalars"),
             ));
         }
+        let Some(position) = position else {
+            return Err(Error::file(
+                path,
+                format!("mesh '{name}': a triangle primitive without POSITION"),
+            ));
+        };
+        let used = [
+            Some(("POSITION", position)),
+            prim.indices().map(|a| ("indices", a)),
+            prim.get(&gltf::Semantic::Normals).map(|a| ("NORMAL", a)),
+            prim.get(&gltf::Semantic::TexCoords(0)).map(|a| ("TEXCOORD_0", a)),
+            prim.get(&gltf::Semantic::Tangents).map(|a| ("TANGENT", a)),
+        ];
+        for (what, accessor) in used.into_iter().flatten() {
+            check_accessor(&accessor, buffers)
+                .map_err(|m| Error::file(path, format!("malformed glTF: mesh '{name}': {what}: {m}")))?;
+        }
         let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
         let Some(positions) = reader.read_positions() else {
-            return Ok(());
+            return Err(Error::file(
+                path,
+                format!("malformed glTF: mesh '{name}': its POSITION cannot be read"),
+            ));
         };
         let place = |p: [f32; 3]| -> Vec3 {
             if world == DMat4::IDENTITY {
@@ -400,6 +463,12 @@ fn load_ply(path: &Path) -> Result<Mesh> {
                     })
             })
             .collect::<Result<_>>()?;
+        if corners.len() < 3 {
+            return Err(Error::file(
+                path,
+                format!("face {f} has {} vertices: a face needs at least 3", corners.len()),
+            ));
+        }
         for [a, b, c] in fan(&corners) {
             collect.keep(path, [points[a], points[b], points[c]], &mut triangles)?;
         }

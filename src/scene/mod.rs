@@ -510,6 +510,14 @@ impl Scene {
         matches!(self.photo, Photo::Brackets(_))
     }
 
+    /// Reads the reference photograph `file` (given at `key`) whole and
+    /// checks it fits the camera ([`Scene::fit_size`]): what a command does
+    /// before any work, so that a bad reference stops it before the render.
+    pub fn check_reference(&self, key: &str, file: &Path) -> Result<()> {
+        let img = image_io::read_image(file)?;
+        self.fit_size(img, key, file).map(drop)
+    }
+
     /// `img`, read from `file`, at the camera's size: as it is when it has
     /// that size, averaged down when it has the photo's size and the camera
     /// renders at a `scale`; otherwise an error (`key` names where the scene

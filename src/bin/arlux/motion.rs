@@ -117,6 +117,14 @@ pub fn run(args: &Args) -> Result<()> {
     let base = stage("load", || load(&args.scene, None))?;
     let motion = base.motion(name)?.clone();
     let poses = pose_range(args, motion.translations.len())?;
+    stage("check inputs", || -> Result<()> {
+        for pose in poses.clone() {
+            if let Some(r) = motion.references.get(pose) {
+                base.check_reference(&format!("motion '{name}'.references[{pose}]"), r)?;
+            }
+        }
+        Ok(())
+    })?;
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: could not create the folder", dir.display()))?;
     let write = |pose: usize, c: &arlux::composite::Composite, photo: &Image| -> Result<()> {

@@ -135,6 +135,11 @@ pub fn run(args: &Args) -> Result<()> {
     let reference = variant
         .and_then(|v| base.variant(v).ok())
         .and_then(|v| v.reference.clone());
+    if let (Some(v), Some(r)) = (variant, &reference) {
+        times.time("check inputs", || {
+            base.check_reference(&format!("variant '{v}'.reference"), r)
+        })?;
+    }
     let window = options.crop_pixels(scene.camera.width, scene.camera.height)?;
     let photo = times.time("read photo", || read_photo(&scene))?;
     let out = match &method {

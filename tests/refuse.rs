@@ -1,0 +1,183 @@
+//! Refuse, never drop: inputs a run will read are checked before any of
+//! its work, a mesh is read whole or refused naming the element, and a run's
+//! outputs are committed together or not at all. Each case: exit status 2,
+//! the message naming the file and the key or element, no render stage
+//! run, and the output folder as it was (names, inodes and bytes).
+
+mod common;
+
+use std::os::unix::fs::MetadataExt as _;
+use std::path::Path;
+use std::process::Output;
+
+use common::{Desk, arlux};
+
+/// Every file under `dir` with its inode and bytes, sorted by name.
+fn snapshot(dir: &Path) -> Vec<(String, u64, Vec<u8>)> {
+    let mut out = Vec::new();
+    if !dir.exists() {
+        return out;
+    }
+    for e in std::fs::read_dir(dir).unwrap() {
+        let e = e.unwrap();
+        let m = e.metadata().unwrap();
+        let bytes = if m.is_file() {
+            std::fs::read(e.path()).unwrap()
+        } else {
+            Vec::new()
+        };
+        out.push((e.file_name().to_string_lossy().into_owned(), m.ino(), bytes));
+    }
+    out.sort();
+    out
+}
+
+/// The run failed with status 2 naming every `expected` text, before any
+/// render stage (the `--timings` report names none).
+fn refused_before_work(out: &Output, expected: &[&str]) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    for e in expected {
+        assert!(stderr.contains(e), "'{e}' not in: {stderr}");
+    }
+    for stage in ["tracer", "pixel data array", "composite", "write", "form factors"] {
+        assert!(
+            !stderr.lines().any(|l| l.trim_start().starts_with(stage)),
+            "the stage '{stage}' ran before the refusal: {stderr}"
+        );
+    }
+}
+
+/// Bad references: the wrong size, cut short, not an image at all.
+fn bad_references(desk: &Desk) -> Vec<(&'static str, String)> {
+    let small = desk.path("small.exr");
+    let img = arlux::image_io::Image::new(64, 48);
+    arlux::image_io::write_exr(
+        &small,
+        64,
+        48,
+        &[arlux::image_io::ExrLayer::Rgb("", &img)],
+    )
+    .unwrap();
+    let whole = std::fs::read(common::scene_dir("desk").join("truth/box_floor_a.exr")).unwrap();
+    std::fs::write(desk.path("cut.exr"), &whole[..whole.len() / 2]).unwrap();
+    std::fs::write(desk.path("text.exr"), "not an image").unwrap();
+    vec![
+        ("small.exr", "64x48".to_string()),
+        ("cut.exr", "cut.exr".to_string()),
+        ("text.exr", "text.exr".to_string()),
+    ]
+}
+
+#[test]
+fn a_bad_reference_stops_render_before_any_work_and_keeps_the_output() {
+    let desk = Desk::new();
+    let out_dir = desk.path("out");
+    std::fs::create_dir(&out_dir).unwrap();
+    let out = out_dir.join("a.exr");
+    std::fs::write(&out, "an earlier render").unwrap();
+    let mut reference = "truth/box_floor_a.exr".to_string();
+    for (file, named) in bad_references(&desk) {
+        desk.edit("scene.toml", &format!("reference = \"{reference}\""), &format!("reference = \"{file}\""));
+        reference = file.to_string();
+        for method in ["pda", "texture"] {
+            let before = snapshot(&out_dir);
+            let run = arlux(&[
+                "render", &desk.scene(), "--variant", "box_floor_a", "--method", method,
+                "-o", out.to_str().unwrap(), "--png", out_dir.join("a.png").to_str().unwrap(),
+                "--timings",
+            ]);
+            refused_before_work(&run, &[file, &named]);
+            assert_eq!(snapshot(&out_dir), before, "{file}, {method}: the output folder changed");
+        }
+    }
+}
+
+#[test]
+fn a_bad_reference_of_a_later_pose_stops_motion_before_its_first_frame() {
+    let desk = Desk::new();
+    bad_references(&desk);
+    desk.edit("scene.toml", "\"truth/box_slide_5.exr\"", "\"small.exr\"");
+    let out_dir = desk.path("frames");
+    let run = arlux(&[
+        "motion", &desk.scene(), "--motion", "box_slide", "-o", out_dir.to_str().unwrap(), "--timings",
+    ]);
+    refused_before_work(&run, &["small.exr", "references[5]", "64x48"]);
+    assert!(!out_dir.exists(), "the frames' folder was made");
+}
+
+/// A one-triangle glTF whose POSITION accessor claims `count` vertices
+/// from byte `offset` of a 36-byte bufferView.
+fn gltf_triangle(count: usize, offset: usize) -> String {
+    let floats: [f32; 9] = [0.0, 0.0, 0.0, 0.3, 0.0, 0.0, 0.0, 0.3, 0.0];
+    let bytes: Vec<u8> = floats.iter().flat_map(|f| f.to_le_bytes()).collect();
+    let b64 = {
+        const T: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+        let mut s = String::new();
+        for c in bytes.chunks(3) {
+            let n = (c[0] as u32) << 16 | (c[1] as u32) << 8 | c[2] as u32;
+            for k in 0..4 {
+                s.push(T[(n >> (18 - 6 * k) & 63) as usize] as char);
+            }
+        }
+        s
+    };
+    serde_json::json!({
+        "asset": { "version": "2.0" },
+        "scene": 0,
+        "scenes": [{ "nodes": [0] }],
+        "nodes": [{ "mesh": 0, "name": "card" }],
+        "meshes": [{ "primitives": [{ "attributes": { "POSITION": 0 } }] }],
+        "buffers": [{ "byteLength": 36, "uri": format!("data:application/octet-stream;base64,{b64}") }],
+        "bufferViews": [{ "buffer": 0, "byteLength": 36 }],
+        "accessors": [{
+            "bufferView": 0, "byteOffset": offset, "componentType": 5126, "count": count,
+            "type": "VEC3", "min": [0.0, 0.0, 0.0], "max": [0.3, 0.3, 0.0]
+        }]
+    })
+    .to_string()
+}
+
+/// The desk with its box's mesh replaced by `file` holding `text`.
+fn desk_with_object_mesh(file: &str, text: &str) -> Desk {
+    let desk = Desk::new();
+    std::fs::write(desk.path(file), text).unwrap();
+    desk.edit("scene.toml", "mesh = \"geometry/box.obj\"", &format!("mesh = \"{file}\""));
+    desk
+}
+
+#[test]
+fn a_gltf_accessor_past_its_buffer_view_is_refused_naming_it() {
+    // The well-formed triangle reads.
+    let good = desk_with_object_mesh("card.gltf", &gltf_triangle(3, 0));
+    common::arlux_ok(&["info", &good.scene()]);
+    for (count, offset, words) in [
+        (4, 0, "accessor 0 claims 4 elements from byte 0 of bufferView 0, past its 36 bytes"),
+        (3, 40, "accessor 0 claims 3 elements from byte 40"),
+    ] {
+        let desk = desk_with_object_mesh("card.gltf", &gltf_triangle(count, offset));
+        let out_dir = desk.path("out");
+        std::fs::create_dir(&out_dir).unwrap();
+        let before = snapshot(&out_dir);
+        let scene = desk.scene();
+        for command in ["info", "render"] {
+            let mut args = vec![command, scene.as_str()];
+            let out = out_dir.join("a.exr");
+            let out = out.to_str().unwrap();
+            if command == "render" {
+                args.extend(["--variant", "box_floor_a", "-o", out, "--timings"]);
+            }
+            let run = arlux(&args);
+            refused_before_work(&run, &["card.gltf", "mesh 'card'", "POSITION", words]);
+        }
+        assert_eq!(snapshot(&out_dir), before);
+    }
+}
+
+#[test]
+fn a_ply_face_of_two_vertices_is_refused_naming_it() {
+    let ply = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n0.3 0 0\n0 0.3 0\n3 0 1 2\n2 0 1\n";
+    let desk = desk_with_object_mesh("card.ply", ply);
+    let run = arlux(&["info", &desk.scene()]);
+    refused_before_work(&run, &["card.ply", "face 1 has 2 vertices"]);
+}
