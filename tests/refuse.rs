@@ -181,3 +181,24 @@ fn a_ply_face_of_two_vertices_is_refused_naming_it() {
     let run = arlux(&["info", &desk.scene()]);
     refused_before_work(&run, &["card.ply", "face 1 has 2 vertices"]);
 }
+
+#[test]
+fn tiles_of_two_variants_are_not_merged_into_one_frame() {
+    let desk = Desk::new();
+    let scene = desk.scene();
+    let (left, right) = (desk.path("left.exr"), desk.path("right.exr"));
+    for (variant, crop, out) in [
+        ("box_floor_a", ["0", "0.5", "0", "1"], &left),
+        ("box_floor_b", ["0.5", "1", "0", "1"], &right),
+    ] {
+        let mut args = vec!["render", scene.as_str(), "--variant", variant, "-o", out.to_str().unwrap(), "--crop"];
+        args.extend(crop);
+        common::arlux_ok(&args);
+    }
+    let merged = desk.path("frame.exr");
+    let run = arlux(&[
+        "merge", left.to_str().unwrap(), right.to_str().unwrap(), "-o", merged.to_str().unwrap(),
+    ]);
+    refused_before_work(&run, &["right.exr", "left.exr", "variant \"box_floor_b\" against \"box_floor_a\""]);
+    assert!(!merged.exists(), "a frame was written");
+}

@@ -303,6 +303,37 @@ pub struct MergedFrame {
     pub channels: usize,
 }
 
+/// What says two tiles come from different renders: their `arlux`
+/// attributes (scene, variant or motion pose, settings, version) differ,
+/// or one has it and the other not. None when they agree.
+fn different_renders(a: &Part, b: &Part) -> Option<String> {
+    let tag = |i: &Part| {
+        i.layer_data.attributes.other.get(&text("arlux")).map(|v| match v {
+            x::AttributeValue::Text(t) => serde_json::from_slice::<serde_json::Value>(t.bytes()).unwrap_or(serde_json::Value::Null),
+            _ => serde_json::Value::Null,
+        })
+    };
+    match (tag(a), tag(b)) {
+        (None, None) => None,
+        (Some(x), Some(y)) if x == y => None,
+        (Some(serde_json::Value::Object(x)), Some(serde_json::Value::Object(y))) => {
+            let mut keys: Vec<&String> = x.keys().chain(y.keys()).collect();
+            keys.sort();
+            keys.dedup();
+            let differ: Vec<String> = keys
+                .into_iter()
+                .filter(|k| x.get(*k) != y.get(*k))
+                .map(|k| {
+                    let show = |v: Option<&serde_json::Value>| v.map_or("none".to_string(), |v| v.to_string());
+                    format!("{k} {} against {}", show(y.get(k)), show(x.get(k)))
+                })
+                .collect();
+            Some(differ.join("; "))
+        }
+        _ => Some("one was written by arlux with what it renders, the other not".to_string()),
+    }
+}
+
 /// Assembles crops of one frame (`arlux render --crop`, in any order) into
 /// the whole frame, written to `output` with the tiles' attributes. The
 /// tiles must share their display window and channels, and cover every
@@ -334,6 +365,15 @@ pub fn merge_tiles(inputs: &[PathBuf], output: &Path) -> Result<MergedFrame> {
                 path,
                 format!(
                     "its display window differs from {}'s: tiles of different frames",
+                    first_path.display()
+                ),
+            ));
+        }
+        if let Some(what) = different_renders(&first, &part) {
+            return Err(Error::file(
+                path,
+                format!(
+                    "a tile of another render than {}: {what}",
                     first_path.display()
                 ),
             ));
