@@ -374,6 +374,20 @@ fn pause_for_tests() {
     }
 }
 
+/// With `ARLUX_TEST_WRITE_FAIL` set, writing a file whose name contains
+/// its value fails as a full disk would: how the tests check that a run's
+/// outputs are committed together or not at all.
+fn fail_for_tests(path: &Path) -> std::io::Result<()> {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
+    match (std::env::var("ARLUX_TEST_WRITE_FAIL"), name) {
+        (Ok(v), Some(n)) if !v.is_empty() && n.contains(&v) => Err(std::io::Error::new(
+            std::io::ErrorKind::StorageFull,
+            "no space left on the device (ARLUX_TEST_WRITE_FAIL)",
+        )),
+        _ => Ok(()),
+    }
+}
+
 /// Writes `bytes` to `path` through a temporary file in the same folder and
 /// a rename, so that `path` holds either its old content or the new, whole.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
@@ -422,6 +436,7 @@ pub fn write_atomic_with(
     ));
     crate::util::cleanup::register(&tmp);
     let result = (|| {
+        fail_for_tests(path)?;
         let mut f = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
         fill(&mut f)?;
         let f = f.into_inner().map_err(|e| e.into_error())?;

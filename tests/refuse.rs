@@ -202,3 +202,51 @@ fn tiles_of_two_variants_are_not_merged_into_one_frame() {
     refused_before_work(&run, &["right.exr", "left.exr", "variant \"box_floor_b\" against \"box_floor_a\""]);
     assert!(!merged.exists(), "a frame was written");
 }
+
+#[test]
+fn a_render_whose_png_cannot_be_written_leaves_nothing_it_wrote() {
+    let desk = Desk::new();
+    let out_dir = desk.path("out");
+    std::fs::create_dir(&out_dir).unwrap();
+    std::fs::write(out_dir.join("a.exr"), "an earlier render").unwrap();
+    let (exr, png, aov) = (out_dir.join("a.exr"), out_dir.join("a.png"), out_dir.join("aov"));
+    let args = [
+        "render", &desk.scene(), "--variant", "box_floor_a", "-o", exr.to_str().unwrap(),
+        "--png", png.to_str().unwrap(), "--aov", aov.to_str().unwrap(),
+    ];
+    let before = snapshot(&out_dir);
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_arlux"))
+        .args(args)
+        .env("ARLUX_TEST_WRITE_FAIL", "a.png")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("a.png") && stderr.contains("no space left"), "{stderr}");
+    assert_eq!(snapshot(&out_dir), before, "the EXR, the AOV folder or a temporary was left");
+    // Written whole when nothing fails: every layer of the frame as its own file.
+    common::arlux_ok(&args);
+    let mut written: Vec<String> = std::fs::read_dir(&aov)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    written.sort();
+    assert_eq!(
+        written,
+        ["alpha", "change", "direct", "indirect", "object", "photo", "shadow"].map(|n| format!("{n}.exr"))
+    );
+    assert!(png.exists());
+}
+
+#[test]
+fn a_sweep_with_an_unreadable_reference_makes_no_folder() {
+    let desk = Desk::new();
+    bad_references(&desk);
+    desk.edit("scene.toml", "reference = \"truth/box_table.exr\"", "reference = \"cut.exr\"");
+    let out = desk.path("sweep-out");
+    let run = arlux(&[
+        "sweep", &desk.scene(), "--variant", "box_table", "--quick", "-o", out.to_str().unwrap(), "--timings",
+    ]);
+    refused_before_work(&run, &["cut.exr"]);
+    assert!(!out.exists(), "the sweep's folder was made");
+}

@@ -13,12 +13,12 @@ fn files() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
 }
 
 /// Marks `path` as a temporary file of this run.
-pub(crate) fn register(path: &Path) {
+pub fn register(path: &Path) {
     files().push(path.to_path_buf());
 }
 
 /// `path` is gone (renamed over its output, or removed).
-pub(crate) fn unregister(path: &Path) {
+pub fn unregister(path: &Path) {
     files().retain(|p| p != path);
 }
 

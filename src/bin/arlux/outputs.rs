@@ -154,3 +154,69 @@ pub(crate) fn refuse_inputs(inputs: &[PathBuf]) -> Result<()> {
     }
     Ok(())
 }
+
+/// The outputs of one run, committed together: each is written to a
+/// temporary beside it, and all are renamed into place only when every one
+/// was written; a failure removes every temporary and every folder the run
+/// made (a stopped run's temporaries go with the signal handler's cleanup).
+#[derive(Default)]
+pub(crate) struct Batch {
+    staged: Vec<(PathBuf, PathBuf)>,
+    made: Vec<PathBuf>,
+}
+
+impl Batch {
+    /// Where to write the output `path` for now.
+    pub fn stage(&mut self, path: &Path) -> PathBuf {
+        let name = path.file_name().map_or("out".into(), |n| n.to_string_lossy());
+        let tmp = path.with_file_name(format!(".{name}.pending{}", std::process::id()));
+        arlux::util::cleanup::register(&tmp);
+        self.staged.push((tmp.clone(), path.to_path_buf()));
+        tmp
+    }
+
+    /// Makes the folder `dir` (and its missing parents), remembering what it made.
+    pub fn folder(&mut self, dir: &Path) -> Result<()> {
+        let mut missing = Vec::new();
+        let mut d = Some(dir);
+        while let Some(p) = d.filter(|p| !p.as_os_str().is_empty() && !p.exists()) {
+            missing.push(p.to_path_buf());
+            d = p.parent();
+        }
+        std::fs::create_dir_all(dir).map_err(|e| arlux::Error::io(dir, &e))?;
+        self.made.extend(missing);
+        Ok(())
+    }
+
+    /// Writes every output with `write` (given the batch to stage them in),
+    /// then renames them into place; on failure nothing of the run is left.
+    pub fn run(write: impl FnOnce(&mut Batch) -> Result<()>) -> Result<()> {
+        let mut batch = Batch::default();
+        let result = write(&mut batch).and_then(|()| batch.commit());
+        if result.is_err() {
+            batch.abort();
+        }
+        result
+    }
+
+    fn commit(&mut self) -> Result<()> {
+        for (tmp, path) in &self.staged {
+            std::fs::rename(tmp, path).map_err(|e| arlux::Error::io(path, &e))?;
+            arlux::util::cleanup::unregister(tmp);
+        }
+        self.staged.clear();
+        self.made.clear();
+        Ok(())
+    }
+
+    fn abort(&mut self) {
+        for (tmp, _) in self.staged.drain(..) {
+            let _ = std::fs::remove_file(&tmp);
+            arlux::util::cleanup::unregister(&tmp);
+        }
+        // Deepest first; a folder holding anything else stays.
+        for dir in self.made.drain(..) {
+            let _ = std::fs::remove_dir(&dir);
+        }
+    }
+}

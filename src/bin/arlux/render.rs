@@ -177,31 +177,41 @@ pub fn run(args: &Args) -> Result<()> {
 /// The EXR with the layers a compositor expects (see [`write_frame`]), cut
 /// to the crop window, and the PNG and AOV files asked for.
 fn write_outputs(args: &Args, out: &RenderOutput, photo: &Image, meta: &ExrMeta) -> Result<()> {
-    let c = &out.composite;
-    let (w, h) = (c.image.width, c.image.height);
-    write_frame(&args.output, c, photo, meta)?;
-    if let Some(png) = &args.png {
-        let image = meta.window.map(|r| c.image.crop(r));
-        image_io::write_png(png, image.as_ref().unwrap_or(&c.image), args.exposure)?;
-    }
-    let Some(dir) = &args.aov else { return Ok(()) };
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("{}: could not create the folder", dir.display()))?;
-    let mut files = vec![
-        ("direct", &c.direct),
-        ("indirect", &c.indirect),
-        ("change", &c.change),
-    ];
-    if let Some((_, unoccluded, _)) = &out.texture {
-        files.push(("unoccluded_texture", unoccluded));
-    }
-    for (name, img) in files {
-        let layer = [image_io::ExrLayer::Rgb("", img)];
-        image_io::write_exr_with(&dir.join(format!("{name}.exr")), w, h, &layer, meta)?;
-    }
-    let alpha = [image_io::ExrLayer::Channel("A", &c.alpha)];
-    image_io::write_exr_with(&dir.join("alpha.exr"), w, h, &alpha, meta)?;
-    Ok(())
+    crate::outputs::Batch::run(|batch| {
+        let c = &out.composite;
+        let (w, h) = (c.image.width, c.image.height);
+        write_frame(&batch.stage(&args.output), c, photo, meta)?;
+        if let Some(png) = &args.png {
+            let image = meta.window.map(|r| c.image.crop(r));
+            let img = image.as_ref().unwrap_or(&c.image);
+            image_io::write_png(&batch.stage(png), img, args.exposure)?;
+        }
+        let Some(dir) = &args.aov else { return Ok(()) };
+        batch
+            .folder(dir)
+            .with_context(|| format!("{}: could not create the folder", dir.display()))?;
+        // Every layer the frame's EXR holds, each a file of its own.
+        let shadow = c.shadow(photo);
+        let mut files = vec![
+            ("object", &c.object),
+            ("shadow", &shadow),
+            ("change", &c.change),
+            ("photo", photo),
+            ("direct", &c.direct),
+            ("indirect", &c.indirect),
+        ];
+        if let Some((_, unoccluded, _)) = &out.texture {
+            files.push(("unoccluded_texture", unoccluded));
+        }
+        for (name, img) in files {
+            let layer = [image_io::ExrLayer::Rgb("", img)];
+            let path = batch.stage(&dir.join(format!("{name}.exr")));
+            image_io::write_exr_with(&path, w, h, &layer, meta)?;
+        }
+        let alpha = [image_io::ExrLayer::Channel("A", &c.alpha)];
+        image_io::write_exr_with(&batch.stage(&dir.join("alpha.exr")), w, h, &alpha, meta)?;
+        Ok(())
+    })
 }
 
 /// `arlux render`'s report.
