@@ -40,7 +40,13 @@ fn refused_before_work(out: &Output, expected: &[&str]) {
     for e in expected {
         assert!(stderr.contains(e), "'{e}' not in: {stderr}");
     }
-    for stage in ["tracer", "pixel data array", "composite", "write", "form factors"] {
+    for stage in [
+        "tracer",
+        "pixel data array",
+        "composite",
+        "write",
+        "form factors",
+    ] {
         assert!(
             !stderr.lines().any(|l| l.trim_start().starts_with(stage)),
             "the stage '{stage}' ran before the refusal: {stderr}"
@@ -52,13 +58,8 @@ fn refused_before_work(out: &Output, expected: &[&str]) {
 fn bad_references(desk: &Desk) -> Vec<(&'static str, String)> {
     let small = desk.path("small.exr");
     let img = arlux::image_io::Image::new(64, 48);
-    arlux::image_io::write_exr(
-        &small,
-        64,
-        48,
-        &[arlux::image_io::ExrLayer::Rgb("", &img)],
-    )
-    .unwrap();
+    arlux::image_io::write_exr(&small, 64, 48, &[arlux::image_io::ExrLayer::Rgb("", &img)])
+        .unwrap();
     let whole = std::fs::read(common::scene_dir("desk").join("truth/box_floor_a.exr")).unwrap();
     std::fs::write(desk.path("cut.exr"), &whole[..whole.len() / 2]).unwrap();
     std::fs::write(desk.path("text.exr"), "not an image").unwrap();
@@ -78,17 +79,33 @@ fn a_bad_reference_stops_render_before_any_work_and_keeps_the_output() {
     std::fs::write(&out, "an earlier render").unwrap();
     let mut reference = "truth/box_floor_a.exr".to_string();
     for (file, named) in bad_references(&desk) {
-        desk.edit("scene.toml", &format!("reference = \"{reference}\""), &format!("reference = \"{file}\""));
+        desk.edit(
+            "scene.toml",
+            &format!("reference = \"{reference}\""),
+            &format!("reference = \"{file}\""),
+        );
         reference = file.to_string();
         for method in ["pda", "texture"] {
             let before = snapshot(&out_dir);
             let run = arlux(&[
-                "render", &desk.scene(), "--variant", "box_floor_a", "--method", method,
-                "-o", out.to_str().unwrap(), "--png", out_dir.join("a.png").to_str().unwrap(),
+                "render",
+                &desk.scene(),
+                "--variant",
+                "box_floor_a",
+                "--method",
+                method,
+                "-o",
+                out.to_str().unwrap(),
+                "--png",
+                out_dir.join("a.png").to_str().unwrap(),
                 "--timings",
             ]);
             refused_before_work(&run, &[file, &named]);
-            assert_eq!(snapshot(&out_dir), before, "{file}, {method}: the output folder changed");
+            assert_eq!(
+                snapshot(&out_dir),
+                before,
+                "{file}, {method}: the output folder changed"
+            );
         }
     }
 }
@@ -100,7 +117,13 @@ fn a_bad_reference_of_a_later_pose_stops_motion_before_its_first_frame() {
     desk.edit("scene.toml", "\"truth/box_slide_5.exr\"", "\"small.exr\"");
     let out_dir = desk.path("frames");
     let run = arlux(&[
-        "motion", &desk.scene(), "--motion", "box_slide", "-o", out_dir.to_str().unwrap(), "--timings",
+        "motion",
+        &desk.scene(),
+        "--motion",
+        "box_slide",
+        "-o",
+        out_dir.to_str().unwrap(),
+        "--timings",
     ]);
     refused_before_work(&run, &["small.exr", "references[5]", "64x48"]);
     assert!(!out_dir.exists(), "the frames' folder was made");
@@ -142,7 +165,11 @@ fn gltf_triangle(count: usize, offset: usize) -> String {
 fn desk_with_object_mesh(file: &str, text: &str) -> Desk {
     let desk = Desk::new();
     std::fs::write(desk.path(file), text).unwrap();
-    desk.edit("scene.toml", "mesh = \"geometry/box.obj\"", &format!("mesh = \"{file}\""));
+    desk.edit(
+        "scene.toml",
+        "mesh = \"geometry/box.obj\"",
+        &format!("mesh = \"{file}\""),
+    );
     desk
 }
 
@@ -152,7 +179,11 @@ fn a_gltf_accessor_past_its_buffer_view_is_refused_naming_it() {
     let good = desk_with_object_mesh("card.gltf", &gltf_triangle(3, 0));
     common::arlux_ok(&["info", &good.scene()]);
     for (count, offset, words) in [
-        (4, 0, "accessor 0 claims 4 elements from byte 0 of bufferView 0, past its 36 bytes"),
+        (
+            4,
+            0,
+            "accessor 0 claims 4 elements from byte 0 of bufferView 0, past its 36 bytes",
+        ),
         (3, 40, "accessor 0 claims 3 elements from byte 40"),
     ] {
         let desk = desk_with_object_mesh("card.gltf", &gltf_triangle(count, offset));
@@ -191,15 +222,34 @@ fn tiles_of_two_variants_are_not_merged_into_one_frame() {
         ("box_floor_a", ["0", "0.5", "0", "1"], &left),
         ("box_floor_b", ["0.5", "1", "0", "1"], &right),
     ] {
-        let mut args = vec!["render", scene.as_str(), "--variant", variant, "-o", out.to_str().unwrap(), "--crop"];
+        let mut args = vec![
+            "render",
+            scene.as_str(),
+            "--variant",
+            variant,
+            "-o",
+            out.to_str().unwrap(),
+            "--crop",
+        ];
         args.extend(crop);
         common::arlux_ok(&args);
     }
     let merged = desk.path("frame.exr");
     let run = arlux(&[
-        "merge", left.to_str().unwrap(), right.to_str().unwrap(), "-o", merged.to_str().unwrap(),
+        "merge",
+        left.to_str().unwrap(),
+        right.to_str().unwrap(),
+        "-o",
+        merged.to_str().unwrap(),
     ]);
-    refused_before_work(&run, &["right.exr", "left.exr", "variant \"box_floor_b\" against \"box_floor_a\""]);
+    refused_before_work(
+        &run,
+        &[
+            "right.exr",
+            "left.exr",
+            "variant \"box_floor_b\" against \"box_floor_a\"",
+        ],
+    );
     assert!(!merged.exists(), "a frame was written");
 }
 
@@ -209,10 +259,22 @@ fn a_render_whose_png_cannot_be_written_leaves_nothing_it_wrote() {
     let out_dir = desk.path("out");
     std::fs::create_dir(&out_dir).unwrap();
     std::fs::write(out_dir.join("a.exr"), "an earlier render").unwrap();
-    let (exr, png, aov) = (out_dir.join("a.exr"), out_dir.join("a.png"), out_dir.join("aov"));
+    let (exr, png, aov) = (
+        out_dir.join("a.exr"),
+        out_dir.join("a.png"),
+        out_dir.join("aov"),
+    );
     let args = [
-        "render", &desk.scene(), "--variant", "box_floor_a", "-o", exr.to_str().unwrap(),
-        "--png", png.to_str().unwrap(), "--aov", aov.to_str().unwrap(),
+        "render",
+        &desk.scene(),
+        "--variant",
+        "box_floor_a",
+        "-o",
+        exr.to_str().unwrap(),
+        "--png",
+        png.to_str().unwrap(),
+        "--aov",
+        aov.to_str().unwrap(),
     ];
     let before = snapshot(&out_dir);
     let run = std::process::Command::new(env!("CARGO_BIN_EXE_arlux"))
@@ -222,8 +284,15 @@ fn a_render_whose_png_cannot_be_written_leaves_nothing_it_wrote() {
         .unwrap();
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("a.png") && stderr.contains("no space left"), "{stderr}");
-    assert_eq!(snapshot(&out_dir), before, "the EXR, the AOV folder or a temporary was left");
+    assert!(
+        stderr.contains("a.png") && stderr.contains("no space left"),
+        "{stderr}"
+    );
+    assert_eq!(
+        snapshot(&out_dir),
+        before,
+        "the EXR, the AOV folder or a temporary was left"
+    );
     // Written whole when nothing fails: every layer of the frame as its own file.
     common::arlux_ok(&args);
     let mut written: Vec<String> = std::fs::read_dir(&aov)
@@ -233,7 +302,10 @@ fn a_render_whose_png_cannot_be_written_leaves_nothing_it_wrote() {
     written.sort();
     assert_eq!(
         written,
-        ["alpha", "change", "direct", "indirect", "object", "photo", "shadow"].map(|n| format!("{n}.exr"))
+        [
+            "alpha", "change", "direct", "indirect", "object", "photo", "shadow"
+        ]
+        .map(|n| format!("{n}.exr"))
     );
     assert!(png.exists());
 }
@@ -242,11 +314,81 @@ fn a_render_whose_png_cannot_be_written_leaves_nothing_it_wrote() {
 fn a_sweep_with_an_unreadable_reference_makes_no_folder() {
     let desk = Desk::new();
     bad_references(&desk);
-    desk.edit("scene.toml", "reference = \"truth/box_table.exr\"", "reference = \"cut.exr\"");
+    desk.edit(
+        "scene.toml",
+        "reference = \"truth/box_table.exr\"",
+        "reference = \"cut.exr\"",
+    );
     let out = desk.path("sweep-out");
     let run = arlux(&[
-        "sweep", &desk.scene(), "--variant", "box_table", "--quick", "-o", out.to_str().unwrap(), "--timings",
+        "sweep",
+        &desk.scene(),
+        "--variant",
+        "box_table",
+        "--quick",
+        "-o",
+        out.to_str().unwrap(),
+        "--timings",
     ]);
     refused_before_work(&run, &["cut.exr"]);
     assert!(!out.exists(), "the sweep's folder was made");
+}
+
+#[test]
+fn arguments_the_parser_refuses_give_the_json_error_with_json() {
+    let scene = common::scene_dir("desk").join("scene.toml");
+    let scene = scene.to_str().unwrap();
+    let out = std::env::temp_dir().join("arlux-never-written");
+    let out = out.to_str().unwrap();
+    for (command, args, words) in [
+        (
+            "render",
+            vec![
+                "render", scene, "--crop", "0", "1", "0", "-o", "x.exr", "--json",
+            ],
+            "--crop",
+        ),
+        (
+            "motion",
+            vec![
+                "motion",
+                scene,
+                "--motion",
+                "box_slide",
+                "--frames",
+                "0..2",
+                "--shard",
+                "1/2",
+                "-o",
+                out,
+                "--json",
+            ],
+            "--shard",
+        ),
+        (
+            "render",
+            vec!["render", scene, "--no-such-flag", "-o", "x.exr", "--json"],
+            "--no-such-flag",
+        ),
+    ] {
+        let run = arlux(&args);
+        assert_eq!(run.status.code(), Some(2));
+        let v: serde_json::Value = serde_json::from_slice(&run.stdout)
+            .unwrap_or_else(|e| panic!("{args:?}: stdout is not one JSON object ({e})"));
+        assert_eq!(v["command"], command);
+        let message = v["error"]["message"].as_str().unwrap();
+        assert!(message.contains(words), "{message}");
+        let file = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join(format!("docs/schema/{command}.schema.json"));
+        let schema: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(file).unwrap()).unwrap();
+        assert!(
+            jsonschema::validator_for(&schema).unwrap().is_valid(&v),
+            "{v}"
+        );
+        assert!(
+            !String::from_utf8_lossy(&run.stderr).is_empty(),
+            "the message is on stderr too"
+        );
+    }
 }

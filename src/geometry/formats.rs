@@ -195,7 +195,10 @@ fn read_gltf(path: &Path) -> Result<Mesh> {
 /// bufferView, or a bufferView that does not lie within its buffer: the
 /// crate's reader would give fewer elements than the accessor claims, and
 /// a surface would lose triangles, or its normals, without a word.
-fn check_accessor(a: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> std::result::Result<(), String> {
+fn check_accessor(
+    a: &gltf::Accessor,
+    buffers: &[gltf::buffer::Data],
+) -> std::result::Result<(), String> {
     let Some(view) = a.view() else {
         // No bufferView: all zeros (or a sparse accessor), per the specification.
         return Ok(());
@@ -281,12 +284,14 @@ impl Placed<'_> {
             Some(("POSITION", position)),
             prim.indices().map(|a| ("indices", a)),
             prim.get(&gltf::Semantic::Normals).map(|a| ("NORMAL", a)),
-            prim.get(&gltf::Semantic::TexCoords(0)).map(|a| ("TEXCOORD_0", a)),
+            prim.get(&gltf::Semantic::TexCoords(0))
+                .map(|a| ("TEXCOORD_0", a)),
             prim.get(&gltf::Semantic::Tangents).map(|a| ("TANGENT", a)),
         ];
         for (what, accessor) in used.into_iter().flatten() {
-            check_accessor(&accessor, buffers)
-                .map_err(|m| Error::file(path, format!("malformed glTF: mesh '{name}': {what}: {m}")))?;
+            check_accessor(&accessor, buffers).map_err(|m| {
+                Error::file(path, format!("malformed glTF: mesh '{name}': {what}: {m}"))
+            })?;
         }
         let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
         let Some(positions) = reader.read_positions() else {
@@ -466,7 +471,10 @@ fn load_ply(path: &Path) -> Result<Mesh> {
         if corners.len() < 3 {
             return Err(Error::file(
                 path,
-                format!("face {f} has {} vertices: a face needs at least 3", corners.len()),
+                format!(
+                    "face {f} has {} vertices: a face needs at least 3",
+                    corners.len()
+                ),
             ));
         }
         for [a, b, c] in fan(&corners) {

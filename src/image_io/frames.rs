@@ -308,10 +308,17 @@ pub struct MergedFrame {
 /// or one has it and the other not. None when they agree.
 fn different_renders(a: &Part, b: &Part) -> Option<String> {
     let tag = |i: &Part| {
-        i.layer_data.attributes.other.get(&text("arlux")).map(|v| match v {
-            x::AttributeValue::Text(t) => serde_json::from_slice::<serde_json::Value>(t.bytes()).unwrap_or(serde_json::Value::Null),
-            _ => serde_json::Value::Null,
-        })
+        i.layer_data
+            .attributes
+            .other
+            .get(&text("arlux"))
+            .map(|v| match v {
+                x::AttributeValue::Text(t) => {
+                    serde_json::from_slice::<serde_json::Value>(t.bytes())
+                        .unwrap_or(serde_json::Value::Null)
+                }
+                _ => serde_json::Value::Null,
+            })
     };
     match (tag(a), tag(b)) {
         (None, None) => None,
@@ -324,7 +331,9 @@ fn different_renders(a: &Part, b: &Part) -> Option<String> {
                 .into_iter()
                 .filter(|k| x.get(*k) != y.get(*k))
                 .map(|k| {
-                    let show = |v: Option<&serde_json::Value>| v.map_or("none".to_string(), |v| v.to_string());
+                    let show = |v: Option<&serde_json::Value>| {
+                        v.map_or("none".to_string(), |v| v.to_string())
+                    };
                     format!("{k} {} against {}", show(y.get(k)), show(x.get(k)))
                 })
                 .collect();

@@ -110,7 +110,10 @@ fn main() -> ExitCode {
         }
     }));
     remove_temporaries_on_signals();
-    let cli = stage("arguments", Cli::parse);
+    let cli = match stage("arguments", Cli::try_parse) {
+        Ok(cli) => cli,
+        Err(e) => return argument_error(e),
+    };
     let timings = cli.timings;
     let json_command = cli.command.json_name();
     common::set_strict(cli.strict);
@@ -156,6 +159,32 @@ fn main() -> ExitCode {
             ExitCode::from(2)
         }
     }
+}
+
+/// Arguments the parser refused: its message on stderr, status 2, and with
+/// `--json` among them the error object `docs/json.md` promises on stdout
+/// (help and version are printed as asked, status 0).
+fn argument_error(e: clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+        e.exit();
+    }
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.iter().any(|a| a == "--json") {
+        let command = args
+            .iter()
+            .find(|a| !a.starts_with('-'))
+            .map_or("arlux", String::as_str);
+        let text = e.render().to_string();
+        let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
+        let message = lines.next().unwrap_or("").trim_start_matches("error: ");
+        let _ = common::emit(
+            command,
+            serde_json::json!({ "error": { "message": message, "causes": lines.collect::<Vec<_>>() } }),
+        );
+    }
+    let _ = e.print();
+    ExitCode::from(2)
 }
 
 impl Command {

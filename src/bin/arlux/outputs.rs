@@ -168,7 +168,9 @@ pub(crate) struct Batch {
 impl Batch {
     /// Where to write the output `path` for now.
     pub fn stage(&mut self, path: &Path) -> PathBuf {
-        let name = path.file_name().map_or("out".into(), |n| n.to_string_lossy());
+        let name = path
+            .file_name()
+            .map_or("out".into(), |n| n.to_string_lossy());
         let tmp = path.with_file_name(format!(".{name}.pending{}", std::process::id()));
         arlux::util::cleanup::register(&tmp);
         self.staged.push((tmp.clone(), path.to_path_buf()));
