@@ -137,3 +137,46 @@ fn rebuilds(out: &std::path::Path) {
     // Few pixels keep the photo's bits: the box's indirect light reaches nearly all.
     assert!(untouched > 100, "{untouched} untouched pixels");
 }
+
+/// docs/compositing.md's `oiiotool` recipe, run as printed there, rebuilds
+/// the render's RGB to 1e-6 (Debian's `openimageio-tools`, which
+/// `.ci/setup` installs).
+#[test]
+fn the_oiiotool_recipe_rebuilds_the_rgb() {
+    let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/compositing.md"))
+        .unwrap();
+    let start = doc
+        .find("```sh\noiiotool")
+        .expect("the recipe is in the page")
+        + 6;
+    let recipe = doc[start..start + doc[start..].find("```").unwrap()].replace("\\\n", " ");
+    let dir = tempfile::tempdir().unwrap();
+    let scene = common::scene_dir("desk").join("scene.toml");
+    run(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--variant",
+        "box_floor_a",
+        "-o",
+        dir.path().join("shot.exr").to_str().unwrap(),
+    ]);
+    let args: Vec<&str> = recipe.split_whitespace().skip(1).collect();
+    let status = std::process::Command::new("oiiotool")
+        .args(&args)
+        .current_dir(dir.path())
+        .status()
+        .expect("oiiotool is installed (`bash .ci/setup`)");
+    assert!(status.success());
+    let shot = dir.path().join("shot.exr");
+    let comp = dir.path().join("comp.exr");
+    let mut worst = 0.0f32;
+    for c in ["R", "G", "B"] {
+        let want = read_exr_channel(&shot, c).unwrap().2;
+        let got = read_exr_channel(&comp, c).unwrap().2;
+        assert_eq!(want.len(), got.len());
+        for (a, b) in want.iter().zip(&got) {
+            worst = worst.max((a - b).abs() / a.abs().max(1.0));
+        }
+    }
+    assert!(worst <= 1e-6, "the recipe differs from the RGB by {worst}");
+}
