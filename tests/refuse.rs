@@ -132,6 +132,12 @@ fn a_bad_reference_of_a_later_pose_stops_motion_before_its_first_frame() {
 /// A one-triangle glTF whose POSITION accessor claims `count` vertices
 /// from byte `offset` of a 36-byte bufferView.
 fn gltf_triangle(count: usize, offset: usize) -> String {
+    gltf_primitive(count, offset, 4)
+}
+
+/// [`gltf_triangle`] as a primitive of glTF mode `mode` (4 triangles,
+/// 5 a strip, 6 a fan, 1 lines).
+fn gltf_primitive(count: usize, offset: usize, mode: u32) -> String {
     let floats: [f32; 9] = [0.0, 0.0, 0.0, 0.3, 0.0, 0.0, 0.0, 0.3, 0.0];
     let bytes: Vec<u8> = floats.iter().flat_map(|f| f.to_le_bytes()).collect();
     let b64 = {
@@ -150,7 +156,7 @@ fn gltf_triangle(count: usize, offset: usize) -> String {
         "scene": 0,
         "scenes": [{ "nodes": [0] }],
         "nodes": [{ "mesh": 0, "name": "card" }],
-        "meshes": [{ "primitives": [{ "attributes": { "POSITION": 0 } }] }],
+        "meshes": [{ "primitives": [{ "attributes": { "POSITION": 0 }, "mode": mode }] }],
         "buffers": [{ "byteLength": 36, "uri": format!("data:application/octet-stream;base64,{b64}") }],
         "bufferViews": [{ "buffer": 0, "byteLength": 36 }],
         "accessors": [{
@@ -391,4 +397,26 @@ fn arguments_the_parser_refuses_give_the_json_error_with_json() {
             "the message is on stderr too"
         );
     }
+}
+
+#[test]
+fn gltf_strips_and_fans_are_read_and_lines_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    for (mode, triangles) in [(4, 1), (5, 1), (6, 1)] {
+        let file = dir.path().join(format!("mode{mode}.gltf"));
+        std::fs::write(&file, gltf_primitive(3, 0, mode)).unwrap();
+        let mesh = arlux::geometry::load_mesh(&file).unwrap();
+        let n: usize = mesh.surfaces.iter().map(|s| s.triangles.len()).sum();
+        assert_eq!(n, triangles, "mode {mode}");
+    }
+    let file = dir.path().join("lines.gltf");
+    std::fs::write(&file, gltf_primitive(3, 0, 1)).unwrap();
+    let said = match arlux::geometry::load_mesh(&file) {
+        Ok(mesh) => mesh.unsupported.join("; "),
+        Err(e) => e.to_string(),
+    };
+    assert!(
+        said.contains("no triangles to read: it has primitives of mode Lines"),
+        "{said}"
+    );
 }

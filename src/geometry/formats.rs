@@ -139,7 +139,15 @@ fn read_gltf(path: &Path) -> Result<Mesh> {
         // the node alone when it uses one).
         let mut parts: Vec<(Option<usize>, MeshSurface)> = Vec::new();
         for prim in mesh.primitives() {
-            if prim.mode() != gltf::mesh::Mode::Triangles {
+            use gltf::mesh::Mode;
+            if !matches!(
+                prim.mode(),
+                Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+            ) {
+                materials.note(format!(
+                    "primitives of mode {:?} (points and lines are not surfaces)",
+                    prim.mode()
+                ));
                 continue;
             }
             let key = prim.material().index();
@@ -186,9 +194,37 @@ fn read_gltf(path: &Path) -> Result<Mesh> {
         }
     }
     let unsupported = materials.unsupported();
+    if surfaces.is_empty() && collect.dropped == 0 && !unsupported.is_empty() {
+        return Err(Error::file(
+            path,
+            format!("no triangles to read: it has {}", unsupported.join(", ")),
+        ));
+    }
     let mut mesh = finish(path, surfaces, collect.dropped)?;
     mesh.unsupported = unsupported;
     Ok(mesh)
+}
+
+/// The corners of a primitive's triangles: in threes, or as a strip
+/// (every other triangle turned back to keep the winding) or a fan.
+fn triangle_corners(mode: gltf::mesh::Mode, indices: &[usize]) -> Vec<[usize; 3]> {
+    use gltf::mesh::Mode;
+    let n = indices.len();
+    match mode {
+        Mode::TriangleStrip => (0..n.saturating_sub(2))
+            .map(|i| match i % 2 {
+                0 => [indices[i], indices[i + 1], indices[i + 2]],
+                _ => [indices[i + 1], indices[i], indices[i + 2]],
+            })
+            .collect(),
+        Mode::TriangleFan => (1..n.saturating_sub(1))
+            .map(|i| [indices[0], indices[i], indices[i + 1]])
+            .collect(),
+        _ => indices
+            .chunks_exact(3)
+            .map(|t| [t[0], t[1], t[2]])
+            .collect(),
+    }
 }
 
 /// Refuses an accessor whose elements do not all lie within its
@@ -315,7 +351,7 @@ impl Placed<'_> {
             None => (0..points.len()).collect(),
         };
         let vertex = VertexAttributes::read(&reader, world, points.len());
-        for t in indices.chunks_exact(3) {
+        for t in triangle_corners(prim.mode(), &indices) {
             let corner = |i: usize| {
                 points.get(i).copied().ok_or_else(|| {
                     Error::file(

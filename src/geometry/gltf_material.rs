@@ -153,7 +153,7 @@ impl<'a> GltfMaterials<'a> {
         Ok(Some(texture))
     }
 
-    fn note(&mut self, what: String) {
+    pub(super) fn note(&mut self, what: String) {
         if !self.unsupported.contains(&what) {
             self.unsupported.push(what);
         }
