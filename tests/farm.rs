@@ -150,33 +150,54 @@ fn crops_of_a_frame_merged_equal_the_whole_render_bit_for_bit() {
         ok(&args, &[]);
     };
     render(&path("whole.exr"), &[]);
-    // Uneven windows whose edges cross the box and its shadow: pbrt's
-    // rounding gives the tiles no pixel twice and none missing.
-    let windows = [
+    // Uneven windows whose edges cross the box and its shadow (pbrt's
+    // rounding gives the tiles no pixel twice and none missing), and the
+    // quadrants, whose edges cross the table's seams.
+    let uneven = [
         ["0", "0.37", "0", "0.61"],
         ["0.37", "1", "0", "0.61"],
         ["0", "0.71", "0.61", "1"],
         ["0.71", "1", "0.61", "1"],
     ];
+    let quadrants = [
+        ["0", "0.5", "0", "0.5"],
+        ["0.5", "1", "0", "0.5"],
+        ["0", "0.5", "0.5", "1"],
+        ["0.5", "1", "0.5", "1"],
+    ];
     let mut tiles = Vec::new();
-    for (i, w) in windows.iter().enumerate() {
-        let tile = path(&format!("tile{i}.exr"));
-        render(&tile, w);
-        tiles.push(tile);
+    for (set, windows) in [uneven, quadrants].iter().enumerate() {
+        tiles.clear();
+        for (i, w) in windows.iter().enumerate() {
+            let tile = path(&format!("tile{set}-{i}.exr"));
+            render(&tile, w);
+            tiles.push(tile);
+        }
+        let merged = path(&format!("merged{set}.exr"));
+        // In any order.
+        let mut args = vec!["merge", "-o", &merged];
+        args.extend(tiles.iter().rev().map(String::as_str));
+        ok(&args, &[]);
+        let (whole, merged) = (
+            arlux::image_io::read_image(Path::new(&path("whole.exr"))).unwrap(),
+            arlux::image_io::read_image(Path::new(&merged)).unwrap(),
+        );
+        let differ: Vec<usize> = (0..whole.pixels.len())
+            .filter(|&i| whole.pixels[i].to_array().map(f32::to_bits) != merged.pixels[i].to_array().map(f32::to_bits))
+            .collect();
+        assert!(
+            differ.is_empty(),
+            "tiles {windows:?}: {} pixels differ from the whole render, the first at ({}, {})",
+            differ.len(),
+            differ.first().map_or(0, |i| i % 512),
+            differ.first().map_or(0, |i| i / 512)
+        );
+        let (whole, merged_bytes) = (
+            std::fs::read(path("whole.exr")).unwrap(),
+            std::fs::read(path(&format!("merged{set}.exr"))).unwrap(),
+        );
+        assert!(whole == merged_bytes, "the merged frame's file differs from the whole render's");
     }
-    let merged = path("merged.exr");
-    // In any order.
-    let mut args = vec!["merge", "-o", &merged];
-    args.extend(tiles.iter().rev().map(String::as_str));
-    ok(&args, &[]);
-    let (whole, merged_bytes) = (
-        std::fs::read(path("whole.exr")).unwrap(),
-        std::fs::read(&merged).unwrap(),
-    );
-    assert!(
-        whole == merged_bytes,
-        "the merged frame differs from the whole render"
-    );
 
     // Three tiles leave pixels out; a tile given twice overlaps.
     for (pieces, expected) in [
