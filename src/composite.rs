@@ -370,7 +370,7 @@ pub(crate) fn composite_into(input: &CompositeInput, out: &mut Composite) {
 
 pub mod grain;
 mod real_pixels;
-mod seams;
+pub(crate) mod seams;
 mod shader;
 
 use real_pixels::*;

@@ -309,10 +309,13 @@ impl PixelDataArray {
             input,
             near_virtual,
             candidates,
+            // A crop's pixels read their neighbours' data (the seams'
+            // filter): computed a margin beyond it, they are the whole frame's.
             window: input
                 .settings
                 .crop
                 .and_then(|c| c.pixels(w, h))
+                .map(|r| r.grown(crate::composite::seams::NEIGHBOURHOOD, w, h))
                 .unwrap_or(PixelRect::full(w, h)),
         };
         let rows: Vec<Row> = (0..h).into_par_iter().map(|row| tracer.row(row)).collect();

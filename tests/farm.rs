@@ -92,7 +92,19 @@ fn a_bad_shard_or_range_is_refused_before_any_work() {
             vec!["--shard", "auto/2"],
             "neither SLURM_ARRAY_TASK_ID nor JOB_COMPLETION_INDEX",
         ),
+        (
+            vec!["--shard", "auto/4", "both"],
+            "SLURM_ARRAY_TASK_ID=1 and JOB_COMPLETION_INDEX=2 disagree",
+        ),
     ] {
+        // "both": the two index variables set, and different.
+        let both = args.last() == Some(&"both");
+        let args: Vec<&str> = args.into_iter().filter(|a| *a != "both").collect();
+        let env: &[(&str, &str)] = if both {
+            &[("SLURM_ARRAY_TASK_ID", "1"), ("JOB_COMPLETION_INDEX", "2")]
+        } else {
+            &[]
+        };
         let run = Command::new(env!("CARGO_BIN_EXE_arlux"))
             .args([
                 "motion",
@@ -105,6 +117,7 @@ fn a_bad_shard_or_range_is_refused_before_any_work() {
             .args(&args)
             .env_remove("SLURM_ARRAY_TASK_ID")
             .env_remove("JOB_COMPLETION_INDEX")
+            .envs(env.iter().copied())
             .output()
             .unwrap();
         let stderr = String::from_utf8_lossy(&run.stderr);
@@ -183,7 +196,10 @@ fn crops_of_a_frame_merged_equal_the_whole_render_bit_for_bit() {
             arlux::image_io::read_image(Path::new(&merged)).unwrap(),
         );
         let differ: Vec<usize> = (0..whole.pixels.len())
-            .filter(|&i| whole.pixels[i].to_array().map(f32::to_bits) != merged.pixels[i].to_array().map(f32::to_bits))
+            .filter(|&i| {
+                whole.pixels[i].to_array().map(f32::to_bits)
+                    != merged.pixels[i].to_array().map(f32::to_bits)
+            })
             .collect();
         assert!(
             differ.is_empty(),
@@ -196,7 +212,10 @@ fn crops_of_a_frame_merged_equal_the_whole_render_bit_for_bit() {
             std::fs::read(path("whole.exr")).unwrap(),
             std::fs::read(path(&format!("merged{set}.exr"))).unwrap(),
         );
-        assert!(whole == merged_bytes, "the merged frame's file differs from the whole render's");
+        assert!(
+            whole == merged_bytes,
+            "the merged frame's file differs from the whole render's"
+        );
     }
 
     // Three tiles leave pixels out; a tile given twice overlaps.
@@ -295,4 +314,31 @@ fn sweep_shards_merged_equal_the_whole_sweep_less_timings() {
         stderr.contains("the shards leave 2 of 7 settings out, the first 3"),
         "{stderr}"
     );
+}
+
+#[test]
+fn a_tile_reports_its_own_pixels() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = common::scene_dir("desk").join("scene.toml");
+    let out = dir.path().join("tile.exr");
+    let run = arlux(
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "--variant",
+            "box_floor_a",
+            "--crop",
+            "0",
+            "0.5",
+            "0",
+            "0.25",
+            "-o",
+            out.to_str().unwrap(),
+            "--json",
+        ],
+        &[],
+    );
+    let v: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(v["pixels"], 256 * 96);
+    assert!(v["copied_from_photo"].as_u64().unwrap() <= 256 * 96, "{v}");
 }

@@ -303,7 +303,11 @@ fn a_signal_mid_write_leaves_no_temporary_file() {
     assert!(kill.success());
     let status = child.wait().unwrap();
     assert_eq!(status.code(), Some(128 + 15));
-    assert!(temporaries().is_empty(), "temporaries left behind: {:?}", temporaries());
+    assert!(
+        temporaries().is_empty(),
+        "temporaries left behind: {:?}",
+        temporaries()
+    );
     assert!(!out.exists(), "a half-written output");
 }
 

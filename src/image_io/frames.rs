@@ -23,6 +23,17 @@ pub struct PixelRect {
 }
 
 impl PixelRect {
+    /// This rectangle grown by `margin` pixels on every side, within a
+    /// `width` × `height` image.
+    pub fn grown(&self, margin: u32, width: u32, height: u32) -> PixelRect {
+        PixelRect {
+            x0: self.x0.saturating_sub(margin),
+            y0: self.y0.saturating_sub(margin),
+            x1: (self.x1 + margin).min(width),
+            y1: (self.y1 + margin).min(height),
+        }
+    }
+
     pub fn full(width: u32, height: u32) -> PixelRect {
         PixelRect {
             x0: 0,
@@ -44,7 +55,7 @@ impl PixelRect {
         self.y1 - self.y0
     }
 
-    pub(crate) fn pixel_count(&self) -> usize {
+    pub fn pixel_count(&self) -> usize {
         self.width() as usize * self.height() as usize
     }
 

@@ -243,12 +243,20 @@ pub(crate) fn shard(text: &str) -> Result<(usize, usize)> {
         .filter(|n| *n > 0)
         .ok_or_else(|| bad("n must be a positive whole number".into()))?;
     let i = if i.trim() == "auto" {
-        let (var, value) = ["SLURM_ARRAY_TASK_ID", "JOB_COMPLETION_INDEX"]
+        let set: Vec<(&str, String)> = ["SLURM_ARRAY_TASK_ID", "JOB_COMPLETION_INDEX"]
             .iter()
-            .find_map(|v| std::env::var(v).ok().map(|x| (*v, x)))
-            .ok_or_else(|| {
-                bad("auto: neither SLURM_ARRAY_TASK_ID nor JOB_COMPLETION_INDEX is set".into())
-            })?;
+            .filter_map(|v| std::env::var(v).ok().map(|x| (*v, x)))
+            .collect();
+        if let [(a, x), (b, y)] = &set[..]
+            && x.trim() != y.trim()
+        {
+            return Err(bad(format!(
+                "auto: {a}={x} and {b}={y} disagree: unset the one that is not this task's"
+            )));
+        }
+        let (var, value) = set.into_iter().next().ok_or_else(|| {
+            bad("auto: neither SLURM_ARRAY_TASK_ID nor JOB_COMPLETION_INDEX is set".into())
+        })?;
         value
             .trim()
             .parse::<usize>()

@@ -170,7 +170,7 @@ pub fn run(args: &Args) -> Result<()> {
         }))
     })?;
     keep(&times);
-    let report = RenderReport::new(variant, &out, error, &times, window);
+    let report = RenderReport::new(variant, &out, error, &times, window, &photo);
     print_report(&report, args.json)
 }
 
@@ -273,8 +273,24 @@ impl<'a> RenderReport<'a> {
         error: Option<(Comparison, Skill)>,
         times: &StageTimes,
         window: Option<PixelRect>,
+        photo: &Image,
     ) -> Self {
         let c = &out.composite;
+        // A tile counts its own pixels: those left as the photo's.
+        let (pixels, copied) = match window {
+            None => (out.pda_pixels, c.copied),
+            Some(r) => {
+                let w = c.image.width as usize;
+                let same = (r.y0..r.y1)
+                    .flat_map(|y| (r.x0..r.x1).map(move |x| y as usize * w + x as usize))
+                    .filter(|&i| {
+                        let bits = |v: glam::Vec3| v.to_array().map(f32::to_bits);
+                        bits(c.image.pixels[i]) == bits(photo.pixels[i])
+                    })
+                    .count();
+                (r.pixel_count(), same)
+            }
+        };
         RenderReport {
             variant,
             crop: window.map(|r| Crop {
@@ -283,8 +299,8 @@ impl<'a> RenderReport<'a> {
                 y0: r.y0,
                 y1: r.y1,
             }),
-            pixels: out.pda_pixels,
-            copied_from_photo: c.copied,
+            pixels,
+            copied_from_photo: copied,
             ratio_fallbacks: c.ratio_fallbacks,
             clamped: c.clamped,
             patches: out.patches,
