@@ -342,3 +342,31 @@ fn a_tile_reports_its_own_pixels() {
     assert_eq!(v["pixels"], 256 * 96);
     assert!(v["copied_from_photo"].as_u64().unwrap() <= 256 * 96, "{v}");
 }
+
+#[test]
+fn a_shard_beyond_the_poses_renders_nothing_and_succeeds() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let scene = common::scene_dir("desk").join("scene.toml");
+    // A job array of 10 tasks for the 8-pose motion: tasks 8 and 9 have no pose.
+    let run = arlux(
+        &[
+            "motion",
+            scene.to_str().unwrap(),
+            "--motion",
+            "box_slide",
+            "--shard",
+            "auto/10",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        &[("SLURM_ARRAY_TASK_ID", "9")],
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains("no pose falls to this shard (8 in all)"),
+        "{stderr}"
+    );
+    assert!(!out.exists(), "a folder was made for nothing");
+}

@@ -273,19 +273,15 @@ pub(crate) fn shard(text: &str) -> Result<(usize, usize)> {
 }
 
 /// Shard `text`'s contiguous share of `count` items (the first shares one
-/// longer when n does not divide count), with i and n; an error when the
-/// share is empty. `what` names the items (`pose`, `setting`).
+/// longer when n does not divide count), with i and n; empty when there
+/// are fewer items than shards and this is one of the shards beyond them.
 pub(crate) fn shard_range(
     text: &str,
     count: usize,
-    what: &str,
 ) -> Result<(std::ops::Range<usize>, usize, usize)> {
     let (i, n) = shard(text)?;
     let (base, extra) = (count / n, count % n);
     let start = i * base + i.min(extra);
     let end = start + base + usize::from(i < extra);
-    if start >= end {
-        anyhow::bail!("--shard {text}: shard {i} of {n} has no {what} ({count} in all)");
-    }
     Ok((start..end, i, n))
 }

@@ -117,6 +117,23 @@ pub fn run(args: &Args) -> Result<()> {
     let base = stage("load", || load(&args.scene, None))?;
     let motion = base.motion(name)?.clone();
     let poses = pose_range(args, motion.translations.len())?;
+    if poses.is_empty() {
+        // A job array sized for a longer motion: this task has nothing to do.
+        eprintln!(
+            "note: --shard {}: no pose falls to this shard ({} in all): nothing rendered",
+            args.shard.as_deref().unwrap_or(""),
+            motion.translations.len()
+        );
+        let report = MotionReport {
+            motion: name,
+            seconds: 0.0,
+            poses: Vec::new(),
+            pda_bytes: 0,
+            block_bytes: 0,
+            block_bytes_end: 0,
+        };
+        return print_report(&report, args.json);
+    }
     stage("check inputs", || -> Result<()> {
         for pose in poses.clone() {
             if let Some(r) = motion.references.get(pose) {
@@ -268,7 +285,7 @@ fn pose_range(args: &Args, count: usize) -> Result<std::ops::Range<usize>> {
     let Some(shard) = &args.shard else {
         return Ok(0..count);
     };
-    Ok(crate::common::shard_range(shard, count, "pose")?.0)
+    Ok(crate::common::shard_range(shard, count)?.0)
 }
 
 /// The photo, dimmed, under the blocks the last update skipped with one

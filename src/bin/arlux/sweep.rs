@@ -59,7 +59,13 @@ pub fn run(args: &Args) -> Result<()> {
     let (share, csv_name) = match &args.shard {
         None => (0..settings.len(), "sweep.csv".to_string()),
         Some(text) => {
-            let (share, i, n) = shard_range(text, settings.len(), "setting")?;
+            let (share, i, n) = shard_range(text, settings.len())?;
+            if share.is_empty() {
+                bail!(
+                    "--shard {text}: shard {i} of {n} has no setting ({} in all)",
+                    settings.len()
+                );
+            }
             (share, format!("sweep.shard-{i}-of-{n}.csv"))
         }
     };
