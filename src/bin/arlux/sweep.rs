@@ -20,7 +20,8 @@ pub struct Args {
     pub motion: Option<String>,
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Six settings from cheapest to dearest, for a smoke check.
+    /// Six pixel-path settings from cheapest to dearest (and, for a
+    /// variant, the texture path at its defaults: seven), for a smoke check.
     #[arg(long)]
     pub quick: bool,
     /// Runs per setting; the fastest counts (default 3, 1 with --quick).
