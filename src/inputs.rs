@@ -46,13 +46,7 @@ pub(crate) fn resolve_inputs(
 
 /// The diagonal of the real geometry's bounding box.
 pub(crate) fn room_diagonal(scene: &Scene) -> f64 {
-    let (lo, hi) = crate::geometry::bounds(
-        scene
-            .surfaces
-            .iter()
-            .flat_map(|s| s.triangles.iter().flatten())
-            .map(|p| p.as_dvec3()),
-    );
+    let (lo, hi) = scene.real_bounds();
     (hi - lo).length()
 }
 

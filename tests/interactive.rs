@@ -42,6 +42,20 @@ fn footprint_centre(it: &Interactive, object: usize) -> DVec3 {
     DVec3::new(0.5 * (lo.x + hi.x), lo.y, 0.5 * (lo.z + hi.z))
 }
 
+/// Stands object 0 where image point `p` sees the floor.
+fn place(
+    it: &mut Interactive,
+    p: (f64, f64),
+    times: &mut StageTimes,
+) -> arlux::interactive::Outcome {
+    let edit = Edit::Place {
+        object: 0,
+        x: p.0,
+        y: p.1,
+    };
+    it.apply(edit, times).unwrap()
+}
+
 fn bits(a: &arlux::image_io::Image) -> Vec<[u32; 3]> {
     a.pixels
         .iter()
@@ -80,16 +94,7 @@ fn what_the_session_shows_is_the_render_of_the_variant_it_saves() {
             &it,
             DVec3::new(-0.6 + 0.1 * k as f64, 0.0, 0.6 - 0.05 * k as f64),
         );
-        let out = it
-            .apply(
-                Edit::Place {
-                    object: 0,
-                    x: p.0,
-                    y: p.1,
-                },
-                times,
-            )
-            .unwrap();
+        let out = place(&mut it, p, times);
         assert!(matches!(out.path, RenderPath::Update { .. }), "{out:?}");
     }
     it.apply(
@@ -111,16 +116,7 @@ fn what_the_session_shows_is_the_render_of_the_variant_it_saves() {
         .unwrap();
     assert!(matches!(out.path, RenderPath::Full { .. }), "{out:?}");
     let p = pixel_of(&it, DVec3::new(0.2, 0.0, 0.1));
-    let out = it
-        .apply(
-            Edit::Place {
-                object: 0,
-                x: p.0,
-                y: p.1,
-            },
-            times,
-        )
-        .unwrap();
+    let out = place(&mut it, p, times);
     assert!(matches!(out.path, RenderPath::Update { .. }), "{out:?}");
 
     let name = it.next_variant_name();

@@ -33,13 +33,7 @@ impl Room {
     pub fn new(scene: &Scene) -> Result<Room> {
         let tracer = Tracer::build(&crate::scene_tracer::real_triangle_sets(scene), &[])
             .map_err(|e| Error::file(&scene.file, e.to_string()))?;
-        let (lo, hi) = crate::geometry::bounds(
-            scene
-                .surfaces
-                .iter()
-                .flat_map(|s| s.triangles.iter().flatten())
-                .map(|p| p.as_dvec3()),
-        );
+        let (lo, hi) = scene.real_bounds();
         let margin = 0.01 * (hi - lo).length();
         let ids = SurfaceIds::at_pixel_centres(&scene.camera, &tracer, Layer::Real);
         Ok(Room {

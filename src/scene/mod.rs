@@ -362,6 +362,16 @@ impl Scene {
         self.lights.iter().position(|l| l.name == name)
     }
 
+    /// The bounding box of the real geometry.
+    pub fn real_bounds(&self) -> (DVec3, DVec3) {
+        geometry::bounds(
+            self.surfaces
+                .iter()
+                .flat_map(|s| s.triangles.iter().flatten())
+                .map(|p| p.as_dvec3()),
+        )
+    }
+
     pub fn triangle_count(&self) -> usize {
         self.surfaces.iter().map(|s| s.triangles.len()).sum()
     }
