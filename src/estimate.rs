@@ -46,26 +46,33 @@ impl PhotoPatches {
         photo: &Image,
     ) -> PhotoPatches {
         let n = patches.patch_count();
-        let rows: Vec<Vec<(u32, DVec3)>> = (0..camera.height as usize)
-            .into_par_iter()
-            .map(|row| {
-                row_hits(camera, tracer, Layer::Real, row as u32)
-                    .iter()
-                    .enumerate()
-                    .filter_map(|(col, h)| {
-                        let h = h.as_ref()?;
-                        let x = camera.position
-                            + camera.pixel_ray(col as u32, row as u32).direction * h.t as f64;
-                        let at = patches.locate(h.surface, h.triangle, x)?;
-                        Some((at.patch, photo.get(col as u32, row as u32).as_dvec3()))
-                    })
-                    .collect()
-            })
-            .collect();
+        let w = camera.width as usize;
+        // Each pixel's patch (u32::MAX: none), 4 bytes a pixel rather than a
+        // (patch, colour) pair's 32: the sums below read the photo again, in
+        // the same order, so they are the same to the bit.
+        let mut patch_of = vec![u32::MAX; w * camera.height as usize];
+        patch_of
+            .par_chunks_mut(w.max(1))
+            .enumerate()
+            .for_each(|(row, out)| {
+                let hits = row_hits(camera, tracer, Layer::Real, row as u32);
+                for (col, (o, h)) in out.iter_mut().zip(&hits).enumerate() {
+                    let Some(h) = h.as_ref() else { continue };
+                    let x = camera.position
+                        + camera.pixel_ray(col as u32, row as u32).direction * h.t as f64;
+                    if let Some(at) = patches.locate(h.surface, h.triangle, x) {
+                        *o = at.patch;
+                    }
+                }
+            });
         let mut sum = vec![DVec3::ZERO; n];
         let mut pixels = vec![0u32; n];
         let (mut total, mut count) = (DVec3::ZERO, 0usize);
-        for (patch, value) in rows.into_iter().flatten() {
+        for (i, &patch) in patch_of.iter().enumerate() {
+            if patch == u32::MAX {
+                continue;
+            }
+            let value = photo.pixels[i].as_dvec3();
             sum[patch as usize] += value;
             pixels[patch as usize] += 1;
             total += value;
