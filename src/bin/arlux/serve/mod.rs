@@ -94,6 +94,12 @@ pub fn run(args: &Args) -> Result<()> {
         )))
         .with_context(|| format!("cannot listen on {}:{}", args.bind, args.port))?;
     let port = listener.local_addr()?.port();
+    if !args.bind.is_loopback() {
+        eprintln!(
+            "warning: listening on {}: other machines can reach the page (the token still guards it; the connection is not encrypted)",
+            args.bind
+        );
+    }
     let token = token();
     let (jobs, queue) = std::sync::mpsc::sync_channel(worker::QUEUE);
     let shared = Arc::new(Shared {
