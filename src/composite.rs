@@ -300,6 +300,22 @@ impl Composite {
         out
     }
 
+    /// The photo itself, with its layers: no change anywhere.
+    pub fn unchanged(photo: &Image) -> Composite {
+        let (w, h, n) = (photo.width, photo.height, photo.pixels.len());
+        Composite {
+            image: photo.clone(),
+            direct: Image::new(w, h),
+            indirect: Image::new(w, h),
+            change: Image::new(w, h),
+            object: Image::new(w, h),
+            alpha: vec![0.0; n],
+            copied: n,
+            ratio_fallbacks: 0,
+            clamped: 0,
+        }
+    }
+
     /// No pixels yet.
     pub fn empty() -> Composite {
         Composite {

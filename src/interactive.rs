@@ -10,7 +10,7 @@
 //! saved file are the same scene, bit for bit. The module knows nothing of
 //! HTTP; it takes edits and returns plain data.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use glam::{DMat3, DQuat, DVec3};
 
@@ -445,29 +445,29 @@ impl Interactive {
         );
         let appended =
             toml::to_string(&variant).map_err(|e| Error::file(&self.base.file, e.to_string()))?;
-        let stem = self
-            .base
-            .file
-            .file_stem()
-            .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
-        let path = self.base.dir().join(format!("{stem}.{name}.toml"));
+        let path = self.variant_file(name);
         let content = format!("{}\n# Saved by arlux serve.\n{appended}", text.trim_end());
         crate::image_io::write_new(&path, content.as_bytes())?;
         Ok(path)
     }
 
-    /// A name `session-N` no file beside the scene and no variant has.
-    pub fn next_variant_name(&self) -> String {
+    /// The file a variant named `name` is saved in: `STEM.NAME.toml` beside the scene.
+    fn variant_file(&self, name: &str) -> PathBuf {
         let stem = self
             .base
             .file
             .file_stem()
             .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
+        self.base.dir().join(format!("{stem}.{name}.toml"))
+    }
+
+    /// A name `session-N` no file beside the scene and no variant has.
+    pub fn next_variant_name(&self) -> String {
         (1..)
             .map(|n| format!("session-{n}"))
             .find(|name| {
                 !self.base.variants.iter().any(|v| &v.name == name)
-                    && !self.base.dir().join(format!("{stem}.{name}.toml")).exists()
+                    && !self.variant_file(name).exists()
             })
             .expect("some number is free")
     }
@@ -475,11 +475,6 @@ impl Interactive {
     /// The room the edits are checked against.
     pub fn room(&self) -> &Room {
         &self.room
-    }
-
-    /// The scene file's folder.
-    pub fn dir(&self) -> &Path {
-        self.base.dir()
     }
 }
 

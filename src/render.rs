@@ -176,17 +176,7 @@ fn render_reachable(
 ) -> Result<RenderOutput> {
     let n = photo.pixels.len();
     if !scene.changes_the_photo() {
-        let composite = Composite {
-            image: photo.clone(),
-            direct: Image::new(photo.width, photo.height),
-            indirect: Image::new(photo.width, photo.height),
-            change: Image::new(photo.width, photo.height),
-            object: Image::new(photo.width, photo.height),
-            alpha: vec![0.0; n],
-            copied: n,
-            ratio_fallbacks: 0,
-            clamped: 0,
-        };
+        let composite = Composite::unchanged(photo);
         let left_out = vec!["everything: the scene shows the photo's state (no virtual object, lights as photographed)".to_string()];
         return Ok(RenderOutput {
             composite,

@@ -117,13 +117,7 @@ async fn guard(State(shared): State<Arc<Shared>>, request: Request, next: Next) 
         .get("x-arlux-token")
         .and_then(|t| t.to_str().ok())
         .map(str::to_string)
-        .or_else(|| {
-            request.uri().query().and_then(|q| {
-                q.split('&')
-                    .find_map(|kv| kv.strip_prefix("token="))
-                    .map(str::to_string)
-            })
-        });
+        .or_else(|| query(request.uri().query(), "token").map(str::to_string));
     if !given.is_some_and(|t| same(t.as_bytes(), shared.token.as_bytes())) {
         return error(
             StatusCode::UNAUTHORIZED,

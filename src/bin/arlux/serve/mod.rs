@@ -12,8 +12,7 @@ use std::sync::{Arc, Mutex, RwLock};
 use anyhow::{Context, Result};
 use serde_json::{Value, json};
 
-use arlux::interactive::{Edit, Frame, Interactive, Outcome, Refusal};
-use arlux::model::StageTimes;
+use arlux::interactive::{Frame, Interactive, Outcome, Refusal};
 
 mod api;
 mod worker;
@@ -236,9 +235,4 @@ pub(crate) fn state_json(it: &Interactive, last: Option<&Value>) -> Value {
         "lights": lights,
         "last": last,
     })
-}
-
-/// Applies `edit`, timing it.
-pub(crate) fn apply(it: &mut Interactive, edit: Edit) -> std::result::Result<Outcome, Refusal> {
-    it.apply(edit, &mut StageTimes::default())
 }

@@ -141,7 +141,7 @@ fn serve_job(cx: &Context, it: &mut Interactive, job: Job) {
             reply,
             ..
         } => {
-            let reply_body = match super::apply(it, edit) {
+            let reply_body = match it.apply(edit, &mut StageTimes::default()) {
                 Ok(outcome) => {
                     let server_ms = received.elapsed().as_secs_f64() * 1e3;
                     let last = json!({ "path": outcome.path, "update_ms": outcome.millis });
@@ -202,7 +202,7 @@ fn render(cx: &Context, it: &Interactive) -> Reply {
     let composite = match it.composite() {
         Some(c) => c,
         None => {
-            empty = photo_composite(it.photo());
+            empty = arlux::composite::Composite::unchanged(it.photo());
             &empty
         }
     };
@@ -215,22 +215,6 @@ fn render(cx: &Context, it: &Interactive) -> Reply {
             500,
             json!({ "error": { "field": "render", "message": e.to_string() } }),
         ),
-    }
-}
-
-/// The photo as a composite with its layers (no change anywhere).
-fn photo_composite(photo: &Image) -> arlux::composite::Composite {
-    let (w, h) = (photo.width, photo.height);
-    arlux::composite::Composite {
-        image: photo.clone(),
-        direct: Image::new(w, h),
-        indirect: Image::new(w, h),
-        change: Image::new(w, h),
-        object: Image::new(w, h),
-        alpha: vec![0.0; (w * h) as usize],
-        copied: (w * h) as usize,
-        ratio_fallbacks: 0,
-        clamped: 0,
     }
 }
 
