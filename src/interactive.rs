@@ -343,23 +343,20 @@ impl Interactive {
         let start = std::time::Instant::now();
         let scales = |s: &Scene| s.lights.iter().map(|l| l.scale).collect::<Vec<_>>();
         let enabled = |s: &Scene| s.objects.iter().map(|o| o.enabled).collect::<Vec<_>>();
-        let same_objects = self
-            .scene
-            .objects
-            .iter()
-            .zip(&scene.objects)
-            .all(|(a, b)| a.enabled == b.enabled && a.pose == b.pose);
-        if scales(&scene) == scales(&self.scene) && same_objects {
+        let same_lights = scales(&scene) == scales(&self.scene);
+        let same_shown = enabled(&scene) == enabled(&self.scene);
+        let same_poses =
+            (self.scene.objects.iter().zip(&scene.objects)).all(|(a, b)| a.pose == b.pose);
+        if same_lights && same_shown && same_poses {
             return Ok(self.outcome(RenderPath::Unchanged, start));
         }
         let path = if !scene.changes_the_photo() {
             self.rendered = Rendered::Photo;
             self.scene = scene;
             RenderPath::Photo
-        } else if let (Rendered::Session(session), true) = (
-            &mut self.rendered,
-            scales(&scene) == scales(&self.scene) && enabled(&scene) == enabled(&self.scene),
-        ) {
+        } else if let (Rendered::Session(session), true) =
+            (&mut self.rendered, same_lights && same_shown)
+        {
             let stats = session.update(&scene, times)?;
             self.scene = scene;
             RenderPath::Update {
@@ -368,7 +365,7 @@ impl Interactive {
                 rays: stats.rays,
             }
         } else {
-            let reason = if scales(&scene) != scales(&self.scene) {
+            let reason = if !same_lights {
                 "the lights changed"
             } else {
                 "the set of objects shown changed"
