@@ -131,8 +131,20 @@ fn a_bad_reference_of_a_later_pose_stops_motion_before_its_first_frame() {
 
 /// A one-triangle glTF whose POSITION accessor claims `count` vertices
 /// from byte `offset` of a 36-byte bufferView.
+///
+/// A second primitive of the same mesh reads its triangle whole: a reader
+/// that skips the bad one keeps the surface, and the drop goes unseen.
 fn gltf_triangle(count: usize, offset: usize) -> String {
-    gltf_primitive(count, offset, 4)
+    let mut v: serde_json::Value = serde_json::from_str(&gltf_primitive(count, offset, 4)).unwrap();
+    let mut good = v["accessors"][0].clone();
+    (good["count"], good["byteOffset"]) = (3.into(), 0.into());
+    v["accessors"].as_array_mut().unwrap().push(good);
+    let second = serde_json::json!({ "attributes": { "POSITION": 1 } });
+    v["meshes"][0]["primitives"]
+        .as_array_mut()
+        .unwrap()
+        .push(second);
+    v.to_string()
 }
 
 /// [`gltf_triangle`] as a primitive of glTF mode `mode` (4 triangles,
