@@ -14,7 +14,9 @@ use glam::Vec3;
 use crate::error::{Error, Result};
 
 mod frames;
+mod stream;
 pub use frames::{CropWindow, ExrMeta, MergedFrame, PixelRect, merge_tiles, write_exr_with};
+pub use stream::ExrStream;
 
 /// A linear RGB image, row-major from the top-left pixel.
 #[derive(Debug, Clone, PartialEq)]

@@ -164,7 +164,7 @@ impl ExrMeta {
 }
 
 /// How arlux encodes every EXR it writes (lossless, scan lines top down).
-fn encoding() -> x::Encoding {
+pub(super) fn encoding() -> x::Encoding {
     x::Encoding {
         line_order: x::LineOrder::Increasing,
         ..x::Encoding::FAST_LOSSLESS
@@ -172,7 +172,7 @@ fn encoding() -> x::Encoding {
 }
 
 /// The layer attributes `meta` asks for.
-fn attributes(meta: &ExrMeta) -> x::LayerAttributes {
+pub(super) fn attributes(meta: &ExrMeta) -> x::LayerAttributes {
     let mut a = x::LayerAttributes {
         software_name: Some(text(concat!("arlux ", env!("CARGO_PKG_VERSION")))),
         world_to_camera: meta.world_to_camera,
