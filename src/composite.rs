@@ -54,6 +54,10 @@ pub struct CompositeInput<'a> {
     pub reflectance: &'a [DVec3],
     pub patch_vertices: &'a [[u32; 4]],
     pub mode: CompositeMode,
+    /// The "without" irradiance under which a ratio is not trusted (and
+    /// the additive form is taken): one value for the whole frame, so that
+    /// a crop or a band composites as the frame does.
+    pub floor: DVec3,
     /// Every real point's composite as prepared before (see
     /// [`RealPixels`]), kept between updates; None: prepared here.
     pub known: Option<&'a RealPixels>,
@@ -66,9 +70,12 @@ pub struct CompositeInput<'a> {
     pub layers: bool,
 }
 
-/// The augmented photo and its layers.
+/// The augmented photo and its layers: rows `first_row..first_row +
+/// image.height` of the frame (all of them, but for a crop or a band).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Composite {
+    /// The frame's row that the layers' first row is.
+    pub first_row: u32,
     pub image: Image,
     /// Direct and indirect irradiance of the surface seen, in the augmented scene.
     pub direct: Image,
@@ -223,15 +230,21 @@ impl Composite {
     pub(crate) fn fill(
         &mut self,
         photo: &Image,
+        counted: crate::image_io::PixelRect,
         shade: impl Fn(usize) -> PixelShade + Sync + Send,
     ) {
         // By rows: a plain loop per row, rather than five zipped parallel
         // iterators per pixel (whose bookkeeping cost as much as the shading).
         let w = (self.image.width as usize).max(1);
-        let count = |counts: &mut (usize, usize, usize), s: &PixelShade| {
-            counts.0 += s.copied as usize;
-            counts.1 += s.fallback as usize;
-            counts.2 += s.clamped as usize;
+        let first = self.first_row as usize * w;
+        let first_row = self.first_row as usize;
+        // Only `counted`'s pixels: a crop's or a band's margin is another's.
+        let count = |counts: &mut (usize, usize, usize), s: &PixelShade, row: usize, x: usize| {
+            if counted.contains(x as u32, (first_row + row) as u32) {
+                counts.0 += s.copied as usize;
+                counts.1 += s.fallback as usize;
+                counts.2 += s.clamped as usize;
+            }
         };
         let sum =
             |a: (usize, usize, usize), b: (usize, usize, usize)| (a.0 + b.0, a.1 + b.1, a.2 + b.2);
@@ -246,10 +259,10 @@ impl Composite {
             rows.map(|(row, (image, alpha))| {
                 let mut counts = (0, 0, 0);
                 for x in 0..image.len() {
-                    let s = shade(row * w + x);
+                    let s = shade(first + row * w + x);
                     image[x] = s.value;
                     alpha[x] = s.alpha;
-                    count(&mut counts, &s);
+                    count(&mut counts, &s, row, x);
                 }
                 counts
             })
@@ -263,7 +276,7 @@ impl Composite {
                     |(((((row, (image, alpha)), direct), indirect), change), object)| {
                         let mut counts = (0, 0, 0);
                         for x in 0..image.len() {
-                            let i = row * w + x;
+                            let i = first + row * w + x;
                             let s = shade(i);
                             image[x] = s.value;
                             direct[x] = s.direct;
@@ -271,7 +284,7 @@ impl Composite {
                             change[x] = s.value - photo.pixels[i];
                             object[x] = s.object;
                             alpha[x] = s.alpha;
-                            count(&mut counts, &s);
+                            count(&mut counts, &s, row, x);
                         }
                         counts
                     },
@@ -289,21 +302,26 @@ impl Composite {
     /// A compositor rebuilds the image as photo × shadow + object.
     pub fn shadow(&self, photo: &Image) -> Image {
         let mut out = Image::new(self.image.width, self.image.height);
-        let object = |i: usize| self.object.pixels.get(i).copied().unwrap_or(Vec3::ZERO);
+        let first = self.first_row as usize * self.image.width as usize;
         for (i, s) in out.pixels.iter_mut().enumerate() {
-            let (value, p) = (self.image.pixels[i] - object(i), photo.pixels[i]);
-            *s = Vec3::select(p.cmpgt(Vec3::ZERO), value / p, Vec3::ONE);
-            if !s.is_finite() {
-                *s = Vec3::ONE;
-            }
+            *s = self.shadow_at(i, photo.pixels[first + i]);
         }
         out
+    }
+
+    /// [`Composite::shadow`] at its pixel `i`, whose photo value is `photo`.
+    pub fn shadow_at(&self, i: usize, photo: Vec3) -> Vec3 {
+        let object = self.object.pixels.get(i).copied().unwrap_or(Vec3::ZERO);
+        let value = self.image.pixels[i] - object;
+        let s = Vec3::select(photo.cmpgt(Vec3::ZERO), value / photo, Vec3::ONE);
+        if s.is_finite() { s } else { Vec3::ONE }
     }
 
     /// The photo itself, with its layers: no change anywhere.
     pub fn unchanged(photo: &Image) -> Composite {
         let (w, h, n) = (photo.width, photo.height, photo.pixels.len());
         Composite {
+            first_row: 0,
             image: photo.clone(),
             direct: Image::new(w, h),
             indirect: Image::new(w, h),
@@ -319,6 +337,7 @@ impl Composite {
     /// No pixels yet.
     pub fn empty() -> Composite {
         Composite {
+            first_row: 0,
             image: Image::new(0, 0),
             direct: Image::new(0, 0),
             indirect: Image::new(0, 0),
@@ -343,10 +362,12 @@ pub fn composite(input: &CompositeInput) -> Composite {
 /// image's size (an update rewrites the same image: no new pages to fault in).
 pub(crate) fn composite_into(input: &CompositeInput, out: &mut Composite) {
     let shader = Shader::new(input);
-    let (w, h) = (input.pda.width, input.pda.height);
+    let (first_row, end) = input.pda.rows;
+    let (w, h) = (input.pda.width, end - first_row);
     let n = (w * h) as usize;
-    if out.image.pixels.len() != n || out.alpha.len() != n {
+    if out.image.pixels.len() != n || out.alpha.len() != n || out.first_row != first_row {
         *out = Composite {
+            first_row,
             image: Image::new(w, h),
             alpha: vec![0.0; n],
             ..Composite::empty()
@@ -368,7 +389,7 @@ pub(crate) fn composite_into(input: &CompositeInput, out: &mut Composite) {
     let h_with = patch_corners(input.indirect_with, input.patch_vertices);
     match input.known {
         Some(known) if !input.layers => shader.image_only(known, &h_with, out),
-        _ => out.fill(input.photo, |i| {
+        _ => out.fill(input.photo, input.pda.own, |i| {
             shader.plain(i, &h_with).unwrap_or_else(|| shader.other(i))
         }),
     }

@@ -306,8 +306,16 @@ impl LampPixels {
         tracer: &Tracer,
     ) {
         let n = self.per_pixel as f32;
+        // The composite holds some rows of the frame (a band or crop): `j` is `i` there.
+        let first = composite.first_row as usize * composite.image.width as usize;
         for p in &self.pixels {
             let i = p.index as usize;
+            let Some(j) = i
+                .checked_sub(first)
+                .filter(|j| *j < composite.image.pixels.len())
+            else {
+                continue;
+            };
             let samples = self.samples_of(p);
             let on_real = samples.iter().filter(|q| self.real[q.light as usize]);
             let real_share = on_real.clone().count() as f32 / n;
@@ -317,7 +325,7 @@ impl LampPixels {
             // lamp's pixels are many, and this runs at every update). An
             // object thinner than one of the 4×4 edge sub-pixels could hide
             // a lamp sample and leave no coverage: it is not looked for.
-            let may_be_hidden = composite.alpha.get(i).is_none_or(|a| *a > 0.0);
+            let may_be_hidden = composite.alpha.get(j).is_none_or(|a| *a > 0.0);
             let shot = photo.pixels[i].max(Vec3::ZERO);
             let lamps_shot = (shot - filled.pixels[i] * (1.0 - real_share)).max(Vec3::ZERO);
             let (mut lamp, mut visible, mut unchanged) = (Vec3::ZERO, 0u32, true);
@@ -343,7 +351,7 @@ impl LampPixels {
                         Vec3::ZERO
                     };
             }
-            let background = composite.image.pixels[i];
+            let background = composite.image.pixels[j];
             let value = if unchanged && background == filled.pixels[i] {
                 photo.pixels[i]
             } else {
@@ -354,8 +362,8 @@ impl LampPixels {
                     Vec3::ZERO
                 }
             };
-            composite.image.pixels[i] = value;
-            if let Some(c) = composite.change.pixels.get_mut(i) {
+            composite.image.pixels[j] = value;
+            if let Some(c) = composite.change.pixels.get_mut(j) {
                 *c = value - photo.pixels[i];
             }
         }

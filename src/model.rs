@@ -97,6 +97,19 @@ impl StageTimes {
         out
     }
 
+    /// Adds `other`'s stages, each to this one's of the same name (pushed
+    /// when there is none): a stage run once per band is one line.
+    pub fn absorb(&mut self, other: StageTimes) {
+        for (list, more) in [(&mut self.0, other.0), (&mut self.1, other.1)] {
+            for (name, d) in more {
+                match list.iter_mut().find(|(n, _)| *n == name) {
+                    Some(entry) => entry.1 += d,
+                    None => list.push((name, d)),
+                }
+            }
+        }
+    }
+
     /// The stages' wall time (those run side by side counted once, as the stage they ran in).
     pub fn total(&self) -> Duration {
         self.0.iter().map(|(_, d)| *d).sum()

@@ -4,6 +4,9 @@
 use crate::composite::Composite;
 use crate::image_io::Image;
 
+mod frame;
+pub use frame::{AOV_LAYERS, FrameFiles, FrameLayer, FrameWriter};
+
 /// What a render produced and what it did.
 pub struct RenderOutput {
     pub composite: Composite,

@@ -170,23 +170,32 @@ pub struct EdgePixel {
 }
 
 /// The Pixel Data Array.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct PixelDataArray {
     pub width: u32,
     pub height: u32,
     pub light_count: usize,
     /// Sub-pixels per side of an edge pixel.
     pub supersample: u32,
-    /// Per pixel, index into `real` (u32::MAX: no real surface).
+    /// The pixels it is for (the whole image, a crop, a band): the
+    /// composite counts these.
+    pub own: PixelRect,
+    /// The rows the per-pixel arrays hold (the whole image, or a band or
+    /// crop with its margin): pixel `i`'s entry is at `i − rows.0 × width`.
+    pub rows: (u32, u32),
+    /// Per pixel held, index into `real` (u32::MAX: no real surface);
+    /// read through [`PixelDataArray::real_at`].
     pub real_index: Vec<u32>,
-    /// Per pixel, how far along its centre ray the real hit lies, as the
-    /// tracer reported it (∞: none): an update traces that ray through the
-    /// objects alone, only as far, instead of through the room again.
+    /// Per pixel held, how far along its centre ray the real hit lies, as
+    /// the tracer reported it (∞: none): an update traces that ray through
+    /// the objects alone, only as far, instead of through the room again.
+    /// Kept for updates only (empty for a still).
     pub real_t: Vec<f32>,
     pub real: Samples,
     /// Per real point and light (as `real.terms`), its shadow rays' real blockers.
     pub real_masks: Vec<RealMask>,
-    /// Per pixel, index into `virtual_samples` (u32::MAX: no virtual surface in front).
+    /// Per pixel held, index into `virtual_samples` (u32::MAX: no virtual
+    /// surface in front); read through [`PixelDataArray::virtual_at`].
     pub virtual_index: Vec<u32>,
     /// The pixels `virtual_index` holds, in pixel order.
     pub virtual_pixels: Vec<u32>,
@@ -219,12 +228,39 @@ pub struct PdaInput<'a> {
     pub active: &'a [bool],
     pub bounds: &'a VirtualBounds,
     pub settings: PdaSettings,
-    /// Keep each real point's real blockers ([`RealMask`]) for updates
-    /// after objects move; a still image has no use for them.
+    /// Keep each real point's real blockers ([`RealMask`]) and centre
+    /// rays' lengths for updates after objects move; a still image has no
+    /// use for them.
     pub for_updates: bool,
+    /// Only these rows (of the crop, if any): a band of a still rendered
+    /// band by band. Its data reaches the seams' neighbourhood beyond.
+    pub band: Option<(u32, u32)>,
 }
 
 impl PdaInput<'_> {
+    /// The pixels computed: [`PdaInput::own`]'s, and a margin beyond
+    /// (their pixels read their neighbours' data in the seams' filter:
+    /// computed that far beyond, they are the whole frame's).
+    pub(crate) fn window(&self) -> PixelRect {
+        let (w, h) = (self.camera.width, self.camera.height);
+        self.own()
+            .grown(crate::composite::seams::NEIGHBOURHOOD, w, h)
+    }
+
+    /// The pixels the array is for: the crop's within the band, or all.
+    pub(crate) fn own(&self) -> PixelRect {
+        let (w, h) = (self.camera.width, self.camera.height);
+        let mut r = self
+            .settings
+            .crop
+            .and_then(|c| c.pixels(w, h))
+            .unwrap_or(PixelRect::full(w, h));
+        if let Some((y0, y1)) = self.band {
+            (r.y0, r.y1) = (r.y0.max(y0), r.y1.min(y1).max(r.y0.max(y0)));
+        }
+        r
+    }
+
     /// The light terms of a surface point; returns rays cast. `masks`:
     /// where to keep each light's real blockers (real points only).
     fn terms(
@@ -294,10 +330,9 @@ impl PdaInput<'_> {
 }
 
 impl PixelDataArray {
-    /// Builds the array for every pixel of the camera.
+    /// Builds the array for the pixels of [`PdaInput::window`].
     pub fn build(input: &PdaInput) -> PixelDataArray {
         let cam = input.camera;
-        let (w, h) = (cam.width, cam.height);
         // Pixels near a virtual object's image are tested for mixed sub-pixels.
         let near_virtual = screen_boxes(cam, input.bounds);
         let candidates = if near_virtual.is_empty() {
@@ -309,17 +344,42 @@ impl PixelDataArray {
             input,
             near_virtual,
             candidates,
-            // A crop's pixels read their neighbours' data (the seams'
-            // filter): computed a margin beyond it, they are the whole frame's.
-            window: input
-                .settings
-                .crop
-                .and_then(|c| c.pixels(w, h))
-                .map(|r| r.grown(crate::composite::seams::NEIGHBOURHOOD, w, h))
-                .unwrap_or(PixelRect::full(w, h)),
+            window: input.window(),
         };
-        let rows: Vec<Row> = (0..h).into_par_iter().map(|row| tracer.row(row)).collect();
-        PixelDataArray::assemble(input, rows)
+        let window = tracer.window;
+        let rows: Vec<Row> = (window.y0..window.y1)
+            .into_par_iter()
+            .map(|row| tracer.row(row))
+            .collect();
+        let mut pda = PixelDataArray::assemble(input, (window.y0, window.y1), rows);
+        pda.own = input.own();
+        pda
+    }
+
+    /// Pixel `pixel`'s index into `real` (u32::MAX: none, or not held).
+    pub fn real_at(&self, pixel: usize) -> u32 {
+        self.slot(pixel)
+            .and_then(|k| self.real_index.get(k))
+            .copied()
+            .unwrap_or(NONE)
+    }
+
+    /// Pixel `pixel`'s index into `virtual_samples` (u32::MAX: none, or not held).
+    pub fn virtual_at(&self, pixel: usize) -> u32 {
+        self.slot(pixel)
+            .and_then(|k| self.virtual_index.get(k))
+            .copied()
+            .unwrap_or(NONE)
+    }
+
+    /// Where pixel `pixel`'s entries lie in the per-pixel arrays.
+    fn slot(&self, pixel: usize) -> Option<usize> {
+        pixel.checked_sub(self.first_pixel())
+    }
+
+    /// The frame's index of the first pixel held.
+    pub fn first_pixel(&self) -> usize {
+        self.rows.0 as usize * self.width as usize
     }
 
     /// Recomputes the light terms of the real points at `pixels` for
@@ -340,6 +400,7 @@ impl PixelDataArray {
             return 0;
         }
         let lights = self.light_count;
+        let first = self.first_pixel();
         let (real_index, points, terms, masks) = (
             &self.real_index,
             &self.real.points,
@@ -352,7 +413,7 @@ impl PixelDataArray {
             .par_iter()
             .with_min_len(64)
             .filter_map(|&pixel| {
-                let k = real_index[pixel as usize];
+                let k = real_index[pixel as usize - first];
                 (k != NONE).then(|| {
                     let p = points[k as usize];
                     let at = k as usize * lights + light;
@@ -393,13 +454,14 @@ impl PixelDataArray {
     ///
     /// [`build`]: PixelDataArray::build
     pub(crate) fn rebuild_virtual(&mut self, input: &PdaInput) -> (u64, u64) {
-        let n = (self.width * self.height) as usize;
+        let n = self.real_index.len();
+        let first = self.first_pixel();
         // Reset in place, where the last placement set it: a fresh 0.8 MB
         // each update faulted its pages in again, and filling it all
         // wrote 0.8 MB to clear a few thousand entries.
         self.virtual_index.resize(n, NONE);
         for &pixel in &self.virtual_pixels {
-            self.virtual_index[pixel as usize] = NONE;
+            self.virtual_index[pixel as usize - first] = NONE;
         }
         self.virtual_pixels.clear();
         // Emptied, their room kept: the next placement fills about as many.
@@ -429,16 +491,15 @@ impl PixelDataArray {
         (rays, pixels.len() as u64)
     }
 
-    /// Bytes held, and per pixel.
-    /// The share of `window`'s pixels whose centre sees a real surface.
-    pub fn coverage(&self, window: PixelRect) -> f64 {
-        let seen = (window.y0..window.y1)
+    /// How many of `window`'s pixels have a centre that sees a real surface.
+    pub fn covered(&self, window: PixelRect) -> usize {
+        (window.y0..window.y1)
             .flat_map(|y| (window.x0..window.x1).map(move |x| (x, y)))
-            .filter(|&(x, y)| self.real_index[(y * self.width + x) as usize] != NONE)
-            .count();
-        seen as f64 / window.pixel_count().max(1) as f64
+            .filter(|&(x, y)| self.real_at((y * self.width + x) as usize) != NONE)
+            .count()
     }
 
+    /// Bytes held.
     pub fn memory_bytes(&self) -> usize {
         let samples = |s: &Samples| {
             s.points.len() * std::mem::size_of::<SurfacePoint>()

@@ -80,17 +80,9 @@ impl Default for RenderSettings {
 const MIN_COVERAGE: f64 = 0.5;
 
 /// A warning when the model covers less than [`MIN_COVERAGE`] of the
-/// image (of the crop window, when one is given).
-fn coverage_warning(
-    pda: &PixelDataArray,
-    camera: &crate::camera::Camera,
-    crop: Option<crate::image_io::CropWindow>,
-) -> Option<String> {
-    let (w, h) = (camera.width, camera.height);
-    let window = crop
-        .and_then(|c| c.pixels(w, h))
-        .unwrap_or(crate::image_io::PixelRect::full(w, h));
-    let covered = pda.coverage(window);
+/// image's `pixels` (the crop window's, when one is given).
+fn coverage_warning(covered: usize, pixels: usize) -> Option<String> {
+    let covered = covered as f64 / pixels.max(1) as f64;
     (covered < MIN_COVERAGE).then(|| {
         format!(
             "the model covers {:.1}% of the image: the rest is the photo, unchanged (check the camera's position, look_at and field of view against `arlux ids`)",
@@ -193,7 +185,7 @@ fn render_reachable(
             texture: None,
         });
     }
-    Ok(Session::begin(scene, photo, settings, times, false)?.into_output())
+    Ok(Session::begin(scene, photo, settings, times, false, None)?.into_output())
 }
 
 /// A render kept alive for updates: after virtual objects move,
@@ -233,6 +225,10 @@ pub struct Session {
     for_updates: bool,
     /// What re-linking the objects learns about the room's links, for the next pose.
     link_facts: crate::radiosity::RoomLinkFacts,
+    /// The rows of a still rendered band by band (see [`render_bands`]).
+    band: Option<(u32, u32)>,
+    /// Pixels whose centre sees a real surface, over the bands so far.
+    covered: usize,
     /// Whether composites keep the direct, indirect and change layers (see [`Session::image_only`]).
     layers: bool,
     /// The objects' gather directions, for the next pose.
@@ -266,7 +262,7 @@ impl Session {
         settings: &RenderSettings,
         times: &mut StageTimes,
     ) -> Result<Session> {
-        Session::begin(scene, photo, settings, times, true)
+        Session::begin(scene, photo, settings, times, true, None)
     }
 
     /// A full render; `for_updates`: keep what updates need and a still does not.
@@ -276,6 +272,7 @@ impl Session {
         settings: &RenderSettings,
         times: &mut StageTimes,
         for_updates: bool,
+        band: Option<(u32, u32)>,
     ) -> Result<Session> {
         let mut left_out = Vec::new();
         let mut settings = RenderSettings {
@@ -338,22 +335,7 @@ impl Session {
         };
         let changes = solve_changes(&input, objects.as_ref(), &mut gather_directions, times)
             .with_patches(objects);
-        let patches = changes.own.as_ref().map_or(&model.patches, |o| &o.0);
-        let pda = times.time("pixel data array", || {
-            PixelDataArray::build(&PdaInput {
-                camera: &scene.camera,
-                tracer: &tracer,
-                patches,
-                lights: &model.lights,
-                active: &active,
-                bounds: &bounds,
-                settings: settings.pda,
-                for_updates,
-            })
-        });
-        let rays = pda.rays;
-        let mut warnings = crate::inputs::input_warnings(&photo, Some(&model.estimate));
-        warnings.extend(coverage_warning(&pda, &scene.camera, settings.pda.crop));
+        let warnings = crate::inputs::input_warnings(&photo, Some(&model.estimate));
         let mut session = Session {
             scene: scene.clone(),
             given_lights,
@@ -370,21 +352,64 @@ impl Session {
             indirect_without,
             changes,
             bounds,
-            pda,
+            pda: PixelDataArray::default(),
             blocks: None,
             composite: Composite::empty(),
             known: None,
             left_out,
-            rays,
+            rays: 0,
             for_updates,
+            band,
+            covered: 0,
             link_facts,
             layers: true,
             gather_directions,
             reached: Vec::new(),
             block_shafts: Vec::new(),
         };
+        session.trace_pixels(times);
         session.recomposite(times, &[]);
         Ok(session)
+    }
+
+    /// Builds the Pixel Data Array for the session's pixels (its crop's,
+    /// and its band's when rendered by bands).
+    fn trace_pixels(&mut self, times: &mut StageTimes) {
+        let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| &o.0);
+        let input = PdaInput {
+            camera: &self.scene.camera,
+            tracer: &self.tracer,
+            patches,
+            lights: &self.model.lights,
+            active: &self.active,
+            bounds: &self.bounds,
+            settings: self.settings.pda,
+            for_updates: self.for_updates,
+            band: self.band,
+        };
+        self.pda = times.time("pixel data array", || PixelDataArray::build(&input));
+        self.rays += self.pda.rays;
+        let own = self.own_pixels();
+        self.covered += self.pda.covered(own);
+    }
+
+    /// The pixels of the image: its crop's, or the frame's.
+    fn image_pixels(&self) -> crate::image_io::PixelRect {
+        let cam = &self.scene.camera;
+        let (w, h) = (cam.width, cam.height);
+        (self.settings.pda.crop)
+            .and_then(|c| c.pixels(w, h))
+            .unwrap_or(crate::image_io::PixelRect::full(w, h))
+    }
+
+    /// The pixels this session's composite is made of: the image's,
+    /// within its band when rendered by bands.
+    fn own_pixels(&self) -> crate::image_io::PixelRect {
+        let mut r = self.image_pixels();
+        if let Some((y0, y1)) = self.band {
+            (r.y0, r.y1) = (r.y0.max(y0), r.y1.min(y1));
+        }
+        r
     }
 
     /// Composites the image; `recomputed` lists the pixels whose real
@@ -426,6 +451,7 @@ impl Session {
                 reflectance: &self.changes.reflectance,
                 patch_vertices: &patches.patch_vertices,
                 mode: self.settings.mode,
+                floor: ratio_floor(&self.model, &self.scales_without),
                 known: None,
                 layers: self.layers,
             };
@@ -599,6 +625,9 @@ impl Session {
     }
 
     pub(crate) fn into_output(self) -> RenderOutput {
+        let pixels = self.image_pixels().pixel_count();
+        let mut warnings = self.warnings;
+        warnings.extend(coverage_warning(self.covered, pixels));
         let patches = self
             .changes
             .own
@@ -619,7 +648,7 @@ impl Session {
             links_bytes: transport.memory_bytes(),
             patch_size: self.settings.model.patch_size,
             composite: self.composite,
-            warnings: self.warnings,
+            warnings,
             left_out: self.left_out,
             texture: None,
         }
@@ -637,6 +666,24 @@ fn photo_without_grain(photo: &Image, lamps: Option<&LampPixels>) -> Image {
         base.pixels[i] = photo.pixels[i];
     }
     base
+}
+
+/// The irradiance under which a composite's ratio is not trusted: a
+/// thousandth of the mean "without" irradiance over the pixels that see
+/// the room, from the model's patches, each weighted by the pixels that
+/// see it (the same number for the whole frame, a crop and a band).
+fn ratio_floor(model: &Model, scales_without: &[f64]) -> DVec3 {
+    let (mut sum, mut count) = (DVec3::ZERO, 0.0);
+    for (p, &n) in model.photo.pixels.iter().enumerate() {
+        if n > 0 {
+            let direct: DVec3 = (model.direct_per_light.iter().zip(scales_without))
+                .map(|(d, s)| d[p] * *s)
+                .sum();
+            sum += (direct + model.estimate.solution.indirect_irradiance[p]) * n as f64;
+            count += n as f64;
+        }
+    }
+    sum / count.max(1.0) * 1e-3
 }
 
 /// The room's largest patch edge: the user's, or from what the scene changes.
@@ -728,8 +775,14 @@ fn merge_sorted(a: &[u32], b: &[u32]) -> Vec<u32> {
     out
 }
 
+mod bands;
 mod changes;
 mod pixels;
+
+pub use bands::{
+    BYTES_PER_BAND_PIXEL, BYTES_PER_FRAME_PIXEL, band_rows, default_memory, parse_memory,
+    render_bands,
+};
 
 use changes::*;
 use pixels::*;

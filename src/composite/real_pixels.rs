@@ -65,9 +65,11 @@ impl RealPixels {
     pub fn of(input: &CompositeInput) -> RealPixels {
         let pda = input.pda;
         let lights = pda.light_count;
-        let floor = RealPixels::floor_of(input);
+        let floor = input.floor;
+        let first = pda.first_pixel() as u32;
         let pixel_of: Vec<u32> = (0..pda.real_index.len() as u32)
             .filter(|&i| pda.real_index[i as usize] != u32::MAX)
+            .map(|i| first + i)
             .collect();
         // Straight into the two halves: no image-sized list of whole pixels.
         let (affine, keep): (Vec<AffinePixel>, Vec<PhotoBand>) = pixel_of
@@ -97,33 +99,12 @@ impl RealPixels {
         known
     }
 
-    /// The floor under which a ratio is not trusted: a thousandth of the
-    /// mean "without" irradiance of the real points.
-    pub(crate) fn floor_of(input: &CompositeInput) -> DVec3 {
-        let pda = input.pda;
-        let lights = pda.light_count;
-        let sum: DVec3 = pda
-            .real
-            .points
-            .par_iter()
-            .enumerate()
-            .map(|(k, p)| {
-                input.irradiance(
-                    &pda.real.terms[k * lights..(k + 1) * lights],
-                    input.scales_without,
-                    false,
-                ) + input.interpolate(input.indirect_without, &p.location)
-            })
-            .sum();
-        sum / pda.real.points.len().max(1) as f64 * 1e-3
-    }
-
     /// Prepares again the real points of `pixels`, whose light terms changed.
     pub(crate) fn refresh(&mut self, input: &CompositeInput, pixels: &[u32]) {
         let pda = input.pda;
         let lights = pda.light_count;
         for &i in pixels {
-            let k = pda.real_index[i as usize];
+            let k = pda.real_at(i as usize);
             if k != u32::MAX {
                 let k = k as usize;
                 let r = input.real_pixel(

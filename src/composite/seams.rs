@@ -55,10 +55,10 @@ const DARK: f32 = 1e-6;
 pub(super) fn seam_pixels(pda: &PixelDataArray) -> Vec<u32> {
     let (w, h) = (pda.width as i64, pda.height as i64);
     let point = |x: i64, y: i64| {
-        let k = pda.real_index[(y * w + x) as usize];
+        let k = pda.real_at((y * w + x) as usize);
         (k != u32::MAX).then(|| &pda.real.points[k as usize])
     };
-    (0..h)
+    (pda.rows.0 as i64..pda.rows.1 as i64)
         .into_par_iter()
         .flat_map_iter(|y| {
             (0..w).filter_map(move |x| {
@@ -94,11 +94,13 @@ pub(super) fn smooth_seams(
     out: &mut Composite,
 ) {
     let (w, h) = (pda.width as i64, pda.height as i64);
+    // The composite holds the rows the pixel data holds.
+    let first = out.first_row as usize * pda.width as usize;
     let plain = |i: usize| {
-        pda.real_index[i] != u32::MAX && photo.pixels[i].min_element() > DARK && no_object(i)
+        pda.real_at(i) != u32::MAX && photo.pixels[i].min_element() > DARK && no_object(i)
     };
     let image = &out.image.pixels;
-    let gain = |i: usize| image[i] / photo.pixels[i];
+    let gain = |i: usize| image[i - first] / photo.pixels[i];
     let filtered: Vec<(usize, Vec3)> = seams
         .par_iter()
         .filter_map(|&s| {
@@ -148,9 +150,9 @@ pub(super) fn smooth_seams(
     let layers = out.change.pixels.len() == out.image.pixels.len();
     for (i, v) in filtered {
         if v.is_finite() {
-            out.image.pixels[i] = v;
+            out.image.pixels[i - first] = v;
             if layers {
-                out.change.pixels[i] = v - photo.pixels[i];
+                out.change.pixels[i - first] = v - photo.pixels[i];
             }
         }
     }

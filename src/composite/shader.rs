@@ -25,7 +25,7 @@ impl<'a> Shader<'a> {
         let pda = input.pda;
         let floor = input
             .known
-            .map_or_else(|| RealPixels::floor_of(input), |k| k.floor);
+            .map_or(input.floor, |k| k.floor);
         let (w, h) = (pda.width, pda.height);
         let mut spans = vec![(u32::MAX, 0u32); h as usize];
         for &p in pda
@@ -54,7 +54,7 @@ impl<'a> Shader<'a> {
     /// Whether pixel `i` shows no object, in whole or in part (outside
     /// the row's span: without looking it up).
     pub(super) fn shows_no_object(&self, i: usize) -> bool {
-        !self.in_span(i) || (self.pda.virtual_index[i] == u32::MAX && self.edge_at(i).is_none())
+        !self.in_span(i) || (self.pda.virtual_at(i) == u32::MAX && self.edge_at(i).is_none())
     }
 
     /// Pixel `i`'s edge entry, if it mixes sub-pixels (edges are in pixel order).
@@ -83,7 +83,7 @@ impl<'a> Shader<'a> {
         let mut object = DVec3::ZERO;
         for k in e.start..e.start + e.count {
             let p = &pda.edge_samples.points[k as usize];
-            let terms = match pda.real_index[i] {
+            let terms = match pda.real_at(i) {
                 r if p.pixel_terms && r != u32::MAX => {
                     &pda.real.terms[r as usize * lights..(r as usize + 1) * lights]
                 }
@@ -132,8 +132,8 @@ impl<'a> Shader<'a> {
         if let Some(e) = self.edge_at(i) {
             return self.shade_edge(i, e);
         }
-        if pda.virtual_index[i] != u32::MAX {
-            let k = pda.virtual_index[i] as usize;
+        if pda.virtual_at(i) != u32::MAX {
+            let k = pda.virtual_at(i) as usize;
             let s = self.input.shade_virtual(
                 &pda.virtual_samples.points[k],
                 &pda.virtual_samples.terms[k * lights..(k + 1) * lights],
@@ -161,9 +161,9 @@ impl<'a> Shader<'a> {
     pub(super) fn plain(&self, i: usize, h_with: &[[Vec3A; 4]]) -> Option<PixelShade> {
         let (input, pda, lights) = (self.input, self.pda, self.lights);
         let photo = &input.photo.pixels;
-        let k = pda.real_index[i];
+        let k = pda.real_at(i);
         if k == u32::MAX
-            || self.in_span(i) && (pda.virtual_index[i] != u32::MAX || self.edge_at(i).is_some())
+            || self.in_span(i) && (pda.virtual_at(i) != u32::MAX || self.edge_at(i).is_some())
         {
             return None;
         }
@@ -233,12 +233,14 @@ impl<'a> Shader<'a> {
             .zip(out.alpha.par_chunks_mut(w))
             .enumerate();
         let counts = rows
-            .map(|(row, (image, alpha))| {
-                let at = row * w..row * w + image.len();
+            .map(|(local, (image, alpha))| {
+                // The composite holds the rows the pixel data holds.
+                let row = local + pda.rows.0 as usize;
+                let at = local * w..local * w + image.len();
                 let (real, virt, photo_row) = (
                     &pda.real_index[at.clone()],
-                    &pda.virtual_index[at.clone()],
-                    &photo[at],
+                    &pda.virtual_index[at],
+                    &photo[row * w..row * w + image.len()],
                 );
                 // Outside the columns where objects or edges may show,
                 // every pixel is plain: a loop that asks nothing else.

@@ -14,7 +14,7 @@ use crate::camera::Camera;
 use crate::error::{Error, Result};
 
 /// A rectangle of pixels, columns `x0..x1` and rows `y0..y1`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct PixelRect {
     pub x0: u32,
     pub y0: u32,

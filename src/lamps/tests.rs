@@ -100,6 +100,7 @@ fn a_lamp_follows_its_scale_and_the_photo_stays_where_nothing_changed() {
     let render = |scale: f64| {
         // The ceiling's change: it keeps its radiance (the composite of the filled photo).
         let mut composite = Composite {
+        first_row: 0,
             image: filled.clone(),
             change: Image::new(camera.width, camera.height),
             ..Composite::empty()
@@ -156,6 +157,7 @@ fn an_object_in_front_of_a_lamp_hides_it() {
     let filled = lamps.photo_without_lamps(&photo);
     let shaded = Vec3::splat(0.05);
     let mut composite = Composite {
+        first_row: 0,
         image: Image {
             pixels: vec![shaded; photo.pixels.len()],
             ..filled.clone()

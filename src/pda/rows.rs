@@ -36,10 +36,6 @@ impl RowTracer<'_> {
         let cam = input.camera;
         let w = cam.width;
         let mut r = Row::default();
-        if !(window.y0..window.y1).contains(&row) {
-            r.real_t = vec![f32::INFINITY; w as usize];
-            return r;
-        }
         let rays: Vec<TraceRay> = (0..w)
             .map(|col| {
                 let ray = cam.pixel_ray(col, row);
@@ -62,7 +58,9 @@ impl RowTracer<'_> {
                 .tracer
                 .put_virtual_in_front(&rays, &real_t, &mut all_hits);
         }
-        r.real_t = real_t;
+        if input.for_updates {
+            r.real_t = real_t;
+        }
         let candidate = |pixel: u32| self.candidates.as_ref().is_none_or(|m| m[pixel as usize]);
         for col in window.x0..window.x1 {
             let pixel = row * w + col;
@@ -120,16 +118,18 @@ pub(super) type Retraced = (
 
 impl PixelDataArray {
     /// The array from its rows, in order.
-    pub(super) fn assemble(input: &PdaInput, rows: Vec<Row>) -> PixelDataArray {
+    pub(super) fn assemble(input: &PdaInput, held: (u32, u32), rows: Vec<Row>) -> PixelDataArray {
         let (w, h) = (input.camera.width, input.camera.height);
-        let n = (w * h) as usize;
+        let n = ((held.1 - held.0) * w) as usize;
         let mut pda = PixelDataArray {
             width: w,
             height: h,
             light_count: input.lights.len(),
             supersample: input.settings.supersample.max(1),
+            rows: held,
+            own: PixelRect::full(w, h),
             real_index: vec![NONE; n],
-            real_t: Vec::with_capacity(n),
+            real_t: Vec::with_capacity(if input.for_updates { n } else { 0 }),
             real: Samples::default(),
             real_masks: Vec::new(),
             virtual_index: vec![NONE; n],
@@ -139,9 +139,10 @@ impl PixelDataArray {
             edge_samples: Samples::default(),
             rays: 0,
         };
+        let first = pda.first_pixel();
         for r in rows {
             for (pixel, p) in r.real {
-                pda.real_index[pixel as usize] = pda.real.points.len() as u32;
+                pda.real_index[pixel as usize - first] = pda.real.points.len() as u32;
                 pda.real.points.push(p);
             }
             pda.real.terms.extend(r.real_terms);
@@ -162,7 +163,8 @@ impl PixelDataArray {
 
     /// Adds pixel `pixel`'s virtual point, and its terms.
     pub(super) fn push_virtual(&mut self, pixel: u32, p: SurfacePoint, terms: &[LightTerm]) {
-        self.virtual_index[pixel as usize] = self.virtual_samples.points.len() as u32;
+        let first = self.first_pixel();
+        self.virtual_index[pixel as usize - first] = self.virtual_samples.points.len() as u32;
         self.virtual_pixels.push(pixel);
         self.virtual_samples.points.push(p);
         self.virtual_samples.terms.extend_from_slice(terms);
@@ -201,7 +203,7 @@ impl PixelDataArray {
             );
             (y0..=y1).all(|yy| {
                 (x0..=x1).all(|xx| {
-                    let k = self.real_index[(yy * self.width + xx) as usize];
+                    let k = self.real_at((yy * self.width + xx) as usize);
                     k != NONE
                         && (self.real.points[k as usize].position.as_dvec3() - cam.position)
                             .length()
@@ -235,7 +237,7 @@ impl PixelDataArray {
         candidates: Option<&[bool]>,
     ) -> Vec<Retraced> {
         let cam = input.camera;
-        let real_t = &self.real_t;
+        let (real_t, first) = (&self.real_t, self.first_pixel());
         pixels
             .par_chunks(16)
             .flat_map_iter(|chunk| {
@@ -246,7 +248,10 @@ impl PixelDataArray {
                         TraceRay::new(ray.origin.as_vec3(), ray.direction.as_vec3())
                     })
                     .collect();
-                let before: Vec<f32> = chunk.iter().map(|&pixel| real_t[pixel as usize]).collect();
+                let before: Vec<f32> = chunk
+                    .iter()
+                    .map(|&pixel| real_t[pixel as usize - first])
+                    .collect();
                 let mut hits = vec![None; chunk.len()];
                 input
                     .tracer
@@ -270,8 +275,8 @@ impl PixelDataArray {
                     });
                 let mut edge_terms = Vec::new();
                 // No object in front: the centre sees the real hit, if there is one.
-                let seen = hit.is_none() && real_t[pixel as usize].is_finite();
-                let real = Some(self.real_index[pixel as usize])
+                let seen = hit.is_none() && real_t[pixel as usize - first].is_finite();
+                let real = Some(self.real_at(pixel as usize))
                     .filter(|&k| k != NONE && seen)
                     .map(|k| &self.real.points[k as usize]);
                 let (kept, r) = if candidates.is_none_or(|m| m[pixel as usize]) {

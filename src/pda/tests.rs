@@ -359,6 +359,7 @@ fn pixels_across_a_crease_of_an_object_are_shaded_per_sub_pixel() {
         bounds: &bounds,
         settings: PdaSettings::default(),
         for_updates: false,
+        band: None,
     });
     let full = pda.supersample * pda.supersample;
     let planes = |e: &EdgePixel| {

@@ -14,6 +14,7 @@ impl TexturePath {
         let nl = self.lights.len();
         let (w, h) = (photo.width, photo.height);
         let mut out = Composite {
+            first_row: 0,
             image: Image::new(w, h),
             direct: Image::new(w, h),
             indirect: Image::new(w, h),
@@ -24,7 +25,7 @@ impl TexturePath {
             ratio_fallbacks: 0,
             clamped: 0,
         };
-        out.fill(photo, |i| {
+        out.fill(photo, crate::image_io::PixelRect::full(w, h), |i| {
             let Some(px) = &self.pixels[i] else {
                 return PixelShade {
                     value: photo.pixels[i],

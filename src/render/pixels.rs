@@ -34,6 +34,7 @@ impl PixelUpdate<'_> {
             bounds: changes.bounds,
             settings: changes.settings.pda,
             for_updates: true,
+            band: None,
         };
         let pda = self.pda;
         let (mut rays, retraced) =

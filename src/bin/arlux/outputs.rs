@@ -192,9 +192,9 @@ impl Batch {
 
     /// Writes every output with `write` (given the batch to stage them in),
     /// then renames them into place; on failure nothing of the run is left.
-    pub fn run(write: impl FnOnce(&mut Batch) -> Result<()>) -> Result<()> {
+    pub fn run<T>(write: impl FnOnce(&mut Batch) -> Result<T>) -> Result<T> {
         let mut batch = Batch::default();
-        let result = write(&mut batch).and_then(|()| batch.commit());
+        let result = write(&mut batch).and_then(|out| batch.commit().map(|()| out));
         if result.is_err() {
             batch.abort();
         }

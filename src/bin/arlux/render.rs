@@ -6,9 +6,10 @@ use anyhow::{Context, Result};
 use serde_json::json;
 
 use arlux::compare::{Comparison, Skill, compare, skill};
-use arlux::image_io::{self, ExrMeta, Image, PixelRect};
+use arlux::image_io::{self, ExrMeta, PixelRect};
 use arlux::model::StageTimes;
-use arlux::output::RenderOutput;
+use arlux::composite::Composite;
+use arlux::output::{AOV_LAYERS, FrameFiles, FrameWriter, RenderOutput};
 
 use arlux::composite::CompositeMode;
 use arlux::settings::{Method, RenderMethod, RenderOptions};
@@ -84,6 +85,11 @@ pub struct Args {
     /// assembles tiles.
     #[arg(long, num_args = 4, value_names = ["X0", "X1", "Y0", "Y1"], allow_negative_numbers = true)]
     pub crop: Option<Vec<f64>>,
+    /// The memory a render may hold, as bytes with a suffix (`4G`, `800M`):
+    /// the image is rendered and written in bands of rows that fit
+    /// (default: half the memory available, at most 1.5G).
+    #[arg(long)]
+    pub memory: Option<String>,
     /// Refine the room's links again rather than read them from
     /// `.arlux-cache/` next to the scene (nor keep them there).
     #[arg(long)]
@@ -125,6 +131,10 @@ pub fn run(args: &Args) -> Result<()> {
     if !(args.exposure.is_finite() && args.exposure.abs() <= 64.0) {
         anyhow::bail!("--exposure {}: give stops within ±64", args.exposure);
     }
+    let budget = match &args.memory {
+        Some(m) => arlux::render::parse_memory(m).map_err(|e| anyhow::anyhow!("--memory {m}: {e}"))?,
+        None => arlux::render::default_memory(),
+    };
     let mut times = StageTimes::default();
     let base = times.time("load", || load(&args.scene, None))?;
     let variant = args.variant.as_deref();
@@ -142,76 +152,88 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let window = options.crop_pixels(scene.camera.width, scene.camera.height)?;
     let photo = times.time("read photo", || read_photo(&scene))?;
-    let out = match &method {
-        Method::Pda(settings) => arlux::render::render(&scene, &photo, settings, &mut times)?,
-        Method::Texture(settings) => {
-            arlux::relight::render_texture(&scene, &photo, settings, &mut times)?
-        }
-    };
-    for w in &out.warnings {
-        warn(&scene, w)?;
-    }
     let meta = ExrMeta {
         window,
         ..frame_meta(&scene, json!({ "variant": variant, "settings": options }))
     };
-    times.time("write", || write_outputs(args, &out, &photo, &meta))?;
-    let error = times.time("compare", || -> Result<Option<(Comparison, Skill)>> {
-        let Some(r) = &reference else { return Ok(None) };
-        let truth = scene.fit_size(image_io::read_image(r)?, "variant.reference", r)?;
-        let (image, photo) = (&out.composite.image, &photo);
-        Ok(Some(match window {
-            None => (compare(image, &truth, None), skill(image, &truth, photo)),
-            // A tile is measured on its own pixels.
-            Some(w) => {
-                let (image, truth, photo) = (image.crop(w), truth.crop(w), photo.crop(w));
-                (compare(&image, &truth, None), skill(&image, &truth, &photo))
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let rows = arlux::render::band_rows(w, h, budget);
+    let (out, kept) = crate::outputs::Batch::run(|batch| {
+        let files = frame_files(args, batch, reference.is_some())?;
+        let mut writer = FrameWriter::start(&files, w, h, &meta)?;
+        let out = match &method {
+            Method::Pda(settings) => {
+                let mut sink = |band: Composite| Ok(writer.band(&band, &photo)?);
+                arlux::render::render_bands(&scene, &photo, settings, rows, &mut times, &mut sink)?
             }
-        }))
+            Method::Texture(settings) => {
+                let out = arlux::relight::render_texture(&scene, &photo, settings, &mut times)?;
+                times.time("write bands", || writer.band(&out.composite, &photo))?;
+                if let (Some(dir), Some((_, unoccluded, _))) = (&args.aov, &out.texture) {
+                    let layer = [image_io::ExrLayer::Rgb("", unoccluded)];
+                    let path = batch.stage(&dir.join("unoccluded_texture.exr"));
+                    image_io::write_exr_with(&path, w, h, &layer, &meta)?;
+                }
+                out
+            }
+        };
+        let kept = times.time("write", || writer.finish())?;
+        Ok((out, kept))
+    })?;
+    for w in &out.warnings {
+        warn(&scene, w)?;
+    }
+    let error = times.time("compare", || -> Result<Option<(Comparison, Skill)>> {
+        let (Some(r), Some(image)) = (&reference, &kept) else {
+            return Ok(None);
+        };
+        let truth = scene.fit_size(image_io::read_image(r)?, "variant.reference", r)?;
+        let frame = PixelRect::full(w, h);
+        let rect = window.unwrap_or(frame);
+        let (truth, photo) = match window {
+            None => (truth, photo.clone()),
+            // A tile is measured on its own pixels.
+            Some(r) => (truth.crop(r), photo.crop(r)),
+        };
+        debug_assert_eq!((image.width, image.height), (rect.width(), rect.height()));
+        Ok(Some((compare(image, &truth, None), skill(image, &truth, &photo))))
     })?;
     keep(&times);
-    let report = RenderReport::new(variant, &out, error, &times, window, &photo);
+    let bands = (out.texture.is_none()).then(|| Bands {
+        rows,
+        count: window.unwrap_or(PixelRect::full(w, h)).height().div_ceil(rows) as usize,
+        memory_budget: budget,
+    });
+    let report = RenderReport::new(variant, &out, error, &times, window, bands);
     print_report(&report, args.json)
 }
 
-/// The EXR with the layers a compositor expects (see [`write_frame`]), cut
-/// to the crop window, and the PNG and AOV files asked for.
-fn write_outputs(args: &Args, out: &RenderOutput, photo: &Image, meta: &ExrMeta) -> Result<()> {
-    crate::outputs::Batch::run(|batch| {
-        let c = &out.composite;
-        let (w, h) = (c.image.width, c.image.height);
-        write_frame(&batch.stage(&args.output), c, photo, meta)?;
-        if let Some(png) = &args.png {
-            let image = meta.window.map(|r| c.image.crop(r));
-            let img = image.as_ref().unwrap_or(&c.image);
-            image_io::write_png(&batch.stage(png), img, args.exposure)?;
-        }
-        let Some(dir) = &args.aov else { return Ok(()) };
+/// Where each output of `args` goes for now (staged in `batch`).
+fn frame_files(args: &Args, batch: &mut crate::outputs::Batch, keep_image: bool) -> Result<FrameFiles> {
+    let mut aov = Vec::new();
+    if let Some(dir) = &args.aov {
         batch
             .folder(dir)
             .with_context(|| format!("{}: could not create the folder", dir.display()))?;
-        // Every layer the frame's EXR holds, each a file of its own.
-        let shadow = c.shadow(photo);
-        let mut files = vec![
-            ("object", &c.object),
-            ("shadow", &shadow),
-            ("change", &c.change),
-            ("photo", photo),
-            ("direct", &c.direct),
-            ("indirect", &c.indirect),
-        ];
-        if let Some((_, unoccluded, _)) = &out.texture {
-            files.push(("unoccluded_texture", unoccluded));
+        for (name, layer) in AOV_LAYERS {
+            aov.push((layer, batch.stage(&dir.join(format!("{name}.exr")))));
         }
-        for (name, img) in files {
-            let layer = [image_io::ExrLayer::Rgb("", img)];
-            let path = batch.stage(&dir.join(format!("{name}.exr")));
-            image_io::write_exr_with(&path, w, h, &layer, meta)?;
-        }
-        let alpha = [image_io::ExrLayer::Channel("A", &c.alpha)];
-        image_io::write_exr_with(&batch.stage(&dir.join("alpha.exr")), w, h, &alpha, meta)?;
-        Ok(())
+    }
+    Ok(FrameFiles {
+        exr: batch.stage(&args.output),
+        png: args.png.as_ref().map(|p| (batch.stage(p), args.exposure)),
+        aov,
+        keep_image,
+        layers: true,
     })
+}
+
+/// How the image was cut into bands.
+#[derive(serde::Serialize)]
+struct Bands {
+    rows: u32,
+    count: usize,
+    memory_budget: u64,
 }
 
 /// `arlux render`'s report.
@@ -221,6 +243,8 @@ struct RenderReport<'a> {
     crop: Option<Crop>,
     pixels: usize,
     copied_from_photo: usize,
+    /// The pixel path renders and writes in bands of rows.
+    bands: Option<Bands>,
     ratio_fallbacks: usize,
     clamped: usize,
     patches: usize,
@@ -273,24 +297,11 @@ impl<'a> RenderReport<'a> {
         error: Option<(Comparison, Skill)>,
         times: &StageTimes,
         window: Option<PixelRect>,
-        photo: &Image,
+        bands: Option<Bands>,
     ) -> Self {
         let c = &out.composite;
-        // A tile counts its own pixels: those left as the photo's.
-        let (pixels, copied) = match window {
-            None => (out.pda_pixels, c.copied),
-            Some(r) => {
-                let w = c.image.width as usize;
-                let same = (r.y0..r.y1)
-                    .flat_map(|y| (r.x0..r.x1).map(move |x| y as usize * w + x as usize))
-                    .filter(|&i| {
-                        let bits = |v: glam::Vec3| v.to_array().map(f32::to_bits);
-                        bits(c.image.pixels[i]) == bits(photo.pixels[i])
-                    })
-                    .count();
-                (r.pixel_count(), same)
-            }
-        };
+        // A tile counts its own pixels (the composite counts those only).
+        let pixels = window.map_or(out.pda_pixels, |r| r.pixel_count());
         RenderReport {
             variant,
             crop: window.map(|r| Crop {
@@ -300,7 +311,8 @@ impl<'a> RenderReport<'a> {
                 y1: r.y1,
             }),
             pixels,
-            copied_from_photo: copied,
+            copied_from_photo: c.copied,
+            bands,
             ratio_fallbacks: c.ratio_fallbacks,
             clamped: c.clamped,
             patches: out.patches,

@@ -1,0 +1,220 @@
+//! A frame's files written band by band ([`FrameWriter`]): the EXR with
+//! every layer a compositor expects, each layer as a file of its own
+//! (AOVs), the PNG, and the image kept for a comparison only when one is
+//! asked for. What a band holds is written and dropped.
+
+use std::path::PathBuf;
+
+use glam::Vec3;
+
+use crate::composite::Composite;
+use crate::error::Result;
+use crate::image_io::{ExrMeta, ExrStream, Image, PixelRect, linear_to_srgb};
+
+/// A layer of a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FrameLayer {
+    Image,
+    Alpha,
+    /// The objects alone, premultiplied.
+    Object,
+    /// What the change did to the real surfaces, a factor on the photo.
+    Shadow,
+    Change,
+    Photo,
+    Direct,
+    Indirect,
+}
+
+/// The layers written as files of their own (`--aov`), by file name.
+pub const AOV_LAYERS: [(&str, FrameLayer); 7] = [
+    ("object", FrameLayer::Object),
+    ("shadow", FrameLayer::Shadow),
+    ("change", FrameLayer::Change),
+    ("photo", FrameLayer::Photo),
+    ("direct", FrameLayer::Direct),
+    ("indirect", FrameLayer::Indirect),
+    ("alpha", FrameLayer::Alpha),
+];
+
+/// A channel of a file: its name and the layer's component it holds.
+#[derive(Debug, Clone, PartialEq)]
+struct Channel {
+    name: String,
+    layer: FrameLayer,
+    component: usize,
+}
+
+/// The RGB channels of `layer` named `prefix.R` … (or `R` … without a prefix).
+fn rgb(prefix: &str, layer: FrameLayer) -> Vec<Channel> {
+    ["R", "G", "B"]
+        .iter()
+        .enumerate()
+        .map(|(component, c)| Channel {
+            name: if prefix.is_empty() {
+                c.to_string()
+            } else {
+                format!("{prefix}.{c}")
+            },
+            layer,
+            component,
+        })
+        .collect()
+}
+
+fn alpha(name: &str) -> Channel {
+    Channel {
+        name: name.to_string(),
+        layer: FrameLayer::Alpha,
+        component: 0,
+    }
+}
+
+/// The frame EXR's channels: the image and its coverage, and with
+/// `layers` the objects, shadow factor, change, photo, direct and indirect.
+fn frame_channels(layers: bool) -> Vec<Channel> {
+    let mut out = rgb("", FrameLayer::Image);
+    out.push(alpha("A"));
+    if layers {
+        out.extend(rgb("object", FrameLayer::Object));
+        out.push(alpha("object.A"));
+        for (name, layer) in &AOV_LAYERS[1..6] {
+            out.extend(rgb(name, *layer));
+        }
+    }
+    out
+}
+
+/// A layer's file of its own: `R`, `G`, `B`, or `A` for the coverage.
+fn aov_channels(layer: FrameLayer) -> Vec<Channel> {
+    match layer {
+        FrameLayer::Alpha => vec![alpha("A")],
+        _ => rgb("", layer),
+    }
+}
+
+/// Each channel's samples over `rect` (rows within `c`'s), in order.
+fn planes(c: &Composite, photo: &Image, rect: PixelRect, channels: &[Channel]) -> Vec<Vec<f32>> {
+    let w = c.image.width as usize;
+    let local = |x: u32, y: u32| (y - c.first_row) as usize * w + x as usize;
+    let frame = |x: u32, y: u32| y as usize * photo.width as usize + x as usize;
+    let value = |layer: FrameLayer, x: u32, y: u32| -> Vec3 {
+        let i = local(x, y);
+        let get = |img: &Image| img.pixels.get(i).copied().unwrap_or(Vec3::ZERO);
+        match layer {
+            FrameLayer::Image => c.image.pixels[i],
+            FrameLayer::Alpha => Vec3::splat(c.alpha[i]),
+            FrameLayer::Object => get(&c.object),
+            FrameLayer::Shadow => c.shadow_at(i, photo.pixels[frame(x, y)]),
+            FrameLayer::Change => get(&c.change),
+            FrameLayer::Photo => photo.pixels[frame(x, y)],
+            FrameLayer::Direct => get(&c.direct),
+            FrameLayer::Indirect => get(&c.indirect),
+        }
+    };
+    use rayon::prelude::*;
+    channels
+        .par_iter()
+        .map(|ch| {
+            (rect.y0..rect.y1)
+                .flat_map(|y| (rect.x0..rect.x1).map(move |x| (x, y)))
+                .map(|(x, y)| value(ch.layer, x, y)[ch.component])
+                .collect()
+        })
+        .collect()
+}
+
+/// The files of a frame and where each goes.
+#[derive(Debug, Clone, Default)]
+pub struct FrameFiles {
+    pub exr: PathBuf,
+    /// With its exposure, in stops.
+    pub png: Option<(PathBuf, f32)>,
+    /// Each layer's own file.
+    pub aov: Vec<(FrameLayer, PathBuf)>,
+    /// Keep the image (of the window) for a comparison.
+    pub keep_image: bool,
+    /// Write the layers beside the image (a motion writes its images only).
+    pub layers: bool,
+}
+
+/// A frame's files being written, band by band, in row order.
+pub struct FrameWriter {
+    window: PixelRect,
+    streams: Vec<(ExrStream, Vec<Channel>)>,
+    png: Option<(PathBuf, f32, Vec<u8>)>,
+    kept: Option<Image>,
+}
+
+impl FrameWriter {
+    /// Starts the files of a `width` × `height` frame, cut to `meta.window`.
+    pub fn start(files: &FrameFiles, width: u32, height: u32, meta: &ExrMeta) -> Result<Self> {
+        let window = meta.window.unwrap_or(PixelRect::full(width, height));
+        let mut streams = Vec::new();
+        let mut jobs = vec![(files.exr.clone(), frame_channels(files.layers))];
+        jobs.extend(
+            (files.aov.iter()).map(|(layer, path)| (path.clone(), aov_channels(*layer))),
+        );
+        for (path, channels) in jobs {
+            let names: Vec<String> = channels.iter().map(|c| c.name.clone()).collect();
+            let stream = ExrStream::create(&path, width, height, &names, meta)?;
+            // The planes go in the file's order.
+            let ordered = (stream.channels().iter())
+                .map(|n| channels.iter().find(|c| &c.name == n).cloned())
+                .collect::<Option<Vec<_>>>()
+                .expect("the stream orders the names it was given");
+            streams.push((stream, ordered));
+        }
+        let pixels = window.pixel_count();
+        Ok(FrameWriter {
+            window,
+            streams,
+            png: (files.png.clone()).map(|(p, ev)| (p, ev, Vec::with_capacity(3 * pixels))),
+            kept: files.keep_image.then(|| Image {
+                width: window.width(),
+                height: 0,
+                pixels: Vec::with_capacity(pixels),
+            }),
+        })
+    }
+
+    /// The next band: `c` holds the window's next rows (and may hold more).
+    pub fn band(&mut self, c: &Composite, photo: &Image) -> Result<()> {
+        let y1 = (c.first_row + c.image.height).min(self.window.y1);
+        let y0 = c.first_row.max(self.window.y0);
+        if y0 >= y1 {
+            return Ok(());
+        }
+        let rect = PixelRect { y0, y1, ..self.window };
+        for (stream, channels) in &mut self.streams {
+            stream.push(y1 - y0, planes(c, photo, rect, channels))?;
+        }
+        let image = planes(c, photo, rect, &rgb("", FrameLayer::Image));
+        let rgb_at = |k: usize| Vec3::new(image[0][k], image[1][k], image[2][k]);
+        if let Some((_, ev, bytes)) = &mut self.png {
+            let gain = ev.exp2();
+            bytes.extend((0..rect.pixel_count()).flat_map(|k| {
+                rgb_at(k)
+                    .to_array()
+                    .map(|v| (linear_to_srgb(v * gain) * 255.0).round() as u8)
+            }));
+        }
+        if let Some(kept) = &mut self.kept {
+            kept.pixels.extend((0..rect.pixel_count()).map(rgb_at));
+            kept.height += y1 - y0;
+        }
+        Ok(())
+    }
+
+    /// Ends every file; returns the image kept (the window's), if asked for.
+    pub fn finish(self) -> Result<Option<Image>> {
+        for (stream, _) in self.streams {
+            stream.finish()?;
+        }
+        if let Some((path, _, bytes)) = self.png {
+            let (w, h) = (self.window.width(), self.window.height());
+            crate::image_io::write_png_rgb8(&path, w, h, bytes)?;
+        }
+        Ok(self.kept)
+    }
+}
