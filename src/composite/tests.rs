@@ -133,6 +133,8 @@ fn a_seam_pixel_takes_the_change_of_the_side_it_shows_in_the_photo() {
         height: h,
         light_count: 0,
         supersample: 4,
+        own: crate::image_io::PixelRect::full(w, h),
+        rows: (0, h),
         real_index: (0..n as u32).collect(),
         real_t: vec![1.0; n],
         real: Samples {

@@ -203,14 +203,19 @@ fn encode(
     let blocks: Vec<(usize, BlockIndex)> =
         exr::block::enumerate_ordered_header_block_indices(&headers).collect();
     let result = exr::block::write(BufWriter::new(file), headers, true, |meta, chunks| {
-        // Rows held, from `first`: each band's rows appended, each written row of tiles dropped.
-        let (mut held, mut first, mut rows) = (vec![Vec::new(); channels], 0usize, 0usize);
+        // Rows held from `written`; `rows` of them from `first` not yet written.
+        let (mut held, mut written) = (vec![Vec::new(); channels], 0usize);
+        let (mut first, mut rows) = (0usize, 0usize);
         let mut next = 0;
         let w = width as usize;
         for band in receiver {
+            // Rows already written go now, in one move (not one per row of tiles).
+            let done = first - written;
             for (plane, new) in held.iter_mut().zip(band.planes) {
+                plane.drain(..done * w);
                 plane.extend(new);
             }
+            written = first;
             rows += band.rows as usize;
             while next < blocks.len() {
                 let y = blocks[next].1.pixel_position.y();
@@ -227,7 +232,7 @@ fn encode(
                     .map(|(index, block)| {
                         let list = &meta.headers[block.layer].channels;
                         let data = UncompressedBlock::from_lines(list, *block, |line| {
-                            let at = (line.location.position.y() - first) * w
+                            let at = (line.location.position.y() - written) * w
                                 + line.location.position.x();
                             let plane = &held[line.location.channel];
                             let samples = &plane[at..at + line.location.sample_count];
@@ -243,9 +248,6 @@ fn encode(
                 }
                 next = end;
                 let drop = (y + h - first).min(rows);
-                for plane in held.iter_mut() {
-                    plane.drain(..drop * w);
-                }
                 (first, rows) = (first + drop, rows - drop);
             }
         }

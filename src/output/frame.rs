@@ -95,31 +95,37 @@ fn aov_channels(layer: FrameLayer) -> Vec<Channel> {
 
 /// Each channel's samples over `rect` (rows within `c`'s), in order.
 fn planes(c: &Composite, photo: &Image, rect: PixelRect, channels: &[Channel]) -> Vec<Vec<f32>> {
-    let w = c.image.width as usize;
-    let local = |x: u32, y: u32| (y - c.first_row) as usize * w + x as usize;
-    let frame = |x: u32, y: u32| y as usize * photo.width as usize + x as usize;
-    let value = |layer: FrameLayer, x: u32, y: u32| -> Vec3 {
-        let i = local(x, y);
-        let get = |img: &Image| img.pixels.get(i).copied().unwrap_or(Vec3::ZERO);
-        match layer {
-            FrameLayer::Image => c.image.pixels[i],
-            FrameLayer::Alpha => Vec3::splat(c.alpha[i]),
-            FrameLayer::Object => get(&c.object),
-            FrameLayer::Shadow => c.shadow_at(i, photo.pixels[frame(x, y)]),
-            FrameLayer::Change => get(&c.change),
-            FrameLayer::Photo => photo.pixels[frame(x, y)],
-            FrameLayer::Direct => get(&c.direct),
-            FrameLayer::Indirect => get(&c.indirect),
-        }
-    };
     use rayon::prelude::*;
+    let w = c.image.width as usize;
+    let (x0, x1) = (rect.x0 as usize, rect.x1 as usize);
+    // The rect's part of each row of a layer held as `c`'s rows, or as the frame's.
+    let local = |y: u32| (y - c.first_row) as usize * w;
+    let frame = |y: u32| y as usize * photo.width as usize;
     channels
         .par_iter()
         .map(|ch| {
-            (rect.y0..rect.y1)
-                .flat_map(|y| (rect.x0..rect.x1).map(move |x| (x, y)))
-                .map(|(x, y)| value(ch.layer, x, y)[ch.component])
-                .collect()
+            let mut out = Vec::with_capacity(rect.pixel_count());
+            let k = ch.component;
+            for y in rect.y0..rect.y1 {
+                let (l, f) = (local(y), frame(y));
+                let rgb = |img: &Image, at: usize, out: &mut Vec<f32>| match img.pixels.get(at + x0..at + x1) {
+                    Some(row) => out.extend(row.iter().map(|p| p[k])),
+                    None => out.extend(std::iter::repeat_n(0.0, x1 - x0)),
+                };
+                match ch.layer {
+                    FrameLayer::Image => rgb(&c.image, l, &mut out),
+                    FrameLayer::Object => rgb(&c.object, l, &mut out),
+                    FrameLayer::Change => rgb(&c.change, l, &mut out),
+                    FrameLayer::Direct => rgb(&c.direct, l, &mut out),
+                    FrameLayer::Indirect => rgb(&c.indirect, l, &mut out),
+                    FrameLayer::Photo => rgb(photo, f, &mut out),
+                    FrameLayer::Alpha => out.extend(&c.alpha[l + x0..l + x1]),
+                    FrameLayer::Shadow => out.extend(
+                        (x0..x1).map(|x| c.shadow_at(l + x, photo.pixels[f + x])[k]),
+                    ),
+                }
+            }
+            out
         })
         .collect()
 }
@@ -178,16 +184,20 @@ impl FrameWriter {
         })
     }
 
-    /// The next band: `c` holds the window's next rows (and may hold more).
-    pub fn band(&mut self, c: &Composite, photo: &Image) -> Result<()> {
-        let y1 = (c.first_row + c.image.height).min(self.window.y1);
-        let y0 = c.first_row.max(self.window.y0);
+    /// The next band, the frame's rows `rows` (of those `c` holds; the
+    /// window's part of them is written).
+    pub fn band(&mut self, c: &Composite, rows: (u32, u32), photo: &Image) -> Result<()> {
+        let y0 = rows.0.max(self.window.y0).max(c.first_row);
+        let y1 = (rows.1.min(self.window.y1)).min(c.first_row + c.image.height);
         if y0 >= y1 {
             return Ok(());
         }
         let rect = PixelRect { y0, y1, ..self.window };
         for (stream, channels) in &mut self.streams {
             stream.push(y1 - y0, planes(c, photo, rect, channels))?;
+        }
+        if self.png.is_none() && self.kept.is_none() {
+            return Ok(());
         }
         let image = planes(c, photo, rect, &rgb("", FrameLayer::Image));
         let rgb_at = |k: usize| Vec3::new(image[0][k], image[1][k], image[2][k]);

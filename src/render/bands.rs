@@ -77,17 +77,17 @@ pub fn parse_memory(text: &str) -> std::result::Result<u64, String> {
 }
 
 /// Renders `scene` over `photo` as [`render`] does, `rows` rows at a time
-/// (of the crop, when one is set): `sink` takes each band's composite in
-/// order (rows `first_row..first_row + image.height` of the frame, the
-/// crop's columns among the frame's). The output's composite holds no
-/// pixels, only the counts over every band.
+/// (of the crop, when one is set): `sink` takes each band in order, as a
+/// composite and the band's rows of the frame that it holds (it may hold
+/// more: the band's margin; its columns are the frame's). The output's
+/// composite holds no pixels, only the counts over every band.
 pub fn render_bands(
     scene: &Scene,
     photo: &Image,
     settings: &RenderSettings,
     rows: u32,
     times: &mut StageTimes,
-    sink: &mut dyn FnMut(Composite) -> Result<()>,
+    sink: &mut dyn FnMut(&Composite, (u32, u32)) -> Result<()>,
 ) -> Result<RenderOutput> {
     let (w, h) = (scene.camera.width, scene.camera.height);
     let image = (settings.pda.crop)
@@ -100,8 +100,8 @@ pub fn render_bands(
     if !scene.changes_the_photo() {
         // The photo is the image: each band is its rows.
         let mut out = render(scene, photo, settings, times)?;
-        for &(y0, y1) in &bands {
-            sink(out.composite.rows(y0, y1))?;
+        for &band in &bands {
+            sink(&out.composite, band)?;
         }
         out.composite = Composite {
             copied: image.pixel_count(),
@@ -121,9 +121,10 @@ pub fn render_bands(
             session.to_band((y0, y1), &mut per_band);
         }
         pda_bytes = pda_bytes.max(session.pda.memory_bytes());
-        let band = session.composite.rows(y0, y1);
-        counts = Composite::empty().with_counts(&band).added(&counts);
-        per_band.time("write bands", || sink(band))?;
+        counts = Composite::empty()
+            .with_counts(&session.composite)
+            .added(&counts);
+        per_band.time("write bands", || sink(&session.composite, (y0, y1)))?;
     }
     times.absorb(per_band);
     let mut out = session.into_output();
@@ -146,32 +147,6 @@ impl Session {
 }
 
 impl Composite {
-    /// Rows `y0..y1` of the frame (which this composite must hold), with its counts.
-    pub fn rows(&self, y0: u32, y1: u32) -> Composite {
-        let w = self.image.width as usize;
-        let (a, b) = ((y0 - self.first_row) as usize, (y1 - self.first_row) as usize);
-        let cut = |img: &Image| {
-            if img.pixels.is_empty() {
-                return Image::new(0, 0);
-            }
-            Image {
-                width: img.width,
-                height: y1 - y0,
-                pixels: img.pixels[a * w..b * w].to_vec(),
-            }
-        };
-        Composite {
-            first_row: y0,
-            image: cut(&self.image),
-            direct: cut(&self.direct),
-            indirect: cut(&self.indirect),
-            change: cut(&self.change),
-            object: cut(&self.object),
-            alpha: self.alpha[a * w..b * w].to_vec(),
-            ..Composite::empty().with_counts(self)
-        }
-    }
-
     /// This composite with `other`'s counts.
     fn with_counts(self, other: &Composite) -> Composite {
         Composite {

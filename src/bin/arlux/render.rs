@@ -163,12 +163,13 @@ pub fn run(args: &Args) -> Result<()> {
         let mut writer = FrameWriter::start(&files, w, h, &meta)?;
         let out = match &method {
             Method::Pda(settings) => {
-                let mut sink = |band: Composite| Ok(writer.band(&band, &photo)?);
+                let mut sink = |band: &Composite, rows| Ok(writer.band(band, rows, &photo)?);
                 arlux::render::render_bands(&scene, &photo, settings, rows, &mut times, &mut sink)?
             }
             Method::Texture(settings) => {
                 let out = arlux::relight::render_texture(&scene, &photo, settings, &mut times)?;
-                times.time("write bands", || writer.band(&out.composite, &photo))?;
+                let rows = (0, h);
+                times.time("write bands", || writer.band(&out.composite, rows, &photo))?;
                 if let (Some(dir), Some((_, unoccluded, _))) = (&args.aov, &out.texture) {
                     let layer = [image_io::ExrLayer::Rgb("", unoccluded)];
                     let path = batch.stage(&dir.join("unoccluded_texture.exr"));
