@@ -55,6 +55,7 @@ fn bench(c: &mut Criterion) {
         bounds: &bounds,
         settings: settings.pda,
         for_updates: false,
+        band: None,
     };
     let rays = PixelDataArray::build(&input).rays;
     g.throughput(Throughput::Elements(rays));

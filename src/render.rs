@@ -375,7 +375,11 @@ impl Session {
     /// Builds the Pixel Data Array for the session's pixels (its crop's,
     /// and its band's when rendered by bands).
     fn trace_pixels(&mut self, times: &mut StageTimes) {
-        let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| &o.0);
+        let patches = self
+            .changes
+            .own
+            .as_ref()
+            .map_or(&self.model.patches, |o| &o.0);
         let input = PdaInput {
             camera: &self.scene.camera,
             tracer: &self.tracer,
@@ -780,7 +784,7 @@ mod changes;
 mod pixels;
 
 pub use bands::{
-    BYTES_PER_BAND_PIXEL, BYTES_PER_FRAME_PIXEL, band_rows, default_memory, parse_memory,
+    BYTES_PER_BAND_PIXEL, BYTES_PER_FRAME_PIXEL, BandSink, band_rows, default_memory, parse_memory,
     render_bands,
 };
 

@@ -178,12 +178,51 @@ fn crops_of_a_frame_merged_equal_the_whole_render_bit_for_bit() {
         ["0", "0.5", "0.5", "1"],
         ["0.5", "1", "0.5", "1"],
     ];
+    // Thirds, rendered in bands (`--memory 64M`: 64 rows a band); and
+    // edges drawn at random, printed on failure.
+    let third = format!("{}", 1.0 / 3.0);
+    let thirds = [
+        ["0", &third, "0", "0.6666667"],
+        [&third, "1", "0", "0.6666667"],
+        ["0", &third, "0.6666667", "1"],
+        [&third, "1", "0.6666667", "1"],
+    ]
+    .map(|w| w.map(String::from));
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .subsec_nanos();
+    let (x, y) = (
+        format!("{:.4}", 0.05 + 0.9 * (nanos % 10007) as f64 / 10007.0),
+        format!(
+            "{:.4}",
+            0.05 + 0.9 * (nanos / 10007 % 10009) as f64 / 10009.0
+        ),
+    );
+    let random = [
+        ["0", &x, "0", &y],
+        [&x, "1", "0", &y],
+        ["0", &x, &y, "1"],
+        [&x, "1", &y, "1"],
+    ]
+    .map(|w| w.map(String::from));
+    let owned = |set: [[&str; 4]; 4]| set.map(|w| w.map(String::from));
+    let sets = [
+        (owned(uneven), false),
+        (owned(quadrants), false),
+        (thirds, true),
+        (random, false),
+    ];
     let mut tiles = Vec::new();
-    for (set, windows) in [uneven, quadrants].iter().enumerate() {
+    for (set, (windows, banded)) in sets.iter().enumerate() {
         tiles.clear();
         for (i, w) in windows.iter().enumerate() {
             let tile = path(&format!("tile{set}-{i}.exr"));
-            render(&tile, w);
+            let mut crop: Vec<&str> = w.iter().map(String::as_str).collect();
+            if *banded {
+                crop.extend(["--memory", "64M"]);
+            }
+            render(&tile, &crop);
             tiles.push(tile);
         }
         let merged = path(&format!("merged{set}.exr"));

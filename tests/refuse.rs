@@ -432,3 +432,26 @@ fn gltf_strips_and_fans_are_read_and_lines_reported() {
         "{said}"
     );
 }
+
+#[test]
+fn a_plate_with_a_reference_of_the_wrong_size_is_refused_before_any_work() {
+    // A 24-megapixel camera (the desk's view, 11 × its size) whose variant
+    // names the 512 × 384 truth: refused before the photo is even read.
+    let desk = Desk::new();
+    desk.edit("scene.toml", "width = 512", "width = 5632");
+    desk.edit("scene.toml", "height = 384", "height = 4224");
+    let out = desk.path("plate.exr");
+    let run = arlux(&[
+        "render",
+        &desk.scene(),
+        "--variant",
+        "box_floor_a",
+        "-o",
+        out.to_str().unwrap(),
+        "--timings",
+    ]);
+    refused_before_work(&run, &["truth/box_floor_a.exr", "512x384", "5632x4224"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!stderr.contains("read photo"), "{stderr}");
+    assert!(!out.exists());
+}

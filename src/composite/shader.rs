@@ -23,9 +23,7 @@ pub(super) struct Shader<'a> {
 impl<'a> Shader<'a> {
     pub(super) fn new(input: &'a CompositeInput<'a>) -> Self {
         let pda = input.pda;
-        let floor = input
-            .known
-            .map_or(input.floor, |k| k.floor);
+        let floor = input.known.map_or(input.floor, |k| k.floor);
         let (w, h) = (pda.width, pda.height);
         let mut spans = vec![(u32::MAX, 0u32); h as usize];
         for &p in pda

@@ -100,7 +100,7 @@ fn a_lamp_follows_its_scale_and_the_photo_stays_where_nothing_changed() {
     let render = |scale: f64| {
         // The ceiling's change: it keeps its radiance (the composite of the filled photo).
         let mut composite = Composite {
-        first_row: 0,
+            first_row: 0,
             image: filled.clone(),
             change: Image::new(camera.width, camera.height),
             ..Composite::empty()

@@ -108,7 +108,10 @@ fn planes(c: &Composite, photo: &Image, rect: PixelRect, channels: &[Channel]) -
             let k = ch.component;
             for y in rect.y0..rect.y1 {
                 let (l, f) = (local(y), frame(y));
-                let rgb = |img: &Image, at: usize, out: &mut Vec<f32>| match img.pixels.get(at + x0..at + x1) {
+                let rgb = |img: &Image, at: usize, out: &mut Vec<f32>| match img
+                    .pixels
+                    .get(at + x0..at + x1)
+                {
                     Some(row) => out.extend(row.iter().map(|p| p[k])),
                     None => out.extend(std::iter::repeat_n(0.0, x1 - x0)),
                 };
@@ -120,9 +123,9 @@ fn planes(c: &Composite, photo: &Image, rect: PixelRect, channels: &[Channel]) -
                     FrameLayer::Indirect => rgb(&c.indirect, l, &mut out),
                     FrameLayer::Photo => rgb(photo, f, &mut out),
                     FrameLayer::Alpha => out.extend(&c.alpha[l + x0..l + x1]),
-                    FrameLayer::Shadow => out.extend(
-                        (x0..x1).map(|x| c.shadow_at(l + x, photo.pixels[f + x])[k]),
-                    ),
+                    FrameLayer::Shadow => {
+                        out.extend((x0..x1).map(|x| c.shadow_at(l + x, photo.pixels[f + x])[k]))
+                    }
                 }
             }
             out
@@ -158,9 +161,7 @@ impl FrameWriter {
         let window = meta.window.unwrap_or(PixelRect::full(width, height));
         let mut streams = Vec::new();
         let mut jobs = vec![(files.exr.clone(), frame_channels(files.layers))];
-        jobs.extend(
-            (files.aov.iter()).map(|(layer, path)| (path.clone(), aov_channels(*layer))),
-        );
+        jobs.extend((files.aov.iter()).map(|(layer, path)| (path.clone(), aov_channels(*layer))));
         for (path, channels) in jobs {
             let names: Vec<String> = channels.iter().map(|c| c.name.clone()).collect();
             let stream = ExrStream::create(&path, width, height, &names, meta)?;
@@ -192,7 +193,11 @@ impl FrameWriter {
         if y0 >= y1 {
             return Ok(());
         }
-        let rect = PixelRect { y0, y1, ..self.window };
+        let rect = PixelRect {
+            y0,
+            y1,
+            ..self.window
+        };
         for (stream, channels) in &mut self.streams {
             stream.push(y1 - y0, planes(c, photo, rect, channels))?;
         }

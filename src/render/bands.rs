@@ -70,11 +70,14 @@ pub fn parse_memory(text: &str) -> std::result::Result<u64, String> {
     let n: f64 = (number.trim().parse())
         .map_err(|_| format!("'{number}' is not a number: give e.g. 4G, 800M"))?;
     let bytes = n * scale;
-    if !(bytes.is_finite() && bytes >= 64e6 && bytes < 1e15) {
+    if !(64e6..1e15).contains(&bytes) {
         return Err("give at least 64M (and less than a petabyte)".to_string());
     }
     Ok(bytes as u64)
 }
+
+/// What takes each band: its composite and the frame's rows of it to use.
+pub type BandSink<'a> = dyn FnMut(&Composite, (u32, u32)) -> Result<()> + 'a;
 
 /// Renders `scene` over `photo` as [`render`] does, `rows` rows at a time
 /// (of the crop, when one is set): `sink` takes each band in order, as a
@@ -87,7 +90,7 @@ pub fn render_bands(
     settings: &RenderSettings,
     rows: u32,
     times: &mut StageTimes,
-    sink: &mut dyn FnMut(&Composite, (u32, u32)) -> Result<()>,
+    sink: &mut BandSink,
 ) -> Result<RenderOutput> {
     let (w, h) = (scene.camera.width, scene.camera.height);
     let image = (settings.pda.crop)
@@ -118,7 +121,7 @@ pub fn render_bands(
     let mut per_band = StageTimes::default();
     for (k, &(y0, y1)) in bands.iter().enumerate() {
         if k > 0 {
-            session.to_band((y0, y1), &mut per_band);
+            session.move_to_band((y0, y1), &mut per_band);
         }
         pda_bytes = pda_bytes.max(session.pda.memory_bytes());
         counts = Composite::empty()
@@ -136,7 +139,7 @@ pub fn render_bands(
 impl Session {
     /// Moves a still to the band `rows`: its Pixel Data Array traced and
     /// composited there, the model and radiosity kept.
-    fn to_band(&mut self, rows: (u32, u32), times: &mut StageTimes) {
+    fn move_to_band(&mut self, rows: (u32, u32), times: &mut StageTimes) {
         self.band = Some(rows);
         // The last band's data goes before the next is built.
         self.pda = PixelDataArray::default();

@@ -6,9 +6,9 @@ use anyhow::{Context, Result};
 use serde_json::json;
 
 use arlux::compare::{Comparison, Skill, compare, skill};
+use arlux::composite::Composite;
 use arlux::image_io::{self, ExrMeta, PixelRect};
 use arlux::model::StageTimes;
-use arlux::composite::Composite;
 use arlux::output::{AOV_LAYERS, FrameFiles, FrameWriter, RenderOutput};
 
 use arlux::composite::CompositeMode;
@@ -132,7 +132,9 @@ pub fn run(args: &Args) -> Result<()> {
         anyhow::bail!("--exposure {}: give stops within ±64", args.exposure);
     }
     let budget = match &args.memory {
-        Some(m) => arlux::render::parse_memory(m).map_err(|e| anyhow::anyhow!("--memory {m}: {e}"))?,
+        Some(m) => {
+            arlux::render::parse_memory(m).map_err(|e| anyhow::anyhow!("--memory {m}: {e}"))?
+        }
         None => arlux::render::default_memory(),
     };
     let mut times = StageTimes::default();
@@ -163,7 +165,7 @@ pub fn run(args: &Args) -> Result<()> {
         let mut writer = FrameWriter::start(&files, w, h, &meta)?;
         let out = match &method {
             Method::Pda(settings) => {
-                let mut sink = |band: &Composite, rows| Ok(writer.band(band, rows, &photo)?);
+                let mut sink = |band: &Composite, rows| writer.band(band, rows, &photo);
                 arlux::render::render_bands(&scene, &photo, settings, rows, &mut times, &mut sink)?
             }
             Method::Texture(settings) => {
@@ -197,12 +199,18 @@ pub fn run(args: &Args) -> Result<()> {
             Some(r) => (truth.crop(r), photo.crop(r)),
         };
         debug_assert_eq!((image.width, image.height), (rect.width(), rect.height()));
-        Ok(Some((compare(image, &truth, None), skill(image, &truth, &photo))))
+        Ok(Some((
+            compare(image, &truth, None),
+            skill(image, &truth, &photo),
+        )))
     })?;
     keep(&times);
     let bands = (out.texture.is_none()).then(|| Bands {
         rows,
-        count: window.unwrap_or(PixelRect::full(w, h)).height().div_ceil(rows) as usize,
+        count: window
+            .unwrap_or(PixelRect::full(w, h))
+            .height()
+            .div_ceil(rows) as usize,
         memory_budget: budget,
     });
     let report = RenderReport::new(variant, &out, error, &times, window, bands);
@@ -210,7 +218,11 @@ pub fn run(args: &Args) -> Result<()> {
 }
 
 /// Where each output of `args` goes for now (staged in `batch`).
-fn frame_files(args: &Args, batch: &mut crate::outputs::Batch, keep_image: bool) -> Result<FrameFiles> {
+fn frame_files(
+    args: &Args,
+    batch: &mut crate::outputs::Batch,
+    keep_image: bool,
+) -> Result<FrameFiles> {
     let mut aov = Vec::new();
     if let Some(dir) = &args.aov {
         batch
@@ -246,6 +258,8 @@ struct RenderReport<'a> {
     copied_from_photo: usize,
     /// The pixel path renders and writes in bands of rows.
     bands: Option<Bands>,
+    /// The process's peak resident memory so far (Linux), bytes.
+    peak_memory_bytes: Option<u64>,
     ratio_fallbacks: usize,
     clamped: usize,
     patches: usize,
@@ -314,6 +328,7 @@ impl<'a> RenderReport<'a> {
             pixels,
             copied_from_photo: c.copied,
             bands,
+            peak_memory_bytes: crate::timing::peak_memory(),
             ratio_fallbacks: c.ratio_fallbacks,
             clamped: c.clamped,
             patches: out.patches,
