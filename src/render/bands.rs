@@ -9,10 +9,10 @@
 use super::*;
 use crate::image_io::PixelRect;
 
-/// Bytes a band's pixel takes while it is rendered and written, measured
-/// at 3 and 24 megapixels on the desk and the lounge (pixel data ~90,
-/// composite layers 68, the EXR's channel planes 92 and their tiles ~90):
-/// what [`band_rows`] divides a memory budget by.
+/// Bytes a band's pixel takes while it is rendered and written, from what
+/// a band holds (pixel data ~90, composite layers 68, the EXR's channel
+/// planes 92 and their tiles in flight ~90; `cargo bench --bench plate`
+/// measures the peaks): what [`band_rows`] divides a memory budget by.
 pub const BYTES_PER_BAND_PIXEL: u64 = 340;
 
 /// Bytes a render holds whatever its bands, per pixel of the frame: the
@@ -100,7 +100,8 @@ pub fn render_bands(
         .step_by(rows.max(1) as usize)
         .map(|y| (y, (y + rows.max(1)).min(image.y1)))
         .collect();
-    if !scene.changes_the_photo() {
+    let (reachable, dropped) = without_unreachable_objects(scene);
+    if !reachable.as_ref().unwrap_or(scene).changes_the_photo() {
         // The photo is the image: each band is its rows.
         let mut out = render(scene, photo, settings, times)?;
         for &band in &bands {
@@ -112,7 +113,6 @@ pub fn render_bands(
         };
         return Ok(out);
     }
-    let (reachable, dropped) = without_unreachable_objects(scene);
     let scene = reachable.as_ref().unwrap_or(scene);
     let mut session = Session::begin(scene, photo, settings, times, false, Some(bands[0]))?;
     session.left_out.extend(dropped);

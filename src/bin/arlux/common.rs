@@ -81,28 +81,16 @@ pub(crate) fn write_frame(
     photo: &Image,
     meta: &image_io::ExrMeta,
 ) -> Result<()> {
-    use image_io::ExrLayer::{Channel, Rgb};
     let (w, h) = (c.image.width, c.image.height);
-    let mut layers = vec![Rgb("", &c.image), Channel("A", &c.alpha)];
-    let with_layers = c.direct.pixels.len() == c.image.pixels.len();
-    // Only a composite with its layers writes the shadow factor.
-    let shadow = if with_layers {
-        c.shadow(photo)
-    } else {
-        Image::new(0, 0)
+    let files = arlux::output::FrameFiles {
+        exr: path.to_path_buf(),
+        // Only a composite with its layers writes them (a motion's later poses do not).
+        layers: c.direct.pixels.len() == c.image.pixels.len(),
+        ..Default::default()
     };
-    if with_layers {
-        layers.extend([
-            Rgb("object", &c.object),
-            Channel("object.A", &c.alpha),
-            Rgb("shadow", &shadow),
-            Rgb("change", &c.change),
-            Rgb("photo", photo),
-            Rgb("direct", &c.direct),
-            Rgb("indirect", &c.indirect),
-        ]);
-    }
-    image_io::write_exr_with(path, w, h, &layers, meta)?;
+    let mut writer = arlux::output::FrameWriter::start(&files, w, h, meta)?;
+    writer.band(c, (0, h), photo)?;
+    writer.finish()?;
     Ok(())
 }
 
