@@ -180,12 +180,13 @@ pub fn run(args: &Args) -> Result<()> {
                 out
             }
         };
+        // Under --strict a warning is an error: nothing is committed.
+        for w in &out.warnings {
+            warn(&scene, w)?;
+        }
         let kept = times.time("write", || writer.finish())?;
         Ok((out, kept))
     })?;
-    for w in &out.warnings {
-        warn(&scene, w)?;
-    }
     let error = times.time("compare", || -> Result<Option<(Comparison, Skill)>> {
         let (Some(r), Some(image)) = (&reference, &kept) else {
             return Ok(None);
