@@ -330,7 +330,8 @@ impl PdaInput<'_> {
 }
 
 impl PixelDataArray {
-    /// Builds the array for the pixels of [`PdaInput::window`].
+    /// Builds the array for its crop's and band's pixels (all, without
+    /// either), and a margin of the seams filter's reach beyond them.
     pub fn build(input: &PdaInput) -> PixelDataArray {
         let cam = input.camera;
         // Pixels near a virtual object's image are tested for mixed sub-pixels.
