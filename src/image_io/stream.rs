@@ -2,8 +2,10 @@
 //! tens of megapixels is never held whole, as pixels or as encoded bytes.
 //! The file is the one [`write_exr_with`](super::write_exr_with) writes for
 //! the same pixels, byte for byte (same header, 64 × 64 RLE tiles in
-//! increasing rows); the `exr` crate compresses the tiles on its own
-//! threads while the caller renders the next band.
+//! increasing rows). A thread of its own cuts each row of tiles as its
+//! rows arrive, compresses them in parallel (the `exr` crate's block
+//! encoder, on rayon) and writes them, while the caller renders the next
+//! band.
 
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
