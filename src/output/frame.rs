@@ -133,6 +133,9 @@ fn planes(c: &Composite, photo: &Image, rect: PixelRect, channels: &[Channel]) -
         .collect()
 }
 
+/// Rows handed to the files at a time (four rows of the EXR's tiles).
+const PIECE_ROWS: u32 = 256;
+
 /// The files of a frame and where each goes.
 #[derive(Debug, Clone, Default)]
 pub struct FrameFiles {
@@ -186,13 +189,19 @@ impl FrameWriter {
     }
 
     /// The next band, the frame's rows `rows` (of those `c` holds; the
-    /// window's part of them is written).
+    /// window's part of them is written), handed on [`PIECE_ROWS`] rows at
+    /// a time: a whole frame's channel planes are never made at once.
     pub fn band(&mut self, c: &Composite, rows: (u32, u32), photo: &Image) -> Result<()> {
         let y0 = rows.0.max(self.window.y0).max(c.first_row);
         let y1 = (rows.1.min(self.window.y1)).min(c.first_row + c.image.height);
-        if y0 >= y1 {
-            return Ok(());
+        for start in (y0..y1).step_by(PIECE_ROWS as usize) {
+            self.piece(c, (start, (start + PIECE_ROWS).min(y1)), photo)?;
         }
+        Ok(())
+    }
+
+    /// Rows `y0..y1` (within the window and `c`) to every file.
+    fn piece(&mut self, c: &Composite, (y0, y1): (u32, u32), photo: &Image) -> Result<()> {
         let rect = PixelRect {
             y0,
             y1,
