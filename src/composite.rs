@@ -309,6 +309,21 @@ impl Composite {
         out
     }
 
+    /// How many of `rect`'s pixels (rows within this composite's) are the
+    /// photo's, bit for bit: a tile's count where the composite counted
+    /// the whole frame (the texture path's).
+    pub fn unchanged_in(&self, rect: crate::image_io::PixelRect, photo: &Image) -> usize {
+        let w = self.image.width as usize;
+        let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+        (rect.y0..rect.y1)
+            .flat_map(|y| (rect.x0..rect.x1).map(move |x| (x as usize, y as usize)))
+            .filter(|&(x, y)| {
+                let local = (y - self.first_row as usize) * w + x;
+                bits(self.image.pixels[local]) == bits(photo.pixels[y * w + x])
+            })
+            .count()
+    }
+
     /// [`Composite::shadow`] at its pixel `i`, whose photo value is `photo`.
     pub fn shadow_at(&self, i: usize, photo: Vec3) -> Vec3 {
         let object = self.object.pixels.get(i).copied().unwrap_or(Vec3::ZERO);

@@ -169,7 +169,11 @@ pub fn run(args: &Args) -> Result<()> {
                 arlux::render::render_bands(&scene, &photo, settings, rows, &mut times, &mut sink)?
             }
             Method::Texture(settings) => {
-                let out = arlux::relight::render_texture(&scene, &photo, settings, &mut times)?;
+                let mut out = arlux::relight::render_texture(&scene, &photo, settings, &mut times)?;
+                // Its composite counts the whole frame; a tile counts its own.
+                if let Some(r) = window {
+                    out.composite.copied = out.composite.unchanged_in(r, &photo);
+                }
                 let rows = (0, h);
                 times.time("write bands", || writer.band(&out.composite, rows, &photo))?;
                 if let (Some(dir), Some((_, unoccluded, _))) = (&args.aov, &out.texture) {
