@@ -19,8 +19,11 @@ type Level = (u32, u32, Vec<(Vec3, Vec3)>);
 pub struct BlockHierarchy {
     pub width: u32,
     pub height: u32,
-    /// (width, height, boxes) per level.
+    /// (width, height, boxes) per level; level 0's boxes are `points`.
     levels: Vec<Level>,
+    /// Level 0: each pixel's surface point (infinite: none), 12 bytes a
+    /// pixel where a box of a point took 24.
+    points: Vec<Vec3>,
     /// Per level, the number of blocks on the levels below it (a block's
     /// place in [`BlockShafts`]).
     first: Vec<u32>,
@@ -32,14 +35,14 @@ pub struct BlockHierarchy {
 /// blocks pose after pose (building them was most of a traversal's work).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub(crate) struct BlockShafts {
-    /// Per block (level by level), its shaft's place in `shafts`, or [`NO_SHAFT`].
-    slot: Vec<u32>,
+    /// Per block kept (numbered level by level), its shaft's place in
+    /// `shafts`: a map, as at most [`MOST_KEPT`] are kept (a table of
+    /// every block took 5 bytes a pixel per light).
+    slot: std::collections::HashMap<u32, u32>,
     shafts: Vec<Shaft>,
     /// Shafts kept at most ([`MOST_KEPT`]).
     most: usize,
 }
-
-const NO_SHAFT: u32 = u32::MAX;
 
 /// Shafts kept per light at most (about 8 MB of planes): a motion over
 /// the whole image would otherwise keep one per block; beyond it, a
@@ -63,21 +66,20 @@ impl BlockShafts {
         build: impl FnOnce() -> Shaft,
         test: impl FnOnce(&Shaft) -> bool,
     ) -> bool {
-        let at = self.slot[index as usize];
-        if at != NO_SHAFT {
+        if let Some(&at) = self.slot.get(&index) {
             return test(&self.shafts[at as usize]);
         }
         let shaft = build();
         let answer = test(&shaft);
         if self.shafts.len() < self.most {
-            self.slot[index as usize] = self.shafts.len() as u32;
+            self.slot.insert(index, self.shafts.len() as u32);
             self.shafts.push(shaft);
         }
         answer
     }
 
     pub fn memory_bytes(&self) -> usize {
-        self.slot.len() * 4
+        self.slot.capacity() * 12
             + self
                 .shafts
                 .iter()
@@ -101,6 +103,11 @@ pub(crate) struct Traversal {
 
 const EMPTY: (Vec3, Vec3) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
 
+/// A pixel's box: its point, or [`EMPTY`].
+fn point_box(p: Vec3) -> (Vec3, Vec3) {
+    if p.x.is_finite() { (p, p) } else { EMPTY }
+}
+
 impl BlockHierarchy {
     /// Built over the real surface points of the Pixel Data Array.
     pub fn build(pda: &PixelDataArray) -> BlockHierarchy {
@@ -113,18 +120,24 @@ impl BlockHierarchy {
 
     /// Over a `w` × `h` image's surface points, row by row (None: no point).
     fn of_points(w: u32, h: u32, points: impl Iterator<Item = Option<Vec3>>) -> BlockHierarchy {
-        let base: Vec<(Vec3, Vec3)> = points.map(|p| p.map_or(EMPTY, |p| (p, p))).collect();
-        let mut levels = vec![(w, h, base)];
+        let points: Vec<Vec3> = points.map(|p| p.unwrap_or(Vec3::INFINITY)).collect();
+        let mut levels = vec![(w, h, Vec::new())];
         while {
             let (lw, lh, _) = levels.last().unwrap();
             *lw > 1 || *lh > 1
         } {
+            let at = levels.len() - 1;
             let (lw, lh, boxes) = levels.last().unwrap();
             let (nw, nh) = (lw.div_ceil(2), lh.div_ceil(2));
             let mut next = vec![EMPTY; (nw * nh) as usize];
             for y in 0..*lh {
                 for x in 0..*lw {
-                    let (lo, hi) = boxes[(y * lw + x) as usize];
+                    let i = (y * lw + x) as usize;
+                    let (lo, hi) = if at == 0 {
+                        point_box(points[i])
+                    } else {
+                        boxes[i]
+                    };
                     let n = &mut next[((y / 2) * nw + x / 2) as usize];
                     *n = (n.0.min(lo), n.1.max(hi));
                 }
@@ -133,30 +146,30 @@ impl BlockHierarchy {
         }
         let first = levels
             .iter()
-            .scan(0, |below, (_, _, b)| {
-                Some(std::mem::replace(below, *below + b.len() as u32))
+            .scan(0, |below, (lw, lh, _)| {
+                Some(std::mem::replace(below, *below + lw * lh))
             })
             .collect();
         BlockHierarchy {
             width: w,
             height: h,
             levels,
+            points,
             first,
         }
     }
 
     pub fn memory_bytes(&self) -> usize {
-        self.levels
-            .iter()
-            .map(|(_, _, b)| b.len() * std::mem::size_of::<(Vec3, Vec3)>())
-            .sum()
+        self.points.len() * std::mem::size_of::<Vec3>()
+            + (self.levels.iter())
+                .map(|(_, _, b)| b.len() * std::mem::size_of::<(Vec3, Vec3)>())
+                .sum::<usize>()
     }
 
     /// An empty store of shafts to one light, for [`BlockHierarchy::traverse`].
     pub(crate) fn no_shafts(&self) -> BlockShafts {
-        let blocks = self.levels.iter().map(|(_, _, b)| b.len()).sum();
         BlockShafts {
-            slot: vec![NO_SHAFT; blocks],
+            slot: Default::default(),
             shafts: Vec::new(),
             most: MOST_KEPT,
         }
@@ -201,7 +214,11 @@ impl BlockHierarchy {
         if x >= *lw || y >= *lh {
             return;
         }
-        let (lo, hi) = boxes[(y * lw + x) as usize];
+        let (lo, hi) = if level == 0 {
+            point_box(self.points[(y * lw + x) as usize])
+        } else {
+            boxes[(y * lw + x) as usize]
+        };
         if lo.x > hi.x {
             return;
         }
