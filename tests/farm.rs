@@ -409,3 +409,35 @@ fn a_shard_beyond_the_poses_renders_nothing_and_succeeds() {
     );
     assert!(!out.exists(), "a folder was made for nothing");
 }
+
+#[test]
+fn a_sweep_shard_beyond_the_grid_runs_nothing_and_succeeds() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("sweep");
+    let scene = common::scene_dir("desk").join("scene.toml");
+    // A job array of 10 tasks for the 7 quick settings: task 9 has none.
+    let run = arlux(
+        &[
+            "sweep",
+            scene.to_str().unwrap(),
+            "--variant",
+            "box_floor_a",
+            "--quick",
+            "--shard",
+            "auto/10",
+            "--json",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        &[("SLURM_ARRAY_TASK_ID", "9")],
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains("no setting falls to shard 9 of 10 (7 in all)"),
+        "{stderr}"
+    );
+    let v: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(v["settings"], 0, "{v}");
+    assert!(!out.exists(), "a folder was made for nothing");
+}

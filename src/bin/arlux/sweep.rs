@@ -62,10 +62,20 @@ pub fn run(args: &Args) -> Result<()> {
         Some(text) => {
             let (share, i, n) = shard_range(text, settings.len())?;
             if share.is_empty() {
-                bail!(
-                    "--shard {text}: shard {i} of {n} has no setting ({} in all)",
+                // A job array sized for a larger grid: this task has nothing to do
+                // (`arlux merge` checks that the shards given cover the grid).
+                eprintln!(
+                    "note: --shard {text}: no setting falls to shard {i} of {n} ({} in all): nothing run, no table written",
                     settings.len()
                 );
+                let report = SweepReport {
+                    target: label,
+                    settings: 0,
+                    csv: String::new(),
+                    plot: None,
+                    rows: Vec::new(),
+                };
+                return print_report(&report, as_json);
             }
             (share, format!("sweep.shard-{i}-of-{n}.csv"))
         }
