@@ -415,3 +415,125 @@ fn a_cluster_sends_a_cube_s_and_a_sphere_s_intensity_in_every_direction() {
     assert!(worst_cube < 1e-6, "cube off by {worst_cube}");
     assert!(worst_sphere < 0.05, "sphere off by {worst_sphere}");
 }
+
+/// Two facing 2 m walls 2 m apart (x = 0 and x = 2), the left one
+/// glowing (B = 1), nothing reflecting, and a black solid box of `size`
+/// at `at` (its low corner): per patch of the right wall, the irradiance
+/// (its area) without the box, with it by every patch pair traced (the
+/// full matrix), and with it as an update links it (the room's
+/// hierarchical links re-linked with the box); last, without the box on
+/// the room's hierarchical links.
+fn walls_and_a_box(at: Vec3, size: f32) -> Vec<(f64, f64, f64, f64, f64)> {
+    let quad = |a: Vec3, b: Vec3, c: Vec3, d: Vec3| vec![[a, b, c], [a, c, d]];
+    let left = quad(
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(0.0, 2.0, 0.0),
+        Vec3::new(0.0, 2.0, 2.0),
+        Vec3::new(0.0, 0.0, 2.0),
+    );
+    let right: Vec<Triangle> = left.iter().map(|t| t.map(|v| v + 2.0 * Vec3::X)).collect();
+    let cube: Vec<Triangle> = box_faces(size)
+        .into_iter()
+        .flatten()
+        .map(|t| t.map(|v| v + at))
+        .collect();
+    let walls = [(0, &left), (1, &right)];
+    let inputs: Vec<SurfaceInput> = (walls.iter())
+        .map(|(s, t)| SurfaceInput {
+            surface: *s,
+            triangles: t,
+            is_virtual: false,
+        })
+        .collect();
+    let sets: Vec<SurfaceTriangles> = (walls.iter())
+        .map(|(s, t)| SurfaceTriangles {
+            surface: *s,
+            triangles: t,
+            mask: None,
+        })
+        .collect();
+    let centre = DVec3::new(1.0, 1.0, 1.0);
+    let mut room = Patches::build(&inputs, 0.25);
+    room.face_open_surfaces_towards(centre);
+    let mut with = room.clone();
+    with.append(
+        &[SurfaceInput {
+            surface: 2,
+            triangles: &cube,
+            is_virtual: true,
+        }],
+        0.1,
+    );
+    with.face_open_surfaces_towards(centre);
+    let box_set = [SurfaceTriangles {
+        surface: 2,
+        triangles: &cube,
+        mask: None,
+    }];
+    let (tracer_room, tracer_with) = (
+        Tracer::build(&sets, &[]).unwrap(),
+        Tracer::build(&sets, &box_set).unwrap(),
+    );
+    // Irradiance per patch of the right wall, the left one glowing.
+    let irradiance = |patches: &Patches, transport: &Transport| {
+        let n = patches.patch_count();
+        let glow: Vec<DVec3> = (0..n)
+            .map(|k| DVec3::splat((patches.patch(k).surface == 0) as u8 as f64))
+            .collect();
+        let s = solve(patches, transport, &vec![DVec3::ZERO; n], &glow, 1e-12, 100);
+        (0..n)
+            .filter(|&k| patches.patch(k).surface == 1)
+            .map(|k| (patches.patch(k).area, s.indirect_irradiance[k].x))
+            .collect::<Vec<_>>()
+    };
+    let epsilon = 0.002;
+    let without = irradiance(&room, &Transport::full(&room, &tracer_room, Layer::All));
+    let full = irradiance(&with, &Transport::full(&with, &tracer_with, Layer::All));
+    let hierarchical = Transport::hierarchical(&room, &tracer_room, Layer::All, epsilon);
+    let relinked = hierarchical.with_objects(&with, &tracer_with, epsilon, false);
+    let updated = irradiance(&with, &relinked);
+    let room_only = irradiance(&room, &hierarchical);
+    (without.iter().zip(&full).zip(&updated).zip(&room_only))
+        .map(|(((a, b), c), d)| (a.0, a.1, b.1, c.1, d.1))
+        .collect()
+}
+
+#[test]
+fn a_box_between_two_walls_removes_the_light_a_path_through_it_carried() {
+    let patches = walls_and_a_box(Vec3::splat(0.7), 0.6);
+    let power = |f: fn(&(f64, f64, f64, f64, f64)) -> f64| -> f64 {
+        patches.iter().map(|p| p.0 * f(p)).sum()
+    };
+    let (lost_full, lost_updated) = (power(|p| p.1 - p.2), power(|p| p.1 - p.3));
+    let peak = patches.iter().map(|p| p.1 - p.2).fold(0.0, f64::max);
+    let worst = patches
+        .iter()
+        .map(|p| ((p.1 - p.3) - (p.1 - p.2)).abs())
+        .fold(0.0, f64::max);
+    println!(
+        "blocked power: full matrix {lost_full:.5}, re-linked {lost_updated:.5}; worst patch {:.2}% of the deepest loss",
+        100.0 * worst / peak
+    );
+    assert!(
+        lost_full > 0.02 * power(|p| p.1),
+        "the box blocks too little to test"
+    );
+    assert!(
+        ((lost_updated - lost_full) / lost_full).abs() < 0.05,
+        "re-linked: {lost_updated} lost against {lost_full}"
+    );
+    assert!(
+        worst < 0.05 * peak,
+        "a patch off by {worst} (deepest loss {peak})"
+    );
+}
+
+#[test]
+fn a_box_the_walls_cannot_see_changes_nothing() {
+    // Behind the glowing wall: no segment between the walls meets it.
+    let patches = walls_and_a_box(Vec3::new(-1.0, 0.7, 0.7), 0.6);
+    for (k, p) in patches.iter().enumerate() {
+        assert_eq!(p.1.to_bits(), p.2.to_bits(), "full matrix, patch {k}");
+        assert_eq!(p.4.to_bits(), p.3.to_bits(), "re-linked, patch {k}");
+    }
+}
