@@ -189,7 +189,7 @@ impl FrameWriter {
     }
 
     /// The next band, the frame's rows `rows` (of those `c` holds; the
-    /// window's part of them is written), handed on [`PIECE_ROWS`] rows at
+    /// window's part of them is written), handed on 256 rows at
     /// a time: a whole frame's channel planes are never made at once.
     pub fn band(&mut self, c: &Composite, rows: (u32, u32), photo: &Image) -> Result<()> {
         let y0 = rows.0.max(self.window.y0).max(c.first_row);
