@@ -393,8 +393,8 @@ impl Session {
         };
         self.pda = times.time("pixel data array", || PixelDataArray::build(&input));
         self.rays += self.pda.rays;
-        let own = self.own_pixels();
-        self.covered += self.pda.covered(own);
+        // Its own pixels (the crop's, within the band), not the margin.
+        self.covered += self.pda.covered(self.pda.own);
     }
 
     /// The pixels of the image: its crop's, or the frame's.
@@ -404,16 +404,6 @@ impl Session {
         (self.settings.pda.crop)
             .and_then(|c| c.pixels(w, h))
             .unwrap_or(crate::image_io::PixelRect::full(w, h))
-    }
-
-    /// The pixels this session's composite is made of: the image's,
-    /// within its band when rendered by bands.
-    fn own_pixels(&self) -> crate::image_io::PixelRect {
-        let mut r = self.image_pixels();
-        if let Some((y0, y1)) = self.band {
-            (r.y0, r.y1) = (r.y0.max(y0), r.y1.min(y1));
-        }
-        r
     }
 
     /// Composites the image; `recomputed` lists the pixels whose real

@@ -164,7 +164,7 @@ impl ExrMeta {
 }
 
 /// How arlux encodes every EXR it writes (lossless, scan lines top down).
-pub(super) fn encoding() -> x::Encoding {
+fn encoding() -> x::Encoding {
     x::Encoding {
         line_order: x::LineOrder::Increasing,
         ..x::Encoding::FAST_LOSSLESS
@@ -172,7 +172,7 @@ pub(super) fn encoding() -> x::Encoding {
 }
 
 /// The layer attributes `meta` asks for.
-pub(super) fn attributes(meta: &ExrMeta) -> x::LayerAttributes {
+fn attributes(meta: &ExrMeta) -> x::LayerAttributes {
     let mut a = x::LayerAttributes {
         software_name: Some(text(concat!("arlux ", env!("CARGO_PKG_VERSION")))),
         world_to_camera: meta.world_to_camera,
@@ -243,20 +243,30 @@ pub fn write_exr_with(
             }
         }
     }
+    write_image(path, frame_image(width, height, window, meta, list))
+}
+
+/// The single-part image arlux writes: `channels` over `window` of a
+/// `width` × `height` frame, with `meta`'s attributes (its header is what
+/// [`super::ExrStream`] writes too).
+pub(super) fn frame_image(
+    width: u32,
+    height: u32,
+    window: PixelRect,
+    meta: &ExrMeta,
+    channels: x::SmallVec<[x::AnyChannel<x::FlatSamples>; 4]>,
+) -> Part {
     let layer = x::Layer::new(
         (window.width() as usize, window.height() as usize),
         attributes(meta),
         encoding(),
-        x::AnyChannels::sort(list),
+        x::AnyChannels::sort(channels),
     );
     let display = x::IntegerBounds::new((0, 0), (width as usize, height as usize));
-    write_image(path, x::Image::new(x::ImageAttributes::new(display), layer))
+    x::Image::new(x::ImageAttributes::new(display), layer)
 }
 
-fn write_image(
-    path: &Path,
-    image: x::Image<x::Layer<x::AnyChannels<x::FlatSamples>>>,
-) -> Result<()> {
+fn write_image(path: &Path, image: Part) -> Result<()> {
     let mut bytes = std::io::Cursor::new(Vec::new());
     image
         .write()

@@ -18,7 +18,7 @@ use exr::block::{BlockIndex, UncompressedBlock};
 
 use exr::prelude as x;
 
-use super::frames::{PixelRect, attributes, encoding};
+use super::frames::{PixelRect, frame_image};
 use crate::error::{Error, Result};
 
 /// Rows of every channel, a plane per channel in [`ExrStream::channels`]' order.
@@ -180,16 +180,10 @@ fn headers(
         .iter()
         .map(|name| x::AnyChannel::new(name.as_str(), x::FlatSamples::F32(Vec::new())))
         .collect();
-    let layer = x::Layer::new(
-        (window.width() as usize, window.height() as usize),
-        attributes(meta),
-        encoding(),
-        x::AnyChannels::sort(list),
-    );
-    let display = x::IntegerBounds::new((0, 0), (width as usize, height as usize));
-    let image = x::Image::new(x::ImageAttributes::new(display), layer);
     use x::WritableImage;
-    image.write().infer_meta_data()
+    frame_image(width, height, window, meta, list)
+        .write()
+        .infer_meta_data()
 }
 
 /// The writer thread: each row of tiles compressed in parallel once its

@@ -86,8 +86,9 @@ pub struct Args {
     #[arg(long, num_args = 4, value_names = ["X0", "X1", "Y0", "Y1"], allow_negative_numbers = true)]
     pub crop: Option<Vec<f64>>,
     /// The memory a render may hold, as bytes with a suffix (`4G`, `800M`):
-    /// the image is rendered and written in bands of rows that fit
-    /// (default: half the memory available, at most 1.5G).
+    /// the pixel path renders and writes the image in bands of rows that
+    /// fit (default: half the memory available, at most 1.5G); the texture
+    /// path composites the whole frame.
     #[arg(long)]
     pub memory: Option<String>,
     /// Refine the room's links again rather than read them from
