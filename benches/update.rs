@@ -163,12 +163,13 @@ fn parts_on_one_thread(base: &Scene, photo: &arlux::image_io::Image, settings: &
     let mut session = Session::start(&p3, photo, settings, &mut StageTimes::default()).unwrap();
     session.prepare_updates(&mut StageTimes::default());
     session.image_only();
-    const INDIRECT: [&str; 5] = [
+    const INDIRECT: [&str; 6] = [
         "virtual mesh",
         "direct light with objects",
-        "form factors with objects",
-        "solve with changes",
+        "objects seen from the room",
+        "solve the change",
         "final gather on objects",
+        "bounces between objects",
     ];
     const PIXELS: [&str; 3] = [
         "pixel-block traversal",

@@ -161,6 +161,11 @@ impl VirtualBounds {
             .is_some_and(|n| n.dot(hit.normal) > 0.0)
     }
 
+    /// Each virtual surface's id and bounds.
+    pub fn surface_bounds(&self) -> impl Iterator<Item = (u32, &ObjectBounds)> {
+        self.surfaces.iter().copied().zip(&self.objects)
+    }
+
     pub fn is_empty(&self) -> bool {
         self.objects.is_empty()
     }

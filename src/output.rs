@@ -25,6 +25,10 @@ pub struct RenderOutput {
     pub elements: usize,
     /// What the links (or the form-factor matrix) take in memory.
     pub links_bytes: usize,
+    /// The room's solution without the objects, kept for every pose, and
+    /// the objects' change to it (see [`crate::radiosity::ObjectView`]).
+    pub room_solution_bytes: usize,
+    pub change_bytes: usize,
     /// The room's patch size used, metres.
     pub patch_size: f64,
     /// `--method texture`: what the preprocess did, the shadow-free texture

@@ -532,12 +532,14 @@ fn refine_from(
     }
 }
 
+mod change;
 mod clusters;
 mod direct;
 mod form_factor;
 mod relink;
 mod solve;
 
+pub use change::*;
 pub use clusters::*;
 pub use direct::*;
 pub use form_factor::*;

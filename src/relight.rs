@@ -393,6 +393,8 @@ pub fn render_texture(
         links: path.stats.links,
         elements: path.patches.elements.len(),
         links_bytes: path.links_bytes(),
+        room_solution_bytes: 0,
+        change_bytes: 0,
         patch_size: path.stats.patch_size,
         texture: Some((path.stats.clone(), unoccluded, light_change)),
     };

@@ -13,14 +13,14 @@ use crate::composite::{Composite, CompositeInput, CompositeMode, RealPixels, com
 use crate::error::Result;
 use crate::image_io::Image;
 use crate::lamps::LampPixels;
-use crate::model::{Model, ModelSettings, StageTimes, TransportMethod};
+use crate::model::{Model, ModelSettings, StageTimes};
 use crate::object_shading::ObjectShading;
 
 use crate::inputs::{fine_patch_size, lamps_in_view, resolve_inputs, room_diagonal};
 pub use crate::output::RenderOutput;
 use crate::patches::Patches;
 use crate::pda::{CLEAR_TEST_LIMIT, PdaInput, PdaSettings, PixelDataArray, VirtualBounds};
-use crate::radiosity::{Transport, direct_irradiance_with_objects, solve_from, total_direct};
+use crate::radiosity::{Solution, direct_irradiance_with_objects, solve_from, total_direct};
 use crate::scene::Scene;
 use crate::trace::Layer;
 
@@ -181,6 +181,8 @@ fn render_reachable(
             links: 0,
             elements: 0,
             links_bytes: 0,
+            room_solution_bytes: 0,
+            change_bytes: 0,
             patch_size: 0.0,
             texture: None,
         });
@@ -223,8 +225,8 @@ pub struct Session {
     rays: u64,
     /// Kept for updates (see [`Session::start`]), or a still image.
     for_updates: bool,
-    /// What re-linking the objects learns about the room's links, for the next pose.
-    link_facts: crate::radiosity::RoomLinkFacts,
+    /// The room without the objects at the lights' new scales, kept for every pose.
+    room: Solution,
     /// The rows of a still rendered band by band (see [`render_bands`]).
     band: Option<(u32, u32)>,
     /// Pixels whose centre sees a real surface, over the bands so far.
@@ -239,6 +241,23 @@ pub struct Session {
     reached: Vec<Vec<u32>>,
     /// Per light, the blocks' shafts the traversals built so far.
     block_shafts: Vec<crate::blocks::BlockShafts>,
+}
+
+/// Bytes a [`Session`] holds for updates.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SessionMemory {
+    pub pixel_data: usize,
+    /// The pixel-block hierarchy with the shafts kept so far (0 until built).
+    pub pixel_blocks: usize,
+    /// The room's radiosity without the objects, kept for every pose.
+    pub room_solution: usize,
+    /// The objects' change to it: what the room sees of them and ΔB.
+    pub change: usize,
+}
+
+/// Bytes of a solution's radiosity and irradiance.
+fn solution_bytes(s: &Solution) -> usize {
+    (s.radiosity.len() + s.indirect_irradiance.len()) * std::mem::size_of::<DVec3>()
 }
 
 /// What an update did.
@@ -318,7 +337,7 @@ impl Session {
             );
         }
         let has_objects = tracer.virtual_objects.is_some();
-        let link_facts = room_link_facts(&model, for_updates && has_objects);
+        let room = room_solution(&model, &scales_with, &settings, times);
         let bounds = VirtualBounds::of(&scene.virtual_world_surfaces())
             .with_room(&model.patches.real_root_polygons(), &model.lights);
         let objects = object_patches(scene, &model.patches, has_objects, &settings, times);
@@ -331,7 +350,7 @@ impl Session {
             scales_with: &scales_with,
             settings: &settings,
             bounds: &bounds,
-            link_facts: &link_facts,
+            room: &room,
         };
         let changes = solve_changes(&input, objects.as_ref(), &mut gather_directions, times)
             .with_patches(objects);
@@ -361,7 +380,7 @@ impl Session {
             for_updates,
             band,
             covered: 0,
-            link_facts,
+            room,
             layers: true,
             gather_directions,
             reached: Vec::new(),
@@ -375,11 +394,7 @@ impl Session {
     /// Builds the Pixel Data Array for the session's pixels (its crop's,
     /// and its band's when rendered by bands).
     fn trace_pixels(&mut self, times: &mut StageTimes) {
-        let patches = self
-            .changes
-            .own
-            .as_ref()
-            .map_or(&self.model.patches, |o| &o.0);
+        let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| o);
         let input = PdaInput {
             camera: &self.scene.camera,
             tracer: &self.tracer,
@@ -409,11 +424,7 @@ impl Session {
     /// Composites the image; `recomputed` lists the pixels whose real
     /// point's light terms changed since the last composite.
     fn recomposite(&mut self, times: &mut StageTimes, recomputed: &[u32]) {
-        let patches = self
-            .changes
-            .own
-            .as_ref()
-            .map_or(&self.model.patches, |o| &o.0);
+        let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| o);
         let known = self.known.take();
         let mut out = std::mem::replace(&mut self.composite, crate::composite::Composite::empty());
         let materials = crate::object_shading::ObjectMaterials::of(&self.scene);
@@ -522,16 +533,18 @@ impl Session {
         }
     }
 
-    /// Bytes held by the Pixel Data Array and the pixel-block hierarchy
-    /// with the shafts kept so far (0 until built).
-    pub fn memory_bytes(&self) -> (usize, usize) {
+    /// Bytes held by what the session keeps for updates.
+    pub fn memory_bytes(&self) -> SessionMemory {
         let shafts: usize = self.block_shafts.iter().map(|s| s.memory_bytes()).sum();
-        (
-            self.pda.memory_bytes(),
-            self.blocks
+        SessionMemory {
+            pixel_data: self.pda.memory_bytes(),
+            pixel_blocks: self
+                .blocks
                 .as_ref()
                 .map_or(0, |b| b.memory_bytes() + shafts),
-        )
+            room_solution: solution_bytes(&self.room),
+            change: self.changes.bytes,
+        }
     }
 
     pub fn pda(&self) -> &PixelDataArray {
@@ -593,7 +606,7 @@ impl Session {
             scales_with: &self.scales_with,
             settings: &self.settings,
             bounds: &self.bounds,
-            link_facts: &self.link_facts,
+            room: &self.room,
         };
         let pixels = PixelUpdate {
             pda: &mut self.pda,
@@ -622,16 +635,8 @@ impl Session {
         let pixels = self.image_pixels().pixel_count();
         let mut warnings = self.warnings;
         warnings.extend(coverage_warning(self.covered, pixels));
-        let patches = self
-            .changes
-            .own
-            .as_ref()
-            .map_or(&self.model.patches, |o| &o.0);
-        let transport = self
-            .changes
-            .own
-            .as_ref()
-            .map_or(&self.model.transport, |o| &o.2);
+        let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| o);
+        let transport = &self.model.transport;
         RenderOutput {
             pda_bytes: self.pda.memory_bytes(),
             pda_pixels: (self.pda.width * self.pda.height) as usize,
@@ -640,6 +645,8 @@ impl Session {
             links: transport.link_count(),
             elements: patches.elements.len(),
             links_bytes: transport.memory_bytes(),
+            room_solution_bytes: solution_bytes(&self.room),
+            change_bytes: self.changes.bytes,
             patch_size: self.settings.model.patch_size,
             composite: self.composite,
             warnings,
@@ -686,18 +693,6 @@ fn room_patch_size(scene: &Scene, patch_size: PatchSize) -> f64 {
         PatchSize::Metres(m) => m,
         PatchSize::Auto if lights_change(scene) => fine_patch_size(scene),
         PatchSize::Auto => room_diagonal(scene) / 6.0,
-    }
-}
-
-/// What re-linking the objects learns per room link, kept for the next
-/// pose only (`kept`: a session that updates a scene with objects): a
-/// still, or a scene without objects, would hold ~180 bytes per link for
-/// nothing (780 MB for a light change on `lounge`).
-fn room_link_facts(model: &Model, kept: bool) -> crate::radiosity::RoomLinkFacts {
-    if kept {
-        crate::radiosity::RoomLinkFacts::new(&model.transport)
-    } else {
-        crate::radiosity::RoomLinkFacts::default()
     }
 }
 

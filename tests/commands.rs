@@ -61,7 +61,7 @@ fn render_writes_layers_and_aovs_and_reports_the_error() {
     let stages = stage_names(&report);
     assert!(
         stages.iter().any(|s| s == "pixel data array")
-            && stages.iter().any(|s| s == "form factors with objects"),
+            && stages.iter().any(|s| s == "objects seen from the room"),
         "{stages:?}"
     );
     for layer in ["R", "direct.G", "indirect.B", "change.R", "A"] {
@@ -188,7 +188,7 @@ fn rendering_a_light_change_leaves_out_the_virtual_stages() {
     assert!(
         !stages
             .iter()
-            .any(|s| s == "form factors with objects" || s == "virtual mesh"),
+            .any(|s| s == "objects seen from the room" || s == "virtual mesh"),
         "{stages:?}"
     );
     assert!(

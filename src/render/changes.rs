@@ -1,15 +1,21 @@
-//! What the virtual objects change in the room's radiosity: their mesh,
-//! their direct light, the room's links re-refined with them, the solves,
-//! and their own light gathered from the photo.
+//! What the virtual objects change in the room's radiosity: the room
+//! solved once without them and kept, and the objects as a change ΔB to
+//! it, computed from the objects alone (see [`crate::radiosity::ObjectView`]):
+//! the direct light they block, the room's light they hide and the light
+//! they reflect, as seen from the room's patches; its bounces through the
+//! room's own links; the objects' own light gathered from the photo.
 
 use super::*;
 
 /// The radiosity of the augmented scene.
 pub(super) struct Changes {
     /// The room's patches and then the objects' (None: no object, the room's are used).
-    pub(super) own: Option<(Patches, Vec<Vec<DVec3>>, Transport)>,
+    pub(super) own: Option<Patches>,
     pub(super) reflectance: Vec<DVec3>,
     pub(super) indirect_with: Vec<DVec3>,
+    /// Bytes of the change: the rays' record of what the room sees of the
+    /// objects and the change's solution.
+    pub(super) bytes: usize,
 }
 
 /// Final gathering's directions per virtual vertex (its number, normal
@@ -80,20 +86,18 @@ pub(super) fn object_patches(
 /// it is solved (an update builds the Pixel Data Array's virtual part on
 /// them meanwhile).
 pub(super) struct Solved {
-    pub(super) own: Option<(Vec<Vec<DVec3>>, Transport)>,
     pub(super) reflectance: Vec<DVec3>,
     pub(super) indirect_with: Vec<DVec3>,
+    pub(super) bytes: usize,
 }
 
 impl Solved {
     pub(super) fn with_patches(self, patches: Option<Patches>) -> Changes {
-        let own = patches
-            .zip(self.own)
-            .map(|(p, (direct, transport))| (p, direct, transport));
         Changes {
-            own,
+            own: patches,
             reflectance: self.reflectance,
             indirect_with: self.indirect_with,
+            bytes: self.bytes,
         }
     }
 }
@@ -107,44 +111,77 @@ pub(super) struct ChangeInput<'a> {
     pub(super) scales_with: &'a [f64],
     pub(super) settings: &'a RenderSettings,
     pub(super) bounds: &'a VirtualBounds,
-    pub(super) link_facts: &'a crate::radiosity::RoomLinkFacts,
+    /// The room without the objects, solved at the new scales ([`room_solution`]).
+    pub(super) room: &'a Solution,
 }
 
-/// Radiosity with the changes: the virtual objects' patches (`objects`,
-/// from [`object_patches`]) join the room's with their own reflectance and
-/// shadow its exchanges; lights at their new scales; the objects' own
-/// indirect light gathered from the photo.
+/// The room without the virtual objects, at the lights' new scales: solved
+/// once per room and light set, from the photo's model, and kept.
+pub(super) fn room_solution(
+    model: &Model,
+    scales_with: &[f64],
+    settings: &RenderSettings,
+    times: &mut StageTimes,
+) -> Solution {
+    times.time("solve the room", || {
+        let e = total_direct(scales_with, &model.direct_per_light);
+        let reflectance = &model.estimate.reflectance;
+        let b: Vec<DVec3> = reflectance.iter().zip(&e).map(|(r, e)| *r * *e).collect();
+        solve_from(
+            &model.patches,
+            &model.transport,
+            reflectance,
+            &b,
+            Some(&model.estimate.solution.radiosity),
+            settings.model.estimate.solve_tolerance,
+            500,
+        )
+    })
+}
+
+/// Radiosity with the changes: the kept room solution (`input.room`), and
+/// with virtual objects (`objects`, from [`object_patches`]) the change
+/// they make to it, their radiosity, and their own indirect light
+/// gathered from the photo.
 pub(super) fn solve_changes(
     input: &ChangeInput,
     objects: Option<&Patches>,
     directions: &mut GatherDirections,
     times: &mut StageTimes,
 ) -> Solved {
-    let (model, settings) = (input.model, input.settings);
-    let own: Option<(&Patches, Vec<Vec<DVec3>>, Transport)> = objects.map(|patches| {
-        let (direct, transport) = object_links(input, patches, times);
-        (patches, direct, transport)
-    });
-    let (patches, direct_per_light, transport) = match &own {
-        Some((p, d, t)) => (*p, d, t),
-        None => (&model.patches, &model.direct_per_light, &model.transport),
+    let model = input.model;
+    let Some(patches) = objects else {
+        return Solved {
+            reflectance: model.estimate.reflectance.clone(),
+            indirect_with: model.patches.vertex_values(&input.room.indirect_irradiance),
+            bytes: 0,
+        };
     };
+    let room_count = model.patches.patch_count();
+    let direct = times.time("direct light with objects", || {
+        direct_irradiance_with_objects(
+            patches,
+            &model.lights,
+            input.tracer,
+            input.settings.model.light_level,
+            &model.direct_per_light,
+            input.bounds,
+        )
+    });
+    let view = times.time("objects seen from the room", || {
+        crate::radiosity::ObjectView::trace(patches, room_count, input.tracer, input.bounds)
+    });
     let virtual_rgb: HashMap<u32, DVec3> = input.scene.virtual_surface_rgb();
-    let real_count = model.patches.patch_count();
     let reflectance: Vec<DVec3> = (0..patches.patch_count())
-        .map(|k| {
-            if k < real_count {
-                model.estimate.reflectance[k]
-            } else {
-                virtual_rgb[&patches.patch(k).surface]
-            }
+        .map(|k| match k < room_count {
+            true => model.estimate.reflectance[k],
+            false => virtual_rgb[&patches.patch(k).surface],
         })
         .collect();
-    let e = total_direct(input.scales_with, direct_per_light);
     // Objects whose material glows light the room as lamps of their shape.
     let glowing = input.scene.virtual_surface_emission();
     let emission: Vec<DVec3> = (0..patches.patch_count())
-        .map(|k| match k < real_count || glowing.is_empty() {
+        .map(|k| match k < room_count || glowing.is_empty() {
             true => DVec3::ZERO,
             false => glowing
                 .get(&patches.patch(k).surface)
@@ -152,115 +189,124 @@ pub(super) fn solve_changes(
                 .unwrap_or(DVec3::ZERO),
         })
         .collect();
-    let b: Vec<DVec3> = (reflectance.iter().zip(&e))
-        .zip(&emission)
-        .map(|((r, e), g)| *r * *e + *g)
-        .collect();
-    let tolerance = settings.model.estimate.solve_tolerance;
-    let with = times.time("solve with changes", || {
-        let mut guess = model.estimate.solution.radiosity.clone();
-        guess.resize(patches.patch_count(), DVec3::ZERO);
-        solve_from(
-            patches,
-            transport,
-            &reflectance,
-            &b,
-            Some(&guess),
-            tolerance,
-            500,
+    let system = ChangeSystem {
+        input,
+        view: &view,
+        direct: total_direct(input.scales_with, &direct),
+        room_direct: total_direct(input.scales_with, &model.direct_per_light),
+        reflectance: &reflectance,
+    };
+    // The objects' radiosity from their direct light, the room's as kept.
+    let mut radiosity: Vec<DVec3> = (input.room.radiosity.iter().copied())
+        .chain(
+            (room_count..patches.patch_count())
+                .map(|k| reflectance[k] * system.direct[k] + emission[k]),
         )
-    });
-    let mut indirect_with = patches.vertex_values(&with.indirect_irradiance);
-    if objects.is_some() && settings.gather_rays > 0 {
-        let system = System {
-            patches,
-            transport,
-            reflectance: &reflectance,
-            direct: &e,
+        .collect();
+    let mut change = times.time("solve the change", || system.solve(&radiosity, None));
+    let mut indirect_with = vec![DVec3::ZERO; patches.vertices.len()];
+    if input.settings.gather_rays > 0 {
+        for (b, (room, d)) in radiosity
+            .iter_mut()
+            .zip(input.room.radiosity.iter().zip(&change.0.radiosity))
+        {
+            *b = *room + *d;
+        }
+        let lit = Lit {
+            system: &system,
             emission: &emission,
-            tolerance,
+            patches,
         };
-        gather_objects(
-            input,
-            &system,
-            &with.radiosity,
-            &mut indirect_with,
-            directions,
-            times,
-        );
+        gather_objects(&lit, &radiosity, &mut indirect_with, directions, times);
+        for (k, b) in radiosity.iter_mut().enumerate().skip(room_count) {
+            let h = corner_mean(patches, k, &indirect_with);
+            *b = reflectance[k] * (system.direct[k] + h) + emission[k];
+        }
+        change = times.time("solve the change", || {
+            system.solve(&radiosity, Some(&change.0.radiosity))
+        });
     }
+    let (solution, seen) = change;
+    // The room's indirect light: as kept, plus the change's bounces, plus
+    // what it sees of the objects in place of what they hide.
+    let room: Vec<DVec3> = (input.room.indirect_irradiance.iter())
+        .zip(&solution.indirect_irradiance)
+        .zip(&seen)
+        .map(|((h, bounced), seen)| *h + *bounced + *seen)
+        .collect();
+    let room_vertices = model.patches.vertices.len();
+    indirect_with[..room_vertices].copy_from_slice(&model.patches.vertex_values(&room));
     Solved {
-        own: own.map(|(_, d, t)| (d, t)),
         reflectance,
         indirect_with,
+        bytes: view.memory_bytes()
+            + (solution.radiosity.len() + solution.indirect_irradiance.len() + seen.len())
+                * std::mem::size_of::<DVec3>(),
     }
 }
 
-/// The objects' direct light and the room's links re-refined with them.
-fn object_links(
-    input: &ChangeInput,
-    patches: &Patches,
-    times: &mut StageTimes,
-) -> (Vec<Vec<DVec3>>, Transport) {
-    let (model, settings) = (input.model, input.settings);
-    let direct = times.time("direct light with objects", || {
-        direct_irradiance_with_objects(
-            patches,
-            &model.lights,
-            input.tracer,
-            settings.model.light_level,
-            &model.direct_per_light,
-            input.bounds,
-        )
-    });
-    let epsilon = match settings.model.transport {
-        TransportMethod::Full => crate::radiosity::DEFAULT_LINK_EPSILON,
-        TransportMethod::Hierarchical { epsilon } => epsilon,
-    };
-    // With final gathering the objects' light comes from the photo: they need no links to gather through.
-    let transport = times.time("form factors with objects", || {
-        model.transport.with_objects_using(
-            patches,
-            input.tracer,
-            epsilon,
-            settings.gather_rays == 0,
-            Some(input.link_facts),
-        )
-    });
-    (direct, transport)
+/// The change the objects make to the room's radiosity, ΔB = ρ·(ΔE + ΔH +
+/// T·ΔB): ΔE the direct light they block, ΔH what the room sees of them
+/// less what they hide, T the room's own links, unchanged. Solved from
+/// zero (or a previous change) to the tolerance relative to the change.
+struct ChangeSystem<'a> {
+    input: &'a ChangeInput<'a>,
+    view: &'a crate::radiosity::ObjectView,
+    /// Direct irradiance per patch (the room's and the objects') with the objects.
+    direct: Vec<DVec3>,
+    /// The room's without them.
+    room_direct: Vec<DVec3>,
+    reflectance: &'a [DVec3],
 }
 
-/// The radiosity system with the objects.
-struct System<'a> {
-    patches: &'a Patches,
-    transport: &'a Transport,
-    reflectance: &'a [DVec3],
-    /// Direct irradiance per patch at the new scales.
-    direct: &'a [DVec3],
-    /// Radiosity each patch emits (glowing objects' materials).
+impl ChangeSystem<'_> {
+    /// ΔB over the room's patches and the ΔH it was solved with, for the
+    /// objects' radiosity in `radiosity` (per patch of room and objects).
+    fn solve(&self, radiosity: &[DVec3], guess: Option<&[DVec3]>) -> (Solution, Vec<DVec3>) {
+        let model = self.input.model;
+        let room_count = model.patches.patch_count();
+        let seen = (self.view).irradiance_change(room_count, radiosity, &self.input.room.radiosity);
+        let b: Vec<DVec3> = (0..room_count)
+            .map(|k| self.reflectance[k] * (self.direct[k] - self.room_direct[k] + seen[k]))
+            .collect();
+        let solution = solve_from(
+            &model.patches,
+            &model.transport,
+            &self.reflectance[..room_count],
+            &b,
+            guess,
+            self.input.settings.model.estimate.solve_tolerance,
+            500,
+        );
+        (solution, seen)
+    }
+}
+
+/// The objects' light: their direct light, emission and patches.
+struct Lit<'a> {
+    system: &'a ChangeSystem<'a>,
     emission: &'a [DVec3],
-    tolerance: f64,
+    patches: &'a Patches,
 }
 
 /// The objects' indirect light gathered from the photo into
-/// `indirect_with` (vertex values), and the room's solved again with the
-/// objects' radiosity that follows.
+/// `indirect_with` (vertex values), with the room's radiosity changed by
+/// the light they block in `radiosity_with`, and the bounces between them.
 fn gather_objects(
-    input: &ChangeInput,
-    system: &System,
+    lit: &Lit,
     radiosity_with: &[DVec3],
     indirect_with: &mut [DVec3],
     directions: &mut GatherDirections,
     times: &mut StageTimes,
 ) {
-    let (model, patches) = (input.model, system.patches);
+    let input = lit.system.input;
+    let model = input.model;
     let real_vertices = model.patches.vertices.len();
-    let real_count = model.patches.patch_count();
     let gathered = times.time("final gather on objects", || {
         let gather = Gather {
             camera: &input.scene.camera,
             tracer: input.tracer,
-            patches,
+            patches: lit.patches,
             real_vertices,
             photo: input.photo,
             radiosity_with,
@@ -271,34 +317,8 @@ fn gather_objects(
         final_gather(&gather, directions)
     });
     times.time("bounces between objects", || {
-        object_bounces(system, real_count, &gathered, indirect_with)
+        object_bounces(lit, model.patches.patch_count(), &gathered, indirect_with)
     });
-    // The objects have no links to gather through: their radiosity is
-    // their direct light plus what they gathered, and the room takes it
-    // from there in a second solve (from the first: a few iterations).
-    let again = times.time("solve with changes", || {
-        let mut b: Vec<DVec3> = system
-            .reflectance
-            .iter()
-            .zip(system.direct)
-            .map(|(r, e)| *r * *e)
-            .collect();
-        for (k, b) in b.iter_mut().enumerate().skip(real_count) {
-            let h = corner_mean(patches, k, indirect_with);
-            *b = system.reflectance[k] * (system.direct[k] + h) + system.emission[k];
-        }
-        solve_from(
-            patches,
-            system.transport,
-            system.reflectance,
-            &b,
-            Some(radiosity_with),
-            system.tolerance,
-            500,
-        )
-    });
-    let room = patches.vertex_values(&again.indirect_irradiance);
-    indirect_with[..real_vertices].copy_from_slice(&room[..real_vertices]);
 }
 
 /// The mean of patch `k`'s corner values in a vertex table.
@@ -589,13 +609,8 @@ fn gather_at(g: &Gather, v: u32, n: DVec3, dirs: &[DVec3], layer: Layer) -> Gath
 /// objects' radiosity from what their vertices gathered, ρ·(E + H), and
 /// gathers it again along the same rays: no ray is traced again. Rounds
 /// stop when no vertex moves by more than 1e-4 of its irradiance.
-fn object_bounces(
-    system: &System,
-    real_count: usize,
-    gathered: &[Gathered],
-    indirect: &mut [DVec3],
-) {
-    let patches = system.patches;
+fn object_bounces(lit: &Lit, real_count: usize, gathered: &[Gathered], indirect: &mut [DVec3]) {
+    let (patches, system) = (lit.patches, lit.system);
     for g in gathered {
         indirect[g.vertex] = g.irradiance;
     }
@@ -606,7 +621,7 @@ fn object_bounces(
     for _ in 0..16 {
         for (k, b) in radiosity.iter_mut().enumerate().skip(real_count) {
             let h = corner_mean(patches, k, indirect);
-            *b = system.reflectance[k] * (system.direct[k] + h) + system.emission[k];
+            *b = system.reflectance[k] * (system.direct[k] + h) + lit.emission[k];
         }
         let mut moved = 0.0f64;
         for g in gathered {

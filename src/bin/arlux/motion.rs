@@ -57,6 +57,10 @@ struct MotionReport<'a> {
     /// keeps the shafts its traversals built).
     block_bytes: usize,
     block_bytes_end: usize,
+    /// The room's radiosity without the objects, kept for every pose, and
+    /// the objects' change to it at the last pose.
+    room_solution_bytes: usize,
+    change_bytes: usize,
 }
 
 /// One pose: the full render (the first) or an update.
@@ -131,6 +135,8 @@ pub fn run(args: &Args) -> Result<()> {
             pda_bytes: 0,
             block_bytes: 0,
             block_bytes_end: 0,
+            room_solution_bytes: 0,
+            change_bytes: 0,
         };
         return print_report(&report, args.json);
     }
@@ -181,7 +187,8 @@ pub fn run(args: &Args) -> Result<()> {
     let full_seconds = full_render_seconds(&times);
     stage("write", || write(poses.start, &session.composite, &photo))?;
     bar.inc(1);
-    let (pda_bytes, block_bytes) = session.memory_bytes();
+    let memory = session.memory_bytes();
+    let (pda_bytes, block_bytes) = (memory.pixel_data, memory.pixel_blocks);
     let first = PoseReport {
         pose: poses.start,
         seconds: full_seconds,
@@ -239,7 +246,9 @@ pub fn run(args: &Args) -> Result<()> {
         poses: rows,
         pda_bytes,
         block_bytes,
-        block_bytes_end: session.memory_bytes().1,
+        block_bytes_end: session.memory_bytes().pixel_blocks,
+        room_solution_bytes: memory.room_solution,
+        change_bytes: session.memory_bytes().change,
     };
     // The poses' lines were printed as they came: the text adds the end.
     print_report(&report, args.json)
@@ -250,8 +259,10 @@ impl Report for MotionReport<'_> {
 
     fn text(&self) -> Vec<String> {
         vec![format!(
-            "pixel blocks at the end: {:.1} MB",
-            self.block_bytes_end as f64 / 1e6
+            "pixel blocks at the end: {:.1} MB; room solution kept {:.2} MB, the objects' change {:.2} MB",
+            self.block_bytes_end as f64 / 1e6,
+            self.room_solution_bytes as f64 / 1e6,
+            self.change_bytes as f64 / 1e6
         )]
     }
 }

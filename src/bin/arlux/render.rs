@@ -273,6 +273,8 @@ struct RenderReport<'a> {
     links: usize,
     elements: usize,
     links_bytes: usize,
+    room_solution_bytes: usize,
+    change_bytes: usize,
     method: &'static str,
     /// Shadow and sub-pixel rays (the pixel path's).
     rays: Option<u64>,
@@ -342,6 +344,8 @@ impl<'a> RenderReport<'a> {
             links: out.links,
             elements: out.elements,
             links_bytes: out.links_bytes,
+            room_solution_bytes: out.room_solution_bytes,
+            change_bytes: out.change_bytes,
             method: if out.texture.is_some() {
                 "texture"
             } else {
@@ -379,7 +383,7 @@ impl Report for RenderReport<'_> {
         let mut lines = Vec::new();
         match &self.texture {
             None => lines.push(format!(
-                "{} pixels, {} copied from the photo unchanged; {} patches ({:.2} m), {} form factors ({:.1} MB, {:.0} per element); {} rays; pixel data {:.1} MB ({:.0} bytes per pixel)",
+                "{} pixels, {} copied from the photo unchanged; {} patches ({:.2} m), {} form factors ({:.1} MB, {:.0} per element); room solution {:.2} MB kept, objects' change {:.2} MB; {} rays; pixel data {:.1} MB ({:.0} bytes per pixel)",
                 self.pixels,
                 self.copied_from_photo,
                 self.patches,
@@ -387,6 +391,8 @@ impl Report for RenderReport<'_> {
                 self.links,
                 self.links_bytes as f64 / 1e6,
                 self.links as f64 / self.elements.max(1) as f64,
+                self.room_solution_bytes as f64 / 1e6,
+                self.change_bytes as f64 / 1e6,
                 self.rays.unwrap_or(0),
                 self.pda_bytes as f64 / 1e6,
                 self.pda_bytes_per_pixel

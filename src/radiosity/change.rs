@@ -1,0 +1,286 @@
+//! Virtual objects as a change to a room's solved radiosity: what each
+//! room patch sees of the objects, traced from the patch towards them.
+//!
+//! A room patch that sees an object along a direction stops receiving the
+//! radiance of the room behind it (which the room's unchanged links still
+//! carry: the object sends it back as negative light, George, Sillion &
+//! Greenberg 1990; antiradiance, Dachsbacher et al. 2007) and receives the
+//! object's own radiance instead. Both are read along the same rays: one
+//! ray against the room and objects finds the object, one against the room
+//! alone finds what it hides. The rays depend on the patches and objects
+//! only, so a pose traces them once and the change is a sum over them for
+//! any radiosity; a patch that cannot see an object traces nothing.
+
+use super::*;
+
+/// Rays from a patch towards one object when it sees it over its whole
+/// hemisphere; fewer in proportion to the cone's solid angle.
+const MAX_RAYS: u32 = 1024;
+
+/// Fewest rays, for a patch that sees an object as a small cone.
+const MIN_RAYS: u32 = 4;
+
+/// Half-angle of the widest cone sampled as a cone (72°): wider, a
+/// patch's rays cover its hemisphere, cosine-distributed.
+const CONE_MAX: f64 = 1.2566;
+
+/// One ray from a room patch that met an object.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Seen {
+    /// Solid angle × cosine at the receiver, over the rays in its cone: the
+    /// irradiance this ray stands for per unit radiance.
+    weight: f64,
+    /// The object patch the ray met.
+    object: u32,
+    /// The room patch behind it (`u32::MAX`: the ray leaves the room).
+    behind: u32,
+}
+
+/// What the room's patches see of the virtual objects.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ObjectView {
+    /// Per room patch that sees an object: (patch, range in `seen`).
+    ranges: Vec<(u32, u32, u32)>,
+    seen: Vec<Seen>,
+    /// Rays traced.
+    pub rays: u64,
+}
+
+/// A sphere around one virtual surface and the surface's id.
+#[derive(Debug, Clone, Copy)]
+struct Target {
+    surface: u32,
+    centre: DVec3,
+    radius: f64,
+    lo: DVec3,
+    hi: DVec3,
+}
+
+impl ObjectView {
+    /// Traces, from each of the first `room_count` patches of `patches`
+    /// (the room's, followed by the objects'), rays towards each virtual
+    /// surface of `objects` that lies in front of it.
+    pub fn trace(
+        patches: &Patches,
+        room_count: usize,
+        tracer: &Tracer,
+        objects: &VirtualBounds,
+    ) -> ObjectView {
+        let targets: Vec<Target> = objects
+            .surface_bounds()
+            .map(|(surface, b)| {
+                let (lo, hi) = b.aabb;
+                Target {
+                    surface,
+                    centre: 0.5 * (lo + hi),
+                    radius: 0.5 * (hi - lo).length(),
+                    lo,
+                    hi,
+                }
+            })
+            .collect();
+        if targets.is_empty() {
+            return ObjectView::default();
+        }
+        let per_patch: Vec<(Vec<Seen>, u64)> = (0..room_count)
+            .into_par_iter()
+            .map(|k| {
+                let mut seen = Vec::new();
+                let mut rays = 0;
+                for t in &targets {
+                    rays += view_of(patches, k, t, tracer, &mut seen);
+                }
+                (seen, rays)
+            })
+            .collect();
+        let mut view = ObjectView::default();
+        for (k, (seen, rays)) in per_patch.into_iter().enumerate() {
+            view.rays += rays;
+            if seen.is_empty() {
+                continue;
+            }
+            let a = view.seen.len() as u32;
+            view.seen.extend(seen);
+            view.ranges.push((k as u32, a, view.seen.len() as u32));
+        }
+        view
+    }
+
+    /// Room patches that see an object.
+    pub fn patch_count(&self) -> usize {
+        self.ranges.len()
+    }
+
+    pub fn memory_bytes(&self) -> usize {
+        self.ranges.len() * std::mem::size_of::<(u32, u32, u32)>()
+            + self.seen.len() * std::mem::size_of::<Seen>()
+    }
+
+    /// The change to each room patch's irradiance (`room_count` values):
+    /// the objects' radiance (`radiosity`, per patch of the room and the
+    /// objects, /π) where a patch sees them, less the room's radiance
+    /// behind them (`room`, per room patch) that the room's links carry.
+    pub fn irradiance_change(
+        &self,
+        room_count: usize,
+        radiosity: &[DVec3],
+        room: &[DVec3],
+    ) -> Vec<DVec3> {
+        let mut out = vec![DVec3::ZERO; room_count];
+        for &(k, a, b) in &self.ranges {
+            let sum: DVec3 = self.seen[a as usize..b as usize]
+                .iter()
+                .map(|s| {
+                    let behind = room.get(s.behind as usize).copied().unwrap_or(DVec3::ZERO);
+                    (radiosity[s.object as usize] - behind) * s.weight
+                })
+                .sum();
+            out[k as usize] = sum / std::f64::consts::PI;
+        }
+        out
+    }
+}
+
+/// Traces patch `k`'s rays towards target `t`, keeping in `seen` those
+/// that meet it first; returns the rays traced.
+fn view_of(patches: &Patches, k: usize, t: &Target, tracer: &Tracer, seen: &mut Vec<Seen>) -> u64 {
+    let el = patches.patch(k);
+    let corners = crate::geometry::box_corners(t.lo, t.hi);
+    let side = |c: &DVec3| (*c - el.centre).dot(el.normal);
+    let front = corners.iter().any(|c| side(c) > 0.0);
+    let back = corners.iter().any(|c| side(c) < 0.0);
+    // The side of the patch that receives from the object.
+    let n = match (front, back) {
+        (false, false) => return 0,
+        (false, true) if el.one_sided => return 0,
+        (false, true) => -el.normal,
+        (true, false) => el.normal,
+        (true, true) if el.one_sided => el.normal,
+        (true, true) if side(&t.centre) >= 0.0 => el.normal,
+        (true, true) => -el.normal,
+    };
+    // One cone about the direction from the patch's centre that holds the
+    // sphere seen from any of its points (the axis turns by at most
+    // asin(h / d) across the patch, h its farthest corner, and the sphere
+    // spans asin(r / (d - h)) about it); a patch that close gathers over
+    // its hemisphere instead. One axis for all the patch's rays keeps the
+    // stratification of their directions.
+    let h = (el.shape.corners().iter())
+        .map(|c| (*c - el.centre).length())
+        .fold(0.0, f64::max);
+    let axis = t.centre - el.centre;
+    let d = axis.length();
+    let spread = if d > h + t.radius {
+        (h / d).asin() + (t.radius / (d - h)).asin()
+    } else {
+        std::f64::consts::FRAC_PI_2
+    };
+    let cone = (spread < CONE_MAX).then(|| spread.cos());
+    let solid = cone.map_or(std::f64::consts::TAU, |c| std::f64::consts::TAU * (1.0 - c));
+    let count = ((MAX_RAYS as f64 * solid / std::f64::consts::TAU).ceil() as u32)
+        .clamp(MIN_RAYS, MAX_RAYS)
+        .next_power_of_two();
+    let seed = crate::util::rng::hash2(k as u64, t.surface as u64) as u32;
+    let (points, dirs): (Vec<DVec3>, Vec<(DVec3, f64)>) = (0..count)
+        .map(|i| {
+            let [s, v, u1, u2] = sobol_burley::sample_4d(i, 0, seed).map(f64::from);
+            let x = point_on(el, s, v);
+            let d = match cone {
+                Some(cos_max) => (
+                    cone_direction(axis / d, cos_max, u1, u2),
+                    solid / count as f64,
+                ),
+                None => (
+                    cosine_direction(n, u1, u2),
+                    std::f64::consts::PI / count as f64,
+                ),
+            };
+            (x, d)
+        })
+        .unzip();
+    let rays: Vec<TraceRay> = points
+        .iter()
+        .zip(&dirs)
+        .map(|(x, (d, _))| TraceRay::new(offset_origin(*x, n, *x + n).as_vec3(), d.as_vec3()))
+        .collect();
+    let mut hits = vec![None; rays.len()];
+    tracer.intersect_batch(&rays, Layer::All, &mut hits);
+    let met: Vec<usize> = (0..rays.len())
+        .filter(|&i| {
+            hits[i]
+                .as_ref()
+                .is_some_and(|h| h.is_virtual && h.surface == t.surface)
+                && dirs[i].0.dot(n) > 0.0
+        })
+        .collect();
+    let mut traced = rays.len() as u64;
+    if met.is_empty() {
+        return traced;
+    }
+    let behind_rays: Vec<TraceRay> = met.iter().map(|&i| rays[i]).collect();
+    let mut behind = vec![None; behind_rays.len()];
+    tracer.intersect_batch(&behind_rays, Layer::Real, &mut behind);
+    traced += behind_rays.len() as u64;
+    for (&i, b) in met.iter().zip(&behind) {
+        let h = hits[i].as_ref().expect("a ray that met the object");
+        let (o, d) = (rays[i].origin.as_dvec3(), dirs[i].0);
+        let Some(object) = patches.locate(h.surface, h.triangle, o + d * h.t as f64) else {
+            continue;
+        };
+        let behind = b
+            .as_ref()
+            .and_then(|b| patches.locate(b.surface, b.triangle, o + d * b.t as f64))
+            .map_or(u32::MAX, |l| l.patch);
+        // Cosine-distributed rays weigh π / count; cone rays Ω / count × cos.
+        let cos = if cone.is_some() { d.dot(n) } else { 1.0 };
+        seen.push(Seen {
+            weight: dirs[i].1 * cos,
+            object: object.patch,
+            behind,
+        });
+    }
+    traced
+}
+
+/// The point at parameters (`s`, `t`) ∈ \[0, 1)² of the element (a
+/// triangle folded into its parallelogram).
+fn point_on(el: &Element, s: f64, t: f64) -> DVec3 {
+    match el.shape {
+        crate::patches::Shape::Quad { origin, u, v } => origin + u * s + v * t,
+        crate::patches::Shape::Tri([a, b, c]) => {
+            let (s, t) = if s + t > 1.0 {
+                (1.0 - s, 1.0 - t)
+            } else {
+                (s, t)
+            };
+            a + (b - a) * s + (c - a) * t
+        }
+    }
+}
+
+/// Two unit vectors completing unit `axis` to a frame.
+fn frame(axis: DVec3) -> (DVec3, DVec3) {
+    let t = if axis.x.abs() < 0.9 {
+        DVec3::X.cross(axis).normalize()
+    } else {
+        DVec3::Y.cross(axis).normalize()
+    };
+    (t, axis.cross(t))
+}
+
+/// The direction at (`u1`, `u2`) ∈ \[0, 1)² of the uniform distribution over
+/// the cone of half-angle acos(`cos_max`) about unit `axis`.
+fn cone_direction(axis: DVec3, cos_max: f64, u1: f64, u2: f64) -> DVec3 {
+    let (t, b) = frame(axis);
+    let cos = 1.0 - u1 * (1.0 - cos_max);
+    let sin = (1.0 - cos * cos).max(0.0).sqrt();
+    let phi = std::f64::consts::TAU * u2;
+    t * (sin * phi.cos()) + b * (sin * phi.sin()) + axis * cos
+}
+
+/// The direction at (`u1`, `u2`) of the cosine distribution about unit `n`.
+fn cosine_direction(n: DVec3, u1: f64, u2: f64) -> DVec3 {
+    let (t, b) = frame(n);
+    let (r, phi) = (u1.sqrt(), std::f64::consts::TAU * u2);
+    t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt()
+}
