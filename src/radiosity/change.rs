@@ -139,6 +139,70 @@ impl ObjectView {
         }
         out
     }
+
+    /// Subtracts from `out` (one channel, per room patch) the irradiance
+    /// the objects hide of room radiosity `x`: the objects' shadow on the
+    /// room's own links, applied to any radiosity (the change's bounces).
+    fn hide_from(&self, x: &[f64], out: &mut [f64]) {
+        for &(k, a, b) in &self.ranges {
+            let hidden: f64 = (self.seen[a as usize..b as usize].iter())
+                .filter_map(|s| Some(s.weight * x.get(s.behind as usize)?))
+                .sum();
+            out[k as usize] -= hidden / std::f64::consts::PI;
+        }
+    }
+}
+
+/// Solves for the change ΔB the objects make to a room's radiosity:
+/// ΔB = b + ρ ⊙ (T(ΔB) − G(ΔB)), with T the room's `transport` and G what
+/// the objects hide (`view`), from `guess` (or zero) to relative residual
+/// `tolerance`. The change's bounces pass the objects as the room's light
+/// does: where the change is bright (the wall an object lights), the room
+/// behind the object does not see it. Its `indirect_irradiance` is
+/// T(ΔB) − G(ΔB).
+pub fn solve_change(
+    patches: &Patches,
+    transport: &Transport,
+    reflectance: &[DVec3],
+    b: &[DVec3],
+    guess: Option<&[DVec3]>,
+    view: &ObjectView,
+    tolerance: f64,
+) -> Solution {
+    let n = b.len();
+    let mut change = vec![DVec3::ZERO; n];
+    let mut indirect = vec![DVec3::ZERO; n];
+    let (mut iterations, mut residual) = (0, 0.0f64);
+    for c in 0..3 {
+        let rho: Vec<f64> = reflectance.iter().map(|r| r[c]).collect();
+        let rhs: Vec<f64> = b.iter().map(|v| v[c]).collect();
+        let gather = |x: &[f64], out: &mut [f64]| {
+            transport.gather(patches, x, out);
+            view.hide_from(x, out);
+        };
+        let apply = |x: &[f64], out: &mut [f64]| {
+            gather(x, out);
+            for ((o, x), r) in out.iter_mut().zip(x).zip(&rho) {
+                *o = x - r * *o;
+            }
+        };
+        let x0: Vec<f64> = guess.map_or(vec![0.0; n], |g| g.iter().map(|v| v[c]).collect());
+        let (x, it, res) = super::solve::gmres(apply, &rhs, x0, tolerance, 500, 40);
+        iterations = iterations.max(it);
+        residual = residual.max(res);
+        let mut h = vec![0.0; n];
+        gather(&x, &mut h);
+        for ((d, i), (x, h)) in change.iter_mut().zip(&mut indirect).zip(x.iter().zip(&h)) {
+            d[c] = *x;
+            i[c] = *h;
+        }
+    }
+    Solution {
+        radiosity: change,
+        indirect_irradiance: indirect,
+        iterations,
+        residual,
+    }
 }
 
 /// Traces patch `k`'s rays towards target `t`, keeping in `seen` those

@@ -158,16 +158,25 @@ pub(super) fn solve_changes(
         };
     };
     let room_count = model.patches.patch_count();
+    // Lights off with the change send nothing for the objects to block.
+    let on: Vec<usize> = (0..model.lights.len())
+        .filter(|&l| input.scales_with[l] > 0.0)
+        .collect();
     let direct = times.time("direct light with objects", || {
         direct_irradiance_with_objects(
             patches,
-            &model.lights,
+            &on.iter()
+                .map(|&l| model.lights[l].clone())
+                .collect::<Vec<_>>(),
             input.tracer,
             input.settings.model.light_level,
-            &model.direct_per_light,
+            &on.iter()
+                .map(|&l| model.direct_per_light[l].clone())
+                .collect::<Vec<_>>(),
             input.bounds,
         )
     });
+    let scales_on: Vec<f64> = on.iter().map(|&l| input.scales_with[l]).collect();
     let view = times.time("objects seen from the room", || {
         crate::radiosity::ObjectView::trace(patches, room_count, input.tracer, input.bounds)
     });
@@ -192,7 +201,7 @@ pub(super) fn solve_changes(
     let system = ChangeSystem {
         input,
         view: &view,
-        direct: total_direct(input.scales_with, &direct),
+        direct: total_direct(&scales_on, &direct),
         room_direct: total_direct(input.scales_with, &model.direct_per_light),
         reflectance: &reflectance,
     };
@@ -203,12 +212,14 @@ pub(super) fn solve_changes(
                 .map(|k| reflectance[k] * system.direct[k] + emission[k]),
         )
         .collect();
-    let mut change = times.time("solve the change", || system.solve(&radiosity, None));
+    // The change without its bounces, ρ·(ΔE + ΔH): what the objects'
+    // gather sees of the room they darken, and where the solve starts.
+    let first = system.first_order(&radiosity);
     let mut indirect_with = vec![DVec3::ZERO; patches.vertices.len()];
     if input.settings.gather_rays > 0 {
         for (b, (room, d)) in radiosity
             .iter_mut()
-            .zip(input.room.radiosity.iter().zip(&change.0.radiosity))
+            .zip(input.room.radiosity.iter().zip(&first))
         {
             *b = *room + *d;
         }
@@ -222,11 +233,10 @@ pub(super) fn solve_changes(
             let h = corner_mean(patches, k, &indirect_with);
             *b = reflectance[k] * (system.direct[k] + h) + emission[k];
         }
-        change = times.time("solve the change", || {
-            system.solve(&radiosity, Some(&change.0.radiosity))
-        });
     }
-    let (solution, seen) = change;
+    let (solution, seen) = times.time("solve the change", || {
+        system.solve(&radiosity, Some(&first))
+    });
     // The room's indirect light: as kept, plus the change's bounces, plus
     // what it sees of the objects in place of what they hide.
     let room: Vec<DVec3> = (input.room.indirect_irradiance.iter())
@@ -260,27 +270,45 @@ struct ChangeSystem<'a> {
 }
 
 impl ChangeSystem<'_> {
-    /// ΔB over the room's patches and the ΔH it was solved with, for the
-    /// objects' radiosity in `radiosity` (per patch of room and objects).
-    fn solve(&self, radiosity: &[DVec3], guess: Option<&[DVec3]>) -> (Solution, Vec<DVec3>) {
-        let model = self.input.model;
-        let room_count = model.patches.patch_count();
+    /// ΔH, what the room's patches see of the objects less what they hide,
+    /// for the objects' radiosity in `radiosity` (per patch of room and
+    /// objects), and the change's source term ρ·(ΔE + ΔH).
+    fn source(&self, radiosity: &[DVec3]) -> (Vec<DVec3>, Vec<DVec3>) {
+        let room_count = self.input.model.patches.patch_count();
         let seen = (self.view).irradiance_change(room_count, radiosity, &self.input.room.radiosity);
-        let b: Vec<DVec3> = (0..room_count)
+        let b = (0..room_count)
             .map(|k| self.reflectance[k] * (self.direct[k] - self.room_direct[k] + seen[k]))
             .collect();
-        let solution = solve_from(
+        (seen, b)
+    }
+
+    /// The change before it bounces: ρ·(ΔE + ΔH).
+    fn first_order(&self, radiosity: &[DVec3]) -> Vec<DVec3> {
+        self.source(radiosity).1
+    }
+
+    /// ΔB over the room's patches (its bounces hidden by the objects as
+    /// the room's light is), and the ΔH it was solved with.
+    fn solve(&self, radiosity: &[DVec3], guess: Option<&[DVec3]>) -> (Solution, Vec<DVec3>) {
+        let model = self.input.model;
+        let (seen, b) = self.source(radiosity);
+        let solution = crate::radiosity::solve_change(
             &model.patches,
             &model.transport,
-            &self.reflectance[..room_count],
+            &self.reflectance[..model.patches.patch_count()],
             &b,
             guess,
-            self.input.settings.model.estimate.solve_tolerance,
-            500,
+            self.view,
+            CHANGE_TOLERANCE,
         );
         (solution, seen)
     }
 }
+
+/// The relative residual a change's solve stops at: relative to the
+/// change, which is itself a small part of the room's light (the room's own
+/// solve stops at 1e-7 of B).
+const CHANGE_TOLERANCE: f64 = 1e-5;
 
 /// The objects' light: their direct light, emission and patches.
 struct Lit<'a> {
