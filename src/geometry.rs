@@ -122,9 +122,8 @@ pub(crate) fn distance_to_triangle(p: DVec3, t: &Triangle) -> f64 {
 /// Whether the triangles close a volume: after welding corners that coincide,
 /// every edge is shared by an even number of triangles.
 pub(crate) fn is_closed(triangles: &[Triangle]) -> bool {
-    use std::collections::HashMap;
     let key = |p: Vec3| (p * 1e5).round().as_ivec3().to_array();
-    let mut edges: HashMap<([i32; 3], [i32; 3]), u32> = HashMap::new();
+    let mut edges: crate::util::FastMap<([i32; 3], [i32; 3]), u32> = crate::util::fast_map();
     for t in triangles {
         for i in 0..3 {
             let (a, b) = (key(t[i]), key(t[(i + 1) % 3]));
@@ -142,9 +141,8 @@ pub(crate) fn is_closed(triangles: &[Triangle]) -> bool {
 /// every face, where a test per face cost O(n²) (80 ms for a
 /// 2,000-triangle chair, at every move).
 pub(crate) fn consistent_winding(triangles: &[Triangle]) -> Option<bool> {
-    use std::collections::HashMap;
     let key = |p: Vec3| (p * 1e5).round().as_ivec3().to_array();
-    let mut edges: HashMap<([i32; 3], [i32; 3]), i32> = HashMap::new();
+    let mut edges: crate::util::FastMap<([i32; 3], [i32; 3]), i32> = crate::util::fast_map();
     for t in triangles {
         for i in 0..3 {
             let (a, b) = (key(t[i]), key(t[(i + 1) % 3]));

@@ -258,7 +258,7 @@ pub struct Patches {
     /// Vertices of each patch in corner order (triangles repeat none: 3 used).
     pub patch_vertices: Vec<[u32; 4]>,
     /// Per surface id: whether it is virtual, and its triangles' roots.
-    pub surface_is_virtual: HashMap<u32, bool>,
+    pub surface_is_virtual: crate::util::FastMap<u32, bool>,
     /// Root element of each triangle, by surface id and triangle (dense:
     /// a lookup per ray hit, where a hashed pair cost as much as the descent).
     root_of_triangle: Vec<Vec<u32>>,
@@ -405,7 +405,7 @@ impl Patches {
             patches: Vec::new(),
             vertices: Vec::new(),
             patch_vertices: Vec::new(),
-            surface_is_virtual: HashMap::new(),
+            surface_is_virtual: crate::util::fast_map(),
             root_of_triangle: Vec::new(),
         };
         p.append(inputs, target_size);
@@ -445,7 +445,8 @@ impl Patches {
     /// [`Patches::append`], splitting further every element that holds a
     /// marked leaf (its root and centre) and is at least as large.
     fn append_marked(&mut self, inputs: &[SurfaceInput], target_size: f64, marks: &SplitMarks) {
-        let mut weld: HashMap<(u32, [i64; 4], [i64; 3]), u32> = HashMap::new();
+        let mut weld: crate::util::FastMap<(u32, [i64; 4], [i64; 3]), u32> =
+            crate::util::fast_map();
         for input in inputs {
             self.surface_is_virtual
                 .insert(input.surface, input.is_virtual);
@@ -552,7 +553,7 @@ impl Patches {
         e: u32,
         target: f64,
         depth: u32,
-        weld: &mut HashMap<(u32, [i64; 4], [i64; 3]), u32>,
+        weld: &mut crate::util::FastMap<(u32, [i64; 4], [i64; 3]), u32>,
         marks: &[(DVec2, f64)],
     ) {
         let el = self.elements[e as usize].clone();

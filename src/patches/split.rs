@@ -107,7 +107,7 @@ pub(crate) fn distance_outside(region: &Region, st: DVec2) -> f64 {
 pub(super) fn primitives(triangles: &[Triangle]) -> Vec<(Shape, Vec<u32>)> {
     let key = |p: glam::Vec3| (p.as_dvec3() * 1e5).round().as_i64vec3().to_array();
     let tris: Vec<[DVec3; 3]> = triangles.iter().map(|t| t.map(|p| p.as_dvec3())).collect();
-    let mut by_edge: HashMap<([i64; 3], [i64; 3]), Vec<u32>> = HashMap::new();
+    let mut by_edge: crate::util::FastMap<([i64; 3], [i64; 3]), Vec<u32>> = crate::util::fast_map();
     for (i, t) in triangles.iter().enumerate() {
         for k in 0..3 {
             let (a, b) = (key(t[k]), key(t[(k + 1) % 3]));
