@@ -61,11 +61,7 @@ fn bench(c: &mut Criterion) {
     });
     drop(session);
     // The rendered images are likewise dropped untimed.
-    g.bench_function("box_slide_pose_4_full_render", |b| {
-        b.iter_with_large_drop(|| {
-            render(&p4, &photo, &settings, &mut StageTimes::default()).unwrap()
-        })
-    });
+    full_renders(&mut g, "box_slide_pose_4", &p4, &photo, &settings);
     drop(start);
     g.finish();
 
@@ -130,7 +126,7 @@ fn probe_rays(count: usize) -> Vec<TraceRay> {
 /// on more, the parts run side by side and share the cores, so their
 /// times cannot be told apart. The bound counts the shadow rays of pixels
 /// whose direct light changed; the update must also carry the objects'
-/// indirect light (re-link, solve, gather) and composite every pixel.
+/// indirect light (the change, solve, gather) and composite every pixel.
 fn parts_on_one_thread(base: &Scene, photo: &arlux::image_io::Image, settings: &RenderSettings) {
     let (p3, p4) = (
         base.with_motion_pose("box_slide", 3).unwrap(),
@@ -192,7 +188,8 @@ fn parts_on_one_thread(base: &Scene, photo: &arlux::image_io::Image, settings: &
                 .sum::<f64>()
         };
         let (indirect, pixels, composite) = (
-            sum(&INDIRECT, &times.1),
+            // The change near the objects is traced after the solve, before the composite.
+            sum(&INDIRECT, &times.1) + sum(&["the change near the objects"], &times.0),
             sum(&PIXELS, &times.1),
             sum(&["composite"], &times.0),
         );
@@ -251,7 +248,7 @@ fn dense(c: &mut Criterion) {
 
 /// A scene's `stool_walk`: the same move back and forth on one session,
 /// next to a full render of the pose, and the update's indirect part
-/// (re-link, solve, gather) on its own; benchmarks named after `label`.
+/// (the change, solve, gather) on its own; benchmarks named after `label`.
 fn stool_walk(c: &mut Criterion, scene: &str, label: &str) {
     let base = Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join(scene)).unwrap();
     let settings = RenderSettings::default();
@@ -276,14 +273,19 @@ fn stool_walk(c: &mut Criterion, scene: &str, label: &str) {
                 let stats = session
                     .update(if forth { &p3 } else { &p2 }, &mut times)
                     .unwrap();
-                // Inside "radiosity | pixels": the indirect stages run beside the pixels'.
+                // Inside "radiosity | pixels" the indirect stages run beside the
+                // pixels'; the change near the objects follows them.
                 indirect.push(
                     times
                         .1
                         .iter()
                         .filter(|(n, _)| !n.contains("pixel") && !n.contains("re-trace"))
                         .map(|(_, d)| d.as_secs_f64() * 1e3)
-                        .sum::<f64>(),
+                        .sum::<f64>()
+                        + (times.0.iter())
+                            .filter(|(n, _)| *n == "the change near the objects")
+                            .map(|(_, d)| d.as_secs_f64() * 1e3)
+                            .sum::<f64>(),
                 );
                 stats
             })
@@ -293,17 +295,37 @@ fn stool_walk(c: &mut Criterion, scene: &str, label: &str) {
     indirect.sort_by(f64::total_cmp);
     if !indirect.is_empty() {
         println!(
-            "{label} update, indirect part (re-link, solve, gather): median {:.1} ms over {} updates",
+            "{label} update, indirect part (the change: what the room sees of the objects, solve, gather): median {:.1} ms over {} updates",
             indirect[indirect.len() / 2],
             indirect.len()
         );
     }
-    g.bench_function(format!("{label}_pose_3_full_render"), |b| {
+    full_renders(&mut g, &format!("{label}_pose_3"), &p3, &photo, &settings);
+    g.finish();
+}
+
+/// Full renders of `scene` beside its updates: with the room's links
+/// refined every time (a cold cache, `settings` as given) and read from
+/// the links cache (warm, filled by a first render), as `arlux render` does
+/// by default.
+fn full_renders(
+    g: &mut criterion::BenchmarkGroup<criterion::measurement::WallTime>,
+    label: &str,
+    scene: &Scene,
+    photo: &arlux::image_io::Image,
+    settings: &RenderSettings,
+) {
+    g.bench_function(format!("{label}_full_render_cold_cache"), |b| {
         b.iter_with_large_drop(|| {
-            render(&p3, &photo, &settings, &mut StageTimes::default()).unwrap()
+            render(scene, photo, settings, &mut StageTimes::default()).unwrap()
         })
     });
-    g.finish();
+    let mut warm = *settings;
+    warm.model.cache_links = true;
+    render(scene, photo, &warm, &mut StageTimes::default()).unwrap();
+    g.bench_function(format!("{label}_full_render_warm_cache"), |b| {
+        b.iter_with_large_drop(|| render(scene, photo, &warm, &mut StageTimes::default()).unwrap())
+    });
 }
 
 criterion_group!(benches, bench, parts, lounge, dense);

@@ -64,6 +64,9 @@ pub struct CompositeInput<'a> {
     /// Objects with materials, shaded per pixel by their BRDF (None: every
     /// object is diffuse clay, `reflectance × (E + H) / π`).
     pub objects: Option<&'a crate::object_shading::ObjectShading<'a>>,
+    /// The objects' change near them, finer than the patches (see
+    /// [`crate::radiosity::NearField`]; None: none).
+    pub near: Option<&'a crate::radiosity::NearField>,
     /// Fill the direct, indirect and change layers too; without them the
     /// composite holds them empty (a motion writes its images only, and
     /// filling them is a tenth to a fifth of an update's composite).
@@ -408,6 +411,9 @@ pub(crate) fn composite_into(input: &CompositeInput, out: &mut Composite) {
             shader.plain(i, &h_with).unwrap_or_else(|| shader.other(i))
         }),
     }
+    if let Some(field) = input.near {
+        near::refine(&shader, field, &h_with, out);
+    }
     let found;
     let seams = match input.known {
         Some(known) => &known.seams,
@@ -421,6 +427,7 @@ pub(crate) fn composite_into(input: &CompositeInput, out: &mut Composite) {
 }
 
 pub mod grain;
+mod near;
 mod real_pixels;
 pub(crate) mod seams;
 mod shader;

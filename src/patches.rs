@@ -39,6 +39,15 @@ impl Shape {
         }
     }
 
+    /// `x`'s parameters (s, t) on the shape's plane: origin + s·u + t·v
+    /// for a quad, a + s·(b − a) + t·(c − a) for a triangle.
+    pub fn params(&self, x: DVec3) -> DVec2 {
+        match *self {
+            Shape::Quad { origin, u, v } => split::plane_params(x - origin, u, v),
+            Shape::Tri([a, b, c]) => split::plane_params(x - a, b - a, c - a),
+        }
+    }
+
     /// Smallest and largest coordinates.
     pub fn bounds(&self) -> (DVec3, DVec3) {
         let c = self.corners();

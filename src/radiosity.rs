@@ -536,6 +536,7 @@ mod change;
 mod clusters;
 mod direct;
 mod form_factor;
+mod near;
 mod relink;
 mod solve;
 
@@ -543,6 +544,7 @@ pub use change::*;
 pub use clusters::*;
 pub use direct::*;
 pub use form_factor::*;
+pub use near::{NearField, NearView};
 pub use solve::*;
 
 #[cfg(test)]

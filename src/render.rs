@@ -425,6 +425,24 @@ impl Session {
     /// point's light terms changed since the last composite.
     fn recomposite(&mut self, times: &mut StageTimes, recomputed: &[u32]) {
         let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| o);
+        let near = match (&self.changes.near, &self.changes.own) {
+            (Some(source), Some(objects)) => {
+                Some(times.time("the change near the objects", || {
+                    let input = ChangeInput {
+                        scene: &self.scene,
+                        photo: &self.photo,
+                        tracer: &self.tracer,
+                        model: &self.model,
+                        scales_with: &self.scales_with,
+                        settings: &self.settings,
+                        bounds: &self.bounds,
+                        room: &self.room,
+                    };
+                    changes::near_field(&input, objects, source, &self.pda)
+                }))
+            }
+            _ => None,
+        };
         let known = self.known.take();
         let mut out = std::mem::replace(&mut self.composite, crate::composite::Composite::empty());
         let materials = crate::object_shading::ObjectMaterials::of(&self.scene);
@@ -458,6 +476,7 @@ impl Session {
                 mode: self.settings.mode,
                 floor: ratio_floor(&self.model, &self.scales_without),
                 known: None,
+                near: near.as_ref(),
                 layers: self.layers,
             };
             if !self.for_updates {

@@ -43,6 +43,15 @@ impl<'a> Shader<'a> {
         }
     }
 
+    pub(super) fn pda(&self) -> &PixelDataArray {
+        self.pda
+    }
+
+    /// The photo's pixel `i` (of the frame).
+    pub(super) fn photo_at(&self, i: usize) -> Vec3 {
+        self.input.photo.pixels[i]
+    }
+
     fn in_span(&self, i: usize) -> bool {
         let w = self.pda.width as usize;
         let (x0, x1) = self.spans[i / w];
@@ -157,6 +166,16 @@ impl<'a> Shader<'a> {
 
     /// A pixel that shows a real point alone; None for any other.
     pub(super) fn plain(&self, i: usize, h_with: &[[Vec3A; 4]]) -> Option<PixelShade> {
+        self.plain_with(i, h_with, None)
+    }
+
+    /// [`Shader::plain`] with `extra` added to the interpolated indirect light.
+    pub(super) fn plain_with(
+        &self,
+        i: usize,
+        h_with: &[[Vec3A; 4]],
+        extra: Option<Vec3A>,
+    ) -> Option<PixelShade> {
         let (input, pda, lights) = (self.input, self.pda, self.lights);
         let photo = &input.photo.pixels;
         let k = pda.real_at(i);
@@ -171,10 +190,8 @@ impl<'a> Shader<'a> {
             Some(known) => known.get(k),
             None => input.real_pixel(&pda.real.points[k], terms, input.photo_at(i), self.floor),
         };
-        let mut s = r.layers(
-            interpolate_single(&h_with[r.patch()], r.affine.weights),
-            &photo[i],
-        );
+        let h = interpolate_single(&h_with[r.patch()], r.affine.weights);
+        let mut s = r.layers(extra.map_or(h, |e| h + e), &photo[i]);
         if input.layers {
             s.direct = input.irradiance(terms, input.scales_with, true).as_vec3();
         }

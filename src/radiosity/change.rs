@@ -26,14 +26,14 @@ const CONE_MAX: f64 = 1.2566;
 
 /// One ray from a room patch that met an object.
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct Seen {
+pub(super) struct Seen {
     /// Solid angle × cosine at the receiver, over the rays in its cone: the
     /// irradiance this ray stands for per unit radiance.
-    weight: f64,
+    pub(super) weight: f64,
     /// The object patch the ray met.
-    object: u32,
+    pub(super) object: u32,
     /// The room patch behind it (`u32::MAX`: the ray leaves the room).
-    behind: u32,
+    pub(super) behind: u32,
 }
 
 /// What the room's patches see of the virtual objects.
@@ -48,12 +48,29 @@ pub struct ObjectView {
 
 /// A sphere around one virtual surface and the surface's id.
 #[derive(Debug, Clone, Copy)]
-struct Target {
-    surface: u32,
-    centre: DVec3,
-    radius: f64,
-    lo: DVec3,
-    hi: DVec3,
+pub(super) struct Target {
+    pub(super) surface: u32,
+    pub(super) centre: DVec3,
+    pub(super) radius: f64,
+    pub(super) lo: DVec3,
+    pub(super) hi: DVec3,
+}
+
+/// A target per virtual surface of `objects`.
+pub(super) fn targets(objects: &VirtualBounds) -> Vec<Target> {
+    objects
+        .surface_bounds()
+        .map(|(surface, b)| {
+            let (lo, hi) = b.aabb;
+            Target {
+                surface,
+                centre: 0.5 * (lo + hi),
+                radius: 0.5 * (hi - lo).length(),
+                lo,
+                hi,
+            }
+        })
+        .collect()
 }
 
 impl ObjectView {
@@ -66,19 +83,7 @@ impl ObjectView {
         tracer: &Tracer,
         objects: &VirtualBounds,
     ) -> ObjectView {
-        let targets: Vec<Target> = objects
-            .surface_bounds()
-            .map(|(surface, b)| {
-                let (lo, hi) = b.aabb;
-                Target {
-                    surface,
-                    centre: 0.5 * (lo + hi),
-                    radius: 0.5 * (hi - lo).length(),
-                    lo,
-                    hi,
-                }
-            })
-            .collect();
+        let targets = targets(objects);
         if targets.is_empty() {
             return ObjectView::default();
         }
@@ -205,89 +210,139 @@ pub fn solve_change(
     }
 }
 
-/// Traces patch `k`'s rays towards target `t`, keeping in `seen` those
-/// that meet it first; returns the rays traced.
-fn view_of(patches: &Patches, k: usize, t: &Target, tracer: &Tracer, seen: &mut Vec<Seen>) -> u64 {
-    let el = patches.patch(k);
+/// The side of element `el` that receives light from target `t` (its
+/// normal, or the opposite for a two-sided element), None where `t` lies
+/// wholly behind a one-sided element or in its plane.
+pub(super) fn receiving_side(el: &Element, t: &Target) -> Option<DVec3> {
     let corners = crate::geometry::box_corners(t.lo, t.hi);
     let side = |c: &DVec3| (*c - el.centre).dot(el.normal);
     let front = corners.iter().any(|c| side(c) > 0.0);
     let back = corners.iter().any(|c| side(c) < 0.0);
-    // The side of the patch that receives from the object.
-    let n = match (front, back) {
-        (false, false) => return 0,
-        (false, true) if el.one_sided => return 0,
-        (false, true) => -el.normal,
-        (true, false) => el.normal,
-        (true, true) if el.one_sided => el.normal,
-        (true, true) if side(&t.centre) >= 0.0 => el.normal,
-        (true, true) => -el.normal,
-    };
-    // One cone about the direction from the patch's centre that holds the
-    // sphere seen from any of its points (the axis turns by at most
-    // asin(h / d) across the patch, h its farthest corner, and the sphere
-    // spans asin(r / (d - h)) about it); a patch that close gathers over
-    // its hemisphere instead. One axis for all the patch's rays keeps the
-    // stratification of their directions.
-    let h = (el.shape.corners().iter())
-        .map(|c| (*c - el.centre).length())
-        .fold(0.0, f64::max);
-    let axis = t.centre - el.centre;
+    match (front, back) {
+        (false, false) => None,
+        (false, true) if el.one_sided => None,
+        (false, true) => Some(-el.normal),
+        (true, false) => Some(el.normal),
+        (true, true) if el.one_sided => Some(el.normal),
+        (true, true) if side(&t.centre) >= 0.0 => Some(el.normal),
+        (true, true) => Some(-el.normal),
+    }
+}
+
+/// The cone of directions that holds target `t` seen from anywhere within
+/// `h` of `from` (the axis turns by at most asin(h / d) over that disc, and
+/// the sphere spans asin(r / (d - h)) about it): its unit axis, and the
+/// cosine of its half-angle, None where a hemisphere is needed instead.
+pub(super) fn cone_towards(from: DVec3, h: f64, t: &Target) -> (DVec3, Option<f64>) {
+    let axis = t.centre - from;
     let d = axis.length();
     let spread = if d > h + t.radius {
         (h / d).asin() + (t.radius / (d - h)).asin()
     } else {
         std::f64::consts::FRAC_PI_2
     };
-    let cone = (spread < CONE_MAX).then(|| spread.cos());
-    let solid = cone.map_or(std::f64::consts::TAU, |c| std::f64::consts::TAU * (1.0 - c));
-    let count = ((MAX_RAYS as f64 * solid / std::f64::consts::TAU).ceil() as u32)
-        .clamp(MIN_RAYS, MAX_RAYS)
-        .next_power_of_two();
+    (
+        axis / d.max(1e-300),
+        (spread < CONE_MAX).then(|| spread.cos()),
+    )
+}
+
+/// Ray `i` of `count` from the receiver towards a cone (`cone`: its axis
+/// and the cosine of its half-angle) or over the hemisphere about `n`, at
+/// Sobol parameters (`u1`, `u2`): its direction and the irradiance it
+/// stands for per unit radiance.
+pub(super) fn towards(
+    n: DVec3,
+    (axis, cone): (DVec3, Option<f64>),
+    count: u32,
+    u1: f64,
+    u2: f64,
+) -> (DVec3, f64) {
+    match cone {
+        Some(cos_max) => {
+            let solid = std::f64::consts::TAU * (1.0 - cos_max);
+            let d = cone_direction(axis, cos_max, u1, u2);
+            // Cone rays weigh Ω / count × cos.
+            (d, solid / count as f64 * d.dot(n).max(0.0))
+        }
+        // Cosine-distributed rays weigh π / count.
+        None => (
+            cosine_direction(n, u1, u2),
+            std::f64::consts::PI / count as f64,
+        ),
+    }
+}
+
+/// Rays for a cone (or the hemisphere, None) of `max` over the whole
+/// hemisphere: fewer in proportion to its solid angle, a power of two.
+pub(super) fn rays_for(cone: Option<f64>, max: u32) -> u32 {
+    let share = cone.map_or(1.0, |c| 1.0 - c);
+    ((max as f64 * share).ceil() as u32)
+        .clamp(MIN_RAYS, max)
+        .next_power_of_two()
+}
+
+/// Traces patch `k`'s rays towards target `t`, keeping in `seen` those
+/// that meet it first; returns the rays traced.
+fn view_of(patches: &Patches, k: usize, t: &Target, tracer: &Tracer, seen: &mut Vec<Seen>) -> u64 {
+    let el = patches.patch(k);
+    let Some(n) = receiving_side(el, t) else {
+        return 0;
+    };
+    // One cone from the patch's centre for all its rays (a patch that close
+    // gathers over its hemisphere instead): one axis keeps the
+    // stratification of their directions.
+    let h = (el.shape.corners().iter())
+        .map(|c| (*c - el.centre).length())
+        .fold(0.0, f64::max);
+    let cone = cone_towards(el.centre, h, t);
+    let count = rays_for(cone.1, MAX_RAYS);
     let seed = crate::util::rng::hash2(k as u64, t.surface as u64) as u32;
-    let (points, dirs): (Vec<DVec3>, Vec<(DVec3, f64)>) = (0..count)
+    let rays: Vec<(DVec3, DVec3, f64)> = (0..count)
         .map(|i| {
             let [s, v, u1, u2] = sobol_burley::sample_4d(i, 0, seed).map(f64::from);
-            let x = point_on(el, s, v);
-            let d = match cone {
-                Some(cos_max) => (
-                    cone_direction(axis / d, cos_max, u1, u2),
-                    solid / count as f64,
-                ),
-                None => (
-                    cosine_direction(n, u1, u2),
-                    std::f64::consts::PI / count as f64,
-                ),
-            };
-            (x, d)
+            let (d, w) = towards(n, cone, count, u1, u2);
+            (point_on(el, s, v), d, w)
         })
-        .unzip();
-    let rays: Vec<TraceRay> = points
-        .iter()
-        .zip(&dirs)
-        .map(|(x, (d, _))| TraceRay::new(offset_origin(*x, n, *x + n).as_vec3(), d.as_vec3()))
         .collect();
-    let mut hits = vec![None; rays.len()];
-    tracer.intersect_batch(&rays, Layer::All, &mut hits);
-    let met: Vec<usize> = (0..rays.len())
+    trace_seen(patches, &rays, n, t, tracer, seen)
+}
+
+/// Traces `rays` (origin, direction, weight) from a receiver facing `n`,
+/// keeping in `seen` those that meet target `t` first, with the room patch
+/// each hides; returns the rays traced.
+pub(super) fn trace_seen(
+    patches: &Patches,
+    rays: &[(DVec3, DVec3, f64)],
+    n: DVec3,
+    t: &Target,
+    tracer: &Tracer,
+    seen: &mut Vec<Seen>,
+) -> u64 {
+    let traced: Vec<TraceRay> = (rays.iter())
+        .map(|(x, d, _)| TraceRay::new(offset_origin(*x, n, *x + n).as_vec3(), d.as_vec3()))
+        .collect();
+    let mut hits = vec![None; traced.len()];
+    tracer.intersect_batch(&traced, Layer::All, &mut hits);
+    let met: Vec<usize> = (0..traced.len())
         .filter(|&i| {
             hits[i]
                 .as_ref()
                 .is_some_and(|h| h.is_virtual && h.surface == t.surface)
-                && dirs[i].0.dot(n) > 0.0
+                && rays[i].1.dot(n) > 0.0
         })
         .collect();
-    let mut traced = rays.len() as u64;
+    let mut count = traced.len() as u64;
     if met.is_empty() {
-        return traced;
+        return count;
     }
-    let behind_rays: Vec<TraceRay> = met.iter().map(|&i| rays[i]).collect();
+    let behind_rays: Vec<TraceRay> = met.iter().map(|&i| traced[i]).collect();
     let mut behind = vec![None; behind_rays.len()];
     tracer.intersect_batch(&behind_rays, Layer::Real, &mut behind);
-    traced += behind_rays.len() as u64;
+    count += behind_rays.len() as u64;
     for (&i, b) in met.iter().zip(&behind) {
         let h = hits[i].as_ref().expect("a ray that met the object");
-        let (o, d) = (rays[i].origin.as_dvec3(), dirs[i].0);
+        let (o, d) = (traced[i].origin.as_dvec3(), rays[i].1);
         let Some(object) = patches.locate(h.surface, h.triangle, o + d * h.t as f64) else {
             continue;
         };
@@ -295,15 +350,13 @@ fn view_of(patches: &Patches, k: usize, t: &Target, tracer: &Tracer, seen: &mut 
             .as_ref()
             .and_then(|b| patches.locate(b.surface, b.triangle, o + d * b.t as f64))
             .map_or(u32::MAX, |l| l.patch);
-        // Cosine-distributed rays weigh π / count; cone rays Ω / count × cos.
-        let cos = if cone.is_some() { d.dot(n) } else { 1.0 };
         seen.push(Seen {
-            weight: dirs[i].1 * cos,
+            weight: rays[i].2,
             object: object.patch,
             behind,
         });
     }
-    traced
+    count
 }
 
 /// The point at parameters (`s`, `t`) ∈ \[0, 1)² of the element (a

@@ -3,7 +3,7 @@ use crate::geometry::Triangle;
 use crate::patches::{Shape, SurfaceInput};
 use crate::trace::{SurfaceTriangles, Tracer};
 use crate::util::rng::unit_random;
-use glam::Vec3;
+use glam::{DVec2, Vec3};
 use std::time::Instant;
 
 fn element(shape: Shape) -> Element {
@@ -417,21 +417,16 @@ fn a_cluster_sends_a_cube_s_and_a_sphere_s_intensity_in_every_direction() {
     assert!(worst_sphere < 0.05, "sphere off by {worst_sphere}");
 }
 
-/// A patch of the right wall: its area, and the irradiance it gathers
-/// without the box, with it (full matrix), with it as a change, and on
-/// the room's links without it.
-type WallPatch = (f64, f64, f64, f64, f64);
+/// The walls of [`walls_and_a_box`] without and with the box: patches and tracers.
+struct Walls {
+    room: Patches,
+    with: Patches,
+    tracer_room: Tracer,
+    tracer_with: Tracer,
+    cube: Vec<Triangle>,
+}
 
-/// Two facing 2 m walls 2 m apart (x = 0 and x = 2), the left one
-/// glowing (B = 1), nothing reflecting, and a black solid box of `size`
-/// at `at` (its low corner): per patch of the right wall, the irradiance
-/// (its area) without the box, with it by every patch pair traced (the
-/// full matrix), and with it as a change to the room's solution (the
-/// room's hierarchical links, unchanged, plus what the wall sees of the box
-/// in place of what it hides, [`ObjectView`]); last, without the box on
-/// the room's hierarchical links. Also the view, and per patch the
-/// irradiance lost by brute force ([`traced_loss`]).
-fn walls_and_a_box(at: Vec3, size: f32) -> (Vec<WallPatch>, ObjectView, Vec<f64>) {
+fn walls_with_box(at: Vec3, size: f32) -> Walls {
     let quad = |a: Vec3, b: Vec3, c: Vec3, d: Vec3| vec![[a, b, c], [a, c, d]];
     let left = quad(
         Vec3::new(0.0, 0.0, 0.0),
@@ -482,6 +477,37 @@ fn walls_and_a_box(at: Vec3, size: f32) -> (Vec<WallPatch>, ObjectView, Vec<f64>
         Tracer::build(&sets, &[]).unwrap(),
         Tracer::build(&sets, &box_set).unwrap(),
     );
+    Walls {
+        room,
+        with,
+        tracer_room,
+        tracer_with,
+        cube,
+    }
+}
+
+/// A patch of the right wall: its area, and the irradiance it gathers
+/// without the box, with it (full matrix), with it as a change, and on
+/// the room's links without it.
+type WallPatch = (f64, f64, f64, f64, f64);
+
+/// Two facing 2 m walls 2 m apart (x = 0 and x = 2), the left one
+/// glowing (B = 1), nothing reflecting, and a black solid box of `size`
+/// at `at` (its low corner): per patch of the right wall, the irradiance
+/// (its area) without the box, with it by every patch pair traced (the
+/// full matrix), and with it as a change to the room's solution (the
+/// room's hierarchical links, unchanged, plus what the wall sees of the box
+/// in place of what it hides, [`ObjectView`]); last, without the box on
+/// the room's hierarchical links. Also the view, and per patch the
+/// irradiance lost by brute force ([`traced_loss`]).
+fn walls_and_a_box(at: Vec3, size: f32) -> (Vec<WallPatch>, ObjectView, Vec<f64>) {
+    let Walls {
+        room,
+        with,
+        tracer_room,
+        tracer_with,
+        cube,
+    } = walls_with_box(at, size);
     // Irradiance per patch of the right wall, the left one glowing.
     let irradiance = |patches: &Patches, transport: &Transport| {
         let n = patches.patch_count();
@@ -525,22 +551,30 @@ fn walls_and_a_box(at: Vec3, size: f32) -> (Vec<WallPatch>, ObjectView, Vec<f64>
 /// random points of the patch; the fraction that meet the box where they
 /// would have met the glowing wall.
 fn traced_loss(el: &Element, with: &Tracer, room: &Tracer) -> f64 {
+    let point = |s: f64, t: f64| match el.shape {
+        Shape::Quad { origin, u, v } => origin + u * s + v * t,
+        Shape::Tri([a, b, c]) if s + t > 1.0 => a + (b - a) * (1.0 - s) + (c - a) * (1.0 - t),
+        Shape::Tri([a, b, c]) => a + (b - a) * s + (c - a) * t,
+    };
+    loss_from(point, el.normal, with, room)
+}
+
+/// [`traced_loss`] from the points `point(s, t)` for (s, t) uniform in
+/// \[0, 1)², facing `normal`.
+fn loss_from(
+    point: impl Fn(f64, f64) -> DVec3,
+    normal: DVec3,
+    with: &Tracer,
+    room: &Tracer,
+) -> f64 {
     let n = 40_000;
     let mut state = 7u64;
     let rays: Vec<TraceRay> = (0..n)
         .map(|_| {
-            let (s, t) = (unit_random(&mut state), unit_random(&mut state));
-            let x = match el.shape {
-                Shape::Quad { origin, u, v } => origin + u * s + v * t,
-                Shape::Tri([a, b, c]) if s + t > 1.0 => {
-                    a + (b - a) * (1.0 - s) + (c - a) * (1.0 - t)
-                }
-                Shape::Tri([a, b, c]) => a + (b - a) * s + (c - a) * t,
-            };
+            let x = point(unit_random(&mut state), unit_random(&mut state));
             let d =
-                crate::gather::cosine_directions(el.normal, 1, unit_random(&mut state).to_bits())
-                    [0];
-            TraceRay::new((x + el.normal * 1e-5).as_vec3(), d.as_vec3())
+                crate::gather::cosine_directions(normal, 1, unit_random(&mut state).to_bits())[0];
+            TraceRay::new((x + normal * 1e-5).as_vec3(), d.as_vec3())
         })
         .collect();
     let (mut a, mut b) = (vec![None; n], vec![None; n]);
@@ -597,4 +631,72 @@ fn a_box_the_walls_cannot_see_changes_nothing() {
     }
     assert_eq!(view.patch_count(), 0, "no patch sees the box");
     assert_eq!(view.memory_bytes(), 0);
+}
+
+#[test]
+fn near_a_box_the_change_is_held_at_points_finer_than_the_patches() {
+    // A black box 5 cm from the right wall: over a 25 cm patch the light it
+    // hides there runs from nearly all to a fraction.
+    let w = walls_with_box(Vec3::new(1.55, 0.7, 0.7), 0.4);
+    let room_count = w.room.patch_count();
+    let bounds = VirtualBounds::of(&[(2, w.cube.clone())]);
+    let view = ObjectView::trace(&w.with, room_count, &w.tracer_with, &bounds);
+    let near = NearView::trace(
+        &w.with,
+        &vec![true; room_count],
+        &w.tracer_with,
+        &bounds,
+        0.05,
+    );
+    let radiosity: Vec<DVec3> = (0..w.with.patch_count())
+        .map(|k| DVec3::splat((w.with.patch(k).surface == 0) as u8 as f64))
+        .collect();
+    let seen = view.irradiance_change(room_count, &radiosity, &radiosity);
+    let coarse = w.room.vertex_values(&seen);
+    let field = near.field(&w.with, &radiosity, &radiosity[..room_count], &coarse);
+    assert!(field.patch_count() > 0, "no patch holds a grid");
+    let normal = -DVec3::X;
+    let (mut worst_near, mut worst_coarse, mut deepest) = (0.0f64, 0.0f64, 0.0f64);
+    for (y, z) in [
+        (0.9, 0.9),
+        (1.05, 0.9),
+        (1.2, 1.0),
+        (1.3, 0.8),
+        (0.6, 0.6),
+        (1.1, 1.25),
+    ] {
+        let x = DVec3::new(2.0, y, z);
+        let k = (0..room_count)
+            .find(|&k| {
+                let el = w.room.patch(k);
+                let st = el.shape.params(x);
+                el.surface == 1 && st.cmpge(DVec2::ZERO).all() && st.cmple(DVec2::ONE).all()
+            })
+            .expect("a patch of the right wall holds the point");
+        let el = w.room.patch(k);
+        let st = el.shape.params(x);
+        let corners = w.room.patch_vertices[k].map(|v| coarse[v as usize].x);
+        let patch_mean = corners[0] * (1.0 - st.x) * (1.0 - st.y)
+            + corners[1] * st.x * (1.0 - st.y)
+            + corners[2] * st.x * st.y
+            + corners[3] * (1.0 - st.x) * st.y;
+        let fine = patch_mean + field.at(k as u32, x).map_or(0.0, |c| c.x);
+        let truth = -loss_from(|_, _| x, normal, &w.tracer_with, &w.tracer_room);
+        println!(
+            "({y}, {z}): traced {truth:.4}, patch means {patch_mean:.4}, with the points {fine:.4}"
+        );
+        worst_near = worst_near.max((fine - truth).abs());
+        worst_coarse = worst_coarse.max((patch_mean - truth).abs());
+        deepest = deepest.max(truth.abs());
+    }
+    // 256 rays a point at most: ~2.7% noise of a hemisphere's irradiance,
+    // four points interpolated.
+    assert!(
+        worst_near < 0.08 * deepest,
+        "off by {worst_near} with the points (deepest {deepest})"
+    );
+    assert!(
+        worst_coarse > 4.0 * worst_near,
+        "the patch means are as good: {worst_coarse} against {worst_near}"
+    );
 }

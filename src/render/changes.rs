@@ -13,6 +13,8 @@ pub(super) struct Changes {
     pub(super) own: Option<Patches>,
     pub(super) reflectance: Vec<DVec3>,
     pub(super) indirect_with: Vec<DVec3>,
+    /// What the objects' change near them is computed from (None: no object).
+    pub(super) near: Option<NearSource>,
     /// Bytes of the change: the rays' record of what the room sees of the
     /// objects and the change's solution.
     pub(super) bytes: usize,
@@ -88,7 +90,43 @@ pub(super) fn object_patches(
 pub(super) struct Solved {
     pub(super) reflectance: Vec<DVec3>,
     pub(super) indirect_with: Vec<DVec3>,
+    pub(super) near: Option<NearSource>,
     pub(super) bytes: usize,
+}
+
+/// What [`near_field`] reads of a pose's change: the radiosity of the room
+/// and the objects, and the patch means' change to the room's indirect
+/// light as vertex values.
+pub(super) struct NearSource {
+    radiosity: Vec<DVec3>,
+    coarse: Vec<DVec3>,
+}
+
+/// The objects' change near them, finer than the room's patches
+/// ([`crate::radiosity::NearField`]), on the room patches that hold one of
+/// the pixel data's real points (the only ones a composite reads): an
+/// update pays for what the camera sees near the objects.
+pub(super) fn near_field(
+    input: &ChangeInput,
+    objects: &Patches,
+    source: &NearSource,
+    pda: &crate::pda::PixelDataArray,
+) -> crate::radiosity::NearField {
+    let model = input.model;
+    let mut shown = vec![false; model.patches.patch_count()];
+    for p in &pda.real.points {
+        if let Some(s) = shown.get_mut(p.location.patch as usize) {
+            *s = true;
+        }
+    }
+    let cell = input.settings.virtual_patch_size;
+    let view = crate::radiosity::NearView::trace(objects, &shown, input.tracer, input.bounds, cell);
+    view.field(
+        objects,
+        &source.radiosity,
+        &input.room.radiosity,
+        &source.coarse,
+    )
 }
 
 impl Solved {
@@ -97,6 +135,7 @@ impl Solved {
             own: patches,
             reflectance: self.reflectance,
             indirect_with: self.indirect_with,
+            near: self.near,
             bytes: self.bytes,
         }
     }
@@ -154,6 +193,7 @@ pub(super) fn solve_changes(
         return Solved {
             reflectance: model.estimate.reflectance.clone(),
             indirect_with: model.patches.vertex_values(&input.room.indirect_irradiance),
+            near: None,
             bytes: 0,
         };
     };
@@ -246,12 +286,15 @@ pub(super) fn solve_changes(
         .collect();
     let room_vertices = model.patches.vertices.len();
     indirect_with[..room_vertices].copy_from_slice(&model.patches.vertex_values(&room));
+    let coarse = model.patches.vertex_values(&seen);
+    let bytes = view.memory_bytes()
+        + (solution.radiosity.len() + solution.indirect_irradiance.len() + seen.len())
+            * std::mem::size_of::<DVec3>();
     Solved {
         reflectance,
         indirect_with,
-        bytes: view.memory_bytes()
-            + (solution.radiosity.len() + solution.indirect_irradiance.len() + seen.len())
-                * std::mem::size_of::<DVec3>(),
+        bytes: bytes + (radiosity.len() + coarse.len()) * std::mem::size_of::<DVec3>(),
+        near: Some(NearSource { radiosity, coarse }),
     }
 }
 
