@@ -144,7 +144,9 @@ impl NearField {
     pub fn at(&self, patch: u32, x: DVec3) -> Option<DVec3> {
         let g = *self.index.get(patch as usize)?;
         let (shape, n, values) = self.grids.get(g as usize)?;
-        let st = shape.params(x).clamp(DVec2::ZERO, DVec2::ONE) * *n as f64;
+        // A sliver patch's parameters may not be finite: no correction there.
+        let st = Some(shape.params(x)).filter(|st| st.is_finite())?;
+        let st = st.clamp(DVec2::ZERO, DVec2::ONE) * *n as f64;
         let (i, j) = (
             (st.x.floor() as u32).min(n - 1),
             (st.y.floor() as u32).min(n - 1),
@@ -289,9 +291,7 @@ fn point_view(
         ) as u32;
         let rays: Vec<(DVec3, DVec3, f64)> = (0..count)
             .map(|r| {
-                let [u1, u2] = sobol_burley::sample_4d(r, 0, seed).map(f64::from)[..2]
-                    .try_into()
-                    .expect("two of four");
+                let [u1, u2, _, _] = sobol_burley::sample_4d(r, 0, seed).map(f64::from);
                 let (d, w) = towards(n, cone, count, u1, u2);
                 (x, d, w)
             })
