@@ -37,6 +37,7 @@ pub enum CompositeMode {
 /// What the compositor needs besides the PDA.
 pub struct CompositeInput<'a> {
     pub pda: &'a PixelDataArray,
+    pub camera: &'a crate::camera::Camera,
     pub photo: &'a Image,
     /// The photo with its grain smoothed out ([`grain::smoothed`]): where
     /// a change adds direct light, the added part is this times the ratio,
@@ -67,6 +68,10 @@ pub struct CompositeInput<'a> {
     /// The objects' change near them, finer than the patches (see
     /// [`crate::radiosity::NearField`]; None: none).
     pub near: Option<&'a crate::radiosity::NearField>,
+    /// What rounds of per-pixel samples found ([`crate::residual`]): the
+    /// objects' pixels' gathered light and the room's per-pixel change,
+    /// in place of the interpolated ones (None: none ran).
+    pub residual: Option<&'a crate::residual::PixelResidual>,
     /// Fill the direct, indirect and change layers too; without them the
     /// composite holds them empty (a motion writes its images only, and
     /// filling them is a tenth to a fifth of an update's composite).
@@ -96,9 +101,13 @@ pub struct Composite {
     pub ratio_fallbacks: usize,
     /// Samples clamped at zero.
     pub clamped: usize,
+    /// Per pixel, the estimated standard deviation of its radiance's
+    /// luminance left by the rounds of per-pixel samples (empty: none ran).
+    pub noise: Vec<f32>,
 }
 
 /// One sample's shading.
+#[derive(Clone, Copy)]
 struct Shade {
     value: DVec3,
     direct: DVec3,
@@ -138,6 +147,26 @@ impl CompositeInput<'_> {
             photo,
             self.photo_base.map_or(photo, |b| b.pixels[i].as_dvec3()),
         )
+    }
+
+    /// [`CompositeInput::photo_at`] where the camera sees `x` within pixel
+    /// `i`, bilinear between the pixels' centres: a sub-pixel along an
+    /// object's outline sees its part of the pixel, not the pixel's mean
+    /// (against a wall's steep gradient by a lamp they differ by a third).
+    fn photo_at_point(&self, i: usize, x: DVec3) -> (DVec3, DVec3) {
+        let Some((px, py, _)) = self.camera.project(x) else {
+            return self.photo_at(i);
+        };
+        if !(px.is_finite() && py.is_finite()) {
+            return self.photo_at(i);
+        }
+        let photo = self.photo.bilinear(px, py);
+        let out = (photo, self.photo_base.map_or(photo, |b| b.bilinear(px, py)));
+        if out.0.is_finite() && out.1.is_finite() {
+            out
+        } else {
+            self.photo_at(i)
+        }
     }
 
     /// A real point's composite, from its pixel's photo value and base ([`CompositeInput::photo_at`]).
@@ -192,13 +221,21 @@ impl CompositeInput<'_> {
     }
 
     /// A virtual point's shade; `share`: the fraction of its pixel it stands for.
-    fn shade_virtual(&self, p: &SurfacePoint, terms: &[LightTerm], share: f64) -> Shade {
+    /// An object's point: its indirect irradiance `gathered` at the pixel
+    /// when given, else interpolated from the vertices.
+    fn shade_virtual(
+        &self,
+        p: &SurfacePoint,
+        terms: &[LightTerm],
+        share: f64,
+        gathered: Option<DVec3>,
+    ) -> Shade {
         let e_w = self.irradiance(terms, self.scales_with, true);
-        let h_w = self.interpolate(self.indirect_with, &p.location);
+        let h_w = gathered.unwrap_or_else(|| self.interpolate(self.indirect_with, &p.location));
         let rho = self.reflectance[p.location.patch as usize];
         let value = self
             .objects
-            .and_then(|o| o.radiance(p, share))
+            .and_then(|o| o.radiance_with(p, share, gathered))
             .unwrap_or_else(|| rho * (e_w + h_w) / std::f64::consts::PI);
         Shade {
             value,
@@ -349,6 +386,7 @@ impl Composite {
             copied: n,
             ratio_fallbacks: 0,
             clamped: 0,
+            noise: Vec::new(),
         }
     }
 
@@ -365,6 +403,7 @@ impl Composite {
             copied: 0,
             ratio_fallbacks: 0,
             clamped: 0,
+            noise: Vec::new(),
         }
     }
 }
@@ -411,8 +450,8 @@ pub(crate) fn composite_into(input: &CompositeInput, out: &mut Composite) {
             shader.plain(i, &h_with).unwrap_or_else(|| shader.other(i))
         }),
     }
-    if let Some(field) = input.near {
-        near::refine(&shader, field, &h_with, out);
+    if input.near.is_some() || input.residual.is_some() {
+        near::refine(&shader, input.near, input.residual, &h_with, out);
     }
     let found;
     let seams = match input.known {

@@ -39,6 +39,27 @@ impl Image {
         self.pixels[y as usize * self.width as usize + x as usize]
     }
 
+    /// The image at continuous pixel coordinates (x, y), bilinear between
+    /// the pixels' centres, clamped at its borders.
+    pub fn bilinear(&self, x: f64, y: f64) -> glam::DVec3 {
+        let (w, h) = (self.width as i64, self.height as i64);
+        let (fx, fy) = (x - 0.5, y - 0.5);
+        let (x0, y0) = (fx.floor(), fy.floor());
+        let (tx, ty) = (fx - x0, fy - y0);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let mut out = glam::DVec3::ZERO;
+        for (dx, dy, wt) in [
+            (0, 0, (1.0 - tx) * (1.0 - ty)),
+            (1, 0, tx * (1.0 - ty)),
+            (0, 1, (1.0 - tx) * ty),
+            (1, 1, tx * ty),
+        ] {
+            let j = (y0 + dy).clamp(0, h - 1) * w + (x0 + dx).clamp(0, w - 1);
+            out += self.pixels[j as usize].as_dvec3() * wt;
+        }
+        out
+    }
+
     pub fn set(&mut self, x: u32, y: u32, v: Vec3) {
         let w = self.width as usize;
         self.pixels[y as usize * w + x as usize] = v;

@@ -35,6 +35,7 @@ pub mod pda;
 pub mod radiosity;
 pub mod relight;
 pub mod render;
+pub mod residual;
 pub mod scene;
 pub mod scene_tracer;
 pub mod settings;

@@ -42,6 +42,7 @@ use crate::trace::{Layer, TraceRay, Tracer};
 use crate::util::rng::{hash2, unit_random};
 
 mod paths;
+pub(crate) use paths::Reading;
 
 /// A virtual surface with a material, placed in the world.
 #[derive(Debug, Clone)]
@@ -180,6 +181,13 @@ impl ObjectShading<'_> {
     /// each at its own point of the surface: a highlight or a texture
     /// smaller than a pixel is averaged over it, as a camera's pixel does.
     pub fn radiance(&self, p: &SurfacePoint, share: f64) -> Option<DVec3> {
+        self.radiance_with(p, share, None)
+    }
+
+    /// [`ObjectShading::radiance`] with the diffuse part's indirect
+    /// irradiance `h` given (gathered at the pixel, [`crate::residual`])
+    /// instead of interpolated from the vertices.
+    pub fn radiance_with(&self, p: &SurfacePoint, share: f64, h: Option<DVec3>) -> Option<DVec3> {
         self.materials.surfaces.get(&p.surface)?;
         let x = p.position.as_dvec3();
         let seed = hash2(
@@ -197,7 +205,8 @@ impl ObjectShading<'_> {
         let half = 0.5 * share.sqrt();
         let at = self.camera.project(x);
         let rects = self.rects();
-        let h = paths::interpolate(self.indirect_with, &p.location, self.patches);
+        let h =
+            h.unwrap_or_else(|| paths::interpolate(self.indirect_with, &p.location, self.patches));
         let side = (n as f64).sqrt().ceil() as u32;
         let mut state = hash2(seed, 0xA11A5);
         let mut sum = DVec3::ZERO;

@@ -34,6 +34,8 @@ pub struct RenderOutput {
     /// `--method texture`: what the preprocess did, the shadow-free texture
     /// seen from the camera, and the time of the light change alone.
     pub texture: Option<(TextureStats, Image, std::time::Duration)>,
+    /// What the rounds of per-pixel samples did (None: none ran).
+    pub residual: Option<crate::residual::ResidualStats>,
 }
 
 /// What the preprocess did.

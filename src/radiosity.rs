@@ -537,6 +537,7 @@ mod clusters;
 mod direct;
 mod form_factor;
 mod near;
+mod near_pixel;
 mod relink;
 mod solve;
 
@@ -545,6 +546,7 @@ pub use clusters::*;
 pub use direct::*;
 pub use form_factor::*;
 pub use near::{NearField, NearView};
+pub use near_pixel::ChangeSampler;
 pub use solve::*;
 
 #[cfg(test)]

@@ -397,6 +397,7 @@ pub fn render_texture(
         change_bytes: 0,
         patch_size: path.stats.patch_size,
         texture: Some((path.stats.clone(), unoccluded, light_change)),
+        residual: None,
     };
     times.time("free", || drop(path));
     Ok(out)

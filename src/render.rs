@@ -58,6 +58,8 @@ pub struct RenderSettings {
     pub gather_rays: u32,
     /// Samples of the objects that have materials ([`crate::object_shading`]).
     pub shading: crate::object_shading::ShadingSettings,
+    /// Rounds of per-pixel samples over the kept solution ([`crate::residual`]).
+    pub residual: crate::residual::ResidualSettings,
 }
 
 impl Default for RenderSettings {
@@ -70,6 +72,7 @@ impl Default for RenderSettings {
             mode: CompositeMode::Ratio,
             gather_rays: 144,
             shading: crate::object_shading::ShadingSettings::default(),
+            residual: crate::residual::ResidualSettings::default(),
         }
     }
 }
@@ -185,6 +188,7 @@ fn render_reachable(
             change_bytes: 0,
             patch_size: 0.0,
             texture: None,
+            residual: None,
         });
     }
     Ok(Session::begin(scene, photo, settings, times, false, None)?.into_output())
@@ -241,6 +245,13 @@ pub struct Session {
     reached: Vec<Vec<u32>>,
     /// Per light, the blocks' shafts the traversals built so far.
     block_shafts: Vec<crate::blocks::BlockShafts>,
+    /// When the render (or the update) began: a time budget counts from it.
+    started: std::time::Instant,
+    /// What the last composite's rounds of per-pixel samples did.
+    residual_stats: Option<crate::residual::ResidualStats>,
+    /// The share of the time left that a composite's rounds may take (a
+    /// still's first band: one over the bands).
+    time_share: f64,
 }
 
 /// Bytes a [`Session`] holds for updates.
@@ -293,6 +304,7 @@ impl Session {
         for_updates: bool,
         band: Option<(u32, u32)>,
     ) -> Result<Session> {
+        let started = std::time::Instant::now();
         let mut left_out = Vec::new();
         let mut settings = RenderSettings {
             model: ModelSettings {
@@ -385,6 +397,12 @@ impl Session {
             gather_directions,
             reached: Vec::new(),
             block_shafts: Vec::new(),
+            started,
+            residual_stats: None,
+            // The first band's share of the frame's rows.
+            time_share: band.map_or(1.0, |(a, b)| {
+                ((b - a) as f64 / scene.camera.height.max(1) as f64).min(1.0)
+            }),
         };
         session.trace_pixels(times);
         session.recomposite(times, &[]);
@@ -419,94 +437,6 @@ impl Session {
         (self.settings.pda.crop)
             .and_then(|c| c.pixels(w, h))
             .unwrap_or(crate::image_io::PixelRect::full(w, h))
-    }
-
-    /// Composites the image; `recomputed` lists the pixels whose real
-    /// point's light terms changed since the last composite.
-    fn recomposite(&mut self, times: &mut StageTimes, recomputed: &[u32]) {
-        let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| o);
-        let near = match (&self.changes.near, &self.changes.own) {
-            (Some(source), Some(objects)) => {
-                Some(times.time("the change near the objects", || {
-                    let input = ChangeInput {
-                        scene: &self.scene,
-                        photo: &self.photo,
-                        tracer: &self.tracer,
-                        model: &self.model,
-                        scales_with: &self.scales_with,
-                        settings: &self.settings,
-                        bounds: &self.bounds,
-                        room: &self.room,
-                    };
-                    changes::near_field(&input, objects, source, &self.pda)
-                }))
-            }
-            _ => None,
-        };
-        let known = self.known.take();
-        let mut out = std::mem::replace(&mut self.composite, crate::composite::Composite::empty());
-        let materials = crate::object_shading::ObjectMaterials::of(&self.scene);
-        let shading = ObjectShading {
-            materials: &materials,
-            tracer: &self.tracer,
-            camera: &self.scene.camera,
-            photo: &self.photo,
-            lights: &self.model.lights,
-            scales_with: &self.scales_with,
-            scales_without: &self.scales_without,
-            patches,
-            indirect_with: &self.changes.indirect_with,
-            indirect_without: &self.indirect_without,
-            reflectance: &self.changes.reflectance,
-            settings: self.settings.shading,
-        };
-        let known = times.time("composite", || {
-            let input = CompositeInput {
-                objects: (!materials.is_empty()).then_some(&shading),
-                pda: &self.pda,
-                photo: &self.photo,
-                photo_base: self.photo_base.as_ref(),
-                lights: &self.model.lights,
-                scales_without: &self.scales_without,
-                scales_with: &self.scales_with,
-                indirect_without: &self.indirect_without,
-                indirect_with: &self.changes.indirect_with,
-                reflectance: &self.changes.reflectance,
-                patch_vertices: &patches.patch_vertices,
-                mode: self.settings.mode,
-                floor: ratio_floor(&self.model, &self.scales_without),
-                known: None,
-                near: near.as_ref(),
-                layers: self.layers,
-            };
-            if !self.for_updates {
-                composite_into(&input, &mut out);
-                return None;
-            }
-            // Once, then kept for every update, which refreshes only what it recomputed.
-            let known = match known {
-                Some(mut k) => {
-                    k.refresh(&input, recomputed);
-                    k
-                }
-                None => RealPixels::of(&input),
-            };
-            composite_into(
-                &CompositeInput {
-                    known: Some(&known),
-                    ..input
-                },
-                &mut out,
-            );
-            Some(known)
-        });
-        if let Some((lamps, shot)) = &self.lamps {
-            times.time("lamps in view", || {
-                lamps.apply(&mut out, shot, &self.photo, &self.scales_with, &self.tracer)
-            });
-        }
-        self.composite = out;
-        self.known = known;
     }
 
     /// From the next update on, composites hold the image and alpha only
@@ -591,6 +521,7 @@ impl Session {
                 "an update moves virtual objects only; lights, camera and real geometry must stay",
             ));
         }
+        self.started = std::time::Instant::now();
         self.prepare_updates(times);
         let mut stats = UpdateStats::default();
         let virt = scene.virtual_world_surfaces();
@@ -671,6 +602,7 @@ impl Session {
             warnings,
             left_out: self.left_out,
             texture: None,
+            residual: self.residual_stats,
         }
     }
 }
@@ -786,6 +718,7 @@ fn merge_sorted(a: &[u32], b: &[u32]) -> Vec<u32> {
 mod bands;
 mod changes;
 mod pixels;
+mod recompose;
 
 pub use bands::{
     BYTES_PER_BAND_PIXEL, BYTES_PER_FRAME_PIXEL, BandSink, band_rows, default_memory, parse_memory,

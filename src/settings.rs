@@ -92,6 +92,10 @@ pub struct RenderOptions {
     /// same either way.
     #[serde(skip)]
     pub cache: bool,
+    /// Rounds of per-pixel samples over the kept solution (0: none).
+    pub samples: u32,
+    /// Seconds the render may take: as many rounds as fit.
+    pub time: Option<f64>,
 }
 
 impl Default for RenderOptions {
@@ -113,6 +117,8 @@ impl Default for RenderOptions {
             min_leaf_pixels: None,
             crop: None,
             cache: true,
+            samples: 0,
+            time: None,
         }
     }
 }
@@ -142,6 +148,16 @@ impl RenderOptions {
                 "min-level",
                 format!("and --penumbra-level must satisfy min-level <= penumbra-level <= {max}"),
             );
+        }
+        let most = crate::residual::MAX_SAMPLES;
+        if self.samples > most {
+            return fail(
+                "samples",
+                format!("must lie in 0..={most}, not {}", self.samples),
+            );
+        }
+        if let Some(t) = self.time {
+            positive("time", t, " of seconds")?;
         }
         if !(1..=16).contains(&self.supersample) {
             return fail(
@@ -203,6 +219,10 @@ impl RenderOptions {
                 crop: self.crop,
             },
             mode: self.composite,
+            residual: crate::residual::ResidualSettings {
+                samples: self.samples,
+                time: self.time,
+            },
             ..RenderSettings::default()
         }
     }
@@ -215,6 +235,8 @@ impl RenderOptions {
             ("min-level", self.min_level != d.min_level),
             ("penumbra-level", self.penumbra_level != d.penumbra_level),
             ("supersample", self.supersample != d.supersample),
+            ("samples", self.samples != d.samples),
+            ("time", self.time.is_some()),
         ];
         if let Some((setting, _)) = pda_only.iter().find(|(_, given)| *given) {
             return fail(

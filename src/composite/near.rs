@@ -1,10 +1,13 @@
 //! Real pixels near the objects shaded again with the objects' change held
 //! finer than the patches ([`NearField`]): a pass over the image after the
 //! composite, so that the per-pixel loops stay as they are where no object
-//! is near (most pixels, every pixel of a relit room).
+//! is near (most pixels, every pixel of a relit room). Where rounds of
+//! per-pixel samples ran ([`crate::residual`]), a pixel's own estimate of
+//! the change replaces the grid's.
 
 use super::*;
 use crate::radiosity::NearField;
+use crate::residual::PixelResidual;
 
 /// Re-shades the plain real pixels of `out` whose patch holds a grid of
 /// `field`, their interpolated indirect light corrected at their point.
@@ -12,11 +15,14 @@ use crate::radiosity::NearField;
 /// object's outline, a pixel wide).
 pub(super) fn refine(
     shader: &Shader,
-    field: &NearField,
+    field: Option<&NearField>,
+    residual: Option<&PixelResidual>,
     h_with: &[[Vec3A; 4]],
     out: &mut Composite,
 ) {
-    if field.patch_count() == 0 {
+    let sampled = residual
+        .is_some_and(|r| !r.shadow.is_empty() || r.room_correction.iter().any(Option::is_some));
+    if field.is_none_or(|f| f.patch_count() == 0) && !sampled {
         return;
     }
     let pda = shader.pda();
@@ -30,8 +36,17 @@ pub(super) fn refine(
                 return None;
             }
             let p = &pda.real.points[k as usize];
-            let c = field.at(p.location.patch, p.position.as_dvec3())?;
-            let s = shader.plain_with(i, h_with, Some(c.as_vec3a()))?;
+            // The pixel's own samples where rounds ran, else the grid's.
+            let own = residual.and_then(|r| r.room_correction.get(k as usize).copied().flatten());
+            let c = own.or_else(|| {
+                let f = field?.at(p.location.patch, p.position.as_dvec3())?;
+                Some(f.as_vec3())
+            });
+            let terms = residual.and_then(|r| footprint_terms(pda, r, k));
+            if c.is_none() && terms.is_none() {
+                return None;
+            }
+            let s = shader.plain_with(i, h_with, c.map(Vec3A::from), terms.as_deref())?;
             Some((local, s))
         })
         .collect();
@@ -46,4 +61,18 @@ pub(super) fn refine(
             out.object.pixels[local] = s.object;
         }
     }
+}
+
+/// Real point `k`'s light terms with the objects' shadow averaged over its
+/// pixel's footprint where an edge crosses it (None: none does).
+fn footprint_terms(pda: &PixelDataArray, r: &PixelResidual, k: u32) -> Option<Vec<LightTerm>> {
+    let at = r.shadow.binary_search_by_key(&k, |s| s.0).ok()?;
+    let lights = pda.light_count;
+    let k = k as usize;
+    let mut terms = pda.real.terms[k * lights..(k + 1) * lights].to_vec();
+    for &(l, v) in &r.shadow[at].1 {
+        let t = &mut terms[l as usize];
+        *t = LightTerm::new(t.unoccluded, t.visible(false), v as f64);
+    }
+    Some(terms)
 }

@@ -74,11 +74,12 @@ impl<'a> Shader<'a> {
     }
 
     /// An edge pixel's shade, its virtual coverage and the objects' part of
-    /// it: the mean of its sub-pixels.
+    /// it: the mean of its sub-pixels, or, where rounds measured the shares
+    /// of the pixel its parts cover, each part's mean by its share.
     fn shade_edge(&self, i: usize, e: EdgePixel) -> (Shade, f32, DVec3) {
         let (input, pda, lights) = (self.input, self.pda, self.lights);
         let photo = input.photo.pixels[i].as_dvec3();
-        let mut sum = Shade {
+        let empty = Shade {
             value: DVec3::ZERO,
             direct: DVec3::ZERO,
             indirect: DVec3::ZERO,
@@ -86,8 +87,15 @@ impl<'a> Shader<'a> {
             fallback: false,
             clamped: false,
         };
-        let mut virtual_count = 0;
-        let mut object = DVec3::ZERO;
+        // The objects' sub-pixels and the room's, summed apart.
+        let (mut parts, mut counts) = ([empty, empty], [0u32; 2]);
+        let edge = (pda.edges)
+            .binary_search_by_key(&(i as u32), |e| e.pixel)
+            .ok();
+        let rounds = self.input.residual.zip(edge);
+        let refined = rounds.is_some();
+        // The objects' indirect light gathered at the pixel by the rounds.
+        let gathered = rounds.and_then(|(r, k)| r.edge_irradiance.get(k).copied().flatten());
         for k in e.start..e.start + e.count {
             let p = &pda.edge_samples.points[k as usize];
             let terms = match pda.real_at(i) {
@@ -97,21 +105,24 @@ impl<'a> Shader<'a> {
                 _ => &pda.edge_samples.terms[k as usize * lights..(k as usize + 1) * lights],
             };
             let s = if p.is_virtual {
-                virtual_count += 1;
                 let share = 1.0 / (pda.supersample * pda.supersample) as f64;
-                let s = input.shade_virtual(p, terms, share);
-                object += s.value;
-                s
+                input.shade_virtual(p, terms, share, gathered)
             } else {
                 let direct = input.irradiance(terms, input.scales_with, true);
-                input
-                    .real_pixel(p, terms, input.photo_at(i), self.floor)
-                    .shade(
-                        input.interpolate(input.indirect_with, &p.location),
-                        photo,
-                        direct,
-                    )
+                // Rounds ran: the photo where the sub-pixel is.
+                let at = match refined {
+                    true => input.photo_at_point(i, p.position.as_dvec3()),
+                    false => input.photo_at(i),
+                };
+                input.real_pixel(p, terms, at, self.floor).shade(
+                    input.interpolate(input.indirect_with, &p.location),
+                    at.0,
+                    direct,
+                )
             };
+            let part = usize::from(!p.is_virtual);
+            counts[part] += 1;
+            let sum = &mut parts[part];
             sum.value += s.value;
             sum.direct += s.direct;
             sum.indirect += s.indirect;
@@ -120,16 +131,52 @@ impl<'a> Shader<'a> {
         }
         // Sub-pixels that see no surface keep the photo's background.
         let total = (pda.supersample * pda.supersample) as f64;
-        sum.value += photo * (total - e.count as f64);
+        let grid = [counts[0] as f64, counts[1] as f64, total - e.count as f64].map(|c| c / total);
+        let found = rounds.and_then(|(r, k)| r.edge_shares.get(k).copied().flatten());
+        // The room's part as the rays shaded it, in place of the sub-pixels'.
+        if let Some(room) = found.and_then(|f| f.1) {
+            let n = counts[1].max(1) as f64;
+            let p = &mut parts[1];
+            (p.value, p.direct, p.indirect) = (room.as_dvec3(), p.direct / n, p.indirect / n);
+            counts[1] = 1;
+        }
+        let shares = found
+            .map(|f| f.0.map(f64::from))
+            // A part the rays found but no sub-pixel shaded: the grid's shares.
+            .filter(|f| (0..2).all(|p| counts[p] > 0 || f[p] == 0.0));
+        let Some(shares) = shares else {
+            // The sub-pixels' mean, summed as it always was.
+            let sum = |f: &dyn Fn(&Shade) -> DVec3| (f(&parts[0]) + f(&parts[1])) / total;
+            return (
+                Shade {
+                    value: (parts[0].value + parts[1].value + photo * (total - e.count as f64))
+                        / total,
+                    direct: sum(&|s| s.direct),
+                    indirect: sum(&|s| s.indirect),
+                    fallback: parts[0].fallback || parts[1].fallback,
+                    clamped: parts[0].clamped || parts[1].clamped,
+                    ..empty
+                },
+                grid[0] as f32,
+                parts[0].value / total,
+            );
+        };
+        let mean = |p: usize, x: DVec3| x / counts[p].max(1) as f64;
+        let mix = |f: &dyn Fn(&Shade) -> DVec3| {
+            mean(0, f(&parts[0])) * shares[0] + mean(1, f(&parts[1])) * shares[1]
+        };
+        let object = mean(0, parts[0].value) * shares[0];
         (
             Shade {
-                value: sum.value / total,
-                direct: sum.direct / total,
-                indirect: sum.indirect / total,
-                ..sum
+                value: mix(&|s| s.value) + photo * shares[2],
+                direct: mix(&|s| s.direct),
+                indirect: mix(&|s| s.indirect),
+                fallback: parts[0].fallback || parts[1].fallback,
+                clamped: parts[0].clamped || parts[1].clamped,
+                ..empty
             },
-            virtual_count as f32 / total as f32,
-            object / total,
+            shares[0] as f32,
+            object,
         )
     }
 
@@ -145,6 +192,7 @@ impl<'a> Shader<'a> {
                 &pda.virtual_samples.points[k],
                 &pda.virtual_samples.terms[k * lights..(k + 1) * lights],
                 1.0,
+                (self.input.residual).and_then(|r| r.object_irradiance.get(k).copied().flatten()),
             );
             let object = s.value;
             return (s, 1.0, object);
@@ -166,15 +214,17 @@ impl<'a> Shader<'a> {
 
     /// A pixel that shows a real point alone; None for any other.
     pub(super) fn plain(&self, i: usize, h_with: &[[Vec3A; 4]]) -> Option<PixelShade> {
-        self.plain_with(i, h_with, None)
+        self.plain_with(i, h_with, None, None)
     }
 
-    /// [`Shader::plain`] with `extra` added to the interpolated indirect light.
+    /// [`Shader::plain`] with `extra` added to the interpolated indirect
+    /// light and the point's light terms replaced by `own_terms` when given.
     pub(super) fn plain_with(
         &self,
         i: usize,
         h_with: &[[Vec3A; 4]],
         extra: Option<Vec3A>,
+        own_terms: Option<&[LightTerm]>,
     ) -> Option<PixelShade> {
         let (input, pda, lights) = (self.input, self.pda, self.lights);
         let photo = &input.photo.pixels;
@@ -185,10 +235,10 @@ impl<'a> Shader<'a> {
             return None;
         }
         let k = k as usize;
-        let terms = &pda.real.terms[k * lights..(k + 1) * lights];
+        let terms = own_terms.unwrap_or(&pda.real.terms[k * lights..(k + 1) * lights]);
         let r = match input.known {
-            Some(known) => known.get(k),
-            None => input.real_pixel(&pda.real.points[k], terms, input.photo_at(i), self.floor),
+            Some(known) if own_terms.is_none() => known.get(k),
+            _ => input.real_pixel(&pda.real.points[k], terms, input.photo_at(i), self.floor),
         };
         let h = interpolate_single(&h_with[r.patch()], r.affine.weights);
         let mut s = r.layers(extra.map_or(h, |e| h + e), &photo[i]);

@@ -221,6 +221,21 @@ impl ObjectShading<'_> {
 
     /// Radiance arriving along `d` from the surface `h` (from origin `o`).
     fn arriving(&self, h: &Hit, o: DVec3, d: DVec3, seed: u64) -> DVec3 {
+        self.arriving_at(h, o, d, Reading::with_objects(seed, ROOM_LEVEL))
+    }
+
+    /// [`ObjectShading::arriving`] as `reading` says: 2^level shadow rays
+    /// per rect light at the point met (a gather that averages many rays
+    /// takes one), and whether the objects are there (the light a real
+    /// point would send without them: what an object hides).
+    pub(crate) fn arriving_at(&self, h: &Hit, o: DVec3, d: DVec3, reading: Reading) -> DVec3 {
+        let Reading {
+            seed,
+            level,
+            objects,
+            seen_at,
+            extra,
+        } = reading;
         let y = o + d * h.t as f64;
         // The change is traced here rather than read from the Pixel Data
         // Array's terms at y's pixel: those exist only inside a crop, and
@@ -248,10 +263,10 @@ impl ObjectShading<'_> {
             // through the objects alone; the room's own blockers weigh what
             // the photo's light was there.
             let (mut targets, mut real_blocked) = (Vec::new(), Vec::new());
-            let all = light.direct_by(y, n, ROOM_LEVEL, seed, |at, rays, blocked| {
+            let all = light.direct_by(y, n, level, seed, |at, rays, blocked| {
                 self.tracer.occluded_batch(rays, Layer::Real, blocked);
                 (targets, real_blocked) = (at.to_vec(), blocked.to_vec());
-                for (ray, b) in rays.iter().zip(blocked.iter_mut()) {
+                for (ray, b) in rays.iter().zip(blocked.iter_mut()).filter(|_| objects) {
                     *b = *b || self.tracer.occluded(ray, Layer::Virtual);
                 }
             });
@@ -261,14 +276,45 @@ impl ObjectShading<'_> {
                 e_without += all.unoccluded * (swo * real);
             }
         }
-        let with = e_with + self.patches.interpolate(self.indirect_with, &at);
+        let with = e_with + self.patches.interpolate(self.indirect_with, &at) + extra;
         if h.is_virtual {
             return rho * with / std::f64::consts::PI;
         }
         let without = e_without + self.patches.interpolate(self.indirect_without, &at);
-        match crate::gather::photo_radiance_at(self.camera, self.tracer, self.photo, y) {
+        let photo = match seen_at {
+            Some((px, py)) => Some(self.photo.bilinear(px, py)),
+            None => crate::gather::photo_radiance_at(self.camera, self.tracer, self.photo, y),
+        };
+        match photo {
             Some(photo) => changed(photo, with, without, rho),
             None => rho * with / std::f64::consts::PI,
+        }
+    }
+}
+
+/// How [`ObjectShading::arriving_at`] reads a point.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Reading {
+    pub seed: u64,
+    pub level: usize,
+    /// Whether the objects shadow the point.
+    pub objects: bool,
+    /// Where the camera sees the point, when the ray came from it: the
+    /// photo there, between pixels.
+    pub seen_at: Option<(f64, f64)>,
+    /// Indirect irradiance to add to the interpolated one (a correction
+    /// estimated at the point).
+    pub extra: DVec3,
+}
+
+impl Reading {
+    pub(crate) fn with_objects(seed: u64, level: usize) -> Reading {
+        Reading {
+            seed,
+            level,
+            objects: true,
+            seen_at: None,
+            extra: DVec3::ZERO,
         }
     }
 }

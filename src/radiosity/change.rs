@@ -396,7 +396,7 @@ fn cone_direction(axis: DVec3, cos_max: f64, u1: f64, u2: f64) -> DVec3 {
 }
 
 /// The direction at (`u1`, `u2`) of the cosine distribution about unit `n`.
-fn cosine_direction(n: DVec3, u1: f64, u2: f64) -> DVec3 {
+pub fn cosine_direction(n: DVec3, u1: f64, u2: f64) -> DVec3 {
     let (t, b) = frame(n);
     let (r, phi) = (u1.sqrt(), std::f64::consts::TAU * u2);
     t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt()

@@ -207,7 +207,7 @@ fn interpolate_corners(shape: &Shape, c: &[DVec3; 4], st: DVec2) -> DVec3 {
 
 /// How much of the point correction is kept at `x`: all within one radius
 /// of a target's sphere, none beyond two (smoothly between).
-fn taper(x: DVec3, targets: &[Target]) -> f64 {
+pub(super) fn taper(x: DVec3, targets: &[Target]) -> f64 {
     (targets.iter())
         .map(|t| {
             let d = ((x - t.centre).length() - t.radius).max(0.0) / t.radius.max(1e-9);

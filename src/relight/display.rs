@@ -24,6 +24,7 @@ impl TexturePath {
             copied: 0,
             ratio_fallbacks: 0,
             clamped: 0,
+            noise: Vec::new(),
         };
         out.fill(photo, crate::image_io::PixelRect::full(w, h), |i| {
             let Some(px) = &self.pixels[i] else {

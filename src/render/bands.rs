@@ -123,6 +123,14 @@ pub fn render_bands(
         if k > 0 {
             session.move_to_band((y0, y1), &mut per_band);
         }
+        if let Some(stats) = session.residual_stats.filter(|_| k == 0) {
+            // Every band runs the first one's rounds: a time budget gives
+            // the frame one number of rounds, as `--samples` reproduces.
+            session.settings.residual = crate::residual::ResidualSettings {
+                samples: stats.rounds,
+                time: None,
+            };
+        }
         pda_bytes = pda_bytes.max(session.pda.memory_bytes());
         counts = Composite::empty()
             .with_counts(&session.composite)

@@ -98,8 +98,8 @@ pub(super) struct Solved {
 /// and the objects, and the patch means' change to the room's indirect
 /// light as vertex values.
 pub(super) struct NearSource {
-    radiosity: Vec<DVec3>,
-    coarse: Vec<DVec3>,
+    pub(super) radiosity: Vec<DVec3>,
+    pub(super) coarse: Vec<DVec3>,
 }
 
 /// The objects' change near them, finer than the room's patches

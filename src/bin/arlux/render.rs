@@ -95,6 +95,15 @@ pub struct Args {
     /// `.arlux-cache/` next to the scene (nor keep them there).
     #[arg(long)]
     pub no_cache: bool,
+    /// Rounds of per-pixel samples over the radiosity solution, where the
+    /// objects change the image: each round lowers the noise by sqrt(r/(r+1))
+    /// (0: the solution alone; pixel path only).
+    #[arg(long, default_value_t = RenderOptions::default().samples)]
+    pub samples: u32,
+    /// Seconds the render may take: as many rounds as fit (at most
+    /// --samples when given); the report says how many ran.
+    #[arg(long)]
+    pub time: Option<f64>,
     #[arg(long)]
     pub json: bool,
 }
@@ -122,6 +131,8 @@ impl Args {
                 y1: c[3],
             }),
             cache: !self.no_cache,
+            samples: self.samples,
+            time: self.time,
         }
     }
 }
