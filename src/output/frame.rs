@@ -24,10 +24,13 @@ pub enum FrameLayer {
     Photo,
     Direct,
     Indirect,
+    /// The estimated standard deviation of the image's luminance left by
+    /// the rounds of per-pixel samples (0 where none ran).
+    Noise,
 }
 
 /// The layers written as files of their own (`--aov`), by file name.
-pub const AOV_LAYERS: [(&str, FrameLayer); 7] = [
+pub const AOV_LAYERS: [(&str, FrameLayer); 8] = [
     ("object", FrameLayer::Object),
     ("shadow", FrameLayer::Shadow),
     ("change", FrameLayer::Change),
@@ -35,6 +38,7 @@ pub const AOV_LAYERS: [(&str, FrameLayer); 7] = [
     ("direct", FrameLayer::Direct),
     ("indirect", FrameLayer::Indirect),
     ("alpha", FrameLayer::Alpha),
+    ("noise", FrameLayer::Noise),
 ];
 
 /// A channel of a file: its name and the layer's component it holds.
@@ -85,10 +89,16 @@ fn frame_channels(layers: bool) -> Vec<Channel> {
     out
 }
 
-/// A layer's file of its own: `R`, `G`, `B`, or `A` for the coverage.
+/// A layer's file of its own: `R`, `G`, `B`, `A` for the coverage, or
+/// `Y` for the noise (one number per pixel).
 fn aov_channels(layer: FrameLayer) -> Vec<Channel> {
     match layer {
         FrameLayer::Alpha => vec![alpha("A")],
+        FrameLayer::Noise => vec![Channel {
+            name: "Y".to_string(),
+            layer,
+            component: 0,
+        }],
         _ => rgb("", layer),
     }
 }
@@ -123,6 +133,10 @@ fn planes(c: &Composite, photo: &Image, rect: PixelRect, channels: &[Channel]) -
                     FrameLayer::Indirect => rgb(&c.indirect, l, &mut out),
                     FrameLayer::Photo => rgb(photo, f, &mut out),
                     FrameLayer::Alpha => out.extend(&c.alpha[l + x0..l + x1]),
+                    FrameLayer::Noise => match c.noise.get(l + x0..l + x1) {
+                        Some(row) => out.extend(row),
+                        None => out.extend(std::iter::repeat_n(0.0, x1 - x0)),
+                    },
                     FrameLayer::Shadow => {
                         out.extend((x0..x1).map(|x| c.shadow_at(l + x, photo.pixels[f + x])[k]))
                     }

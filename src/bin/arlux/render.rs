@@ -292,6 +292,8 @@ struct RenderReport<'a> {
     pda_bytes: usize,
     pda_bytes_per_pixel: f64,
     texture: Option<TextureReport>,
+    /// What `--samples` / `--time` ran (null: no rounds).
+    samples: Option<arlux::residual::ResidualStats>,
     comparison: Option<Comparison>,
     skill: Option<Skill>,
     left_out: &'a [String],
@@ -378,6 +380,7 @@ impl<'a> RenderReport<'a> {
                 texture_bytes: s.texture_bytes,
                 light_change_seconds: change.as_secs_f64(),
             }),
+            samples: out.residual,
             comparison: error.map(|e| e.0),
             skill: error.map(|e| e.1),
             left_out: &out.left_out,
@@ -433,6 +436,22 @@ impl Report for RenderReport<'_> {
                     s.light_change_seconds
                 ),
             ]),
+        }
+        if let Some(r) = &self.samples {
+            lines.push(format!(
+                "per-pixel rounds: {} (--samples {} reproduces them), {} rays in {:.2} s over {} pixels ({} objects', {} near them, {} on shadow edges, {} on outlines); estimated remaining noise {:.2e} RMS ({:.2}% of their mean)",
+                r.rounds,
+                r.rounds,
+                r.rays,
+                r.seconds,
+                r.pixels(),
+                r.object_pixels,
+                r.room_pixels,
+                r.shadow_pixels,
+                r.edge_pixels,
+                r.noise_rms,
+                100.0 * r.noise_relative
+            ));
         }
         if self.ratio_fallbacks > 0 || self.clamped > 0 {
             lines.push(match self.texture {
