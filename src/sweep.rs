@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use crate::compare::{Comparison, compare};
+use crate::compare::{Comparison, Skill, compare, skill};
 use crate::error::{Error, Result};
 use crate::image_io::{Image, read_image};
 use crate::model::{StageTimes, TransportMethod};
@@ -40,6 +40,9 @@ pub struct SweepSettings {
     pub virtual_patch_size: f64,
     /// Hierarchical radiosity's link threshold (the solve tolerance's knob).
     pub epsilon: f64,
+    /// Rounds of per-pixel samples over the kept solution (`--samples`;
+    /// the pixel path's).
+    pub samples: u32,
 }
 
 impl SweepSettings {
@@ -73,6 +76,10 @@ impl SweepSettings {
                 supersample: self.supersample,
                 crop: None,
             },
+            residual: crate::residual::ResidualSettings {
+                samples: self.samples,
+                time: None,
+            },
             ..d
         }
     }
@@ -95,12 +102,25 @@ impl SweepSettings {
             },
             virtual_patch_size: d.virtual_patch_size,
             epsilon,
+            samples: d.residual.samples,
         }
     }
 }
 
-/// The grid: `quick` is six settings from cheapest to dearest (a smoke
-/// check); otherwise shadow rays 1…256 × supersampling 1…4 × three patch
+/// The rounds of per-pixel samples the grid tries at the default settings:
+/// `quick`, two; otherwise doublings from 1 to 64 (the curve that keeps
+/// falling as time grows).
+fn sample_counts(quick: bool) -> Vec<u32> {
+    if quick {
+        vec![4, 16]
+    } else {
+        (0..7).map(|k| 1 << k).collect()
+    }
+}
+
+/// The grid: `quick` is six settings from cheapest to dearest and the
+/// defaults with 4 and 16 rounds of per-pixel samples (a smoke check);
+/// otherwise the defaults with 1 to 64 rounds (7 settings), and shadow rays 1…256 × supersampling 1…4 × three patch
 /// sizes (auto, 0.5 m, 0.25 m: the room's fine mesh) × two radiosity
 /// thresholds (120 settings), and at the default rays and supersampling
 /// the objects' mesh twice as fine and twice as coarse as the default
@@ -129,6 +149,11 @@ pub fn grid(quick: bool, texture: bool) -> Vec<SweepSettings> {
             ..d
         })
         .collect();
+        out.extend(
+            sample_counts(true)
+                .into_iter()
+                .map(|samples| SweepSettings { samples, ..d }),
+        );
         if texture {
             out.push(SweepSettings {
                 method: SweepMethod::Texture {
@@ -140,7 +165,9 @@ pub fn grid(quick: bool, texture: bool) -> Vec<SweepSettings> {
         }
         return out;
     }
-    let mut out = Vec::new();
+    let mut out: Vec<SweepSettings> = (sample_counts(false).into_iter())
+        .map(|samples| SweepSettings { samples, ..d })
+        .collect();
     for (min_level, penumbra_level) in [(0, 0), (0, 2), (1, 4), (2, 4), (4, 8)] {
         for supersample in 1..=4 {
             for patch_size in [None, Some(0.5), Some(0.25)] {
@@ -202,7 +229,22 @@ pub struct SweepRow {
     pub psnr_srgb_db: Option<f64>,
     /// Images compared.
     pub compared: usize,
+    /// Where the change is ([`crate::compare::skill`], as `compare --photo`
+    /// computes it; a motion: the mean over its poses): the skill (None
+    /// where no pose changes anything), the RMSE over the pixels the change
+    /// touches and their number.
+    pub skill: Option<f64>,
+    pub rmse_changed: f64,
+    pub n_changed: usize,
     pub pareto: bool,
+}
+
+impl SweepRow {
+    /// The error the front and the plot use: 1 − skill where the change
+    /// is, or the whole frame's RMSE when nothing changed.
+    pub fn error(&self) -> f64 {
+        self.skill.map_or(self.rmse, |s| 1.0 - s)
+    }
 }
 
 /// What to render at each setting.
@@ -284,6 +326,7 @@ pub fn run(
         // deterministic, so the error is the same every time.
         let mut best: Option<(f64, StageTimes)> = None;
         let mut comparisons: Vec<Comparison> = Vec::new();
+        let mut skills: Vec<Skill> = Vec::new();
         for _ in 0..repeats.max(1) {
             let mut times = StageTimes::default();
             let mut images: Vec<Image> = Vec::new();
@@ -327,6 +370,9 @@ pub fn run(
                     .zip(&references)
                     .map(|(img, r)| compare(img, r, None))
                     .collect();
+                skills = (images.iter().zip(&references))
+                    .map(|(img, r)| skill(img, r, &photo))
+                    .collect();
             }
             if best.as_ref().is_none_or(|b| seconds < b.0) {
                 best = Some((seconds, times));
@@ -358,6 +404,15 @@ pub fn run(
                 .sum::<Option<f64>>()
                 .map(|s| s / n),
             compared: comparisons.len(),
+            skill: (skills.iter())
+                .filter_map(|s| s.skill)
+                .fold(None, |a: Option<(f64, f64)>, s| {
+                    Some(a.map_or((s, 1.0), |(t, k)| (t + s, k + 1.0)))
+                })
+                .map(|(t, k)| t / k),
+            rmse_changed: skills.iter().map(|s| s.rmse_changed).sum::<f64>() / n,
+            n_changed: (skills.iter().map(|s| s.changed_pixels).sum::<usize>() as f64 / n).round()
+                as usize,
             pareto: false,
         };
         progress(i, &row);
@@ -374,13 +429,13 @@ pub(crate) fn mark_pareto(rows: &mut [SweepRow]) {
         rows[a]
             .seconds
             .total_cmp(&rows[b].seconds)
-            .then(rows[a].rmse.total_cmp(&rows[b].rmse))
+            .then(rows[a].error().total_cmp(&rows[b].error()))
     });
     let mut best = f64::INFINITY;
     for i in order {
-        rows[i].pareto = rows[i].rmse < best;
+        rows[i].pareto = rows[i].error() < best;
         if rows[i].pareto {
-            best = rows[i].rmse;
+            best = rows[i].error();
         }
     }
 }
@@ -400,10 +455,14 @@ pub fn plot(rows: &[SweepRow], title: &str, path: &Path) -> Result<()> {
         // coarse one): x is log10(seconds), labelled in seconds (plotters'
         // own log axis draws no tick inside a narrow range).
         let lt = |t: f64| t.max(1e-4).log10();
+        let ly = |e: f64| e.max(1e-6).log10();
         let t_min = rows.iter().map(|r| r.seconds).fold(f64::INFINITY, f64::min) * 0.8;
         let t_max = rows.iter().map(|r| r.seconds).fold(0.0, f64::max) * 1.25;
-        let e_min = rows.iter().map(|r| r.rmse).fold(f64::INFINITY, f64::min) * 0.9;
-        let e_max = rows.iter().map(|r| r.rmse).fold(0.0, f64::max) * 1.1;
+        // The error where the change is, 1 − skill, also on a log scale:
+        // the curve of more samples keeps falling by factors.
+        let skilled = rows.iter().all(|r| r.skill.is_some());
+        let e_min = ly(rows.iter().map(|r| r.error()).fold(f64::INFINITY, f64::min)) - 0.05;
+        let e_max = ly(rows.iter().map(|r| r.error()).fold(0.0, f64::max)) + 0.05;
         let mut chart = ChartBuilder::on(&root)
             .caption(title, ("sans-serif", 20))
             .margin(15)
@@ -411,7 +470,7 @@ pub fn plot(rows: &[SweepRow], title: &str, path: &Path) -> Result<()> {
             .y_label_area_size(80)
             .build_cartesian_2d(
                 lt(t_min)..lt(t_max).max(lt(t_min) + 0.05),
-                e_min.max(0.0)..e_max.max(e_min + 1e-9),
+                e_min..e_max.max(e_min + 0.05),
             )
             .map_err(|e| fail(e.to_string()))?;
         chart
@@ -425,9 +484,13 @@ pub fn plot(rows: &[SweepRow], title: &str, path: &Path) -> Result<()> {
                     format!("{t:.1}")
                 }
             })
-            .y_desc("RMSE against the reference")
+            .y_desc(if skilled {
+                "1 − skill where the change is (log scale)"
+            } else {
+                "RMSE against the reference (log scale)"
+            })
             .label_style(("sans-serif", 14))
-            .y_label_formatter(&|y| format!("{y:.5}"))
+            .y_label_formatter(&|y| format!("{:.4}", 10f64.powf(*y)))
             .draw()
             .map_err(|e| fail(e.to_string()))?;
         draw_rows(&mut chart, rows, e_max - e_min).map_err(fail)?;
@@ -443,7 +506,7 @@ pub fn plot(rows: &[SweepRow], title: &str, path: &Path) -> Result<()> {
     crate::image_io::write_png_rgb8(path, w, h, buffer)
 }
 
-/// The sweep's chart: x is log10(seconds), y the RMSE.
+/// The sweep's chart: x is log10(seconds), y log10 of the error.
 type Chart<'a, 'b> = plotters::chart::ChartContext<
     'a,
     plotters::backend::BitMapBackend<'b>,
@@ -454,16 +517,24 @@ type Chart<'a, 'b> = plotters::chart::ChartContext<
 >;
 
 /// The rows on `chart`: each method's points, the Pareto front and the
-/// defaults, with their legend entries; `span` is the RMSE axis's range.
+/// defaults, with their legend entries; `span` is the error axis's range
+/// (in log10).
 fn draw_rows(chart: &mut Chart, rows: &[SweepRow], span: f64) -> std::result::Result<(), String> {
     use plotters::prelude::*;
     let lt = |t: f64| t.max(1e-4).log10();
+    let ly = |e: f64| e.max(1e-6).log10();
     let err = |e: DrawingAreaErrorKind<_>| e.to_string();
     chart
         .draw_series(
             rows.iter()
                 .filter(|r| r.settings.method == SweepMethod::Pda)
-                .map(|r| Circle::new((lt(r.seconds), r.rmse), 3, RGBColor(120, 120, 120).filled())),
+                .map(|r| {
+                    Circle::new(
+                        (lt(r.seconds), ly(r.error())),
+                        3,
+                        RGBColor(120, 120, 120).filled(),
+                    )
+                }),
         )
         .map_err(err)?
         .label("pixel path (pda)")
@@ -476,8 +547,8 @@ fn draw_rows(chart: &mut Chart, rows: &[SweepRow], span: f64) -> std::result::Re
                     .map(|r| {
                         Rectangle::new(
                             [
-                                (lt(r.seconds) - 0.006, r.rmse - span * 0.006),
-                                (lt(r.seconds) + 0.006, r.rmse + span * 0.006),
+                                (lt(r.seconds) - 0.006, ly(r.error()) - span * 0.006),
+                                (lt(r.seconds) + 0.006, ly(r.error()) + span * 0.006),
                             ],
                             RGBColor(40, 140, 60).filled(),
                         )
@@ -496,7 +567,7 @@ fn draw_rows(chart: &mut Chart, rows: &[SweepRow], span: f64) -> std::result::Re
     front.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
     chart
         .draw_series(LineSeries::new(
-            front.iter().map(|r| (lt(r.seconds), r.rmse)),
+            front.iter().map(|r| (lt(r.seconds), ly(r.error()))),
             RGBColor(220, 90, 20).stroke_width(2),
         ))
         .map_err(err)?
@@ -510,7 +581,7 @@ fn draw_rows(chart: &mut Chart, rows: &[SweepRow], span: f64) -> std::result::Re
     chart
         .draw_series(front.iter().map(|r| {
             Circle::new(
-                (lt(r.seconds), r.rmse),
+                (lt(r.seconds), ly(r.error())),
                 6,
                 RGBColor(220, 90, 20).stroke_width(2),
             )
@@ -521,7 +592,7 @@ fn draw_rows(chart: &mut Chart, rows: &[SweepRow], span: f64) -> std::result::Re
         .draw_series(
             rows.iter()
                 .filter(|r| r.settings == d)
-                .map(|r| TriangleMarker::new((lt(r.seconds), r.rmse), 9, BLUE.filled())),
+                .map(|r| TriangleMarker::new((lt(r.seconds), ly(r.error())), 9, BLUE.filled())),
         )
         .map_err(err)?
         .label("defaults")
@@ -537,7 +608,12 @@ mod tests {
     fn the_full_grid_varies_the_objects_mesh_at_the_default_quality() {
         let d = SweepSettings::defaults();
         let full = grid(false, false);
-        assert_eq!(full.len(), 128);
+        assert_eq!(full.len(), 135);
+        let sampled: Vec<u32> = (full.iter())
+            .filter(|s| s.samples > 0)
+            .map(|s| s.samples)
+            .collect();
+        assert_eq!(sampled, [1, 2, 4, 8, 16, 32, 64]);
         let other: Vec<&SweepSettings> = full
             .iter()
             .filter(|s| s.virtual_patch_size != d.virtual_patch_size)

@@ -340,7 +340,7 @@ fn sweep_shards_merged_equal_the_whole_sweep_less_timings() {
     let whole = std::fs::read_to_string(dir.path().join("whole/sweep.csv")).unwrap();
     let merged = std::fs::read_to_string(&merged).unwrap();
     let rows = measured(&whole);
-    assert_eq!(rows.len(), 7, "the quick grid of a variant");
+    assert_eq!(rows.len(), 9, "the quick grid of a variant");
     assert_eq!(measured(&merged), rows);
     assert!(std::fs::metadata(&plot).unwrap().len() > 1000);
 
@@ -350,7 +350,7 @@ fn sweep_shards_merged_equal_the_whole_sweep_less_timings() {
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(2), "{stderr}");
     assert!(
-        stderr.contains("the shards leave 2 of 7 settings out, the first 3"),
+        stderr.contains("the shards leave 3 of 9 settings out, the first 3"),
         "{stderr}"
     );
 }
@@ -415,7 +415,7 @@ fn a_sweep_shard_beyond_the_grid_runs_nothing_and_succeeds() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("sweep");
     let scene = common::scene_dir("desk").join("scene.toml");
-    // A job array of 10 tasks for the 7 quick settings: task 9 has none.
+    // A job array of 10 tasks for the 9 quick settings: task 9 has none.
     let run = arlux(
         &[
             "sweep",
@@ -434,7 +434,7 @@ fn a_sweep_shard_beyond_the_grid_runs_nothing_and_succeeds() {
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(0), "{stderr}");
     assert!(
-        stderr.contains("no setting falls to shard 9 of 10 (7 in all)"),
+        stderr.contains("no setting falls to shard 9 of 10 (9 in all)"),
         "{stderr}"
     );
     let v: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();

@@ -145,7 +145,7 @@ fn every_command_s_report_follows_its_documented_schema() {
         at("sweep/sweep.shard-1-of-2.csv"),
     ];
     let m = report("merge", &[&shards[0], &shards[1], "-o", &at("merged.csv")]);
-    assert_eq!(m["settings"], 7);
+    assert_eq!(m["settings"], 9);
     let brackets: Vec<String> = [("ev-2", -2), ("ev+0", 0), ("ev+2", 2)]
         .iter()
         .map(|(f, ev)| format!("{DESK}/brackets/{f}.png:{ev}"))

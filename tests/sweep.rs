@@ -96,7 +96,7 @@ fn front_is_pareto(t: &Table) {
     let mut front: Vec<(f64, f64)> = rows
         .iter()
         .filter(|r| r[col("pareto")] == "1")
-        .map(|r| (num(r, "total_seconds"), num(r, "rmse")))
+        .map(|r| (num(r, "total_seconds"), 1.0 - num(r, "skill")))
         .collect();
     front.sort_by(|a, b| a.0.total_cmp(&b.0));
     // The front's length depends on measured times, which on a loaded machine
@@ -106,9 +106,10 @@ fn front_is_pareto(t: &Table) {
         .iter()
         .map(|r| num(r, "total_seconds"))
         .fold(f64::INFINITY, f64::min);
+    // The front is taken on the error where the change is.
     let best = rows
         .iter()
-        .map(|r| num(r, "rmse"))
+        .map(|r| 1.0 - num(r, "skill"))
         .fold(f64::INFINITY, f64::min);
     assert!(
         front.iter().any(|(t, _)| *t == fastest),
@@ -126,7 +127,7 @@ fn front_is_pareto(t: &Table) {
     }
     // No row off the front may beat a front row on both counts.
     for r in rows.iter().filter(|r| r[col("pareto")] == "0") {
-        let (t, e) = (num(r, "total_seconds"), num(r, "rmse"));
+        let (t, e) = (num(r, "total_seconds"), 1.0 - num(r, "skill"));
         assert!(
             front.iter().any(|(ft, fe)| *ft <= t && *fe <= e),
             "row ({t}, {e}) is dominated by nothing on the front"
@@ -147,8 +148,20 @@ fn defaults_row_is_a_render(t: &Table, dir: &std::path::Path) {
                 && r[col("penumbra_level")] == "4"
                 && r[col("supersample")] == "4"
                 && r[col("patch_size")] == "auto"
+                && r[col("samples")] == "0"
         })
         .expect("the defaults are in the quick grid");
+    // Rounds of per-pixel samples at the defaults: closer where the change is.
+    let sampled: Vec<f64> = (rows.iter())
+        .filter(|r| r[col("method")] == "pda" && r[col("samples")] != "0")
+        .map(|r| num(r, "skill"))
+        .collect();
+    assert_eq!(sampled.len(), 2, "the quick grid's 4 and 16 rounds");
+    assert!(
+        sampled[0] > num(default_row, "skill") + 0.02 && sampled[1] >= sampled[0] - 0.002,
+        "skill {} without samples, {sampled:?} with 4 and 16 rounds",
+        num(default_row, "skill")
+    );
     // Errors are deterministic: the coarsest pixel-path row is worse than the defaults.
     let coarsest = rows
         .iter()
@@ -190,11 +203,30 @@ fn defaults_row_is_a_render(t: &Table, dir: &std::path::Path) {
             "compare",
             image.to_str().unwrap(),
             &format!("{DESK}/truth/box_floor_a.exr"),
+            "--photo",
+            &format!("{DESK}/photo.exr"),
             "--json",
         ])
         .output()
         .unwrap();
     let c: serde_json::Value = serde_json::from_slice(&compare.stdout).unwrap();
+    // The skill as compare --photo and render print it.
+    let r: serde_json::Value = serde_json::from_slice(&render.stdout).unwrap();
+    for (name, key) in [
+        ("skill", "skill"),
+        ("rmse_changed", "rmse_changed"),
+        ("n_changed", "changed_pixels"),
+    ] {
+        let (swept, independent) = (num(default_row, name), c["skill"][key].as_f64().unwrap());
+        assert!(
+            (independent - swept).abs() < 1e-6 * independent.max(1.0),
+            "{name}: sweep {swept} vs compare --photo {independent}"
+        );
+        assert_eq!(
+            c["skill"][key], r["skill"][key],
+            "{name}: compare against render"
+        );
+    }
     let independent = c["comparison"]["rmse"].as_f64().unwrap();
     let swept = num(default_row, "rmse");
     assert!(
@@ -214,5 +246,8 @@ fn a_motion_sweep_compares_every_pose() {
         // The motion's mean error: its poses measured 0.0024-0.0041 each at the defaults.
         let e: f64 = cells[at("rmse")].parse().unwrap();
         assert!(e > 0.002 && e < 0.005, "mean rmse {e}");
+        // The mean over the poses of the skill where each pose changes the photo.
+        let k: f64 = cells[at("skill")].parse().unwrap();
+        assert!(k > 0.8 && k < 1.0, "mean skill {k}");
     }
 }

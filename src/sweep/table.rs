@@ -15,9 +15,8 @@ pub struct SweepTable {
     pub grid_size: usize,
 }
 
-const SETTINGS: &str = "setting,grid_size,method,min_level,penumbra_level,shadow_rays_min,shadow_rays_max,supersample,min_leaf_pixels,patch_size,virtual_patch_size,epsilon";
-const FIGURES: &str =
-    "total_seconds,rmse,relative_rmse,psnr_srgb_db,images_compared,reference,pareto";
+const SETTINGS: &str = "setting,grid_size,method,min_level,penumbra_level,shadow_rays_min,shadow_rays_max,supersample,min_leaf_pixels,patch_size,virtual_patch_size,epsilon,samples";
+const FIGURES: &str = "total_seconds,rmse,relative_rmse,psnr_srgb_db,skill,rmse_changed,n_changed,images_compared,reference,pareto";
 
 /// A stage's name as a column: `s_` and the name's words joined by
 /// underscores (`estimate + solve` → `s_estimate_solve`).
@@ -57,18 +56,19 @@ impl SweepTable {
             out.push_str(&format!("{},{},", r.index, self.grid_size));
             out.push_str(&match s.method {
                 SweepMethod::Pda => format!(
-                    "pda,{},{},{},{},{},,{patch},{},{}",
+                    "pda,{},{},{},{},{},,{patch},{},{},{}",
                     s.min_level,
                     s.penumbra_level,
                     1u32 << s.min_level,
                     1u32 << s.penumbra_level,
                     s.supersample,
                     s.virtual_patch_size,
-                    s.epsilon
+                    s.epsilon,
+                    s.samples
                 ),
                 // Shadow rays and supersampling do not apply: its leaves take 2^4 rays per point.
                 SweepMethod::Texture { min_leaf_pixels } => {
-                    format!("texture,,,,,,{min_leaf_pixels},{patch},,{}", s.epsilon)
+                    format!("texture,,,,,,{min_leaf_pixels},{patch},,{},", s.epsilon)
                 }
             });
             for n in &names {
@@ -79,11 +79,14 @@ impl SweepTable {
                 v.map_or(String::new(), |v| format!("{v:.digits$}"))
             };
             out.push_str(&format!(
-                ",{:.6},{:.8},{},{},{},{},{}\n",
+                ",{:.6},{:.8},{},{},{},{:.8},{},{},{},{}\n",
                 r.seconds,
                 r.rmse,
                 cell(r.relative_rmse, 8),
                 cell(r.psnr_srgb_db, 4),
+                cell(r.skill, 6),
+                r.rmse_changed,
+                r.n_changed,
                 r.compared,
                 self.reference,
                 r.pareto as u8
@@ -174,9 +177,10 @@ fn parse_row(
         },
         virtual_patch_size: if pda { num(10)? } else { d.virtual_patch_size },
         epsilon: num(11)?,
+        samples: if pda { num(12)? as u32 } else { 0 },
     };
-    let f = cells.len() - 7;
-    table.reference = cells[f + 5].to_string();
+    let f = cells.len() - 10;
+    table.reference = cells[f + 8].to_string();
     table.grid_size = num(1)? as usize;
     Ok(SweepRow {
         index: num(0)? as usize,
@@ -184,14 +188,17 @@ fn parse_row(
         stages: stages
             .iter()
             .enumerate()
-            .map(|(j, s)| Ok((s.clone(), num(12 + j)?)))
+            .map(|(j, s)| Ok((s.clone(), num(13 + j)?)))
             .collect::<std::result::Result<_, String>>()?,
         seconds: num(f)?,
         rmse: num(f + 1)?,
         relative_rmse: opt(f + 2)?,
         psnr_srgb_db: opt(f + 3)?,
-        compared: num(f + 4)? as usize,
-        pareto: cells[f + 6] == "1",
+        skill: opt(f + 4)?,
+        rmse_changed: num(f + 5)?,
+        n_changed: num(f + 6)? as usize,
+        compared: num(f + 7)? as usize,
+        pareto: cells[f + 9] == "1",
     })
 }
 

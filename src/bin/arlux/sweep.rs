@@ -20,8 +20,9 @@ pub struct Args {
     pub motion: Option<String>,
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Six pixel-path settings from cheapest to dearest (and, for a
-    /// variant, the texture path at its defaults: seven), for a smoke check.
+    /// Six pixel-path settings from cheapest to dearest, the defaults with
+    /// 4 and 16 rounds of per-pixel samples (and, for a variant, the
+    /// texture path at its defaults: nine), for a smoke check.
     #[arg(long)]
     pub quick: bool,
     /// Runs per setting; the fastest counts (default 3, 1 with --quick).
@@ -91,7 +92,10 @@ pub fn run(args: &Args) -> Result<()> {
             share.clone(),
             repeats,
             |_, row| {
-                bar.set_message(format!("last: {:.2} s, RMSE {:.5}", row.seconds, row.rmse));
+                bar.set_message(match row.skill {
+                    Some(k) => format!("last: {:.2} s, skill {k:.4}", row.seconds),
+                    None => format!("last: {:.2} s, RMSE {:.5}", row.seconds, row.rmse),
+                });
                 bar.inc(1);
             },
         )
@@ -162,9 +166,16 @@ struct RowReport {
     patch_size_m: Option<f64>,
     virtual_patch_size_m: Option<f64>,
     epsilon: f64,
+    /// Rounds of per-pixel samples (`--samples`).
+    samples: u32,
     seconds: f64,
     rmse: f64,
     relative_rmse: Option<f64>,
+    /// Where the change is, as `compare --photo` gives it (a motion: the
+    /// mean over its poses).
+    skill: Option<f64>,
+    rmse_changed: f64,
+    n_changed: usize,
     pareto: bool,
 }
 
@@ -191,9 +202,13 @@ impl RowReport {
             patch_size_m: s.patch_size,
             virtual_patch_size_m,
             epsilon: s.epsilon,
+            samples: s.samples,
             seconds: r.seconds,
             rmse: r.rmse,
             relative_rmse: r.relative_rmse,
+            skill: r.skill,
+            rmse_changed: r.rmse_changed,
+            n_changed: r.n_changed,
             pareto: r.pareto,
         }
     }
@@ -216,17 +231,19 @@ impl Report for SweepReport {
                     .as_ref()
                     .map_or(String::new(), |p| format!(" and {p}"))
             ),
-            "Pareto front (faster and closer than nothing else):".to_string(),
+            "Pareto front (nothing else both faster and closer where the change is):".to_string(),
             format!(
-                "  {:>7} {:>11} {:>10} {:>10} {:>8} {:>8} {:>9} {:>10}",
+                "  {:>7} {:>11} {:>10} {:>10} {:>8} {:>8} {:>7} {:>9} {:>10} {:>7}",
                 "method",
                 "shadow rays",
                 "supersamp.",
                 "patch",
                 "objects",
                 "epsilon",
+                "samples",
                 "seconds",
-                "RMSE"
+                "RMSE",
+                "skill"
             ),
         ];
         for r in front {
@@ -245,7 +262,7 @@ impl Report for SweepReport {
                 ),
             };
             lines.push(format!(
-                "  {:>7} {:>11} {:>10} {:>10} {:>8} {:>8} {:>9.3} {:>10.6}",
+                "  {:>7} {:>11} {:>10} {:>10} {:>8} {:>8} {:>7} {:>9.3} {:>10.6} {:>7}",
                 method,
                 rays,
                 supersample,
@@ -253,8 +270,10 @@ impl Report for SweepReport {
                     .map_or("auto".to_string(), |m| format!("{m} m")),
                 objects,
                 r.epsilon,
+                r.samples,
                 r.seconds,
-                r.rmse
+                r.rmse,
+                r.skill.map_or("-".to_string(), |k| format!("{k:.4}"))
             ));
         }
         lines
