@@ -142,21 +142,7 @@ fn box_filter(values: &[f64], width: usize, height: usize, r: usize) -> Vec<f64>
 /// The skill of `result` at reproducing the change from `photo` to
 /// `truth` (all three the same size).
 pub fn skill(result: &Image, truth: &Image, photo: &Image) -> Skill {
-    let (w, h) = (truth.width as usize, truth.height as usize);
-    let mean = |p: glam::Vec3| (p.x as f64 + p.y as f64 + p.z as f64) / 3.0;
-    let diff: Vec<f64> = truth
-        .pixels
-        .iter()
-        .zip(&photo.pixels)
-        .map(|(t, p)| mean((*t - *p).abs()))
-        .collect();
-    let level: Vec<f64> = photo.pixels.iter().map(|p| mean(*p)).collect();
-    let (diff, level) = (box_filter(&diff, w, h, 2), box_filter(&level, w, h, 2));
-    let changed: Vec<bool> = diff
-        .iter()
-        .zip(&level)
-        .map(|(d, l)| *d > SKILL_RELATIVE * l + SKILL_FLOOR)
-        .collect();
+    let changed = changed_pixels(truth, photo);
     let ours = compare(result, truth, Some(&changed));
     let photo_error = compare(photo, truth, Some(&changed));
     let (rmse_changed, rmse_photo_changed) = if ours.pixels == 0 {
@@ -170,6 +156,48 @@ pub fn skill(result: &Image, truth: &Image, photo: &Image) -> Skill {
         rmse_photo_changed,
         skill: (rmse_photo_changed > 0.0).then(|| 1.0 - rmse_changed / rmse_photo_changed),
     }
+}
+
+/// The pixels a change touches ([`Skill::changed_pixels`]), from the
+/// truth and the photo alone.
+pub fn changed_pixels(truth: &Image, photo: &Image) -> Vec<bool> {
+    let (w, h) = (truth.width as usize, truth.height as usize);
+    let mean = |p: glam::Vec3| (p.x as f64 + p.y as f64 + p.z as f64) / 3.0;
+    let diff: Vec<f64> = truth
+        .pixels
+        .iter()
+        .zip(&photo.pixels)
+        .map(|(t, p)| mean((*t - *p).abs()))
+        .collect();
+    let level: Vec<f64> = photo.pixels.iter().map(|p| mean(*p)).collect();
+    let (diff, level) = (box_filter(&diff, w, h, 2), box_filter(&level, w, h, 2));
+    diff.iter()
+        .zip(&level)
+        .map(|(d, l)| *d > SKILL_RELATIVE * l + SKILL_FLOOR)
+        .collect()
+}
+
+/// The best skill a reference allows when its own Monte Carlo noise is
+/// `noise` (relative per-pixel RMSE, as each dataset's `NOISE.txt` gives
+/// it): the skill of a result whose only error is that noise, i.e. whose
+/// RMSE over the changed pixels is `noise` × the reference's mean there.
+/// (Where real pixels show through, the composite also carries the
+/// photo's own noise, so the skill reachable there is lower still.)
+pub fn skill_floor(truth: &Image, photo: &Image, noise: f64) -> Option<f64> {
+    let changed = changed_pixels(truth, photo);
+    let photo_error = compare(photo, truth, Some(&changed));
+    if photo_error.pixels == 0 || photo_error.rmse <= 0.0 {
+        return None;
+    }
+    let floor = noise * photo_error.mean_reference;
+    Some(1.0 - floor / photo_error.rmse)
+}
+
+/// A reference's relative noise measured from an independent second
+/// render of it: RMSE between the two / √2 / the reference's mean.
+pub fn twin_noise(reference: &Image, twin: &Image) -> f64 {
+    let c = compare(twin, reference, None);
+    c.relative_rmse.unwrap_or(0.0) / std::f64::consts::SQRT_2
 }
 
 /// Reads a mask image: a pixel is inside where its grey value is above one half.

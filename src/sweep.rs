@@ -2,7 +2,6 @@
 //! quality settings, measures each against the reference, and marks the
 //! Pareto front (no other setting both faster and closer).
 
-use std::path::Path;
 use std::time::Instant;
 
 use crate::compare::{Comparison, Skill, compare, skill};
@@ -13,7 +12,11 @@ use crate::pda::PdaSettings;
 use crate::render::{PatchSize, RenderSettings, Session, render};
 use crate::scene::Scene;
 
+mod peer;
+mod plot;
 mod table;
+pub use peer::{Peer, read_peer};
+pub use plot::plot;
 pub use table::{SweepTable, merge_tables};
 
 /// Which renderer a grid point uses.
@@ -24,6 +27,9 @@ pub enum SweepMethod {
     /// The texture path (Loscos) with its smallest leaf in pixel footprints;
     /// patch size and ε apply, shadow rays and supersampling do not.
     Texture { min_leaf_pixels: f64 },
+    /// Another renderer's image read from a peer's CSV (`--peer`): no
+    /// setting applies.
+    Peer,
 }
 
 /// One point of the grid.
@@ -49,7 +55,7 @@ impl SweepSettings {
     /// The texture path's settings at this point.
     pub(crate) fn texture_settings(&self) -> Option<crate::relight::TextureSettings> {
         match self.method {
-            SweepMethod::Pda => None,
+            SweepMethod::Pda | SweepMethod::Peer => None,
             SweepMethod::Texture { min_leaf_pixels } => Some(crate::relight::TextureSettings {
                 patch_size: self.patch_size,
                 link_epsilon: self.epsilon,
@@ -218,6 +224,8 @@ pub struct SweepRow {
     /// The setting's place in the whole grid (a shard runs a part of it).
     pub index: usize,
     pub settings: SweepSettings,
+    /// A peer's label (`--peer LABEL=FILE.csv`); None for arlux's rows.
+    pub peer: Option<String>,
     /// Seconds per stage, summed over the run (a motion: over all poses).
     pub stages: Vec<(String, f64)>,
     pub seconds: f64,
@@ -236,6 +244,9 @@ pub struct SweepRow {
     pub skill: Option<f64>,
     pub rmse_changed: f64,
     pub n_changed: usize,
+    /// The best skill the reference's own noise allows
+    /// ([`crate::compare::skill_floor`]; None: the scene declares none).
+    pub skill_floor: Option<f64>,
     pub pareto: bool,
 }
 
@@ -304,6 +315,7 @@ pub fn run(
         .iter()
         .map(|r| scene.fit_size(read_image(r)?, "reference", r))
         .collect::<Result<_>>()?;
+    let floor = skill_floor(scene, target, &references, &photo)?;
     // One untimed render first: the thread pool and the page cache warm up
     // there, not in whichever setting happens to come first.
     if let Some(first) = grid.first() {
@@ -390,6 +402,7 @@ pub fn run(
         let row = SweepRow {
             index: share.start + i,
             settings: *s,
+            peer: None,
             stages,
             seconds,
             rmse: comparisons.iter().map(|c| c.rmse).sum::<f64>() / n,
@@ -413,6 +426,7 @@ pub fn run(
             rmse_changed: skills.iter().map(|s| s.rmse_changed).sum::<f64>() / n,
             n_changed: (skills.iter().map(|s| s.changed_pixels).sum::<usize>() as f64 / n).round()
                 as usize,
+            skill_floor: floor,
             pareto: false,
         };
         progress(i, &row);
@@ -422,9 +436,41 @@ pub fn run(
     Ok(rows)
 }
 
-/// Marks the rows no other row beats on both time and error.
+/// The best skill `target`'s references allow, from the noise the scene
+/// declares for them (a motion: the mean over its poses); None without one.
+pub fn skill_floor(
+    scene: &Scene,
+    target: &Target,
+    references: &[Image],
+    photo: &Image,
+) -> Result<Option<f64>> {
+    use crate::scene::ReferenceNoise;
+    let noise = match target {
+        Target::Variant { name } => match &scene.variant(name)?.reference_noise {
+            None => return Ok(None),
+            Some(ReferenceNoise::Declared(n)) => *n,
+            Some(ReferenceNoise::Twin(t)) => {
+                let twin = scene.fit_size(read_image(t)?, "reference_twin", t)?;
+                crate::compare::twin_noise(&references[0], &twin)
+            }
+        },
+        Target::Motion { name } => match scene.motion(name)?.reference_noise {
+            None => return Ok(None),
+            Some(n) => n,
+        },
+    };
+    let floors: Vec<f64> = (references.iter())
+        .filter_map(|r| crate::compare::skill_floor(r, photo, noise))
+        .collect();
+    Ok((!floors.is_empty()).then(|| floors.iter().sum::<f64>() / floors.len() as f64))
+}
+
+/// Marks arlux's rows that no other of its rows beats on both time and
+/// error (a peer's rows are drawn beside the front, not on it).
 pub(crate) fn mark_pareto(rows: &mut [SweepRow]) {
-    let mut order: Vec<usize> = (0..rows.len()).collect();
+    let mut order: Vec<usize> = (0..rows.len())
+        .filter(|&i| rows[i].peer.is_none())
+        .collect();
     order.sort_by(|&a, &b| {
         rows[a]
             .seconds
@@ -438,166 +484,6 @@ pub(crate) fn mark_pareto(rows: &mut [SweepRow]) {
             best = rows[i].error();
         }
     }
-}
-
-/// Error against time, every row a point, the front joined and ringed;
-/// text drawn with the font shipped in `assets/` (no system font needed).
-pub fn plot(rows: &[SweepRow], title: &str, path: &Path) -> Result<()> {
-    use plotters::prelude::*;
-    crate::util::figure::register_font();
-    let (w, h) = (900u32, 600u32);
-    let mut buffer = vec![255u8; (w * h * 3) as usize];
-    let fail = |e: String| Error::file(path, format!("could not draw the plot: {e}"));
-    {
-        let root = BitMapBackend::with_buffer(&mut buffer, (w, h)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| fail(e.to_string()))?;
-        // Times span orders of magnitude (a fine room mesh costs 40× a
-        // coarse one): x is log10(seconds), labelled in seconds (plotters'
-        // own log axis draws no tick inside a narrow range).
-        let lt = |t: f64| t.max(1e-4).log10();
-        let ly = |e: f64| e.max(1e-6).log10();
-        let t_min = rows.iter().map(|r| r.seconds).fold(f64::INFINITY, f64::min) * 0.8;
-        let t_max = rows.iter().map(|r| r.seconds).fold(0.0, f64::max) * 1.25;
-        // The error where the change is, 1 − skill, also on a log scale:
-        // the curve of more samples keeps falling by factors.
-        let skilled = rows.iter().all(|r| r.skill.is_some());
-        let e_min = ly(rows.iter().map(|r| r.error()).fold(f64::INFINITY, f64::min)) - 0.05;
-        let e_max = ly(rows.iter().map(|r| r.error()).fold(0.0, f64::max)) + 0.05;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 20))
-            .margin(15)
-            .x_label_area_size(45)
-            .y_label_area_size(80)
-            .build_cartesian_2d(
-                lt(t_min)..lt(t_max).max(lt(t_min) + 0.05),
-                e_min..e_max.max(e_min + 0.05),
-            )
-            .map_err(|e| fail(e.to_string()))?;
-        chart
-            .configure_mesh()
-            .x_desc("seconds (log scale)")
-            .x_label_formatter(&|x| {
-                let t = 10f64.powf(*x);
-                if t < 1.0 {
-                    format!("{t:.3}")
-                } else {
-                    format!("{t:.1}")
-                }
-            })
-            .y_desc(if skilled {
-                "1 − skill where the change is (log scale)"
-            } else {
-                "RMSE against the reference (log scale)"
-            })
-            .label_style(("sans-serif", 14))
-            .y_label_formatter(&|y| format!("{:.4}", 10f64.powf(*y)))
-            .draw()
-            .map_err(|e| fail(e.to_string()))?;
-        draw_rows(&mut chart, rows, e_max - e_min).map_err(fail)?;
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 14))
-            .draw()
-            .map_err(|e| fail(e.to_string()))?;
-        root.present().map_err(|e| fail(e.to_string()))?;
-    }
-    crate::image_io::write_png_rgb8(path, w, h, buffer)
-}
-
-/// The sweep's chart: x is log10(seconds), y log10 of the error.
-type Chart<'a, 'b> = plotters::chart::ChartContext<
-    'a,
-    plotters::backend::BitMapBackend<'b>,
-    plotters::coord::cartesian::Cartesian2d<
-        plotters::coord::types::RangedCoordf64,
-        plotters::coord::types::RangedCoordf64,
-    >,
->;
-
-/// The rows on `chart`: each method's points, the Pareto front and the
-/// defaults, with their legend entries; `span` is the error axis's range
-/// (in log10).
-fn draw_rows(chart: &mut Chart, rows: &[SweepRow], span: f64) -> std::result::Result<(), String> {
-    use plotters::prelude::*;
-    let lt = |t: f64| t.max(1e-4).log10();
-    let ly = |e: f64| e.max(1e-6).log10();
-    let err = |e: DrawingAreaErrorKind<_>| e.to_string();
-    chart
-        .draw_series(
-            rows.iter()
-                .filter(|r| r.settings.method == SweepMethod::Pda)
-                .map(|r| {
-                    Circle::new(
-                        (lt(r.seconds), ly(r.error())),
-                        3,
-                        RGBColor(120, 120, 120).filled(),
-                    )
-                }),
-        )
-        .map_err(err)?
-        .label("pixel path (pda)")
-        .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(120, 120, 120).filled()));
-    if rows.iter().any(|r| r.settings.method != SweepMethod::Pda) {
-        chart
-            .draw_series(
-                rows.iter()
-                    .filter(|r| r.settings.method != SweepMethod::Pda)
-                    .map(|r| {
-                        Rectangle::new(
-                            [
-                                (lt(r.seconds) - 0.006, ly(r.error()) - span * 0.006),
-                                (lt(r.seconds) + 0.006, ly(r.error()) + span * 0.006),
-                            ],
-                            RGBColor(40, 140, 60).filled(),
-                        )
-                    }),
-            )
-            .map_err(err)?
-            .label("texture path")
-            .legend(|(x, y)| {
-                Rectangle::new(
-                    [(x + 6, y - 3), (x + 12, y + 3)],
-                    RGBColor(40, 140, 60).filled(),
-                )
-            });
-    }
-    let mut front: Vec<&SweepRow> = rows.iter().filter(|r| r.pareto).collect();
-    front.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
-    chart
-        .draw_series(LineSeries::new(
-            front.iter().map(|r| (lt(r.seconds), ly(r.error()))),
-            RGBColor(220, 90, 20).stroke_width(2),
-        ))
-        .map_err(err)?
-        .label("Pareto front")
-        .legend(|(x, y)| {
-            PathElement::new(
-                vec![(x, y), (x + 20, y)],
-                RGBColor(220, 90, 20).stroke_width(2),
-            )
-        });
-    chart
-        .draw_series(front.iter().map(|r| {
-            Circle::new(
-                (lt(r.seconds), ly(r.error())),
-                6,
-                RGBColor(220, 90, 20).stroke_width(2),
-            )
-        }))
-        .map_err(err)?;
-    let d = SweepSettings::defaults();
-    chart
-        .draw_series(
-            rows.iter()
-                .filter(|r| r.settings == d)
-                .map(|r| TriangleMarker::new((lt(r.seconds), ly(r.error())), 9, BLUE.filled())),
-        )
-        .map_err(err)?
-        .label("defaults")
-        .legend(|(x, y)| TriangleMarker::new((x + 10, y), 6, BLUE.filled()));
-    Ok(())
 }
 
 #[cfg(test)]

@@ -455,3 +455,29 @@ fn a_plate_with_a_reference_of_the_wrong_size_is_refused_before_any_work() {
     assert!(!stderr.contains("read photo"), "{stderr}");
     assert!(!out.exists());
 }
+
+#[test]
+fn a_reference_noise_out_of_range_or_without_a_reference_is_refused_naming_the_key() {
+    for (old, new, expected) in [
+        (
+            "reference_noise = 0.01045\n",
+            "reference_noise = 1.5\n",
+            "a relative RMSE in [0, 1)",
+        ),
+        (
+            "reference = \"truth/box_floor_a.exr\"\nreference_noise = 0.01045\n",
+            "reference_noise = 0.01045\n",
+            "describes a reference",
+        ),
+        (
+            "reference_noise = 0.01045\n",
+            "reference_noise = 0.01045\nreference_twin = \"truth/box_floor_b.exr\"\n",
+            "not both",
+        ),
+    ] {
+        let desk = Desk::new();
+        desk.edit("scene.toml", old, new);
+        let message = common::arlux_refused(&["info", &desk.scene()], &[expected, "scene.toml"]);
+        assert!(message.contains("reference_"), "{message}");
+    }
+}

@@ -251,3 +251,135 @@ fn a_motion_sweep_compares_every_pose() {
         assert!(k > 0.8 && k < 1.0, "mean skill {k}");
     }
 }
+
+/// The desk's photo and `box_floor_a`'s truth.
+fn photo_and_truth() -> (arlux::image_io::Image, arlux::image_io::Image) {
+    let read = |f: &str| arlux::image_io::read_image(std::path::Path::new(&format!("{DESK}/{f}")));
+    (
+        read("photo.exr").unwrap(),
+        read("truth/box_floor_a.exr").unwrap(),
+    )
+}
+
+#[test]
+fn the_reference_noise_floor_is_the_skill_of_noise_alone() {
+    let (dir, csv) = quick_sweep(&["--variant", "box_floor_a"]);
+    let t = Table::parse(&csv);
+    let floor = t.num(&t.rows[0], "skill_floor");
+    assert!(t.rows.iter().all(|r| t.num(r, "skill_floor") == floor));
+    // Independently: the pixels the change touches (5x5 box-filtered
+    // |truth - photo| above 3% of the filtered photo + 0.002), the photo's
+    // RMSE there, and a render whose only error is the declared 1.045%
+    // of the truth's mean there.
+    let (photo, truth) = photo_and_truth();
+    let (w, h) = (photo.width as i64, photo.height as i64);
+    let mean = |p: glam::Vec3| (p.x + p.y + p.z) as f64 / 3.0;
+    let at = |x: i64, y: i64| (y.clamp(0, h - 1) * w + x.clamp(0, w - 1)) as usize;
+    let (mut se, mut sum, mut n) = (0.0, 0.0, 0usize);
+    for y in 0..h {
+        for x in 0..w {
+            let (mut d, mut l) = (0.0, 0.0);
+            for dy in -2..=2 {
+                for dx in -2..=2 {
+                    let i = at(x + dx, y + dy);
+                    d += mean((truth.pixels[i] - photo.pixels[i]).abs()) / 25.0;
+                    l += mean(photo.pixels[i]) / 25.0;
+                }
+            }
+            if d > 0.03 * l + 0.002 {
+                let i = at(x, y);
+                let e = photo.pixels[i] - truth.pixels[i];
+                se += (e * e).to_array().iter().map(|v| *v as f64).sum::<f64>();
+                sum += mean(truth.pixels[i]) * 3.0;
+                n += 1;
+            }
+        }
+    }
+    let photo_rmse = (se / (3 * n) as f64).sqrt();
+    let expected = 1.0 - 0.01045 * (sum / (3 * n) as f64) / photo_rmse;
+    assert!(
+        (floor - expected).abs() < 0.005,
+        "skill_floor {floor} against {expected} computed here"
+    );
+    // Every render lies below it.
+    assert!(t.rows.iter().all(|r| t.num(r, "skill") < floor));
+    // The plot draws it (its legend's colour is on the image).
+    let png = image::open(dir.path().join("sweep.png")).unwrap().to_rgb8();
+    assert!(png.pixels().filter(|p| p.0 == [150, 30, 150]).count() > 500);
+}
+
+#[test]
+fn a_peer_is_measured_as_arlux_is_and_a_bad_row_is_refused_by_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("peer.csv");
+    // The photo itself (skill 0) and the reference itself (skill 1).
+    std::fs::write(
+        &csv,
+        format!("seconds,image\n1.5,{DESK}/photo.exr\n30,{DESK}/truth/box_floor_a.exr\n"),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let scene = format!("{DESK}/scene.toml");
+    let peer = format!("path tracer={}", csv.display());
+    let args = |peer: &str| {
+        vec![
+            "sweep".to_string(),
+            scene.clone(),
+            "--variant".into(),
+            "box_floor_a".into(),
+            "--peer-only".into(),
+            "--peer".into(),
+            peer.to_string(),
+            "-o".into(),
+            out.display().to_string(),
+        ]
+    };
+    let run = Command::new(env!("CARGO_BIN_EXE_arlux"))
+        .args(args(&peer))
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let t = Table::parse(&std::fs::read_to_string(out.join("sweep.csv")).unwrap());
+    assert_eq!(t.rows.len(), 2);
+    let skills: Vec<f64> = t.rows.iter().map(|r| t.num(r, "skill")).collect();
+    assert!(
+        skills[0].abs() < 0.001 && (skills[1] - 1.0).abs() < 0.001,
+        "{skills:?}"
+    );
+    assert!(t.rows.iter().all(|r| r[t.col("method")] == "path tracer"));
+    assert_eq!(t.num(&t.rows[1], "total_seconds"), 30.0);
+
+    // A missing image, then one of another size: refused by file and line,
+    // before any render (no folder made).
+    let small = dir.path().join("small.png");
+    image::RgbImage::new(64, 48).save(&small).unwrap();
+    for (row, expected) in [
+        (
+            format!("2,{}/nothing.exr", dir.path().display()),
+            "nothing.exr",
+        ),
+        (format!("2,{}", small.display()), "small.png"),
+    ] {
+        std::fs::write(&csv, format!("seconds,image\n1,{DESK}/photo.exr\n{row}\n")).unwrap();
+        let fresh = dir.path().join("fresh");
+        let mut a = args(&peer);
+        a.retain(|x| x != "--peer-only");
+        *a.last_mut().unwrap() = fresh.display().to_string();
+        let run = Command::new(env!("CARGO_BIN_EXE_arlux"))
+            .args(&a)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{stderr}");
+        assert!(
+            stderr.contains("peer.csv") && stderr.contains("line 3"),
+            "{stderr}"
+        );
+        assert!(stderr.contains(expected), "{stderr}");
+        assert!(!fresh.exists(), "a folder was made before the refusal");
+    }
+}

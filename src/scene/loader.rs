@@ -608,6 +608,7 @@ impl Loader<'_> {
             hide_objects: vec![],
             hide_lights: vec![],
             reference: None,
+            reference_noise: None,
         };
         if let Some(t) = v.opt_table("lights")? {
             for (lname, value) in t.entries() {
@@ -688,6 +689,25 @@ impl Loader<'_> {
         if let Some(rel) = v.opt_str("reference")? {
             variant.reference = Some(self.existing_path(v, "reference", rel)?);
         }
+        let declared = reference_noise(v, variant.reference.is_some())?;
+        let twin = match v.opt_str("reference_twin")? {
+            Some(_) if variant.reference.is_none() => {
+                return Err(v.error("reference_twin", "a twin needs the variant's reference"));
+            }
+            Some(rel) => Some(self.existing_path(v, "reference_twin", rel)?),
+            None => None,
+        };
+        variant.reference_noise = match (declared, twin) {
+            (Some(_), Some(_)) => {
+                return Err(v.error(
+                    "reference_twin",
+                    "give reference_noise or reference_twin, not both",
+                ));
+            }
+            (Some(n), None) => Some(super::ReferenceNoise::Declared(n)),
+            (None, Some(t)) => Some(super::ReferenceNoise::Twin(t)),
+            (None, None) => None,
+        };
         v.finish()?;
         Ok(variant)
     }
@@ -746,14 +766,34 @@ impl Loader<'_> {
                 references.push(p);
             }
         }
+        let reference_noise = reference_noise(m, !references.is_empty())?;
         m.finish()?;
         Ok(Motion {
             name,
             object,
             translations,
             references,
+            reference_noise,
         })
     }
+}
+
+/// A variant's or motion's `reference_noise`: a relative RMSE in [0, 1),
+/// given only with references.
+fn reference_noise(t: &Fields, has_reference: bool) -> Result<Option<f64>> {
+    let Some(n) = t.opt_f64("reference_noise")? else {
+        return Ok(None);
+    };
+    if !has_reference {
+        return Err(t.error("reference_noise", "describes a reference: give one"));
+    }
+    if !(n.is_finite() && (0.0..1.0).contains(&n)) {
+        return Err(t.error(
+            "reference_noise",
+            format!("a relative RMSE in [0, 1) (0.0105 is 1.05%), not {n}"),
+        ));
+    }
+    Ok(Some(n))
 }
 
 /// The `[[reflectance]]` tables: one per surface, each in [0, 1].

@@ -288,6 +288,17 @@ pub struct Variant {
     pub hide_objects: Vec<usize>,
     pub hide_lights: Vec<usize>,
     pub reference: Option<PathBuf>,
+    /// What the reference's own Monte Carlo noise is, when known.
+    pub reference_noise: Option<ReferenceNoise>,
+}
+
+/// A reference's own noise: declared as a relative per-pixel RMSE (each
+/// dataset's `NOISE.txt`: RMSE between two independent renders / √2 /
+/// their mean), or measured from a second independent render of it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ReferenceNoise {
+    Declared(f64),
+    Twin(PathBuf),
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -297,6 +308,8 @@ pub struct Motion {
     pub translations: Vec<DVec3>,
     /// Empty, or one reference photograph per pose.
     pub references: Vec<PathBuf>,
+    /// The references' own noise, when declared (relative per-pixel RMSE).
+    pub reference_noise: Option<f64>,
 }
 
 impl Scene {
@@ -333,6 +346,14 @@ impl Scene {
             }
         }
         files.extend(self.variants.iter().filter_map(|v| v.reference.clone()));
+        files.extend(
+            self.variants
+                .iter()
+                .filter_map(|v| match &v.reference_noise {
+                    Some(ReferenceNoise::Twin(t)) => Some(t.clone()),
+                    _ => None,
+                }),
+        );
         for m in &self.motions {
             files.extend(m.references.iter().cloned());
         }

@@ -16,7 +16,7 @@ pub struct SweepTable {
 }
 
 const SETTINGS: &str = "setting,grid_size,method,min_level,penumbra_level,shadow_rays_min,shadow_rays_max,supersample,min_leaf_pixels,patch_size,virtual_patch_size,epsilon,samples";
-const FIGURES: &str = "total_seconds,rmse,relative_rmse,psnr_srgb_db,skill,rmse_changed,n_changed,images_compared,reference,pareto";
+const FIGURES: &str = "total_seconds,rmse,relative_rmse,psnr_srgb_db,skill,rmse_changed,n_changed,skill_floor,images_compared,reference,pareto";
 
 /// A stage's name as a column: `s_` and the name's words joined by
 /// underscores (`estimate + solve` → `s_estimate_solve`).
@@ -70,6 +70,8 @@ impl SweepTable {
                 SweepMethod::Texture { min_leaf_pixels } => {
                     format!("texture,,,,,,{min_leaf_pixels},{patch},,{},", s.epsilon)
                 }
+                // Its label, checked to hold no comma or quote.
+                SweepMethod::Peer => format!("{},,,,,,,,,,", r.peer.as_deref().unwrap_or("peer")),
             });
             for n in &names {
                 let v = r.stages.iter().find(|(m, _)| m == n).map_or(0.0, |x| x.1);
@@ -79,7 +81,7 @@ impl SweepTable {
                 v.map_or(String::new(), |v| format!("{v:.digits$}"))
             };
             out.push_str(&format!(
-                ",{:.6},{:.8},{},{},{},{:.8},{},{},{},{}\n",
+                ",{:.6},{:.8},{},{},{},{:.8},{},{},{},{},{}\n",
                 r.seconds,
                 r.rmse,
                 cell(r.relative_rmse, 8),
@@ -87,6 +89,7 @@ impl SweepTable {
                 cell(r.skill, 6),
                 r.rmse_changed,
                 r.n_changed,
+                cell(r.skill_floor, 6),
                 r.compared,
                 self.reference,
                 r.pareto as u8
@@ -153,13 +156,39 @@ fn parse_row(
         }
     };
     let d = SweepSettings::defaults();
-    let method = match cells[2] {
-        "pda" => SweepMethod::Pda,
-        "texture" => SweepMethod::Texture {
-            min_leaf_pixels: num(8)?,
-        },
-        other => return Err(format!("method '{other}' is neither pda nor texture")),
+    let (method, peer) = match cells[2] {
+        "pda" => (SweepMethod::Pda, None),
+        "texture" => (
+            SweepMethod::Texture {
+                min_leaf_pixels: num(8)?,
+            },
+            None,
+        ),
+        "" => return Err("no method".to_string()),
+        label => (SweepMethod::Peer, Some(label.to_string())),
     };
+    if peer.is_some() {
+        let f = cells.len() - 11;
+        return Ok(SweepRow {
+            index: num(0)? as usize,
+            settings: SweepSettings {
+                method,
+                ..SweepSettings::defaults()
+            },
+            peer,
+            stages: Vec::new(),
+            seconds: num(f)?,
+            rmse: num(f + 1)?,
+            relative_rmse: opt(f + 2)?,
+            psnr_srgb_db: opt(f + 3)?,
+            skill: opt(f + 4)?,
+            rmse_changed: num(f + 5)?,
+            n_changed: num(f + 6)? as usize,
+            skill_floor: opt(f + 7)?,
+            compared: num(f + 8)? as usize,
+            pareto: false,
+        });
+    }
     let pda = method == SweepMethod::Pda;
     let settings = SweepSettings {
         method,
@@ -179,12 +208,13 @@ fn parse_row(
         epsilon: num(11)?,
         samples: if pda { num(12)? as u32 } else { 0 },
     };
-    let f = cells.len() - 10;
-    table.reference = cells[f + 8].to_string();
+    let f = cells.len() - 11;
+    table.reference = cells[f + 9].to_string();
     table.grid_size = num(1)? as usize;
     Ok(SweepRow {
         index: num(0)? as usize,
         settings,
+        peer: None,
         stages: stages
             .iter()
             .enumerate()
@@ -197,8 +227,9 @@ fn parse_row(
         skill: opt(f + 4)?,
         rmse_changed: num(f + 5)?,
         n_changed: num(f + 6)? as usize,
-        compared: num(f + 7)? as usize,
-        pareto: cells[f + 9] == "1",
+        skill_floor: opt(f + 7)?,
+        compared: num(f + 8)? as usize,
+        pareto: cells[f + 10] == "1",
     })
 }
 

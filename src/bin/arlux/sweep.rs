@@ -31,8 +31,16 @@ pub struct Args {
     /// Run shard i of n (0-based; `auto/n` reads SLURM_ARRAY_TASK_ID or
     /// JOB_COMPLETION_INDEX): a contiguous share of the grid, written to
     /// DIR/sweep.shard-I-of-N.csv; `arlux merge` joins the shards.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "peer")]
     pub shard: Option<String>,
+    /// Another renderer on the same axes: LABEL=FILE.csv, where FILE.csv
+    /// has the columns seconds,image (images relative to it: renders of
+    /// the same variant with their wall times). Repeatable.
+    #[arg(long, value_name = "LABEL=FILE.csv")]
+    pub peer: Vec<String>,
+    /// Run no settings of arlux: measure and plot the peers alone.
+    #[arg(long, requires = "peer")]
+    pub peer_only: bool,
     #[arg(long)]
     pub json: bool,
 }
@@ -56,8 +64,19 @@ pub fn run(args: &Args) -> Result<()> {
         (None, None) => bail!("give --variant or --motion"),
     };
     // Known good before the folder is made: a failed run leaves nothing behind.
-    arlux::sweep::reference_files(&scene, &target)?;
-    let settings = grid(quick, matches!(target, Target::Variant { .. }));
+    let references = arlux::sweep::reference_files(&scene, &target)?;
+    if !args.peer.is_empty() && matches!(target, Target::Motion { .. }) {
+        bail!("--peer: a peer's CSV holds renders of one variant; give --variant");
+    }
+    let peers = stage("read peers", || -> Result<Vec<arlux::sweep::Peer>> {
+        Ok((args.peer.iter())
+            .map(|p| arlux::sweep::read_peer(&scene, p))
+            .collect::<arlux::Result<_>>()?)
+    })?;
+    let settings = match args.peer_only {
+        true => Vec::new(),
+        false => grid(quick, matches!(target, Target::Variant { .. })),
+    };
     let (share, csv_name) = match &args.shard {
         None => (0..settings.len(), "sweep.csv".to_string()),
         Some(text) => {
@@ -71,6 +90,7 @@ pub fn run(args: &Args) -> Result<()> {
                 );
                 let report = SweepReport {
                     target: label,
+                    skill_floor: None,
                     settings: 0,
                     csv: String::new(),
                     plot: None,
@@ -84,7 +104,10 @@ pub fn run(args: &Args) -> Result<()> {
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: could not create the folder", dir.display()))?;
     let bar = crate::progress::progress_bar(share.len() as u64, "settings");
-    let rows = stage("renders", || {
+    let mut rows = stage("renders", || {
+        if settings.is_empty() {
+            return Ok(Vec::new());
+        }
         run(
             &scene,
             &target,
@@ -101,6 +124,19 @@ pub fn run(args: &Args) -> Result<()> {
         )
     })?;
     bar.finish_and_clear();
+    if !peers.is_empty() {
+        let photo = scene.load_photo()?;
+        let reference = scene.fit_size(
+            image_io::read_image(&references[0])?,
+            "reference",
+            &references[0],
+        )?;
+        let floor =
+            arlux::sweep::skill_floor(&scene, &target, std::slice::from_ref(&reference), &photo)?;
+        for p in &peers {
+            rows.extend(p.rows(&reference, &photo, floor));
+        }
+    }
     let reference = match &target {
         Target::Variant { name } => scene
             .variant(name)?
@@ -138,6 +174,7 @@ pub fn run(args: &Args) -> Result<()> {
     })?;
     let report = SweepReport {
         target: label,
+        skill_floor: rows.iter().find_map(|r| r.skill_floor),
         settings: rows.len(),
         csv: csv.display().to_string(),
         plot: args.shard.is_none().then(|| png.display().to_string()),
@@ -150,6 +187,8 @@ pub fn run(args: &Args) -> Result<()> {
 #[derive(serde::Serialize)]
 struct SweepReport {
     target: String,
+    /// The best skill the reference's declared noise allows (null: none declared).
+    skill_floor: Option<f64>,
     settings: usize,
     csv: String,
     plot: Option<String>,
@@ -184,6 +223,7 @@ struct RowReport {
 enum MethodReport {
     Pda,
     Texture { min_leaf_pixels: f64 },
+    Peer { label: String },
 }
 
 impl RowReport {
@@ -194,6 +234,12 @@ impl RowReport {
             arlux::sweep::SweepMethod::Texture { min_leaf_pixels } => {
                 (MethodReport::Texture { min_leaf_pixels }, None)
             }
+            arlux::sweep::SweepMethod::Peer => (
+                MethodReport::Peer {
+                    label: r.peer.clone().unwrap_or_default(),
+                },
+                None,
+            ),
         };
         RowReport {
             method,
@@ -260,6 +306,8 @@ impl Report for SweepReport {
                     r.supersample.to_string(),
                     objects.map_or("-".to_string(), |m| format!("{m} m")),
                 ),
+                // Never on the front: listed below.
+                (MethodReport::Peer { .. }, _) => continue,
             };
             lines.push(format!(
                 "  {:>7} {:>11} {:>10} {:>10} {:>8} {:>8} {:>7} {:>9.3} {:>10.6} {:>7}",
@@ -274,6 +322,21 @@ impl Report for SweepReport {
                 r.seconds,
                 r.rmse,
                 r.skill.map_or("-".to_string(), |k| format!("{k:.4}"))
+            ));
+        }
+        for r in &self.rows {
+            if let MethodReport::Peer { label } = &r.method {
+                lines.push(format!(
+                    "peer {label}: {:.3} s, RMSE {:.6}, skill {}",
+                    r.seconds,
+                    r.rmse,
+                    r.skill.map_or("-".to_string(), |k| format!("{k:.4}"))
+                ));
+            }
+        }
+        if let Some(f) = self.skill_floor {
+            lines.push(format!(
+                "the reference's own noise allows a skill of {f:.4} at best"
             ));
         }
         lines
