@@ -135,6 +135,9 @@ pub struct Interactive {
     rendered: Rendered,
     room: Room,
     version: u64,
+    /// Rounds of per-pixel samples the image was last refined with
+    /// ([`Interactive::refine`]; 0 after every change), and their report.
+    refined: (u32, Option<crate::residual::ResidualStats>),
 }
 
 impl Interactive {
@@ -157,6 +160,7 @@ impl Interactive {
             settings,
             room,
             version: 0,
+            refined: (0, None),
         };
         let scene = s.state_scene()?;
         s.render_full(scene, "the first image".into(), times)?;
@@ -178,6 +182,29 @@ impl Interactive {
 
     pub fn version(&self) -> u64 {
         self.version
+    }
+
+    /// The rounds the image was last refined with (0: none since the last
+    /// change) and what they did (None: nothing to sample).
+    pub fn refined(&self) -> (u32, Option<crate::residual::ResidualStats>) {
+        self.refined
+    }
+
+    /// The current state's image with `rounds` rounds of per-pixel samples:
+    /// what `arlux render --samples rounds` gives of the saved state. The
+    /// next change starts again from the session's setting. Returns the
+    /// rounds' report (None where the state shows the photo).
+    pub fn refine(
+        &mut self,
+        rounds: u32,
+        times: &mut StageTimes,
+    ) -> Option<crate::residual::ResidualStats> {
+        let Rendered::Session(session) = &mut self.rendered else {
+            self.refined = (rounds, None);
+            return None;
+        };
+        self.refined = (rounds, session.refine(rounds, times));
+        self.refined.1
     }
 
     /// The render's composite (None while the state is the photo's).
@@ -350,6 +377,9 @@ impl Interactive {
         if same_lights && same_shown && same_poses {
             return Ok(self.outcome(RenderPath::Unchanged, start));
         }
+        // Every composite rewrites every pixel: the next image shows the
+        // session's own rounds again.
+        self.refined = (0, None);
         let path = if !scene.changes_the_photo() {
             self.rendered = Rendered::Photo;
             self.scene = scene;

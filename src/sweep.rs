@@ -229,6 +229,10 @@ pub struct SweepRow {
     /// Seconds per stage, summed over the run (a motion: over all poses).
     pub stages: Vec<(String, f64)>,
     pub seconds: f64,
+    /// The median and the slowest of the `repeats` runs (the spread a
+    /// shared machine gives; equal to `seconds` for one run).
+    pub seconds_median: f64,
+    pub seconds_max: f64,
     /// Against the reference (a motion: the mean over its poses with one).
     pub rmse: f64,
     /// None where a reference is black (relative error undefined) or an
@@ -337,6 +341,7 @@ pub fn run(
         // single run's time is off by tens of milliseconds. Rendering is
         // deterministic, so the error is the same every time.
         let mut best: Option<(f64, StageTimes)> = None;
+        let mut runs: Vec<f64> = Vec::new();
         let mut comparisons: Vec<Comparison> = Vec::new();
         let mut skills: Vec<Skill> = Vec::new();
         for _ in 0..repeats.max(1) {
@@ -386,11 +391,15 @@ pub fn run(
                     .map(|(img, r)| skill(img, r, &photo))
                     .collect();
             }
+            runs.push(seconds);
             if best.as_ref().is_none_or(|b| seconds < b.0) {
                 best = Some((seconds, times));
             }
         }
         let (seconds, times) = best.expect("at least one run");
+        runs.sort_by(f64::total_cmp);
+        let seconds_median = median(&runs);
+        let seconds_max = runs.last().copied().unwrap_or(seconds);
         let n = comparisons.len() as f64;
         let mut stages: Vec<(String, f64)> = Vec::new();
         for (name, d) in &times.0 {
@@ -405,6 +414,8 @@ pub fn run(
             peer: None,
             stages,
             seconds,
+            seconds_median,
+            seconds_max,
             rmse: comparisons.iter().map(|c| c.rmse).sum::<f64>() / n,
             relative_rmse: comparisons
                 .iter()
@@ -434,6 +445,15 @@ pub fn run(
     }
     mark_pareto(&mut rows);
     Ok(rows)
+}
+
+/// The median of sorted `values` (0 for none).
+fn median(values: &[f64]) -> f64 {
+    match values.len() {
+        0 => 0.0,
+        n if n % 2 == 1 => values[n / 2],
+        n => 0.5 * (values[n / 2 - 1] + values[n / 2]),
+    }
 }
 
 /// The best skill `target`'s references allow, from the noise the scene

@@ -180,3 +180,31 @@ fn rounds_give_the_same_image_on_any_thread_count_in_bands_and_tiles() {
         "the library's image is not the CLI's"
     );
 }
+
+#[test]
+fn a_motion_with_rounds_updates_to_the_image_a_full_render_of_the_pose_gives() {
+    use arlux::model::StageTimes;
+    use arlux::render::{Session, render};
+    let base = common::desk();
+    let first = base.with_motion_pose("box_slide", 0).unwrap();
+    let photo = first.load_photo().unwrap();
+    let mut settings = arlux::render::RenderSettings::default();
+    settings.residual.samples = 2;
+    let mut session =
+        Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+    for pose in [1, 4] {
+        let scene = base.with_motion_pose("box_slide", pose).unwrap();
+        session.update(&scene, &mut StageTimes::default()).unwrap();
+        let full = render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap();
+        let rounds = full.residual.map(|r| r.rounds);
+        assert_eq!(rounds, Some(2));
+        let differ = (bits(&session.composite.image).iter())
+            .zip(bits(&full.composite.image))
+            .filter(|(a, b)| **a != *b)
+            .count();
+        assert_eq!(
+            differ, 0,
+            "pose {pose}: {differ} pixels differ from a full render"
+        );
+    }
+}

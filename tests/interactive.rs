@@ -256,3 +256,38 @@ fn bad_edits_are_refused_naming_the_field_and_change_nothing() {
     assert_eq!(it.version(), version);
     assert_eq!(bits(it.image()), before);
 }
+
+#[test]
+fn a_refined_state_is_the_render_of_its_variant_with_as_many_rounds() {
+    let desk = Desk::new();
+    let mut it = session(&desk);
+    let times = &mut StageTimes::default();
+    let p = pixel_of(&it, DVec3::new(0.2, 0.0, 0.1));
+    place(&mut it, p, times);
+    let stats = it.refine(4, times).expect("the box's pixels are sampled");
+    assert_eq!((stats.rounds, it.refined().0), (4, 4));
+    let name = it.next_variant_name();
+    let file = it.save_variant(&name).unwrap();
+    let saved = Scene::load(&file).unwrap().with_variant(&name).unwrap();
+    let photo = saved.load_photo().unwrap();
+    let mut settings = RenderSettings::default();
+    settings.residual.samples = 4;
+    let full = arlux::render::render(&saved, &photo, &settings, times).unwrap();
+    let same = |a: &arlux::image_io::Image, b: &arlux::image_io::Image| {
+        (bits(a).iter().zip(bits(b)))
+            .filter(|(x, y)| **x != *y)
+            .count()
+    };
+    assert_eq!(same(&full.composite.image, it.image()), 0);
+    // The next edit shows the session's own image again: an update, as
+    // without refining.
+    let p = pixel_of(&it, DVec3::new(0.0, 0.0, 0.3));
+    let out = place(&mut it, p, times);
+    assert!(matches!(out.path, RenderPath::Update { .. }), "{out:?}");
+    assert_eq!(it.refined().0, 0);
+    let name = it.next_variant_name();
+    let file = it.save_variant(&name).unwrap();
+    let saved = Scene::load(&file).unwrap().with_variant(&name).unwrap();
+    let (plain, _) = common::render_default(&saved);
+    assert_eq!(same(&plain.composite.image, it.image()), 0);
+}

@@ -281,3 +281,38 @@ fn drags_queued_behind_an_update_are_coalesced_the_latest_winning() {
         "the box is near the last move's point: {x:.0},{y:.0} against {last:?}"
     );
 }
+
+#[test]
+fn with_samples_the_image_refines_after_an_edit_and_the_next_edit_starts_again() {
+    let validator = validator();
+    let desk = Desk::new();
+    let server = Server::start(&desk.scene(), &["--samples", "4"]);
+    server.wait_ready();
+    let wait_refined = |rounds: u64| {
+        for _ in 0..200 {
+            let s = server.get("/api/state").json();
+            assert!(validator.is_valid(&s), "{s}");
+            assert_eq!(s["refined"]["target"], 4);
+            if s["refined"]["rounds"] == rounds {
+                return s;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+        panic!("the image did not reach {rounds} rounds");
+    };
+    let (plain, version) = server.linear();
+    let refined = wait_refined(4);
+    assert!(refined["refined"]["noise_rms"].as_f64().unwrap() > 0.0);
+    let (image, same_version) = server.linear();
+    assert_eq!(same_version, version, "refining is not an edit");
+    assert!(
+        plain.iter().zip(&image).any(|(a, b)| a != b),
+        "the refined image differs from the first"
+    );
+    // An edit: its reply is the session's own image again, then it refines.
+    let r = server.post("/api/object", &json!({ "object": "box", "yaw_deg": 30.0 }));
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    assert!(validator.is_valid(&r.json()), "{}", r.json());
+    assert_eq!(r.json()["state"]["refined"]["rounds"], 0, "{}", r.json());
+    wait_refined(4);
+}

@@ -141,3 +141,26 @@ impl Session {
         times.time("per-pixel rounds", || estimate(&input))
     }
 }
+
+impl Session {
+    /// The current pose composited again with `rounds` rounds of per-pixel
+    /// samples (0: none): the image `render` gives of it with `--samples
+    /// rounds`. The session's own setting, which its updates use, stays.
+    /// Returns what the rounds did (None: none ran).
+    pub fn refine(
+        &mut self,
+        rounds: u32,
+        times: &mut StageTimes,
+    ) -> Option<crate::residual::ResidualStats> {
+        let kept = self.settings.residual;
+        self.settings.residual = crate::residual::ResidualSettings {
+            samples: rounds,
+            time: None,
+        };
+        self.started = std::time::Instant::now();
+        self.residual_stats = None;
+        self.recomposite(times, &[]);
+        self.settings.residual = kept;
+        self.residual_stats
+    }
+}

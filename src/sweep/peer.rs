@@ -118,6 +118,8 @@ impl Peer {
                     peer: Some(self.label.clone()),
                     stages: Vec::new(),
                     seconds: *seconds,
+                    seconds_median: *seconds,
+                    seconds_max: *seconds,
                     rmse: c.rmse,
                     relative_rmse: c.relative_rmse,
                     psnr_srgb_db: c.psnr_srgb_db,

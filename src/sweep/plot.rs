@@ -24,7 +24,7 @@ pub fn plot(rows: &[SweepRow], title: &str, path: &Path) -> Result<()> {
         let lt = |t: f64| t.max(1e-4).log10();
         let ly = |e: f64| e.max(1e-6).log10();
         let t_min = rows.iter().map(|r| r.seconds).fold(f64::INFINITY, f64::min) * 0.8;
-        let t_max = rows.iter().map(|r| r.seconds).fold(0.0, f64::max) * 1.25;
+        let t_max = rows.iter().map(|r| r.seconds_max).fold(0.0, f64::max) * 1.25;
         // The error where the change is, 1 − skill, also on a log scale:
         // the curve of more samples keeps falling by factors.
         let skilled = rows.iter().all(|r| r.skill.is_some());
@@ -127,6 +127,27 @@ fn draw_rows(chart: &mut Chart, rows: &[SweepRow], span: f64) -> std::result::Re
     let lt = |t: f64| t.max(1e-4).log10();
     let ly = |e: f64| e.max(1e-6).log10();
     let err = |e: DrawingAreaErrorKind<_>| e.to_string();
+    // Each point sits at its fastest run; a bar reaches its slowest, with
+    // a tick at the median (`--repeats`).
+    let spread = |r: &&SweepRow| r.peer.is_none() && r.seconds_max > r.seconds;
+    chart
+        .draw_series(rows.iter().filter(spread).map(|r| {
+            let y = ly(r.error());
+            PathElement::new(
+                vec![(lt(r.seconds), y), (lt(r.seconds_max), y)],
+                RGBColor(170, 170, 170),
+            )
+        }))
+        .map_err(err)?;
+    chart
+        .draw_series(rows.iter().filter(spread).map(|r| {
+            let (x, y) = (lt(r.seconds_median), ly(r.error()));
+            PathElement::new(
+                vec![(x, y - span * 0.008), (x, y + span * 0.008)],
+                RGBColor(120, 120, 120),
+            )
+        }))
+        .map_err(err)?;
     chart
         .draw_series(
             rows.iter()

@@ -16,7 +16,7 @@ pub struct SweepTable {
 }
 
 const SETTINGS: &str = "setting,grid_size,method,min_level,penumbra_level,shadow_rays_min,shadow_rays_max,supersample,min_leaf_pixels,patch_size,virtual_patch_size,epsilon,samples";
-const FIGURES: &str = "total_seconds,rmse,relative_rmse,psnr_srgb_db,skill,rmse_changed,n_changed,skill_floor,images_compared,reference,pareto";
+const FIGURES: &str = "total_seconds,seconds_median,seconds_max,rmse,relative_rmse,psnr_srgb_db,skill,rmse_changed,n_changed,skill_floor,images_compared,reference,pareto";
 
 /// A stage's name as a column: `s_` and the name's words joined by
 /// underscores (`estimate + solve` → `s_estimate_solve`).
@@ -81,8 +81,10 @@ impl SweepTable {
                 v.map_or(String::new(), |v| format!("{v:.digits$}"))
             };
             out.push_str(&format!(
-                ",{:.6},{:.8},{},{},{},{:.8},{},{},{},{},{}\n",
+                ",{:.6},{:.6},{:.6},{:.8},{},{},{},{:.8},{},{},{},{},{}\n",
                 r.seconds,
+                r.seconds_median,
+                r.seconds_max,
                 r.rmse,
                 cell(r.relative_rmse, 8),
                 cell(r.psnr_srgb_db, 4),
@@ -168,7 +170,7 @@ fn parse_row(
         label => (SweepMethod::Peer, Some(label.to_string())),
     };
     if peer.is_some() {
-        let f = cells.len() - 11;
+        let f = cells.len() - 13;
         return Ok(SweepRow {
             index: num(0)? as usize,
             settings: SweepSettings {
@@ -178,14 +180,16 @@ fn parse_row(
             peer,
             stages: Vec::new(),
             seconds: num(f)?,
-            rmse: num(f + 1)?,
-            relative_rmse: opt(f + 2)?,
-            psnr_srgb_db: opt(f + 3)?,
-            skill: opt(f + 4)?,
-            rmse_changed: num(f + 5)?,
-            n_changed: num(f + 6)? as usize,
-            skill_floor: opt(f + 7)?,
-            compared: num(f + 8)? as usize,
+            seconds_median: num(f + 1)?,
+            seconds_max: num(f + 2)?,
+            rmse: num(f + 3)?,
+            relative_rmse: opt(f + 4)?,
+            psnr_srgb_db: opt(f + 5)?,
+            skill: opt(f + 6)?,
+            rmse_changed: num(f + 7)?,
+            n_changed: num(f + 8)? as usize,
+            skill_floor: opt(f + 9)?,
+            compared: num(f + 10)? as usize,
             pareto: false,
         });
     }
@@ -208,8 +212,8 @@ fn parse_row(
         epsilon: num(11)?,
         samples: if pda { num(12)? as u32 } else { 0 },
     };
-    let f = cells.len() - 11;
-    table.reference = cells[f + 9].to_string();
+    let f = cells.len() - 13;
+    table.reference = cells[f + 11].to_string();
     table.grid_size = num(1)? as usize;
     Ok(SweepRow {
         index: num(0)? as usize,
@@ -221,15 +225,17 @@ fn parse_row(
             .map(|(j, s)| Ok((s.clone(), num(13 + j)?)))
             .collect::<std::result::Result<_, String>>()?,
         seconds: num(f)?,
-        rmse: num(f + 1)?,
-        relative_rmse: opt(f + 2)?,
-        psnr_srgb_db: opt(f + 3)?,
-        skill: opt(f + 4)?,
-        rmse_changed: num(f + 5)?,
-        n_changed: num(f + 6)? as usize,
-        skill_floor: opt(f + 7)?,
-        compared: num(f + 8)? as usize,
-        pareto: cells[f + 10] == "1",
+        seconds_median: num(f + 1)?,
+        seconds_max: num(f + 2)?,
+        rmse: num(f + 3)?,
+        relative_rmse: opt(f + 4)?,
+        psnr_srgb_db: opt(f + 5)?,
+        skill: opt(f + 6)?,
+        rmse_changed: num(f + 7)?,
+        n_changed: num(f + 8)? as usize,
+        skill_floor: opt(f + 9)?,
+        compared: num(f + 10)? as usize,
+        pareto: cells[f + 12] == "1",
     })
 }
 

@@ -41,6 +41,10 @@ pub struct Args {
     /// `.arlux-cache/` next to the scene (nor keep them there).
     #[arg(long)]
     pub no_cache: bool,
+    /// Rounds of per-pixel samples over the radiosity solution in every
+    /// frame, where the objects change it (as `render --samples`).
+    #[arg(long, default_value_t = arlux::settings::RenderOptions::default().samples)]
+    pub samples: u32,
     #[arg(long)]
     pub json: bool,
 }
@@ -117,7 +121,16 @@ pub fn run(args: &Args) -> Result<()> {
     let name = args.motion.as_str();
     let dir = args.output.as_path();
     use arlux::model::StageTimes;
-    use arlux::render::{RenderSettings, Session};
+    use arlux::render::Session;
+    // The settings checked before any work.
+    let options = arlux::settings::RenderOptions {
+        cache: !args.no_cache,
+        samples: args.samples,
+        ..Default::default()
+    };
+    let arlux::settings::Method::Pda(settings) = options.resolve()? else {
+        unreachable!("the default method is the pixel path")
+    };
     let base = stage("load", || load(&args.scene, None))?;
     let motion = base.motion(name)?.clone();
     let poses = pose_range(args, motion.translations.len())?;
@@ -170,14 +183,6 @@ pub fn run(args: &Args) -> Result<()> {
     let mut times = StageTimes::default();
     // Each shard of a farm starts with a full render of its first pose:
     // all but the first read the room's links.
-    let defaults = RenderSettings::default();
-    let settings = RenderSettings {
-        model: arlux::model::ModelSettings {
-            cache_links: !args.no_cache,
-            ..defaults.model
-        },
-        ..defaults
-    };
     let mut session = Session::start(&first, &photo, &settings, &mut times)?;
     session.prepare_updates(&mut times);
     if args.image_only {

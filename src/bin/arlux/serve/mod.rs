@@ -35,6 +35,11 @@ pub struct Args {
     /// page offers no Render).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Rounds of per-pixel samples the image refines to in the background
+    /// once an edit settles (1, 2, 4 … up to N; the next edit cancels):
+    /// the page then shows what `render --samples N` gives of the state.
+    #[arg(long, default_value_t = 0)]
+    pub samples: u32,
     /// Print the address as one JSON object on stdout once listening.
     #[arg(long)]
     pub json: bool,
@@ -75,6 +80,13 @@ pub(crate) struct Published {
 pub fn run(args: &Args) -> Result<()> {
     let scene = crate::common::load(&args.scene, None)?;
     let photo = crate::common::read_photo(&scene)?;
+    // Checked as render checks it; the session's own images take none
+    // (each edit's first image is as fast as without).
+    let checked = arlux::settings::RenderOptions {
+        samples: args.samples,
+        ..Default::default()
+    };
+    checked.resolve()?;
     let settings = match arlux::settings::RenderOptions::default().resolve()? {
         arlux::settings::Method::Pda(s) => s,
         arlux::settings::Method::Texture(_) => unreachable!("the default method is the pixel path"),
@@ -148,6 +160,7 @@ pub fn run(args: &Args) -> Result<()> {
         out: args.out.clone(),
         meta: crate::common::frame_meta(&scene, json!({ "serve": true })),
         bar,
+        refine_to: args.samples,
     };
     std::thread::Builder::new()
         .name("session".into())
@@ -234,5 +247,16 @@ pub(crate) fn state_json(it: &Interactive, last: Option<&Value>) -> Value {
         "objects": objects,
         "lights": lights,
         "last": last,
+        "refined": refined_json(it),
+    })
+}
+
+/// How far the background refinement has come: rounds done and asked
+/// for, and the estimated remaining noise (null before any round).
+fn refined_json(it: &Interactive) -> Value {
+    let (rounds, stats) = it.refined();
+    json!({
+        "rounds": rounds,
+        "noise_rms": stats.map(|s| s.noise_rms),
     })
 }

@@ -49,6 +49,9 @@ pub(crate) struct Context {
     pub meta: ExrMeta,
     /// The preprocess's progress on the terminal, cleared at the first image.
     pub bar: indicatif::ProgressBar,
+    /// Rounds of per-pixel samples the image refines to while no edit
+    /// waits (`--samples`; 0: none).
+    pub refine_to: u32,
 }
 
 /// Builds the session (the preprocess), then serves jobs until the server goes.
@@ -88,9 +91,9 @@ pub(crate) fn run(
     loop {
         let job = match held.pop_front() {
             Some(j) => j,
-            None => match queue.recv() {
-                Ok(j) => j,
-                Err(_) => return,
+            None => match next_job(&cx, &mut it, &queue) {
+                Some(j) => j,
+                None => return,
             },
         };
         let job = coalesce(job, &queue, &mut held);
@@ -100,6 +103,37 @@ pub(crate) fn run(
         if std::panic::catch_unwind(job_run).is_err() {
             eprintln!("arlux serve: a job failed (see above); the session goes on");
         }
+    }
+}
+
+/// The next job. While none waits, the image refines a level at a time
+/// (1, 2, 4 … rounds of per-pixel samples, up to `--samples`), each level
+/// published when done; an edit that arrives is served after the level
+/// under way, and starts again from the session's own image.
+fn next_job(cx: &Context, it: &mut Interactive, queue: &Receiver<Job>) -> Option<Job> {
+    use std::sync::mpsc::TryRecvError;
+    loop {
+        match queue.try_recv() {
+            Ok(j) => return Some(j),
+            Err(TryRecvError::Disconnected) => return None,
+            Err(TryRecvError::Empty) => {}
+        }
+        let (done, _) = it.refined();
+        if it.composite().is_none() || done >= cx.refine_to {
+            return queue.recv().ok();
+        }
+        let next = (2 * done).clamp(1, cx.refine_to);
+        let job_run = std::panic::AssertUnwindSafe(|| {
+            it.refine(next, &mut StageTimes::default());
+        });
+        if std::panic::catch_unwind(job_run).is_err() {
+            eprintln!("arlux serve: refining failed (see above); the session goes on");
+            return queue.recv().ok();
+        }
+        let last = (cx.shared.latest.read().unwrap_or_else(|e| e.into_inner()))
+            .as_ref()
+            .map(|p| p.state["last"].clone());
+        publish(cx, it, last.as_ref());
     }
 }
 
@@ -220,7 +254,8 @@ fn render(cx: &Context, it: &Interactive) -> Reply {
 
 /// Makes the current state the one the handlers read; returns its JSON.
 fn publish(cx: &Context, it: &Interactive, last: Option<&Value>) -> Value {
-    let state = super::state_json(it, last);
+    let mut state = super::state_json(it, last);
+    state["refined"]["target"] = json!(cx.refine_to);
     let published = Published {
         frame: it.frame(),
         state: state.clone(),

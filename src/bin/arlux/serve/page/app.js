@@ -116,12 +116,44 @@ function buildControls() {
   fillControls();
 }
 
+// With `--samples`, the server refines the image while no edit waits: the
+// page asks for the state a few times a second until the last level is
+// shown, and fetches the image at each new level (an edit stops it).
+let watching = false;
+async function watchRefining() {
+  if (watching) return;
+  watching = true;
+  try {
+    for (;;) {
+      const r = state.refined || { rounds: 0, target: 0 };
+      if (r.rounds >= r.target) break;
+      await new Promise((done) => setTimeout(done, 300));
+      if (busy) break;
+      const s = await api("/api/state");
+      if (busy || s.version !== state.version) break;
+      const before = r.rounds;
+      state = Object.assign(state, s);
+      if (state.refined.rounds !== before) {
+        await refresh();
+        $("refining").textContent = state.refined.rounds < state.refined.target
+          ? `refining: ${state.refined.rounds} of ${state.refined.target} rounds`
+          : `refined: ${state.refined.rounds} rounds`;
+      }
+    }
+  } catch (e) {
+    say(e.message);
+  } finally {
+    watching = false;
+  }
+}
+
 // One edit in flight; a drag's moves that come meanwhile keep only the latest.
 let busy = false;
 let pendingMove = null;
 
 async function edit(path, body) {
   busy = true;
+  $("refining").textContent = "";
   try {
     const r = await api(path, body);
     if (!r.superseded) {
@@ -130,6 +162,7 @@ async function edit(path, body) {
       say("");
       fillControls();
       await refresh();
+      watchRefining();
     }
   } catch (e) {
     say(e.message);
@@ -210,5 +243,6 @@ async function start() {
   if (state.last) showOutcome(state.last);
   $("status").textContent = "ready";
   $("status").dataset.ready = "true";
+  watchRefining();
 }
 start();
