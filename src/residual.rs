@@ -54,6 +54,9 @@ impl ResidualSettings {
     }
 }
 
+/// The share of `--time` kept for what follows the rounds.
+const TIME_RESERVE: f64 = 0.05;
+
 /// Most rounds a render runs: the Sobol sequences' indices stay below 2^16
 /// (a round takes at most 64 points of each).
 pub const MAX_SAMPLES: u32 = 1024;
@@ -217,9 +220,10 @@ pub fn estimate(input: &ResidualInput) -> Option<PixelResidual> {
             .sum::<u64>();
         rounds += 1;
         if let Some(limit) = settings.time {
-            // The next round costs about what this one did.
+            // The next round costs about what this one did; what follows
+            // the rounds (the composite, writing) is kept a twentieth.
             let next = input.started.elapsed().as_secs_f64() + round.elapsed().as_secs_f64();
-            if next > limit {
+            if next > limit * (1.0 - TIME_RESERVE) {
                 break;
             }
         }
