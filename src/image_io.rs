@@ -417,18 +417,41 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic_with(path, |f| f.write_all(bytes))
 }
 
+/// A new temporary file beside `path` for an atomic write, registered for
+/// removal on a signal: created exclusively (O_CREAT | O_EXCL, so never an
+/// existing file nor the target of a planted link) under an unpredictable
+/// name `.NAME.XXXXXX.tmp` (the `tempfile` crate makes both).
+pub(crate) fn temp_beside(path: &Path) -> std::io::Result<(std::fs::File, PathBuf)> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = path
+        .file_name()
+        .map_or("out".into(), |n| n.to_string_lossy());
+    let (file, tmp) = tempfile::Builder::new()
+        .prefix(&format!(".{name}."))
+        .suffix(".tmp")
+        .tempfile_in(&dir)?
+        .into_parts();
+    // Kept: removed by the caller, or on a signal through the registry.
+    let tmp = tmp.keep().map_err(|e| e.error)?;
+    crate::util::cleanup::register(&tmp);
+    Ok((file, tmp))
+}
+
 /// Writes `bytes` to a new file `path`, whole or not at all, never
 /// replacing a file that is there (even one made meanwhile): the temporary
 /// is hard-linked to `path`, which fails when `path` exists.
 pub fn write_new(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = path.with_file_name(format!(
-        ".{}.new{}",
-        path.file_name()
-            .map_or("file".into(), |n| n.to_string_lossy()),
-        std::process::id()
-    ));
-    write_atomic(&tmp, bytes)?;
-    crate::util::cleanup::register(&tmp);
+    let (mut file, tmp) = temp_beside(path).map_err(|e| Error::io(path, &e))?;
+    let written = file.write_all(bytes).and_then(|()| file.sync_all());
+    drop(file);
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        crate::util::cleanup::unregister(&tmp);
+        return Err(Error::io(path, &e));
+    }
     let linked = std::fs::hard_link(&tmp, path);
     let _ = std::fs::remove_file(&tmp);
     crate::util::cleanup::unregister(&tmp);
@@ -449,18 +472,16 @@ pub fn write_atomic_with(
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    let name = path
-        .file_name()
-        .ok_or_else(|| Error::file(path, "not a file name"))?;
-    let tmp = dir.join(format!(
-        ".{}.tmp{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    crate::util::cleanup::register(&tmp);
+    if path.file_name().is_none() {
+        return Err(Error::file(path, "not a file name"));
+    }
+    // Empty until the temporary is made (nothing to remove before).
+    let mut tmp = PathBuf::new();
     let result = (|| {
         fail_for_tests(path)?;
-        let mut f = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+        let (file, made) = temp_beside(path)?;
+        tmp = made;
+        let mut f = std::io::BufWriter::new(file);
         fill(&mut f)?;
         let f = f.into_inner().map_err(|e| e.into_error())?;
         f.sync_all()?;

@@ -99,7 +99,11 @@ fn outputs_whose_names_do_not_say_what_is_written_are_refused() {
 #[test]
 fn a_sweep_of_a_bad_variant_leaves_no_folder() {
     let desk = Desk::new();
-    desk.edit("scene.toml", "reference = \"truth/box_table.exr\"", "");
+    desk.edit(
+        "scene.toml",
+        "reference = \"truth/box_table.exr\"\nreference_noise = 0.01045\n",
+        "",
+    );
     let scene = desk.scene();
     for (variant, expected) in [
         ("no_such_variant", "no_such_variant"),
@@ -382,4 +386,37 @@ fn an_output_in_a_folder_that_cannot_be_written_is_refused_before_any_work() {
         "{stderr}"
     );
     assert!(run.stdout.is_empty(), "work was done before the refusal");
+}
+
+#[test]
+fn a_link_planted_where_a_temporary_could_be_is_never_followed() {
+    use std::os::unix::fs::symlink;
+    let dir = tempfile::tempdir().unwrap();
+    let victim = dir.path().join("victim.txt");
+    std::fs::write(&victim, b"keep me").unwrap();
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    // The names this process's temporaries once had (`.NAME.tmp<PID>`,
+    // `.NAME.new<PID>`), each a link to a file outside the folder.
+    let pid = std::process::id();
+    for name in ["a.exr", "b.png"] {
+        for kind in ["tmp", "new"] {
+            symlink(&victim, out.join(format!(".{name}.{kind}{pid}"))).unwrap();
+            symlink(&victim, out.join(format!(".{name}.{kind}{pid}.tmp"))).unwrap();
+        }
+    }
+    let links_before = listing(&out);
+    arlux::image_io::write_atomic(&out.join("a.exr"), b"first").unwrap();
+    arlux::image_io::write_new(&out.join("b.png"), b"second").unwrap();
+    assert_eq!(std::fs::read(&victim).unwrap(), b"keep me");
+    for (name, bytes) in [("a.exr", &b"first"[..]), ("b.png", &b"second"[..])] {
+        let meta = std::fs::symlink_metadata(out.join(name)).unwrap();
+        assert!(meta.file_type().is_file(), "{name} is not a plain file");
+        assert_eq!(std::fs::read(out.join(name)).unwrap(), bytes);
+    }
+    // No temporary is left: the folder holds the links and the two outputs.
+    let mut expected = links_before;
+    expected.extend(["a.exr".to_string(), "b.png".to_string()]);
+    expected.sort();
+    assert_eq!(listing(&out), expected);
 }

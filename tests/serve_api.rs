@@ -316,3 +316,70 @@ fn with_samples_the_image_refines_after_an_edit_and_the_next_edit_starts_again()
     assert_eq!(r.json()["state"]["refined"]["rounds"], 0, "{}", r.json());
     wait_refined(4);
 }
+
+#[test]
+fn requests_without_the_token_cannot_use_up_the_users_rate() {
+    let desk = Desk::new();
+    let server = std::sync::Arc::new(Server::start(&desk.scene(), &[]));
+    server.wait_ready();
+    // Four threads sending requests without the token, as fast as they go.
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let floods: Vec<_> = (0..4)
+        .map(|_| {
+            let (s, stop) = (std::sync::Arc::clone(&server), std::sync::Arc::clone(&stop));
+            std::thread::spawn(move || {
+                let mut sent = 0usize;
+                let request = format!(
+                    "POST /api/object HTTP/1.1\r\nHost: 127.0.0.1:{}\r\nContent-Type: application/json\r\nContent-Length: 30\r\n\r\n{{\"object\":\"box\",\"yaw_deg\":10}}",
+                    s.port
+                );
+                while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                    let line = raw(&s, request.as_bytes());
+                    assert!(line.as_deref().is_some_and(|l| l.contains(" 401 ")), "{line:?}");
+                    sent += 1;
+                }
+                sent
+            })
+        })
+        .collect();
+    std::thread::sleep(Duration::from_millis(300));
+    let mut refused = 0;
+    for k in 0..40 {
+        let r = server.post(
+            "/api/object",
+            &json!({ "object": "box", "yaw_deg": k as f64 }),
+        );
+        if r.status == 429 {
+            refused += 1;
+        } else {
+            assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+        }
+    }
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let sent: usize = floods.into_iter().map(|t| t.join().unwrap()).sum();
+    println!("{sent} requests without the token meanwhile");
+    assert!(
+        sent > 400,
+        "the flood sent only {sent}: more than a second's quota is needed"
+    );
+    assert_eq!(
+        refused, 0,
+        "{refused} of 40 edits were refused for the rate"
+    );
+    // A declared body beyond the limit, one byte of it sent and the
+    // connection left open: refused at once, not awaited.
+    let mut s = std::net::TcpStream::connect(("127.0.0.1", server.port)).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(3))).unwrap();
+    s.write_all(
+        format!(
+            "POST /api/light HTTP/1.1\r\nHost: 127.0.0.1:{}\r\nx-arlux-token: {}\r\nContent-Type: application/json\r\nContent-Length: 999999999\r\n\r\n{{",
+            server.port, server.token
+        )
+        .as_bytes(),
+    )
+    .unwrap();
+    let mut reply = [0u8; 64];
+    let n = s.read(&mut reply).expect("a reply within 3 s");
+    let line = String::from_utf8_lossy(&reply[..n]).into_owned();
+    assert!(line.starts_with("HTTP/1.1 413"), "{line:?}");
+}

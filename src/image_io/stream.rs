@@ -58,17 +58,9 @@ impl ExrStream {
         let mut sorted = channels.to_vec();
         sorted.sort();
         let headers = headers(width, height, window, &sorted, meta);
-        let name = path
-            .file_name()
-            .map_or("out".into(), |n| n.to_string_lossy());
-        let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
-        crate::util::cleanup::register(&tmp);
-        let file = super::fail_for_tests(path)
-            .and_then(|()| std::fs::File::create(&tmp))
-            .map_err(|e| {
-                crate::util::cleanup::unregister(&tmp);
-                Error::io(path, &e)
-            })?;
+        let (file, tmp) = super::fail_for_tests(path)
+            .and_then(|()| super::temp_beside(path))
+            .map_err(|e| Error::io(path, &e))?;
         // One band in flight: the renderer works on the next while this one is encoded.
         let (sender, receiver) = sync_channel::<Band>(1);
         let (w, count) = (window.width(), sorted.len());

@@ -1,5 +1,5 @@
 //! The temporary files a run is writing, so that a signal that ends the
-//! run removes them instead of leaving `.name.tmp<PID>` beside an output.
+//! run removes them instead of leaving `.NAME.XXXXXX.tmp` beside an output.
 //! Writers register a temporary file while it exists; the binary's signal
 //! thread calls [`remove_all`] before it exits.
 

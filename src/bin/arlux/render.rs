@@ -245,8 +245,12 @@ fn frame_files(
         batch
             .folder(dir)
             .with_context(|| format!("{}: could not create the folder", dir.display()))?;
+        // The noise layer only where rounds of samples run to estimate it.
+        let sampled = args.samples > 0 || args.time.is_some();
         for (name, layer) in AOV_LAYERS {
-            aov.push((layer, batch.stage(&dir.join(format!("{name}.exr")))));
+            if layer != arlux::output::FrameLayer::Noise || sampled {
+                aov.push((layer, batch.stage(&dir.join(format!("{name}.exr")))));
+            }
         }
     }
     Ok(FrameFiles {

@@ -86,14 +86,9 @@ fn reply((status, body): Reply) -> Response {
 }
 
 /// The checks every request passes before its handler.
+/// The rate is counted over requests that carry the token only: a page or
+/// process without it cannot use up the user's quota.
 async fn guard(State(shared): State<Arc<Shared>>, request: Request, next: Next) -> Response {
-    if shared.limiter.check().is_err() {
-        return error(
-            StatusCode::TOO_MANY_REQUESTS,
-            "rate",
-            format!("more than {RATE} requests a second"),
-        );
-    }
     let headers = request.headers();
     let host = headers.get(header::HOST).and_then(|h| h.to_str().ok());
     if !host.is_some_and(|h| shared.hosts.iter().any(|a| a == h)) {
@@ -123,6 +118,25 @@ async fn guard(State(shared): State<Arc<Shared>>, request: Request, next: Next) 
             StatusCode::UNAUTHORIZED,
             "token",
             "a valid token is needed (the address printed at start)",
+        );
+    }
+    if shared.limiter.check().is_err() {
+        return error(
+            StatusCode::TOO_MANY_REQUESTS,
+            "rate",
+            format!("more than {RATE} requests a second"),
+        );
+    }
+    // A declared length beyond the limit is refused before its body is
+    // awaited (a client that sends one byte of it is not waited for).
+    let declared = (request.headers().get(header::CONTENT_LENGTH))
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok());
+    if declared.is_some_and(|n| n > MAX_BODY as u64) {
+        return error(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            "body",
+            format!("larger than {MAX_BODY} bytes"),
         );
     }
     let mut response = next.run(request).await;
