@@ -303,7 +303,8 @@ impl Interactive {
                     return Err(Refusal::new("light", format!("no light {light}")));
                 }
                 let s = finite("scale", scale)?;
-                if !(0.0..=MAX_LIGHT_SCALE).contains(&s) {
+                // -0.0 too: it would be written into a variant as a negative scale.
+                if s.is_sign_negative() || !(0.0..=MAX_LIGHT_SCALE).contains(&s) {
                     return Err(Refusal::new(
                         "scale",
                         format!("a light's scale must lie in 0..={MAX_LIGHT_SCALE}"),
@@ -449,8 +450,10 @@ impl Interactive {
     /// variant appended, so that `arlux render` accepts it as it is. The
     /// scene file is never touched, nor an existing file replaced.
     pub fn save_variant(&self, name: &str) -> Result<PathBuf> {
+        // Not starting with '-': the name is passed as `--variant NAME`.
         let valid = !name.is_empty()
             && name.len() <= 64
+            && !name.starts_with('-')
             && name
                 .chars()
                 .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
@@ -459,7 +462,7 @@ impl Interactive {
                 &self.base.file,
                 "variant",
                 format!(
-                    "'{name}': a variant's new name is 1-64 letters, digits, '-' or '_', not one the scene has"
+                    "'{name}': a variant's new name is 1-64 letters, digits, '-' or '_', not starting with '-', not one the scene has"
                 ),
             ));
         }

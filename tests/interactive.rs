@@ -234,6 +234,14 @@ fn bad_edits_are_refused_naming_the_field_and_change_nothing() {
             "scale",
             "must lie",
         ),
+        (
+            Edit::Light {
+                light: 0,
+                scale: -0.0,
+            },
+            "scale",
+            "must lie",
+        ),
     ];
     for (edit, field, words) in cases {
         let r = it.apply(edit, times).unwrap_err();
@@ -255,6 +263,9 @@ fn bad_edits_are_refused_naming_the_field_and_change_nothing() {
     assert!(r.message.contains("cut into 'back_wall'"), "{}", r.message);
     assert_eq!(it.version(), version);
     assert_eq!(bits(it.image()), before);
+    // A name `arlux render --variant NAME` would read as a flag.
+    let e = it.save_variant("-v").unwrap_err().to_string();
+    assert!(e.contains("not starting with '-'"), "{e}");
 }
 
 #[test]

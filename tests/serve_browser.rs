@@ -261,3 +261,124 @@ async fn a_box_clicked_dragged_and_saved_in_the_browser_renders_as_the_server_sh
         "the box stands {off:.2} px from where the drag ended"
     );
 }
+
+/// Whether the element `id` is laid out (its computed display is not `none`).
+async fn displayed(client: &Client, id: &str) -> bool {
+    let v = client
+        .execute(
+            &format!(
+                "return getComputedStyle(document.getElementById('{id}')).display !== 'none';"
+            ),
+            vec![],
+        )
+        .await
+        .unwrap();
+    v == json!(true)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_page_refines_hides_the_wipe_and_serves_a_scene_without_objects() {
+    let Some(driver) = Driver::start() else {
+        panic!(
+            "chromedriver is not installed: `bash .ci/setup` installs Chromium and chromedriver"
+        );
+    };
+    let profile = tempfile::tempdir().unwrap();
+    let client = browser(&driver, profile.path()).await;
+    // Errors the page's script throws, kept for the test to read.
+    let catch = "window.__errors = []; window.addEventListener('error', (e) => window.__errors.push(String(e.message)));";
+
+    // The desk, refining to 2 rounds once it settles.
+    let desk = Desk::new();
+    let server = Server::start(&desk.scene(), &["--samples", "2"]);
+    client.goto(&server.url).await.unwrap();
+    client.execute(catch, vec![]).await.unwrap();
+    wait_until(
+        &client,
+        "document.getElementById('status').dataset.ready === 'true'",
+    )
+    .await;
+    wait_until(
+        &client,
+        "document.getElementById('refining').textContent === 'refined: 2 rounds'",
+    )
+    .await;
+    // The wipe on, then off: its canvas and slider go away.
+    for (view, shown) in [("wipe", true), ("final", false)] {
+        client
+            .find(Locator::Css(&format!("input[name=view][value={view}]")))
+            .await
+            .unwrap()
+            .click()
+            .await
+            .unwrap();
+        wait_until(
+            &client,
+            &format!("document.getElementById('before').hidden === {}", !shown),
+        )
+        .await;
+        assert_eq!(displayed(&client, "before").await, shown, "{view}");
+        assert_eq!(displayed(&client, "wipe").await, shown, "{view}");
+    }
+    let errors = client
+        .execute("return window.__errors;", vec![])
+        .await
+        .unwrap();
+    assert_eq!(errors, json!([]), "the page threw");
+    drop(server);
+
+    // A scene without virtual objects: the page is ready, its object
+    // controls are off and say why, and nothing throws.
+    let empty = Desk::new();
+    let text = std::fs::read_to_string(empty.scene()).unwrap();
+    let cut = text.find("[[virtual]]").expect("the desk has an object");
+    std::fs::write(empty.scene(), &text[..cut]).unwrap();
+    let server = Server::start(&empty.scene(), &[]);
+    client.goto(&server.url).await.unwrap();
+    client.execute(catch, vec![]).await.unwrap();
+    wait_until(
+        &client,
+        "document.getElementById('status').dataset.ready === 'true'",
+    )
+    .await;
+    let off = client
+        .execute(
+            "return ['object', 'enabled', 'yaw', 'scale'].every((id) => document.getElementById(id).disabled);",
+            vec![],
+        )
+        .await
+        .unwrap();
+    assert_eq!(off, json!(true));
+    // A click on the photo and a turn of the (disabled) slider do nothing.
+    client
+        .find(Locator::Id("view"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    client
+        .execute(
+            "document.getElementById('yaw').dispatchEvent(new Event('change'));",
+            vec![],
+        )
+        .await
+        .unwrap();
+    let message = client
+        .execute(
+            "return document.getElementById('message').textContent;",
+            vec![],
+        )
+        .await
+        .unwrap();
+    assert!(
+        message.as_str().unwrap().contains("no [[virtual]] objects"),
+        "{message}"
+    );
+    let errors = client
+        .execute("return window.__errors;", vec![])
+        .await
+        .unwrap();
+    assert_eq!(errors, json!([]), "the page threw");
+    client.close().await.unwrap();
+}

@@ -91,6 +91,10 @@ function buildControls() {
   $("scene").textContent = state.scene;
   const sel = $("object");
   sel.replaceChildren(...state.objects.map((o) => new Option(o.name, o.name)));
+  // No objects: nothing to place, turn, scale or show.
+  const none = state.objects.length === 0;
+  for (const id of ["object", "enabled", "yaw", "scale"]) $(id).disabled = none;
+  if (none) say("this scene has no [[virtual]] objects: only its lights can be changed");
   const lights = $("lights");
   lights.replaceChildren();
   for (const l of state.lights) {
@@ -192,7 +196,7 @@ $("view").addEventListener("pointerdown", (ev) => {
   if (busy) pendingMove = body; else edit("/api/place", body);
 });
 $("view").addEventListener("pointermove", (ev) => {
-  if (!dragging) return;
+  if (!dragging || !selected()) return;
   const p = pixelOf(ev);
   const body = { object: selected().name, x: p.x, y: p.y, drag: true };
   if (busy) pendingMove = body; else edit("/api/place", body);
@@ -202,11 +206,13 @@ $("view").addEventListener("pointerup", stop);
 $("view").addEventListener("pointercancel", stop);
 
 $("object").addEventListener("change", fillControls);
-$("enabled").addEventListener("change", () => edit("/api/object", { object: selected().name, enabled: $("enabled").checked }));
+// Each object control edits the selected object; a scene without objects has none.
+const onObject = (f) => () => { const o = selected(); if (o) f(o); };
+$("enabled").addEventListener("change", onObject((o) => edit("/api/object", { object: o.name, enabled: $("enabled").checked })));
 $("yaw").addEventListener("input", () => { $("yaw-value").textContent = $("yaw").value; });
-$("yaw").addEventListener("change", () => edit("/api/object", { object: selected().name, yaw_deg: +$("yaw").value }));
+$("yaw").addEventListener("change", onObject((o) => edit("/api/object", { object: o.name, yaw_deg: +$("yaw").value })));
 $("scale").addEventListener("input", () => { $("scale-value").textContent = (2 ** +$("scale").value).toFixed(2); });
-$("scale").addEventListener("change", () => edit("/api/object", { object: selected().name, scale: 2 ** +$("scale").value }));
+$("scale").addEventListener("change", onObject((o) => edit("/api/object", { object: o.name, scale: 2 ** +$("scale").value })));
 for (const r of document.querySelectorAll("input[name=view]")) {
   r.addEventListener("change", () => { view = r.value; refresh().catch((e) => say(e.message)); });
 }
