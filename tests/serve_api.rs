@@ -383,3 +383,49 @@ fn requests_without_the_token_cannot_use_up_the_users_rate() {
     let line = String::from_utf8_lossy(&reply[..n]).into_owned();
     assert!(line.starts_with("HTTP/1.1 413"), "{line:?}");
 }
+
+#[test]
+fn half_sent_requests_neither_block_the_user_nor_stay_open() {
+    let desk = Desk::new();
+    let server = Server::start(&desk.scene(), &[]);
+    server.wait_ready();
+    // 2,000 connections, each with half a request's headers, left open.
+    let mut open: Vec<std::net::TcpStream> = (0..2000)
+        .map(|_| {
+            let mut s = std::net::TcpStream::connect(("127.0.0.1", server.port)).unwrap();
+            s.write_all(b"GET /api/state HTTP/1.1\r\nHost: 127.0")
+                .unwrap();
+            s
+        })
+        .collect();
+    let t0 = std::time::Instant::now();
+    let r = server.get("/api/state");
+    let took = t0.elapsed();
+    assert_eq!(r.status, 200);
+    assert!(took < Duration::from_secs(1), "answered in {took:?}");
+    // Within the header timeout (10 s) each of them is closed.
+    std::thread::sleep(Duration::from_secs(11));
+    let closed = (open.iter_mut())
+        .map(|s| {
+            s.set_read_timeout(Some(Duration::from_millis(200)))
+                .unwrap();
+            let mut buf = [0u8; 256];
+            // A close reads as the end (after a 408, if one is sent); a
+            // connection still open times out instead.
+            loop {
+                match s.read(&mut buf) {
+                    Ok(0) => return true,
+                    Ok(_) => continue,
+                    Err(e) => return e.kind() == std::io::ErrorKind::ConnectionReset,
+                }
+            }
+        })
+        .filter(|c| *c)
+        .count();
+    assert_eq!(
+        closed,
+        2000,
+        "{} of 2000 half-sent connections still open",
+        2000 - closed
+    );
+}

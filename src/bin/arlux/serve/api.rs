@@ -280,8 +280,16 @@ async fn linear(State(shared): State<Arc<Shared>>, request: Request) -> Result<R
 /// The body read whole (at most [`MAX_BODY`]) and parsed as `T`, or a 4xx
 /// naming the field at fault.
 async fn body<T: serde::de::DeserializeOwned>(request: Request) -> Result<T, Refused> {
-    let bytes: Bytes = axum::body::to_bytes(request.into_body(), MAX_BODY)
+    let reading = axum::body::to_bytes(request.into_body(), MAX_BODY);
+    let bytes: Bytes = tokio::time::timeout(super::HEADER_TIMEOUT, reading)
         .await
+        .map_err(|_| {
+            refused(
+                StatusCode::REQUEST_TIMEOUT,
+                "body",
+                format!("not sent within {} s", super::HEADER_TIMEOUT.as_secs()),
+            )
+        })?
         .map_err(|_| {
             refused(
                 StatusCode::PAYLOAD_TOO_LARGE,

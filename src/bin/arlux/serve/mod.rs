@@ -168,14 +168,44 @@ pub fn run(args: &Args) -> Result<()> {
     if args.open {
         let _ = std::process::Command::new("xdg-open").arg(&url).spawn();
     }
-    runtime.block_on(async move {
-        axum::serve(
-            listener,
-            api::router(shared).into_make_service_with_connect_info::<SocketAddr>(),
-        )
-        .await
-    })?;
+    runtime.block_on(serve_connections(listener, api::router(shared)));
     Ok(())
+}
+
+/// A client must send a request's headers within this time, and its body
+/// within as long again ([`api`]), or its connection is closed.
+pub(crate) const HEADER_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(10);
+/// Connections held at once; beyond, a new one is closed at once (the page
+/// needs a few; half-sent requests must not exhaust the process's files).
+const MAX_CONNECTIONS: usize = 4096;
+
+/// Accepts connections for ever, each served on its own task with the
+/// header timeout, at most [`MAX_CONNECTIONS`] at a time.
+async fn serve_connections(listener: tokio::net::TcpListener, app: axum::Router) {
+    let slots = Arc::new(tokio::sync::Semaphore::new(MAX_CONNECTIONS));
+    loop {
+        let stream = match listener.accept().await {
+            Ok((stream, _)) => stream,
+            Err(_) => {
+                // Out of files or the like: the timeouts free some soon.
+                tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+                continue;
+            }
+        };
+        let Ok(slot) = Arc::clone(&slots).try_acquire_owned() else {
+            drop(stream);
+            continue;
+        };
+        let service = hyper_util::service::TowerToHyperService::new(app.clone());
+        tokio::spawn(async move {
+            let _ = hyper::server::conn::http1::Builder::new()
+                .timer(hyper_util::rt::TokioTimer::new())
+                .header_read_timeout(HEADER_TIMEOUT)
+                .serve_connection(hyper_util::rt::TokioIo::new(stream), service)
+                .await;
+            drop(slot);
+        });
+    }
 }
 
 /// Where the page is, on stdout: a line for a person, or one JSON object.

@@ -124,7 +124,14 @@ function buildControls() {
 // page asks for the state a few times a second until the last level is
 // shown, and fetches the image at each new level (an edit stops it).
 let watching = false;
+function showRefined() {
+  const r = state.refined;
+  $("refining").textContent = !r || r.target === 0 || (r.rounds === 0 && busy) ? ""
+    : r.rounds < r.target ? `refining: ${r.rounds} of ${r.target} rounds`
+    : `refined: ${r.rounds} rounds`;
+}
 async function watchRefining() {
+  showRefined();
   if (watching) return;
   watching = true;
   try {
@@ -139,9 +146,7 @@ async function watchRefining() {
       state = Object.assign(state, s);
       if (state.refined.rounds !== before) {
         await refresh();
-        $("refining").textContent = state.refined.rounds < state.refined.target
-          ? `refining: ${state.refined.rounds} of ${state.refined.target} rounds`
-          : `refined: ${state.refined.rounds} rounds`;
+        showRefined();
       }
     }
   } catch (e) {
