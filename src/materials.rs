@@ -128,9 +128,16 @@ impl Material {
     /// One line for `arlux info`.
     pub fn describe(&self) -> String {
         let c = self.base_colour;
+        // With a texture the factors only scale it: saying "metallic 1.00"
+        // alone misreads a textured material.
+        let (m, r) = (self.metallic, self.roughness);
+        let factors = match self.metallic_roughness_texture {
+            Some(_) => format!("metallic and roughness from texture (× {m:.2}, × {r:.2})"),
+            None => format!("metallic {m:.2}, roughness {r:.2}"),
+        };
         let mut s = format!(
-            "'{}': base [{:.3}, {:.3}, {:.3}], metallic {:.2}, roughness {:.2}",
-            self.name, c.x, c.y, c.z, self.metallic, self.roughness
+            "'{}': base [{:.3}, {:.3}, {:.3}], {factors}",
+            self.name, c.x, c.y, c.z
         );
         for (has, what) in [
             (self.base_texture.is_some(), "base colour texture"),

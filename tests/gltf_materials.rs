@@ -171,3 +171,32 @@ fn an_emissive_card_glows_in_its_pixels_and_lights_the_room() {
         "{lit}"
     );
 }
+
+#[test]
+fn a_required_extension_is_named_and_a_textured_material_said_to_come_from_its_texture() {
+    let desk = Desk::new();
+    write_card(
+        &desk,
+        r#" "extensionsUsed": ["KHR_draco_mesh_compression"], "extensionsRequired": ["KHR_draco_mesh_compression"],"#,
+        "",
+    );
+    let message = common::arlux_refused(
+        &["info", &desk.path("scene.toml").display().to_string()],
+        &["card.gltf", "KHR_draco_mesh_compression", "decompress"],
+    );
+    assert!(!message.contains("malformed"), "{message}");
+
+    let desk = Desk::new();
+    write_card(&desk, "", "");
+    desk.edit(
+        "geometry/card.gltf",
+        r#""metallicFactor": 0.0"#,
+        r#""metallicRoughnessTexture": { "index": 0 }, "metallicFactor": 0.0"#,
+    );
+    let run = common::arlux_ok(&["info", &desk.path("scene.toml").display().to_string()]);
+    let text = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        text.contains("metallic and roughness from texture (× 0.00, × 1.00)"),
+        "{text}"
+    );
+}

@@ -238,6 +238,14 @@ fn progress_is_drawn_when_asked_and_never_into_a_pipe() {
     ]);
     assert_eq!(status, 0, "{stderr}");
     assert!(stderr.contains("gonio: reconstruct"), "{stderr}");
+    // Into a log, a line per stage: no spinner and clock redrawn each tick.
+    let lines: Vec<&str> = stderr.lines().filter(|l| l.contains("gonio:")).collect();
+    assert!(
+        lines
+            .iter()
+            .all(|l| l.starts_with("gonio:") && !l.ends_with("s)")),
+        "{lines:?}"
+    );
     let report: Value = serde_json::from_str(&stdout).unwrap();
     validate("gonio", &report);
     // The polar plot (plotters: axes in candela, legend, colour bar).

@@ -481,3 +481,23 @@ fn a_reference_noise_out_of_range_or_without_a_reference_is_refused_naming_the_k
         assert!(message.contains("reference_"), "{message}");
     }
 }
+
+#[test]
+fn an_unknown_key_of_an_object_lists_every_placement_key() {
+    let desk = Desk::new();
+    desk.edit(
+        "scene.toml",
+        "rotate_y_deg = 20.0\n",
+        "rotate_y_deg = 20.0\nrotat = [0, 1, 0]\n",
+    );
+    common::arlux_refused(
+        &["info", &desk.scene()],
+        &[
+            "virtual[0].rotat: unknown key",
+            "matrix",
+            "quaternion",
+            "rotate,",
+            "rotate_y_deg",
+        ],
+    );
+}

@@ -84,6 +84,22 @@ fn read_gltf(path: &Path) -> Result<Mesh> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
     let raw = gltf::Gltf::from_slice_without_validation(&bytes).map_err(bad)?;
     let root = raw.document.into_json();
+    // A required extension changes how the data is read (Draco or meshopt
+    // compression, quantized or basis-compressed data): none is read here.
+    if let Some(ext) = root.extensions_required.first() {
+        let hint = match ext.as_str() {
+            "KHR_draco_mesh_compression" | "EXT_meshopt_compression" => {
+                "decompress it first (gltf-transform copy IN OUT, or Blender's export without compression)"
+            }
+            _ => "export it without that extension (gltf-transform can convert most)",
+        };
+        return Err(Error::file(
+            path,
+            format!(
+                "the file requires the glTF extension {ext}, which arlux does not read: {hint}"
+            ),
+        ));
+    }
     // gltf-json 1.4 looks up a primitive's POSITION accessor before it
     // checks the index (and panics on a bad one, as fuzzing found): check
     // it here, then let the crate validate the rest.

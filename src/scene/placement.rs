@@ -11,6 +11,14 @@ use crate::error::Result;
 
 /// The keys of a placement that `fields` gives (none given: no change).
 pub(super) fn pose_change(f: &Fields) -> Result<PoseChange> {
+    f.allow(&[
+        "translate",
+        "scale",
+        "rotate_y_deg",
+        "rotate",
+        "quaternion",
+        "matrix",
+    ]);
     if f.has("matrix") {
         for k in ["translate", "scale", "rotate_y_deg", "rotate", "quaternion"] {
             if f.has(k) {

@@ -107,11 +107,19 @@ pub(crate) fn spinner(command: &str) -> ProgressBar {
 /// whose stage observer also tells the page).
 pub(crate) fn stage_spinner(command: &str) -> ProgressBar {
     let bar = ProgressBar::with_draw_target(None, target());
+    // In a log (plain lines) a line per stage: no spinner or clock, whose
+    // every tick would be a line of its own.
+    let plain = MODE.get() == Some(&ProgressMode::Always);
+    let template = match plain {
+        true => "{prefix}: {msg}",
+        false => "{spinner} {prefix}: {msg} ({elapsed})",
+    };
     bar.set_style(
-        ProgressStyle::with_template("{spinner} {prefix}: {msg} ({elapsed})")
-            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+        ProgressStyle::with_template(template).unwrap_or_else(|_| ProgressStyle::default_spinner()),
     );
     bar.set_prefix(command.to_string());
-    bar.enable_steady_tick(Duration::from_millis(250));
+    if !plain {
+        bar.enable_steady_tick(Duration::from_millis(250));
+    }
     bar
 }
