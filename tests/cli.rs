@@ -59,6 +59,16 @@ fn info_and_ids_work_on_the_desk() {
     let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     assert_eq!(report["lights"].as_array().unwrap().len(), 3);
     assert_eq!(report["photo"]["range"]["width"], 512);
+    // The box (a 0.3 m cube standing on its origin) turned 20° about y:
+    // 0.3 (cos 20° + sin 20°) wide in x and z, 0.3 tall, from the floor up.
+    let b = &report["virtual_objects"][0]["bounds"];
+    let wide = 0.3 * (20f64.to_radians().cos() + 20f64.to_radians().sin());
+    let size: Vec<f64> = (0..3).map(|i| b["size_m"][i].as_f64().unwrap()).collect();
+    for (got, want) in size.iter().zip([wide, 0.3, wide]) {
+        assert!((got - want).abs() < 1e-5, "size {size:?}, expected {want}");
+    }
+    assert!(b["min"][1].as_f64().unwrap().abs() < 1e-6, "{b}");
+    assert!(stdout.contains("size 0.385 × 0.300 × 0.385 m"), "{stdout}");
 
     let desk = Desk::new();
     let out = desk.path("ids.png");

@@ -120,8 +120,15 @@ fn info_report(
         .objects
         .iter()
         .map(|o| {
+            // Where it stands, as placed: what a user lifts, turns or scales by.
+            let (lo, hi) = arlux::geometry::bounds(
+                (o.surfaces.iter())
+                    .flat_map(|s| s.triangles.iter().flatten())
+                    .map(|&p| o.pose.apply(p).as_dvec3()),
+            );
             json!({
                 "name": o.name, "mesh": rel(scene, &o.mesh), "enabled": o.enabled,
+                "bounds": { "min": lo.to_array(), "max": hi.to_array(), "size_m": (hi - lo).to_array() },
                 "triangles": o.surfaces.iter().map(|s| s.triangles.len()).sum::<usize>(),
                 "surfaces": o.surfaces.iter().map(|s| json!({
                     "name": s.name, "rgb": s.rgb.to_array(),
@@ -265,6 +272,15 @@ impl Report for InfoReport {
                 },
                 o["translate"],
                 o["rotate_deg"]
+            ));
+            let at = |k: &str, i: usize| o["bounds"][k][i].as_f64().unwrap_or(f64::NAN);
+            out.push(format!(
+                "    size {:.3} × {:.3} × {:.3} m (x, y, z) as placed; from y = {:.3} to {:.3}",
+                at("size_m", 0),
+                at("size_m", 1),
+                at("size_m", 2),
+                at("min", 1),
+                at("max", 1)
             ));
             for s in o["surfaces"].as_array().into_iter().flatten() {
                 let material = match s["material"].as_str() {
