@@ -237,14 +237,19 @@ pub struct PdaInput<'a> {
     pub band: Option<(u32, u32)>,
 }
 
+/// How far past the pixels it is for the pixel data reaches, in pixels:
+/// a later stage that reads a pixel's neighbours (the composite's seam
+/// filter) reads no farther, so a tile's or a band's pixels are the whole
+/// frame's. The stage checks its own reach against it.
+pub const MARGIN: u32 = 5;
+
 impl PdaInput<'_> {
     /// The pixels computed: [`PdaInput::own`]'s, and a margin beyond
     /// (their pixels read their neighbours' data in the seams' filter:
     /// computed that far beyond, they are the whole frame's).
     pub(crate) fn window(&self) -> PixelRect {
         let (w, h) = (self.camera.width, self.camera.height);
-        self.own()
-            .grown(crate::composite::seams::NEIGHBOURHOOD, w, h)
+        self.own().grown(MARGIN, w, h)
     }
 
     /// The pixels the array is for: the crop's within the band, or all.

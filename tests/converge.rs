@@ -98,6 +98,19 @@ fn the_noise_layer_tells_the_error_few_rounds_leave() {
         measured += (lum(few.pixels[i]) - lum(many.pixels[i])).powi(2);
         estimated += sd[i] * sd[i];
     }
+    // And no bias: the rounds estimate what the solution misses without
+    // a systematic part, so the few rounds' signed differences from the
+    // many average out, within three standard errors of their mean.
+    let signed: f64 = (sampled.iter())
+        .map(|&i| lum(few.pixels[i]) - lum(many.pixels[i]))
+        .sum::<f64>();
+    let n = sampled.len() as f64;
+    let standard_error = estimated.sqrt() / n;
+    assert!(
+        (signed / n).abs() < 3.0 * standard_error,
+        "mean signed difference {:.2e} against a standard error of {standard_error:.2e}",
+        signed / n
+    );
     let ratio = (measured / estimated).sqrt();
     assert!(
         (0.4..=1.6).contains(&ratio),

@@ -32,7 +32,9 @@ const WINDOW: i64 = 3;
 /// How far from a pixel the filter reads: its window's pixels, and whether
 /// each lies on a seam. A crop's pixel data reaches this far past the crop,
 /// so that a tile's pixels are the whole frame's.
-pub(crate) const NEIGHBOURHOOD: u32 = (REACH + WINDOW) as u32;
+const NEIGHBOURHOOD: u32 = (REACH + WINDOW) as u32;
+// The pixel data reaches as far as the filter reads (no import the other way).
+const _: () = assert!(NEIGHBOURHOOD <= crate::pda::MARGIN);
 /// A seam pixel is filtered where the change among its 3 × 3 neighbours
 /// spans more than this fraction of its own: above the change's own noise
 /// (shadow rays, the grain kept), below a pixel's step across a seam.
