@@ -5,9 +5,10 @@
 use crate::error::Result;
 use crate::image_io::Image;
 use crate::lamps::LampPixels;
-use crate::model::{ModelSettings, StageTimes};
+use crate::model::ModelSettings;
 use crate::scene::Scene;
 use crate::trace::Tracer;
+use crate::util::stages::StageTimes;
 
 /// What every method needs before it starts: the photo in absolute units
 /// (merged brackets are radiance up to a factor, fixed from the known

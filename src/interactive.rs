@@ -16,9 +16,9 @@ use glam::{DMat3, DQuat, DVec3};
 
 use crate::error::{Error, Result};
 use crate::image_io::Image;
-use crate::model::StageTimes;
 use crate::render::{RenderSettings, Session};
 use crate::scene::Scene;
+use crate::util::stages::StageTimes;
 
 mod display;
 mod placement;

@@ -40,13 +40,13 @@ use crate::error::Result;
 use crate::estimate::{Estimate, PhotoPatches, estimate_reflectances};
 use crate::image_io::Image;
 use crate::light::LightSource;
-use crate::model::StageTimes;
 pub use crate::output::TextureStats;
 use crate::patches::{Element, Location, Patches, Shape, SplitMarks, region_centre, split};
 use crate::radiosity::{DEFAULT_LINK_EPSILON, Transport, solve_from};
 use crate::scene::Scene;
 use crate::trace::{Layer, Tracer};
 use crate::util::rng::hash2;
+use crate::util::stages::StageTimes;
 
 /// Settings of the texture path.
 #[derive(Debug, Clone, Copy, PartialEq)]

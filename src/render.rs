@@ -13,8 +13,9 @@ use crate::composite::{Composite, CompositeInput, CompositeMode, RealPixels, com
 use crate::error::Result;
 use crate::image_io::Image;
 use crate::lamps::LampPixels;
-use crate::model::{Model, ModelSettings, StageTimes};
+use crate::model::{Model, ModelSettings};
 use crate::object_shading::ObjectShading;
+use crate::util::stages::StageTimes;
 
 use crate::inputs::{fine_patch_size, lamps_in_view, resolve_inputs, room_diagonal};
 pub use crate::output::RenderOutput;

@@ -7,10 +7,11 @@ use std::time::Instant;
 use crate::compare::{Comparison, Skill, compare, skill};
 use crate::error::{Error, Result};
 use crate::image_io::{Image, read_image};
-use crate::model::{StageTimes, TransportMethod};
+use crate::model::TransportMethod;
 use crate::pda::PdaSettings;
 use crate::render::{PatchSize, RenderSettings, Session, render};
 use crate::scene::Scene;
+use crate::util::stages::StageTimes;
 
 mod peer;
 mod plot;
