@@ -429,3 +429,48 @@ fn half_sent_requests_neither_block_the_user_nor_stay_open() {
         2000 - closed
     );
 }
+
+#[test]
+fn binding_every_address_needs_the_names_other_machines_use() {
+    let desk = Desk::new();
+    common::arlux_refused(
+        &["serve", &desk.scene(), "--port", "0", "--bind", "0.0.0.0"],
+        &["--bind 0.0.0.0", "--allow-host"],
+    );
+    common::arlux_refused(
+        &[
+            "serve",
+            &desk.scene(),
+            "--port",
+            "0",
+            "--bind",
+            "0.0.0.0",
+            "--allow-host",
+            "a b",
+        ],
+        &["--allow-host 'a b'"],
+    );
+    let server = Server::start(
+        &desk.scene(),
+        &["--bind", "0.0.0.0", "--allow-host", "studio.local"],
+    );
+    server.wait_ready();
+    let ask = |host: &str| {
+        raw(
+            &server,
+            format!(
+                "GET /api/state HTTP/1.1\r\nHost: {host}:{}\r\nx-arlux-token: {}\r\nConnection: close\r\n\r\n",
+                server.port, server.token
+            )
+            .as_bytes(),
+        )
+        .unwrap_or_default()
+    };
+    assert!(
+        ask("studio.local").contains(" 200 "),
+        "{}",
+        ask("studio.local")
+    );
+    assert!(ask("127.0.0.1").contains(" 200 "));
+    assert!(ask("elsewhere.example").contains(" 403 "));
+}

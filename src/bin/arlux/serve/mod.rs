@@ -40,6 +40,11 @@ pub struct Args {
     /// the page then shows what `render --samples N` gives of the state.
     #[arg(long, default_value_t = 0)]
     pub samples: u32,
+    /// A name or address other machines reach this one by (repeatable):
+    /// requests naming it in their Host header are served. Needed with
+    /// `--bind 0.0.0.0` (or `::`), which names no address of its own.
+    #[arg(long, value_name = "NAME")]
+    pub allow_host: Vec<String>,
     /// Print the address as one JSON object on stdout once listening.
     #[arg(long)]
     pub json: bool,
@@ -95,6 +100,20 @@ pub fn run(args: &Args) -> Result<()> {
         std::fs::create_dir_all(out)
             .with_context(|| format!("--out {}: cannot create the folder", out.display()))?;
     }
+    if args.bind.is_unspecified() && args.allow_host.is_empty() {
+        anyhow::bail!(
+            "--bind {}: a request from another machine names this one in its Host header, which the server must know: give --allow-host NAME for each name or address they use (or --bind one address of this machine)",
+            args.bind
+        );
+    }
+    if let Some(bad) = (args.allow_host.iter()).find(|h| {
+        h.is_empty()
+            || !h
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || "-.:[]".contains(c))
+    }) {
+        anyhow::bail!("--allow-host '{bad}': give a host name or an IP address");
+    }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -115,17 +134,7 @@ pub fn run(args: &Args) -> Result<()> {
     let (jobs, queue) = std::sync::mpsc::sync_channel(worker::QUEUE);
     let shared = Arc::new(Shared {
         token: token.clone(),
-        hosts: [
-            args.bind.to_string(),
-            "127.0.0.1".into(),
-            "localhost".into(),
-        ]
-        .iter()
-        .map(|h| match args.bind {
-            IpAddr::V6(_) if h == &args.bind.to_string() => format!("[{h}]:{port}"),
-            _ => format!("{h}:{port}"),
-        })
-        .collect(),
+        hosts: hosts(args, port),
         jobs,
         latest: RwLock::new(None),
         status: Mutex::new(Status {
@@ -201,11 +210,35 @@ async fn serve_connections(listener: tokio::net::TcpListener, app: axum::Router)
             let _ = hyper::server::conn::http1::Builder::new()
                 .timer(hyper_util::rt::TokioTimer::new())
                 .header_read_timeout(HEADER_TIMEOUT)
+                // A client that closes its side once the request is sent
+                // still gets the reply.
+                .half_close(true)
                 .serve_connection(hyper_util::rt::TokioIo::new(stream), service)
                 .await;
             drop(slot);
         });
     }
+}
+
+/// The `Host` values a request may carry: this machine by loopback, the
+/// bound address, and each `--allow-host`, all with the port.
+fn hosts(args: &Args, port: u16) -> Vec<String> {
+    let mut names = vec!["127.0.0.1".to_string(), "localhost".to_string()];
+    if !args.bind.is_unspecified() {
+        names.push(match args.bind {
+            IpAddr::V6(a) => format!("[{a}]"),
+            IpAddr::V4(a) => a.to_string(),
+        });
+    }
+    for h in &args.allow_host {
+        // An IPv6 address goes in brackets in a Host header.
+        let bare = h.trim_start_matches('[').trim_end_matches(']');
+        names.push(match bare.parse::<std::net::Ipv6Addr>() {
+            Ok(a) => format!("[{a}]"),
+            Err(_) => h.to_ascii_lowercase(),
+        });
+    }
+    names.into_iter().map(|h| format!("{h}:{port}")).collect()
 }
 
 /// Where the page is, on stdout: a line for a person, or one JSON object.
