@@ -466,8 +466,9 @@ impl Interactive {
                 ),
             ));
         }
-        let text =
-            std::fs::read_to_string(&self.base.file).map_err(|e| Error::io(&self.base.file, &e))?;
+        // The session's own text: the saved variant renders what the page
+        // shows even if the file was edited meanwhile (`file_changed` says so).
+        let text = &self.base.source;
         let mut variant = toml::Table::new();
         variant.insert(
             "variant".into(),
@@ -479,6 +480,13 @@ impl Interactive {
         let content = format!("{}\n# Saved by arlux serve.\n{appended}", text.trim_end());
         crate::image_io::write_new(&path, content.as_bytes())?;
         Ok(path)
+    }
+
+    /// Whether the scene file on disk no longer holds the text the session
+    /// was loaded from (an edit made while serving, which the session does
+    /// not show and a save does not carry).
+    pub fn file_changed(&self) -> bool {
+        std::fs::read_to_string(&self.base.file).map_or(true, |t| t != self.base.source)
     }
 
     /// The file a variant named `name` is saved in: `STEM.NAME.toml` beside the scene.

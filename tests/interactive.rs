@@ -302,3 +302,36 @@ fn a_refined_state_is_the_render_of_its_variant_with_as_many_rounds() {
     let (plain, _) = common::render_default(&saved);
     assert_eq!(same(&plain.composite.image, it.image()), 0);
 }
+
+#[test]
+fn a_save_after_the_scene_file_was_edited_renders_what_the_session_shows() {
+    let desk = Desk::new();
+    let mut it = session(&desk);
+    let times = &mut StageTimes::default();
+    let p = pixel_of(&it, DVec3::new(-0.3, 0.0, 0.4));
+    place(&mut it, p, times);
+    assert!(!it.file_changed());
+    // The box's colour changed in the file while serving.
+    desk.edit(
+        "scene.toml",
+        "rgb = [0.8, 0.32, 0.06]",
+        "rgb = [0.1, 0.5, 0.9]",
+    );
+    assert!(it.file_changed());
+    let name = it.next_variant_name();
+    let file = it.save_variant(&name).unwrap();
+    let saved = Scene::load(&file).unwrap().with_variant(&name).unwrap();
+    assert_eq!(
+        saved.objects[0].surfaces[0].rgb.to_array(),
+        [0.8, 0.32, 0.06]
+    );
+    let (full, _) = common::render_default(&saved);
+    let differ = (bits(&full.composite.image).iter())
+        .zip(bits(it.image()))
+        .filter(|(a, b)| **a != *b)
+        .count();
+    assert_eq!(
+        differ, 0,
+        "{differ} pixels differ from what the session shows"
+    );
+}

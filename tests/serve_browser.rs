@@ -16,6 +16,10 @@ use fantoccini::{Client, ClientBuilder, Locator};
 use glam::DVec3;
 use serde_json::json;
 
+/// One browser at a time: two chromedrivers starting at once on two cores
+/// now and then fail to give a session.
+static ONE_BROWSER: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
+
 /// chromedriver on a free port; killed when dropped.
 struct Driver(Child, u16);
 
@@ -95,6 +99,7 @@ async fn wait_until(client: &Client, condition: &str) {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_box_clicked_dragged_and_saved_in_the_browser_renders_as_the_server_showed_it() {
+    let _one = ONE_BROWSER.lock().await;
     let Some(driver) = Driver::start() else {
         panic!(
             "chromedriver is not installed: `bash .ci/setup` installs Chromium and chromedriver"
@@ -278,6 +283,7 @@ async fn displayed(client: &Client, id: &str) -> bool {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_page_refines_hides_the_wipe_and_serves_a_scene_without_objects() {
+    let _one = ONE_BROWSER.lock().await;
     let Some(driver) = Driver::start() else {
         panic!(
             "chromedriver is not installed: `bash .ci/setup` installs Chromium and chromedriver"

@@ -176,6 +176,7 @@ impl Loader<'_> {
         let scene = Scene {
             name,
             file: self.file.to_path_buf(),
+            source: String::new(),
             camera,
             photo_size,
             photo,

@@ -34,6 +34,9 @@ pub struct Scene {
     pub name: String,
     /// The `scene.toml` this came from; relative paths were resolved against its folder.
     pub file: PathBuf,
+    /// Its text as read: what a saved variant appends to, whatever the
+    /// file holds by then.
+    pub source: String,
     pub camera: Camera,
     /// The photo's and the references' size: the camera's before its
     /// `scale` (equal to the camera's size without one).
@@ -327,7 +330,9 @@ impl Scene {
             }
         })?;
         let dir = file.parent().unwrap_or(Path::new("")).to_path_buf();
-        Loader { file, dir }.scene(&table)
+        let mut scene = Loader { file, dir }.scene(&table)?;
+        scene.source = text;
+        Ok(scene)
     }
 
     /// Every file this scene reads: the manifest, meshes, photo or

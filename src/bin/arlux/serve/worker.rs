@@ -194,6 +194,7 @@ fn serve_job(cx: &Context, it: &mut Interactive, job: Job) {
                     json!({
                         "file": path.file_name().map(|n| n.to_string_lossy().into_owned()),
                         "variant": name,
+                        "scene_file_changed": it.file_changed(),
                     }),
                 ),
                 Err(e) => (

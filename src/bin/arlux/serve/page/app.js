@@ -227,7 +227,9 @@ $("save").addEventListener("click", async () => {
   const name = $("variant-name").value.trim();
   try {
     const r = await api("/api/save", name ? { name } : {});
-    $("saved").textContent = `saved variant ${r.variant} in ${r.file}`;
+    $("saved").textContent = `saved variant ${r.variant} in ${r.file}` + (r.scene_file_changed
+      ? " (the scene file was edited since the session began: the save holds the session's scene, as shown; restart the server to use the edit)"
+      : "");
     $("saved").dataset.file = r.file;
     $("saved").dataset.variant = r.variant;
   } catch (e) { say(e.message); }
