@@ -199,7 +199,10 @@ pub fn estimate(input: &ResidualInput) -> Option<PixelResidual> {
     let mut room = room::tasks(input);
     let mut shadows = shadows::tasks(input);
     let mut edges = edges::tasks(input);
+    let nothing = objects.is_empty() && room.is_empty() && shadows.is_empty() && edges.is_empty();
     let most = match settings.samples {
+        // No pixel to sample: no round (a time budget would run them all).
+        _ if nothing => 0,
         0 => MAX_SAMPLES,
         n => n.min(MAX_SAMPLES),
     };

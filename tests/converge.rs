@@ -221,3 +221,27 @@ fn a_motion_with_rounds_updates_to_the_image_a_full_render_of_the_pose_gives() {
         );
     }
 }
+
+#[test]
+fn a_time_budget_reports_its_rounds_and_samples_reproduce_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name);
+    for (name, extra) in [("whole", &[][..]), ("bands", &["--memory", "64M"][..])] {
+        let mut args = vec!["--time", "1.5"];
+        args.extend(extra);
+        let timed = render(&path(&format!("{name}-timed.exr")), &args);
+        let rounds = timed["samples"]["rounds"].as_u64().unwrap();
+        assert!(rounds >= 1, "{name}: {}", timed["samples"]);
+        let n = rounds.to_string();
+        let mut args = vec!["--samples", n.as_str()];
+        args.extend(extra);
+        let again = render(&path(&format!("{name}-samples.exr")), &args);
+        assert_eq!(again["samples"]["rounds"], rounds);
+        // (The files' headers differ: each records the settings it was given.)
+        let read = |k: &str| bits(&read_image(&path(&format!("{name}-{k}.exr"))).unwrap());
+        assert!(
+            read("timed") == read("samples"),
+            "{name}: --time's image is not --samples {rounds}'s"
+        );
+    }
+}

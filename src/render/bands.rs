@@ -119,13 +119,19 @@ pub fn render_bands(
     let mut counts = Composite::empty();
     let mut pda_bytes = 0;
     let mut per_band = StageTimes::default();
+    let last_row = bands.last().map_or(0, |b| b.1);
     for (k, &(y0, y1)) in bands.iter().enumerate() {
         if k > 0 {
+            // A time budget not yet spent on rounds: this band's share of
+            // what is left, by its rows.
+            session.time_share = (y1 - y0) as f64 / (last_row - y0).max(1) as f64;
             session.move_to_band((y0, y1), &mut per_band);
         }
-        if let Some(stats) = session.residual_stats.filter(|_| k == 0) {
-            // Every band runs the first one's rounds: a time budget gives
-            // the frame one number of rounds, as `--samples` reproduces.
+        let timed = session.settings.residual.time.is_some();
+        if let Some(stats) = session.residual_stats.filter(|s| timed && s.pixels() > 0) {
+            // Every band runs the rounds of the first that sampled any
+            // pixel: a time budget gives the frame one number of rounds,
+            // as `--samples` reproduces.
             session.settings.residual = crate::residual::ResidualSettings {
                 samples: stats.rounds,
                 time: None,

@@ -222,6 +222,19 @@ pub fn run(args: &Args) -> Result<()> {
         )))
     })?;
     keep(&times);
+    if let (Some(limit), Some(r)) = (args.time, &out.residual) {
+        let took = times.total().as_secs_f64();
+        if took > 1.25 * limit {
+            // Not a warning (the image is right, only late), so not fatal
+            // under --strict: where the change lies in few of many bands,
+            // the first band that samples any pixel sets the rounds for all
+            // by its share of the rows.
+            eprintln!(
+                "note: --time {limit}: the render took {took:.1} s ({} rounds, fixed in the first band with pixels to sample); fewer bands (a larger --memory) or --samples N bound it better",
+                r.rounds
+            );
+        }
+    }
     let bands = (out.texture.is_none()).then(|| Bands {
         rows,
         count: window
