@@ -169,32 +169,36 @@ fn parse_row(
         "" => return Err("no method".to_string()),
         label => (SweepMethod::Peer, Some(label.to_string())),
     };
+    // The figures, the same columns for every row.
+    let f = cells.len() - 13;
+    let mut row = SweepRow {
+        index: num(0)? as usize,
+        settings: SweepSettings { method, ..d },
+        peer: None,
+        stages: Vec::new(),
+        seconds: num(f)?,
+        seconds_median: num(f + 1)?,
+        seconds_max: num(f + 2)?,
+        rmse: num(f + 3)?,
+        relative_rmse: opt(f + 4)?,
+        psnr_srgb_db: opt(f + 5)?,
+        skill: opt(f + 6)?,
+        rmse_changed: num(f + 7)?,
+        n_changed: num(f + 8)? as usize,
+        skill_floor: opt(f + 9)?,
+        compared: num(f + 10)? as usize,
+        pareto: cells[f + 12] == "1",
+    };
     if peer.is_some() {
-        let f = cells.len() - 13;
+        // Never on arlux's front; no settings.
         return Ok(SweepRow {
-            index: num(0)? as usize,
-            settings: SweepSettings {
-                method,
-                ..SweepSettings::defaults()
-            },
             peer,
-            stages: Vec::new(),
-            seconds: num(f)?,
-            seconds_median: num(f + 1)?,
-            seconds_max: num(f + 2)?,
-            rmse: num(f + 3)?,
-            relative_rmse: opt(f + 4)?,
-            psnr_srgb_db: opt(f + 5)?,
-            skill: opt(f + 6)?,
-            rmse_changed: num(f + 7)?,
-            n_changed: num(f + 8)? as usize,
-            skill_floor: opt(f + 9)?,
-            compared: num(f + 10)? as usize,
             pareto: false,
+            ..row
         });
     }
     let pda = method == SweepMethod::Pda;
-    let settings = SweepSettings {
+    row.settings = SweepSettings {
         method,
         min_level: if pda { num(3)? as usize } else { d.min_level },
         penumbra_level: if pda {
@@ -212,31 +216,12 @@ fn parse_row(
         epsilon: num(11)?,
         samples: if pda { num(12)? as u32 } else { 0 },
     };
-    let f = cells.len() - 13;
+    row.stages = (stages.iter().enumerate())
+        .map(|(j, s)| Ok((s.clone(), num(13 + j)?)))
+        .collect::<std::result::Result<_, String>>()?;
     table.reference = cells[f + 11].to_string();
     table.grid_size = num(1)? as usize;
-    Ok(SweepRow {
-        index: num(0)? as usize,
-        settings,
-        peer: None,
-        stages: stages
-            .iter()
-            .enumerate()
-            .map(|(j, s)| Ok((s.clone(), num(13 + j)?)))
-            .collect::<std::result::Result<_, String>>()?,
-        seconds: num(f)?,
-        seconds_median: num(f + 1)?,
-        seconds_max: num(f + 2)?,
-        rmse: num(f + 3)?,
-        relative_rmse: opt(f + 4)?,
-        psnr_srgb_db: opt(f + 5)?,
-        skill: opt(f + 6)?,
-        rmse_changed: num(f + 7)?,
-        n_changed: num(f + 8)? as usize,
-        skill_floor: opt(f + 9)?,
-        compared: num(f + 10)? as usize,
-        pareto: cells[f + 12] == "1",
-    })
+    Ok(row)
 }
 
 /// The tables of a sweep's shards as the whole sweep's: rows in grid
