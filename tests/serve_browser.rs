@@ -326,6 +326,38 @@ async fn the_page_refines_hides_the_wipe_and_serves_a_scene_without_objects() {
         assert_eq!(displayed(&client, "before").await, shown, "{view}");
         assert_eq!(displayed(&client, "wipe").await, shown, "{view}");
     }
+    // A light change (a full render) shows that it is working, and five
+    // moves of a slider meanwhile coalesce: the latest wins.
+    let before = server.get("/api/state").json()["version"].as_u64().unwrap();
+    client
+        .execute(
+            "const row = document.querySelector(\"[data-light='spot']\");
+             const range = row.querySelector('input[type=range]');
+             for (const v of [0.5, 1.5, 2.0, 2.5, 3.0]) {
+               range.value = v; range.dispatchEvent(new Event('change'));
+             }",
+            vec![],
+        )
+        .await
+        .unwrap();
+    wait_until(
+        &client,
+        "document.getElementById('status').dataset.working === 'true'",
+    )
+    .await;
+    wait_until(
+        &client,
+        "!busy && waiting.size === 0 && document.getElementById('status').dataset.working === 'false'",
+    )
+    .await;
+    let state = server.get("/api/state").json();
+    let spot = (state["lights"].as_array().unwrap().iter())
+        .find(|l| l["name"] == "spot")
+        .unwrap()
+        .clone();
+    assert_eq!(spot["scale"], 3.0, "{state}");
+    let edits = state["version"].as_u64().unwrap() - before;
+    assert!(edits <= 2, "{edits} edits for five moves of one slider");
     let errors = client
         .execute("return window.__errors;", vec![])
         .await

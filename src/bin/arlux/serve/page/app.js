@@ -110,7 +110,7 @@ function buildControls() {
     const value = row.querySelector(".value");
     value.textContent = (+range.value).toFixed(2);
     box.checked = l.scale > 0;
-    const send = () => edit("/api/light", { light: l.name, scale: box.checked ? +range.value : 0 });
+    const send = () => submit("light:" + l.name, "/api/light", { light: l.name, scale: box.checked ? +range.value : 0 });
     box.addEventListener("change", send);
     range.addEventListener("input", () => { value.textContent = (+range.value).toFixed(2); });
     range.addEventListener("change", () => { if (box.checked) send(); });
@@ -160,9 +160,20 @@ async function watchRefining() {
 let busy = false;
 let pendingMove = null;
 
+// Changes made while one is in flight wait, the latest per control (a
+// slider's moves coalesce); a change that takes over 100 ms says so.
+const waiting = new Map();
+function submit(key, path, body) {
+  if (busy) waiting.set(key, [path, body]); else edit(path, body);
+}
+
 async function edit(path, body) {
   busy = true;
   $("refining").textContent = "";
+  const slow = setTimeout(() => {
+    $("status").textContent = "working…";
+    $("status").dataset.working = "true";
+  }, 100);
   try {
     const r = await api(path, body);
     if (!r.superseded) {
@@ -176,12 +187,19 @@ async function edit(path, body) {
   } catch (e) {
     say(e.message);
   } finally {
+    clearTimeout(slow);
+    $("status").textContent = "ready";
+    $("status").dataset.working = "false";
     busy = false;
   }
   if (pendingMove) {
     const next = pendingMove;
     pendingMove = null;
     await edit("/api/place", next);
+  } else if (waiting.size > 0) {
+    const [key, [nextPath, nextBody]] = waiting.entries().next().value;
+    waiting.delete(key);
+    await edit(nextPath, nextBody);
   }
 }
 
@@ -213,11 +231,11 @@ $("view").addEventListener("pointercancel", stop);
 $("object").addEventListener("change", fillControls);
 // Each object control edits the selected object; a scene without objects has none.
 const onObject = (f) => () => { const o = selected(); if (o) f(o); };
-$("enabled").addEventListener("change", onObject((o) => edit("/api/object", { object: o.name, enabled: $("enabled").checked })));
+$("enabled").addEventListener("change", onObject((o) => submit(o.name + ":enabled", "/api/object", { object: o.name, enabled: $("enabled").checked })));
 $("yaw").addEventListener("input", () => { $("yaw-value").textContent = $("yaw").value; });
-$("yaw").addEventListener("change", onObject((o) => edit("/api/object", { object: o.name, yaw_deg: +$("yaw").value })));
+$("yaw").addEventListener("change", onObject((o) => submit(o.name + ":yaw", "/api/object", { object: o.name, yaw_deg: +$("yaw").value })));
 $("scale").addEventListener("input", () => { $("scale-value").textContent = (2 ** +$("scale").value).toFixed(2); });
-$("scale").addEventListener("change", onObject((o) => edit("/api/object", { object: o.name, scale: 2 ** +$("scale").value })));
+$("scale").addEventListener("change", onObject((o) => submit(o.name + ":scale", "/api/object", { object: o.name, scale: 2 ** +$("scale").value })));
 for (const r of document.querySelectorAll("input[name=view]")) {
   r.addEventListener("change", () => { view = r.value; refresh().catch((e) => say(e.message)); });
 }
