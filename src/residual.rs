@@ -184,6 +184,45 @@ impl Sums {
     }
 }
 
+/// A camera ray through a jittered point of a pixel, for one sub-sample of
+/// a round.
+struct SubPixel {
+    /// Its index in the pixel's sequence (round × per round + j).
+    index: u32,
+    /// The point in the image it passes through.
+    at: (f64, f64),
+    ray: crate::camera::Ray,
+    traced: crate::trace::TraceRay,
+}
+
+/// Round `round`'s `per_round` camera rays through `pixel`: Owen-scrambled
+/// Sobol points of the pixel keyed by `key`, round `r` taking points
+/// `r·n..(r+1)·n`.
+fn subpixels(
+    input: &ResidualInput,
+    pixel: u32,
+    key: u64,
+    round: u32,
+    per_round: u32,
+) -> impl Iterator<Item = SubPixel> {
+    let camera = input.shading.camera;
+    let width = input.pda.width;
+    let (col, row) = ((pixel % width) as f64, (pixel / width) as f64);
+    (0..per_round).map(move |j| {
+        let index = round * per_round + j;
+        let [u1, u2, _, _] = sobol_burley::sample_4d(index, 0, key as u32).map(f64::from);
+        let at = (col + u1, row + u2);
+        let ray = camera.ray(at.0, at.1);
+        let traced = crate::trace::TraceRay::new(ray.origin.as_vec3(), ray.direction.as_vec3());
+        SubPixel {
+            index,
+            at,
+            ray,
+            traced,
+        }
+    })
+}
+
 fn luminance(x: DVec3) -> f64 {
     x.dot(DVec3::new(0.2126, 0.7152, 0.0722))
 }

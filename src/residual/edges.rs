@@ -12,7 +12,7 @@ use super::objects::HIT_LEVEL;
 use super::room;
 use super::*;
 use crate::object_shading::Reading;
-use crate::trace::{Hit, Layer, TraceRay};
+use crate::trace::{Hit, Layer};
 use crate::util::rng::hash2;
 
 /// Camera rays per outline pixel and round.
@@ -44,15 +44,15 @@ pub(super) fn tasks(input: &ResidualInput) -> Vec<Task> {
 /// Round `round` of task `t`; returns the rays traced.
 pub(super) fn sample(input: &ResidualInput, t: &mut Task, round: u32) -> u64 {
     let shading = input.shading;
-    let width = input.pda.width;
-    let (col, row) = (t.pixel % width, t.pixel / width);
     let key = hash2(t.pixel as u64, 0xED6E_5A3B);
     let mut rays = 0;
-    for j in 0..ROUND_SUBPIXELS {
-        let index = round * ROUND_SUBPIXELS + j;
-        let [u1, u2, _, _] = sobol_burley::sample_4d(index, 0, key as u32).map(f64::from);
-        let ray = shading.camera.ray(col as f64 + u1, row as f64 + u2);
-        let traced = TraceRay::new(ray.origin.as_vec3(), ray.direction.as_vec3());
+    for sub in subpixels(input, t.pixel, key, round, ROUND_SUBPIXELS) {
+        let SubPixel {
+            index,
+            at,
+            ray,
+            traced,
+        } = sub;
         rays += 1;
         let part = match shading.tracer.intersect(&traced, Layer::All) {
             Some(h) if h.is_virtual => 0,
@@ -64,7 +64,7 @@ pub(super) fn sample(input: &ResidualInput, t: &mut Task, round: u32) -> u64 {
                     seed,
                     level: HIT_LEVEL,
                     objects: true,
-                    seen_at: Some((col as f64 + u1, row as f64 + u2)),
+                    seen_at: Some(at),
                     extra,
                 };
                 t.room += shading.arriving_at(&h, ray.origin, ray.direction, reading);

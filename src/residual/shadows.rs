@@ -99,15 +99,12 @@ pub(super) fn tasks(input: &ResidualInput) -> Vec<Task> {
 /// Round `round` of task `t`; returns the rays traced.
 pub(super) fn sample(input: &ResidualInput, t: &mut Task, round: u32) -> u64 {
     let shading = input.shading;
-    let width = input.pda.width;
-    let (col, row) = (t.pixel % width, t.pixel / width);
     let key = hash2(t.pixel as u64, 0x5AD0_11E5);
     let mut rays = 0;
-    for j in 0..ROUND_SUBPIXELS {
-        let index = round * ROUND_SUBPIXELS + j;
-        let [u1, u2, _, _] = sobol_burley::sample_4d(index, 0, key as u32).map(f64::from);
-        let ray = shading.camera.ray(col as f64 + u1, row as f64 + u2);
-        let traced = crate::trace::TraceRay::new(ray.origin.as_vec3(), ray.direction.as_vec3());
+    for sub in subpixels(input, t.pixel, key, round, ROUND_SUBPIXELS) {
+        let SubPixel {
+            index, ray, traced, ..
+        } = sub;
         rays += 1;
         // A sub-sample that shows an object is the object's pixel's
         // business: this one's light is the room's around it.
