@@ -1,0 +1,207 @@
+//! A scene's `[[variant]]` and `[[motion]]` tables, each checked against
+//! the scene's lights and objects as it is read.
+
+use super::*;
+
+impl Loader<'_> {
+    pub(in crate::scene) fn variant(
+        &self,
+        v: &Fields,
+        lights: &[Light],
+        objects: &[VirtualObject],
+    ) -> Result<Variant> {
+        let name = v.req_str("name")?.to_string();
+        let mut variant = Variant {
+            name,
+            lights: vec![],
+            objects: vec![],
+            hide_objects: vec![],
+            hide_lights: vec![],
+            reference: None,
+            reference_noise: None,
+        };
+        if let Some(t) = v.opt_table("lights")? {
+            for (lname, value) in t.entries() {
+                let key = t.key_path(lname);
+                let index = lights.iter().position(|l| l.name == lname).ok_or_else(|| {
+                    Error::key(self.file, key.clone(), format!("no light named '{lname}'"))
+                })?;
+                let scale =
+                    fields::number(value).map_err(|m| Error::key(self.file, key.clone(), m))?;
+                if scale < 0.0 {
+                    return Err(Error::key(
+                        self.file,
+                        key,
+                        "a light's scale must not be negative",
+                    ));
+                }
+                variant.lights.push((index, scale));
+            }
+        }
+        if let Some(t) = v.opt_table("objects")? {
+            for (oname, value) in t.entries() {
+                let key = t.key_path(oname);
+                let index = objects
+                    .iter()
+                    .position(|o| o.name == oname)
+                    .ok_or_else(|| {
+                        Error::key(
+                            self.file,
+                            key.clone(),
+                            format!("no virtual object named '{oname}'"),
+                        )
+                    })?;
+                let p = Fields::new(self.file, key.clone(), value)?;
+                let change = super::placement::pose_change(&p)?;
+                p.finish()?;
+                let o = &objects[index];
+                let pose = change.applied_to(&o.pose);
+                within_reach(o, &pose).map_err(|m| Error::key(self.file, key.clone(), m))?;
+                variant.objects.push((index, change));
+            }
+        }
+        if let Some(items) = v.opt_array("hide")? {
+            for (path, item) in items {
+                let toml::Value::String(n) = item else {
+                    return Err(Error::key(
+                        self.file,
+                        path,
+                        "must be the name of a virtual object or light",
+                    ));
+                };
+                if let Some(o) = objects.iter().position(|o| &o.name == n) {
+                    if variant.objects.iter().any(|(i, _)| *i == o) {
+                        return Err(Error::key(
+                            self.file,
+                            path,
+                            format!("'{n}' is both posed and hidden"),
+                        ));
+                    }
+                    variant.hide_objects.push(o);
+                } else if let Some(l) = lights.iter().position(|l| &l.name == n) {
+                    if variant.lights.iter().any(|(i, _)| *i == l) {
+                        return Err(Error::key(
+                            self.file,
+                            path,
+                            format!("'{n}' is both given a scale and hidden"),
+                        ));
+                    }
+                    variant.hide_lights.push(l);
+                } else {
+                    return Err(Error::key(
+                        self.file,
+                        path,
+                        format!("no virtual object or light named '{n}'"),
+                    ));
+                }
+            }
+        }
+        if let Some(rel) = v.opt_str("reference")? {
+            variant.reference = Some(self.existing_path(v, "reference", rel)?);
+        }
+        let declared = reference_noise(v, variant.reference.is_some())?;
+        let twin = match v.opt_str("reference_twin")? {
+            Some(_) if variant.reference.is_none() => {
+                return Err(v.error("reference_twin", "a twin needs the variant's reference"));
+            }
+            Some(rel) => Some(self.existing_path(v, "reference_twin", rel)?),
+            None => None,
+        };
+        variant.reference_noise = match (declared, twin) {
+            (Some(_), Some(_)) => {
+                return Err(v.error(
+                    "reference_twin",
+                    "give reference_noise or reference_twin, not both",
+                ));
+            }
+            (Some(n), None) => Some(super::ReferenceNoise::Declared(n)),
+            (None, Some(t)) => Some(super::ReferenceNoise::Twin(t)),
+            (None, None) => None,
+        };
+        v.finish()?;
+        Ok(variant)
+    }
+
+    pub(in crate::scene) fn motion(&self, m: &Fields, objects: &[VirtualObject]) -> Result<Motion> {
+        let name = m.req_str("name")?.to_string();
+        let oname = m.req_str("object")?;
+        let object = objects
+            .iter()
+            .position(|o| o.name == oname)
+            .ok_or_else(|| m.error("object", format!("no virtual object named '{oname}'")))?;
+        let items = m
+            .opt_array("translations")?
+            .ok_or_else(|| m.error("translations", "missing"))?;
+        if items.is_empty() {
+            return Err(m.error("translations", "needs at least one pose"));
+        }
+        let translations = items
+            .iter()
+            .map(|(path, v)| {
+                let translate =
+                    fields::place(v).map_err(|msg| Error::key(self.file, path.clone(), msg))?;
+                let o = &objects[object];
+                let pose = Pose {
+                    translate,
+                    ..o.pose
+                };
+                within_reach(o, &pose).map_err(|msg| Error::key(self.file, path.clone(), msg))?;
+                Ok(translate)
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let mut references = Vec::new();
+        if let Some(refs) = m.opt_array("references")? {
+            if refs.len() != translations.len() {
+                return Err(m.error(
+                    "references",
+                    format!(
+                        "{} references for {} poses: give one per pose",
+                        refs.len(),
+                        translations.len()
+                    ),
+                ));
+            }
+            for (path, v) in refs {
+                let toml::Value::String(rel) = v else {
+                    return Err(Error::key(self.file, path, "must be a file name"));
+                };
+                let p = self.dir.join(rel);
+                if !p.is_file() {
+                    return Err(Error::key(
+                        self.file,
+                        path,
+                        format!("file not found: {}", p.display()),
+                    ));
+                }
+                references.push(p);
+            }
+        }
+        let reference_noise = reference_noise(m, !references.is_empty())?;
+        m.finish()?;
+        Ok(Motion {
+            name,
+            object,
+            translations,
+            references,
+            reference_noise,
+        })
+    }
+}
+
+/// A variant's or motion's `reference_noise`: a relative RMSE in [0, 1),
+/// given only with references.
+fn reference_noise(t: &Fields, has_reference: bool) -> Result<Option<f64>> {
+    let Some(n) = t.opt_f64("reference_noise")? else {
+        return Ok(None);
+    };
+    if !has_reference {
+        return Err(t.error("reference_noise", "describes a reference: give one"));
+    }
+    if !(n.is_finite() && (0.0..1.0).contains(&n)) {
+        return Err(t.error(
+            "reference_noise",
+            format!("a relative RMSE in [0, 1) (0.0105 is 1.05%), not {n}"),
+        ));
+    }
+    Ok(Some(n))
+}
