@@ -83,6 +83,14 @@ fn the_noise_layer_tells_the_error_few_rounds_leave() {
     render(&few, &["--samples", "2", "--aov", aov.to_str().unwrap()]);
     render(&many, &["--samples", "64"]);
     let (few, many) = (read_image(&few).unwrap(), read_image(&many).unwrap());
+    // No round's estimate leaves a pixel negative or not finite (a
+    // correction below the interpolated light is clamped where it would).
+    for (name, image) in [("2 rounds", &few), ("64 rounds", &many)] {
+        let bad = (image.pixels.iter())
+            .filter(|p| !p.is_finite() || p.min_element() < 0.0)
+            .count();
+        assert_eq!(bad, 0, "{name}: {bad} pixels negative or not finite");
+    }
     let noise = read_image(&aov.join("noise.exr")).unwrap();
     // A one-channel layer reads back grey.
     let sd: Vec<f64> = noise.pixels.iter().map(|p| p.x as f64).collect();
@@ -244,4 +252,40 @@ fn a_time_budget_reports_its_rounds_and_samples_reproduce_them() {
             "{name}: --time's image is not --samples {rounds}'s"
         );
     }
+}
+
+#[test]
+fn rounds_stay_finite_with_a_lamp_a_millimetre_from_the_floor_beside_the_box() {
+    use arlux::scene::LightPosition;
+    let base = common::desk();
+    let mut scene = base.with_variant("box_floor_a").unwrap();
+    // The desk's virtual bulb switched on 1 mm above the floor, 5 cm from
+    // the box: its light on the floor and the box spans orders of magnitude.
+    let bulb = scene.light_index("bulb").unwrap();
+    scene.lights[bulb].position = LightPosition::Known(glam::DVec3::new(0.6, 0.001, -0.2));
+    scene.lights[bulb].scale = 1.0;
+    scene.check_light_clearance().unwrap();
+    let photo = scene.load_photo().unwrap();
+    let mut settings = arlux::render::RenderSettings::default();
+    settings.residual.samples = 4;
+    let out = arlux::render::render(
+        &scene,
+        &photo,
+        &settings,
+        &mut arlux::model::StageTimes::default(),
+    )
+    .unwrap();
+    assert_eq!(out.residual.map(|r| r.rounds), Some(4));
+    let c = &out.composite;
+    for (name, image) in [
+        ("image", &c.image),
+        ("direct", &c.direct),
+        ("indirect", &c.indirect),
+    ] {
+        let bad = (image.pixels.iter())
+            .filter(|p| !p.is_finite() || p.min_element() < 0.0)
+            .count();
+        assert_eq!(bad, 0, "{name}: {bad} pixels negative or not finite");
+    }
+    assert!(c.noise.iter().all(|n| n.is_finite() && *n >= 0.0));
 }
