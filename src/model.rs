@@ -185,7 +185,7 @@ impl Model {
             .collect();
         // The photo shows the real lights as they are and no virtual light.
         let scales: Vec<f64> = lights.iter().map(|l| l.photo_scale()).collect();
-        let direct = total_direct(&scales, &direct_per_light);
+        let direct = total_direct(patches.patch_count(), &scales, &direct_per_light);
         let estimate = times.time("estimate + solve", || {
             estimate_reflectances(
                 &patches,
@@ -320,7 +320,7 @@ pub fn bracket_scale(
     let patches = Patches::of_scene(scene, false, settings.patch_size);
     let per_light = direct_irradiance(&patches, &lights, tracer, Layer::Real, settings.light_level);
     let scales: Vec<f64> = lights.iter().map(|l| l.photo_scale()).collect();
-    let direct = total_direct(&scales, &per_light);
+    let direct = total_direct(patches.patch_count(), &scales, &per_light);
     let transport = room_transport(
         scene,
         &patches,

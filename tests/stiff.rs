@@ -202,3 +202,52 @@ fn the_texture_path_stays_finite_on_stiff_cases() {
         }
     }
 }
+
+/// Every light off with an object shown (a variant that used to panic once
+/// the room's solution was kept): radiance is linear in the lights, so every
+/// pixel the model explains goes to exactly 0 on both methods; only the
+/// pixels copied from the photo (seen nowhere in the model) keep it. With
+/// `--samples` the rounds add nothing either.
+#[test]
+fn every_light_off_renders_black_where_the_model_sees() {
+    use arlux::relight::{TextureSettings, render_texture};
+    use arlux::render::{RenderSettings, render};
+    let mut scene = desk();
+    scene.lights.iter_mut().for_each(|l| l.scale = 0.0);
+    assert!(scene.objects.iter().any(|o| o.enabled));
+    let photo = scene.load_photo().unwrap();
+    let pda = |samples: u32| {
+        let mut settings = RenderSettings::default();
+        settings.residual.samples = samples;
+        render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap()
+    };
+    let texture = render_texture(
+        &scene,
+        &photo,
+        &TextureSettings::default(),
+        &mut StageTimes::default(),
+    )
+    .unwrap();
+    for (name, out) in [
+        ("pda", pda(0)),
+        ("pda, 4 rounds", pda(4)),
+        ("texture", texture),
+    ] {
+        let img = &out.composite.image;
+        assert!(all_finite(img), "{name}: a non-finite or negative pixel");
+        let lit: Vec<usize> = (0..img.pixels.len())
+            .filter(|&i| img.pixels[i] != glam::Vec3::ZERO)
+            .collect();
+        assert!(
+            lit.iter().all(|&i| img.pixels[i] == photo.pixels[i]),
+            "{name}: a pixel neither black nor the photo's"
+        );
+        assert!(
+            lit.len() <= out.composite.copied,
+            "{name}: {} pixels lit, {} copied from the photo",
+            lit.len(),
+            out.composite.copied
+        );
+        assert!(out.composite.copied < img.pixels.len() / 20, "{name}");
+    }
+}

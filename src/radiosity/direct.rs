@@ -190,9 +190,9 @@ pub(super) fn patch_direct_by(
         .sum()
 }
 
-/// Total direct irradiance per patch: Σ scale × per-light irradiance.
-pub fn total_direct(scales: &[f64], per_light: &[Vec<DVec3>]) -> Vec<DVec3> {
-    let n = per_light.first().map_or(0, |v| v.len());
+/// Total direct irradiance of `n` patches: Σ scale × per-light irradiance
+/// (the count is given: with every light off there is no list to take it from).
+pub fn total_direct(n: usize, scales: &[f64], per_light: &[Vec<DVec3>]) -> Vec<DVec3> {
     let mut e = vec![DVec3::ZERO; n];
     for (&scale, values) in scales.iter().zip(per_light) {
         if scale > 0.0 {

@@ -163,7 +163,11 @@ pub(super) fn room_solution(
     times: &mut StageTimes,
 ) -> Solution {
     times.time("solve the room", || {
-        let e = total_direct(scales_with, &model.direct_per_light);
+        let e = total_direct(
+            model.patches.patch_count(),
+            scales_with,
+            &model.direct_per_light,
+        );
         let reflectance = &model.estimate.reflectance;
         let b: Vec<DVec3> = reflectance.iter().zip(&e).map(|(r, e)| *r * *e).collect();
         solve_from(
@@ -241,8 +245,8 @@ pub(super) fn solve_changes(
     let system = ChangeSystem {
         input,
         view: &view,
-        direct: total_direct(&scales_on, &direct),
-        room_direct: total_direct(input.scales_with, &model.direct_per_light),
+        direct: total_direct(patches.patch_count(), &scales_on, &direct),
+        room_direct: total_direct(room_count, input.scales_with, &model.direct_per_light),
         reflectance: &reflectance,
     };
     // The objects' radiosity from their direct light, the room's as kept.
