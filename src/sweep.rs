@@ -471,7 +471,7 @@ pub fn skill_floor(
             None => return Ok(None),
             Some(ReferenceNoise::Declared(n)) => *n,
             Some(ReferenceNoise::Twin(t)) => {
-                let twin = scene.fit_size(read_image(t)?, "reference_twin", t)?;
+                let twin = scene.read_reference(&format!("variant '{name}'.reference_twin"), t)?;
                 crate::compare::twin_noise(&references[0], &twin)
             }
         },

@@ -29,6 +29,7 @@ fn reference_reflectances(scene: &Scene) -> HashMap<u32, DVec3> {
     let patches = Patches::of_scene(scene, false, 0.25);
     let scales: Vec<f64> = lights.iter().map(|l| l.photo_scale()).collect();
     let direct = total_direct(
+        patches.patch_count(),
         &scales,
         &direct_irradiance(&patches, &lights, &tracer, Layer::Real, 4),
     );

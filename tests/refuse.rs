@@ -110,6 +110,48 @@ fn a_bad_reference_stops_render_before_any_work_and_keeps_the_output() {
     }
 }
 
+/// A reference missing for one variant stops only what compares against
+/// it: another variant renders (with a warning naming the missing file),
+/// that variant's render is refused before any work, naming its key.
+#[test]
+fn a_missing_reference_stops_only_its_own_variant() {
+    let desk = Desk::new();
+    desk.edit(
+        "scene.toml",
+        "reference = \"truth/box_table.exr\"",
+        "reference = \"truth/gone.exr\"",
+    );
+    let out = desk.path("a.exr");
+    let run = arlux(&[
+        "render",
+        &desk.scene(),
+        "--variant",
+        "panel_off",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains("variant 'box_table'.reference: file not found") && out.is_file(),
+        "{stderr}"
+    );
+    let run = arlux(&[
+        "render",
+        &desk.scene(),
+        "--variant",
+        "box_table",
+        "-o",
+        desk.path("b.exr").to_str().unwrap(),
+        "--timings",
+    ]);
+    refused_before_work(
+        &run,
+        &["variant 'box_table'.reference: file not found", "gone.exr"],
+    );
+    assert!(!desk.path("b.exr").exists());
+}
+
 #[test]
 fn a_bad_reference_of_a_later_pose_stops_motion_before_its_first_frame() {
     let desk = Desk::new();

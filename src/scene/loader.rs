@@ -92,6 +92,34 @@ pub(super) struct Loader<'a> {
     pub(super) dir: PathBuf,
 }
 
+/// A warning per reference file that is not there: the scene loads and
+/// renders, and what compares against it stops with the key.
+fn missing_references(variants: &[Variant], motions: &[Motion]) -> Vec<String> {
+    let mut files: Vec<(String, &Path)> = Vec::new();
+    for v in variants {
+        if let Some(r) = &v.reference {
+            files.push((format!("variant '{}'.reference", v.name), r));
+        }
+        if let Some(super::ReferenceNoise::Twin(t)) = &v.reference_noise {
+            files.push((format!("variant '{}'.reference_twin", v.name), t));
+        }
+    }
+    for m in motions {
+        for (i, r) in m.references.iter().enumerate() {
+            files.push((format!("motion '{}'.references[{i}]", m.name), r));
+        }
+    }
+    (files.into_iter())
+        .filter(|(_, f)| !f.is_file())
+        .map(|(key, f)| {
+            format!(
+                "{key}: file not found: {} (what compares against it will stop)",
+                f.display()
+            )
+        })
+        .collect()
+}
+
 impl Loader<'_> {
     /// A path from the file, resolved and checked to exist.
     pub(super) fn existing_path(
@@ -105,6 +133,22 @@ impl Loader<'_> {
             Ok(m) if m.is_file() => Ok(p),
             Ok(_) => Err(f.error(key, format!("{} is not a file", p.display()))),
             Err(_) => Err(f.error(key, format!("file not found: {}", p.display()))),
+        }
+    }
+
+    /// A reference image's path, resolved. A missing one is not an error
+    /// here: only a command that compares against it needs it (it stops
+    /// then, naming the key); loading warns ([`missing_references`]).
+    pub(super) fn reference_path(
+        &self,
+        f: &Fields,
+        key: &'static str,
+        rel: &str,
+    ) -> Result<PathBuf> {
+        let p = self.dir.join(rel);
+        match std::fs::metadata(&p) {
+            Ok(m) if !m.is_file() => Err(f.error(key, format!("{} is not a file", p.display()))),
+            _ => Ok(p),
         }
     }
 
@@ -174,6 +218,7 @@ impl Loader<'_> {
             motions.push(motion);
         }
         top.finish()?;
+        warnings.extend(missing_references(&variants, &motions));
 
         let scene = Scene {
             name,

@@ -550,8 +550,20 @@ impl Scene {
     /// checks it fits the camera ([`Scene::fit_size`]): what a command does
     /// before any work, so that a bad reference stops it before the render.
     pub fn check_reference(&self, key: &str, file: &Path) -> Result<()> {
-        let img = image_io::read_image(file)?;
-        self.fit_size(img, key, file).map(drop)
+        self.read_reference(key, file).map(drop)
+    }
+
+    /// The reference photograph `file` (given at `key`) at the camera's
+    /// size; a missing file is an error naming the key (loading only warns).
+    pub fn read_reference(&self, key: &str, file: &Path) -> Result<Image> {
+        if !file.is_file() {
+            return Err(Error::key(
+                &self.file,
+                key,
+                format!("file not found: {}", file.display()),
+            ));
+        }
+        self.fit_size(image_io::read_image(file)?, key, file)
     }
 
     /// `img`, read from `file`, at the camera's size: as it is when it has

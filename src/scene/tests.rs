@@ -262,13 +262,6 @@ const BAD_VALUES: &[(&[(&str, &str)], &str)] = &[
         "variant[3].hide[0]: no virtual object or light named 'bx'",
     ),
     (
-        &[(
-            "reference = \"truth/spot_x2.exr\"",
-            "reference = \"truth/spot_x3.exr\"",
-        )],
-        "variant[4].reference: file not found",
-    ),
-    (
         &[("object = \"box\"", "object = \"crate\"")],
         "motion[0].object: no virtual object named 'crate'",
     ),
@@ -396,6 +389,36 @@ fn lights_on_or_inside_surfaces_are_refused_but_millimetres_away_is_fine() {
         err.contains("variant[1]") && err.contains("inside the closed surface 'box/box'"),
         "{err}"
     );
+}
+
+/// A missing reference stops only what compares against it: the scene
+/// loads with a warning naming the variant, and reading that reference is
+/// an error naming its key.
+#[test]
+fn a_missing_reference_warns_and_stops_only_its_comparison() {
+    let e = edited(&[(
+        "reference = \"truth/spot_x2.exr\"",
+        "reference = \"truth/spot_x3.exr\"",
+    )]);
+    let s = Scene::load(&e.file).unwrap();
+    assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+    assert!(
+        s.warnings[0].starts_with("variant 'spot_x2'.reference: file not found: ")
+            && s.warnings[0].contains("spot_x3.exr"),
+        "{}",
+        s.warnings[0]
+    );
+    let missing = s.variant("spot_x2").unwrap().reference.clone().unwrap();
+    let err = (s.check_reference("variant 'spot_x2'.reference", &missing))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("scene.toml: variant 'spot_x2'.reference: file not found"),
+        "{err}"
+    );
+    let present = s.variant("panel_off").unwrap().reference.clone().unwrap();
+    s.check_reference("variant 'panel_off'.reference", &present)
+        .unwrap();
 }
 
 #[test]

@@ -97,14 +97,14 @@ impl Loader<'_> {
             }
         }
         if let Some(rel) = v.opt_str("reference")? {
-            variant.reference = Some(self.existing_path(v, "reference", rel)?);
+            variant.reference = Some(self.reference_path(v, "reference", rel)?);
         }
         let declared = reference_noise(v, variant.reference.is_some())?;
         let twin = match v.opt_str("reference_twin")? {
             Some(_) if variant.reference.is_none() => {
                 return Err(v.error("reference_twin", "a twin needs the variant's reference"));
             }
-            Some(rel) => Some(self.existing_path(v, "reference_twin", rel)?),
+            Some(rel) => Some(self.reference_path(v, "reference_twin", rel)?),
             None => None,
         };
         variant.reference_noise = match (declared, twin) {
@@ -165,15 +165,7 @@ impl Loader<'_> {
                 let toml::Value::String(rel) = v else {
                     return Err(Error::key(self.file, path, "must be a file name"));
                 };
-                let p = self.dir.join(rel);
-                if !p.is_file() {
-                    return Err(Error::key(
-                        self.file,
-                        path,
-                        format!("file not found: {}", p.display()),
-                    ));
-                }
-                references.push(p);
+                references.push(self.dir.join(rel));
             }
         }
         let reference_noise = reference_noise(m, !references.is_empty())?;
