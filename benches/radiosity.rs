@@ -43,6 +43,7 @@ fn bench(c: &mut Criterion) {
         let transport =
             Transport::hierarchical(&patches, &tracer, Layer::Real, DEFAULT_LINK_EPSILON);
         let e = total_direct(
+            patches.patch_count(),
             &photo_scales(&lights),
             &direct_irradiance(&patches, &lights, &tracer, Layer::Real, 4),
         );

@@ -27,6 +27,7 @@ fn desk_at_half_a_metre() -> (Scene, arlux::trace::Tracer, Patches, Vec<DVec3>) 
     let lights = LightSource::all(&scene).unwrap();
     let patches = Patches::of_scene(&scene, false, 0.5);
     let e = total_direct(
+        patches.patch_count(),
         &photo_scales(&lights),
         &direct_irradiance(&patches, &lights, &tracer, Layer::Real, 4),
     );
@@ -90,6 +91,7 @@ fn the_left_wall_reflectance_is_recovered_without_its_known_value() {
     let lights = LightSource::all(&scene).unwrap();
     let patches = Patches::of_scene(&scene, false, 0.25);
     let e = total_direct(
+        patches.patch_count(),
         &photo_scales(&lights),
         &direct_irradiance(&patches, &lights, &tracer, Layer::Real, 6),
     );
