@@ -1,6 +1,8 @@
 //! `scene.toml` read key by key into a [`Scene`]: each value checked where
 //! it is read, each error naming the key.
 
+use std::sync::Arc;
+
 use super::*;
 
 mod variants;
@@ -90,6 +92,12 @@ pub(super) const MAX_SIDE: u32 = 1 << 15;
 pub(super) struct Loader<'a> {
     pub(super) file: &'a Path,
     pub(super) dir: PathBuf,
+    /// Each mesh file read once, whatever the number of objects using it:
+    /// their materials then share one copy of every texture.
+    pub(super) meshes: std::cell::RefCell<HashMap<PathBuf, std::rc::Rc<geometry::Mesh>>>,
+    /// A shaded surface's per-corner attributes (with the tangent frames a
+    /// normal map needs), by mesh file and surface: shared the same way.
+    shading: std::cell::RefCell<HashMap<(PathBuf, usize), Arc<crate::materials::Attributes>>>,
 }
 
 /// A warning per reference file that is not there: the scene loads and
@@ -120,7 +128,58 @@ fn missing_references(variants: &[Variant], motions: &[Motion]) -> Vec<String> {
         .collect()
 }
 
-impl Loader<'_> {
+impl<'a> Loader<'a> {
+    pub(super) fn new(file: &'a Path, dir: PathBuf) -> Self {
+        Loader {
+            file,
+            dir,
+            meshes: Default::default(),
+            shading: Default::default(),
+        }
+    }
+
+    /// Surface `i` of the mesh at `path`: its attributes for shading, with
+    /// MikkTSpace tangents when its material has a normal map.
+    fn attributes(
+        &self,
+        path: &Path,
+        i: usize,
+        s: &geometry::MeshSurface,
+    ) -> Arc<crate::materials::Attributes> {
+        let key = (path.to_path_buf(), i);
+        if let Some(a) = self.shading.borrow().get(&key) {
+            return a.clone();
+        }
+        let normal_map = s
+            .material
+            .as_ref()
+            .is_some_and(|m| m.normal_texture.is_some());
+        let a = Arc::new(match normal_map {
+            true => s.attributes.clone().with_mikktspace(&s.triangles),
+            false => s.attributes.clone(),
+        });
+        self.shading.borrow_mut().insert(key, a.clone());
+        a
+    }
+
+    /// The mesh at `path`, read on first use (its warnings given then).
+    fn mesh(
+        &self,
+        path: &Path,
+        is_virtual: bool,
+        warnings: &mut Vec<String>,
+    ) -> Result<std::rc::Rc<geometry::Mesh>> {
+        if let Some(m) = self.meshes.borrow().get(path) {
+            return Ok(m.clone());
+        }
+        let mesh = std::rc::Rc::new(geometry::load_mesh(path)?);
+        warnings.extend(mesh_warnings(path, &mesh, is_virtual));
+        self.meshes
+            .borrow_mut()
+            .insert(path.to_path_buf(), mesh.clone());
+        Ok(mesh)
+    }
+
     /// A path from the file, resolved and checked to exist.
     pub(super) fn existing_path(
         &self,
@@ -602,12 +661,12 @@ impl Loader<'_> {
             roughness: unit_interval(v, "roughness")?,
         };
         v.finish()?;
-        let mesh =
-            geometry::load_mesh(&path).map_err(|e| e.within(self.file, v.key_path("mesh")))?;
-        warnings.extend(mesh_warnings(&path, &mesh, true));
+        let mesh = (self.mesh(&path, true, warnings))
+            .map_err(|e| e.within(self.file, v.key_path("mesh")))?;
         let mut surfaces = Vec::new();
-        for s in mesh.surfaces {
-            let material = super::materials::surface_material(&s, rgb, looks)
+        for (i, s) in mesh.surfaces.iter().enumerate() {
+            let attributes = || self.attributes(&path, i, s);
+            let material = super::materials::surface_material(s, rgb, looks, attributes)
                 .map_err(|m| v.error("rgb", m))?;
             let rgb = match (&material, rgb, s.material_rgb) {
                 (Some(m), _, _) => m.material.mean_albedo(),
@@ -625,8 +684,8 @@ impl Loader<'_> {
                 }
             };
             surfaces.push(ObjectSurface {
-                name: s.name,
-                triangles: s.triangles,
+                name: s.name.clone(),
+                triangles: s.triangles.clone(),
                 rgb,
                 material,
             });

@@ -23,6 +23,7 @@ pub(super) fn surface_material(
     s: &MeshSurface,
     rgb: Option<DVec3>,
     looks: Overrides,
+    attributes: impl FnOnce() -> Arc<crate::materials::Attributes>,
 ) -> Result<Option<SurfaceMaterial>, String> {
     let mut material = match (&s.material, looks.metallic.or(looks.roughness)) {
         (Some(m), _) => (**m).clone(),
@@ -51,12 +52,8 @@ pub(super) fn surface_material(
         material.roughness = r as f32;
         material.metallic_roughness_texture = None;
     }
-    let attributes = match material.normal_texture {
-        Some(_) => s.attributes.clone().with_mikktspace(&s.triangles),
-        None => s.attributes.clone(),
-    };
     Ok(Some(SurfaceMaterial {
         material: Arc::new(material),
-        attributes: Arc::new(attributes),
+        attributes: attributes(),
     }))
 }

@@ -330,7 +330,7 @@ impl Scene {
             }
         })?;
         let dir = file.parent().unwrap_or(Path::new("")).to_path_buf();
-        let mut scene = Loader { file, dir }.scene(&table)?;
+        let mut scene = Loader::new(file, dir).scene(&table)?;
         scene.source = text;
         Ok(scene)
     }
@@ -447,10 +447,7 @@ impl Scene {
     /// end that edits the scene (`arlux serve`) builds, so that what it
     /// renders is what the variant, once written, renders.
     pub fn parse_variant(&self, table: &toml::Table) -> Result<Variant> {
-        let loader = Loader {
-            file: &self.file,
-            dir: self.dir().to_path_buf(),
-        };
+        let loader = Loader::new(&self.file, self.dir().to_path_buf());
         let fields = fields::Fields::of_table(&self.file, "variant", table);
         loader.variant(&fields, &self.lights, &self.objects)
     }

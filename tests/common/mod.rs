@@ -9,6 +9,7 @@ use std::process::{Command, Output};
 use arlux::image_io::{Image, read_image};
 use arlux::scene::Scene;
 
+pub mod asset;
 pub mod serve;
 
 /// The folder of the example scene `name` (`desk`, `lounge`, `whitebox`).

@@ -1,0 +1,85 @@
+//! Real assets as users bring them (a generated glTF made like a Blender
+//! export: textures, a normal map, nested node scales) inserted into the
+//! desk.
+
+mod common;
+use common::Desk;
+use common::asset::{AssetSpec, write_asset};
+
+use std::sync::Arc;
+
+use arlux::scene::Scene;
+
+/// A smaller prop than the benches' (tests stay quick), same kind.
+fn prop() -> AssetSpec {
+    AssetSpec {
+        triangles: 8_000,
+        texture: 256,
+        ..AssetSpec::heavy_prop()
+    }
+}
+
+/// `[[virtual]]` tables placing `geometry/NAME.gltf` at each of `at`.
+fn place(desk: &Desk, name: &str, at: &[[f64; 3]]) {
+    let mut text = std::fs::read_to_string(desk.path("scene.toml")).unwrap();
+    for (i, p) in at.iter().enumerate() {
+        text += &format!(
+            "\n[[virtual]]\nname = \"{name}_{i}\"\nmesh = \"geometry/{name}.gltf\"\ntranslate = [{}, {}, {}]\n",
+            p[0], p[1], p[2]
+        );
+    }
+    std::fs::write(desk.path("scene.toml"), text).unwrap();
+}
+
+/// Three objects from one file: the file is read once, and every texture
+/// and the normal map's tangent frames are one copy shared by the three.
+#[test]
+fn objects_from_one_file_share_one_copy_of_it() {
+    let desk = Desk::new();
+    write_asset(&desk.path("geometry"), "prop", &prop());
+    place(
+        &desk,
+        "prop",
+        &[[0.3, 0.0, -0.3], [-0.2, 0.0, 0.4], [-0.9, 0.75, -1.3]],
+    );
+    let scene = Scene::load(desk.path("scene.toml")).unwrap();
+    let props: Vec<_> = (scene.objects.iter())
+        .filter(|o| o.name.starts_with("prop_"))
+        .collect();
+    assert_eq!(props.len(), 3);
+    let material = |o: &arlux::scene::VirtualObject| o.surfaces[0].material.clone().unwrap();
+    let first = material(props[0]);
+    let texture = |m: &arlux::materials::SurfaceMaterial| {
+        m.material
+            .base_texture
+            .clone()
+            .expect("a base colour texture")
+    };
+    let normal =
+        |m: &arlux::materials::SurfaceMaterial| m.material.normal_texture.clone().unwrap().0;
+    for o in &props[1..] {
+        let m = material(o);
+        assert!(
+            Arc::ptr_eq(&texture(&first), &texture(&m)),
+            "{}: a second base texture",
+            o.name
+        );
+        assert!(
+            Arc::ptr_eq(&normal(&first), &normal(&m)),
+            "{}: a second normal map",
+            o.name
+        );
+        assert!(
+            Arc::ptr_eq(&first.attributes, &m.attributes),
+            "{}: second attributes",
+            o.name
+        );
+    }
+    // Placed where asked, at the size made: nested node scales applied once.
+    let size = props[0].surfaces[0]
+        .triangles
+        .iter()
+        .flat_map(|t| t.iter())
+        .fold(0.0f32, |h, p| h.max(p.y));
+    assert!((size - 0.45).abs() < 1e-4, "height {size}");
+}
