@@ -93,3 +93,21 @@ fn a_texture_s_up_is_the_bitangent_mirrored_or_not() {
         assert!(up.y > 0.7 && up.x.abs() < 1e-12, "{up}");
     }
 }
+
+/// A shading normal that turns from the viewer is bent towards the
+/// geometric one just enough that the view's mirror direction leaves the
+/// surface at the threshold; a valid one is kept as it is.
+#[test]
+fn a_shading_normal_turned_from_the_viewer_is_bent_back_just_enough() {
+    let ng = DVec3::Z;
+    let v = DVec3::new(60f64.to_radians().sin(), 0.0, 60f64.to_radians().cos());
+    let tilted = |deg: f64| DVec3::new(-deg.to_radians().sin(), 0.0, deg.to_radians().cos());
+    let kept = tilted(10.0);
+    assert_eq!(super::towards_the_viewer(ng, v, kept), kept);
+    let n = super::towards_the_viewer(ng, v, tilted(85.0));
+    assert!((n.length() - 1.0).abs() < 1e-12 && n.dot(v) > 0.0);
+    let mirror = 2.0 * n.dot(v) * n - v;
+    assert!((mirror.dot(ng) - 0.01).abs() < 1e-6, "{}", mirror.dot(ng));
+    // In the plane of the two normals, between them.
+    assert!(n.y.abs() < 1e-12 && n.x < 0.0 && n.z < 1.0);
+}

@@ -26,6 +26,8 @@ pub struct AssetSpec {
     /// Grooves in the normal map tilting the shading normal this far from
     /// the surface's (degrees; 0: a flat normal map).
     pub groove_deg: f64,
+    /// Grooves round the object (each 40% of its period wide).
+    pub grooves: u32,
 }
 
 impl AssetSpec {
@@ -37,6 +39,7 @@ impl AssetSpec {
             width: 0.22,
             height: 0.45,
             groove_deg: 70.0,
+            grooves: 48,
         }
     }
 }
@@ -142,12 +145,13 @@ fn write_textures(dir: &Path, name: &str, spec: &AssetSpec) {
                 y,
                 image::Rgb([0, (rough * 255.0) as u8, (metal * 255.0) as u8]),
             );
-            // Grooves every 1/48 of the way round: the normal turns across
-            // each groove's width to `tilt` on either side.
-            let g = (u * 48.0).fract();
-            let across = match g < 0.25 {
-                true => (g / 0.25 * 2.0 - 1.0) * tilt,
-                false => 0.0,
+            // V-shaped grooves round the object (stitching, a knurl): each
+            // wall tilts the normal by `tilt`, one way then the other.
+            let g = (u * spec.grooves as f64).fract();
+            let across = match g {
+                g if g < 0.2 => -tilt,
+                g if g < 0.4 => tilt,
+                _ => 0.0,
             };
             let t = [across.sin(), 0.0, across.cos()];
             normal.put_pixel(
