@@ -5,7 +5,10 @@ use std::sync::Arc;
 
 use super::*;
 
+mod showing;
 mod variants;
+
+pub use showing::Showing;
 
 /// A table's `surface` key: the name and the index of the real surface it names.
 pub(super) fn real_surface<'a>(r: &Fields<'a>, surfaces: &[Surface]) -> Result<(&'a str, usize)> {
@@ -98,6 +101,8 @@ pub(super) struct Loader<'a> {
     /// A shaded surface's per-corner attributes (with the tangent frames a
     /// normal map needs), by mesh file and surface: shared the same way.
     shading: std::cell::RefCell<HashMap<(PathBuf, usize), Arc<crate::materials::Attributes>>>,
+    /// The objects whose meshes are read (None: all of them).
+    pub(super) shown: Option<std::collections::HashSet<String>>,
 }
 
 /// A warning per reference file that is not there: the scene loads and
@@ -135,6 +140,20 @@ impl<'a> Loader<'a> {
             dir,
             meshes: Default::default(),
             shading: Default::default(),
+            shown: None,
+        }
+    }
+
+    /// The loader for `table`, reading only the meshes `showing` needs.
+    pub(super) fn showing(
+        file: &'a Path,
+        dir: PathBuf,
+        table: &toml::Table,
+        showing: Showing,
+    ) -> Self {
+        Loader {
+            shown: showing::shown_names(table, showing),
+            ..Loader::new(file, dir)
         }
     }
 
@@ -661,6 +680,20 @@ impl<'a> Loader<'a> {
             roughness: unit_interval(v, "roughness")?,
         };
         v.finish()?;
+        if self
+            .shown
+            .as_ref()
+            .is_some_and(|shown| !shown.contains(&name))
+        {
+            return Ok(VirtualObject {
+                name,
+                mesh: path,
+                surfaces: Vec::new(),
+                pose,
+                enabled,
+                mesh_read: false,
+            });
+        }
         let mesh = (self.mesh(&path, true, warnings))
             .map_err(|e| e.within(self.file, v.key_path("mesh")))?;
         let mut surfaces = Vec::new();
@@ -696,6 +729,7 @@ impl<'a> Loader<'a> {
             surfaces,
             pose,
             enabled,
+            mesh_read: true,
         };
         within_reach(&object, &pose).map_err(|m| v.error("scale", m))?;
         Ok(object)

@@ -236,6 +236,10 @@ pub struct VirtualObject {
     pub surfaces: Vec<ObjectSurface>,
     pub pose: Pose,
     pub enabled: bool,
+    /// Whether its mesh was read: a scene loaded for one variant or motion
+    /// ([`Scene::load_showing`]) leaves the others' unread (no surfaces),
+    /// and refuses to show them.
+    pub mesh_read: bool,
 }
 
 impl VirtualObject {
@@ -319,6 +323,13 @@ impl Scene {
     /// Reads and validates `scene.toml` and every file it names (meshes are
     /// loaded; images are checked to exist and read later, when needed).
     pub fn load(file: impl AsRef<Path>) -> Result<Scene> {
+        Scene::load_showing(file, Showing::Everything)
+    }
+
+    /// [`Scene::load`], reading the meshes of only the objects `showing`
+    /// shows: a variant, a motion or the base scene does not pay for the
+    /// objects it leaves out. Every key is still checked.
+    pub fn load_showing(file: impl AsRef<Path>, showing: Showing) -> Result<Scene> {
         let file = file.as_ref();
         let text = std::fs::read_to_string(file).map_err(|e| Error::io(file, &e))?;
         let table: toml::Table = text.parse().map_err(|e: toml::de::Error| {
@@ -330,7 +341,7 @@ impl Scene {
             }
         })?;
         let dir = file.parent().unwrap_or(Path::new("")).to_path_buf();
-        let mut scene = Loader::new(file, dir).scene(&table)?;
+        let mut scene = Loader::showing(file, dir, &table, showing).scene(&table)?;
         scene.source = text;
         Ok(scene)
     }
@@ -466,11 +477,28 @@ impl Scene {
         for &o in &variant.hide_objects {
             s.objects[o].enabled = false;
         }
+        s.check_shown_read(&format!("variant '{}'", variant.name))?;
         for &l in &variant.hide_lights {
             s.lights[l].scale = 0.0;
         }
         s.check_light_clearance()?;
         Ok(s)
+    }
+
+    /// An error when an enabled object's mesh was not read (the scene was
+    /// loaded for something else): never an image silently without it.
+    fn check_shown_read(&self, what: &str) -> Result<()> {
+        match self.objects.iter().find(|o| o.enabled && !o.mesh_read) {
+            None => Ok(()),
+            Some(o) => Err(Error::key(
+                &self.file,
+                what,
+                format!(
+                    "shows '{}', whose mesh was not read: load the scene for it (Scene::load_showing)",
+                    o.name
+                ),
+            )),
+        }
     }
 
     /// The effective scene at pose `index` of motion `name`: the motion's
@@ -491,6 +519,7 @@ impl Scene {
         let o = &mut s.objects[motion.object];
         o.enabled = true;
         o.pose.translate = t;
+        s.check_shown_read(&format!("motion '{name}'"))?;
         s.check_light_clearance()
             .map_err(|e| e.within(&self.file, format!("motion '{name}' pose {index}")))?;
         Ok(s)
@@ -705,6 +734,7 @@ impl Scene {
     }
 }
 
+pub use loader::Showing;
 use loader::*;
 
 #[cfg(test)]

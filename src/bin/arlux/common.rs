@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use serde_json::json;
 
 use arlux::image_io::{self, Image};
-use arlux::scene::{Photo, Scene};
+use arlux::scene::{Photo, Scene, Showing};
 
 /// The version of every `--json` report's layout (`docs/json.md`): raised
 /// when a field changes meaning or goes away.
@@ -46,15 +46,22 @@ pub(crate) fn print_report<R: Report>(report: &R, as_json: bool) -> Result<()> {
 }
 
 pub(crate) fn load(path: &Path, variant: Option<&str>) -> Result<Scene> {
-    let scene = Scene::load(path)?;
-    crate::outputs::refuse_inputs(&scene.input_files())?;
-    for w in &scene.warnings {
-        eprintln!("warning: {w}");
-    }
+    let scene = load_showing(path, variant.map_or(Showing::Base, Showing::Variant))?;
     Ok(match variant {
         Some(v) => scene.with_variant(v)?,
         None => scene,
     })
+}
+
+/// The scene with the meshes of what `showing` shows read (the others'
+/// files checked, not read), its warnings said.
+pub(crate) fn load_showing(path: &Path, showing: Showing) -> Result<Scene> {
+    let scene = Scene::load_showing(path, showing)?;
+    crate::outputs::refuse_inputs(&scene.input_files())?;
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(scene)
 }
 
 /// The scene's photo, saying how many negative pixels it had (clamped to 0).

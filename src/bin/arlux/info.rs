@@ -26,7 +26,14 @@ pub fn run(args: &Args) -> Result<()> {
     let path = args.scene.as_path();
     let variant = args.variant.as_deref();
     let as_json = args.json;
-    let scene = stage("load", || load(path, variant))?;
+    // Every object's size is reported: every mesh is read.
+    let scene = stage("load", || {
+        let scene = load_showing(path, arlux::scene::Showing::Everything)?;
+        match variant {
+            Some(v) => Ok::<_, anyhow::Error>(scene.with_variant(v)?),
+            None => Ok(scene),
+        }
+    })?;
     let names = scene.surface_names();
     let photo = match &scene.photo {
         Photo::Image(p) => {

@@ -131,7 +131,9 @@ pub fn run(args: &Args) -> Result<()> {
     let arlux::settings::Method::Pda(settings) = options.resolve()? else {
         unreachable!("the default method is the pixel path")
     };
-    let base = stage("load", || load(&args.scene, None))?;
+    let base = stage("load", || {
+        load_showing(&args.scene, arlux::scene::Showing::Motion(name))
+    })?;
     let motion = base.motion(name)?.clone();
     let poses = pose_range(args, motion.translations.len())?;
     if poses.is_empty() {

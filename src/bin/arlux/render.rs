@@ -150,8 +150,9 @@ pub fn run(args: &Args) -> Result<()> {
         None => arlux::render::default_memory(),
     };
     let mut times = StageTimes::default();
-    let base = times.time("load", || load(&args.scene, None))?;
     let variant = args.variant.as_deref();
+    let showing = variant.map_or(arlux::scene::Showing::Base, arlux::scene::Showing::Variant);
+    let base = times.time("load", || load_showing(&args.scene, showing))?;
     let scene = match variant {
         Some(v) => base.with_variant(v)?,
         None => base.clone(),

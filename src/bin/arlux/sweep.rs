@@ -57,12 +57,20 @@ pub fn run(args: &Args) -> Result<()> {
         bail!("--repeats must be at least 1");
     }
     use arlux::sweep::{SweepTable, Target, grid, plot, run};
-    let scene = stage("load", || load(path, None))?;
-    let (target, label) = match (variant, motion) {
-        (_, Some(m)) => (Target::Motion { name: m }, format!("motion {m}")),
-        (Some(v), None) => (Target::Variant { name: v }, format!("variant {v}")),
+    let (target, label, showing) = match (variant, motion) {
+        (_, Some(m)) => (
+            Target::Motion { name: m },
+            format!("motion {m}"),
+            arlux::scene::Showing::Motion(m),
+        ),
+        (Some(v), None) => (
+            Target::Variant { name: v },
+            format!("variant {v}"),
+            arlux::scene::Showing::Variant(v),
+        ),
         (None, None) => bail!("give --variant or --motion"),
     };
+    let scene = stage("load", || load_showing(path, showing))?;
     // Known good before the folder is made: a failed run leaves nothing behind.
     let references = arlux::sweep::reference_files(&scene, &target)?;
     if !args.peer.is_empty() && matches!(target, Target::Motion { .. }) {

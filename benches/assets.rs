@@ -1,0 +1,149 @@
+//! Real-looking assets in the desk: a generated glTF made like a Blender
+//! export (80k triangles, 2k base-colour, metallic-roughness and normal
+//! textures, nested node scales), rendered by `arlux render` as a user runs
+//! it: wall time and peak memory from the CLI's own `--json` report, each
+//! case one process. The rows compare
+//! - one object against three objects placed from the same file (the file
+//!   is read once, its textures shared),
+//! - one object shown while two more from other files are disabled, hidden
+//!   by the variant, or not in the scene at all (what is not shown is not
+//!   read).
+//!
+//! `cargo bench --bench assets` (about a minute on 2 cores).
+
+#[path = "../tests/common/asset.rs"]
+mod asset;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use asset::{AssetSpec, write_asset};
+
+/// The desk's folder copied into `dir` (no truths), scene text replaced.
+fn desk_with(dir: &Path, name: &str, objects: &str, variants: &str) -> PathBuf {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk");
+    let out = dir.join(name);
+    std::fs::create_dir_all(&out).unwrap();
+    std::os::unix::fs::symlink(src.join("photo.exr"), out.join("photo.exr")).unwrap();
+    std::os::unix::fs::symlink(dir.join("geometry"), out.join("geometry")).unwrap();
+    let text = std::fs::read_to_string(src.join("scene.toml")).unwrap();
+    // The room, its lights and camera: everything before the first object.
+    let room = &text[..text.find("[[virtual]]").unwrap()];
+    let file = out.join("scene.toml");
+    std::fs::write(&file, format!("{room}{objects}{variants}")).unwrap();
+    file
+}
+
+fn object(name: &str, file: &str, at: [f64; 3], enabled: bool) -> String {
+    format!(
+        "[[virtual]]\nname = \"{name}\"\nmesh = \"geometry/{file}.gltf\"\ntranslate = [{}, {}, {}]\nenabled = {enabled}\n\n",
+        at[0], at[1], at[2]
+    )
+}
+
+/// One `arlux render` run's report.
+fn render(scene: &Path, variant: Option<&str>) -> serde_json::Value {
+    let out = scene.with_file_name("out.exr");
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_arlux"));
+    cmd.args(["render", "--json", "-o"]).arg(&out).arg(scene);
+    if let Some(v) = variant {
+        cmd.args(["--variant", v]);
+    }
+    let run = cmd.output().unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    std::fs::remove_file(&out).unwrap();
+    serde_json::from_slice(&run.stdout).unwrap()
+}
+
+fn main() {
+    // `cargo bench` passes its own flags; `cargo test --benches` asks for a quick pass.
+    if std::env::args().any(|a| a == "--test" || a == "--list") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let geometry = dir.path().join("geometry");
+    std::fs::create_dir(&geometry).unwrap();
+    let spec = AssetSpec::heavy_prop();
+    let desk = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/desk/geometry");
+    for room in ["room.obj", "furniture.obj"] {
+        std::fs::copy(desk.join(room), geometry.join(room)).unwrap();
+    }
+    for name in ["prop", "other_a", "other_b"] {
+        write_asset(&geometry, name, &spec);
+    }
+    let (a, b, c) = ([0.3, 0.0, -0.3], [-0.3, 0.0, 0.5], [-0.9, 0.75, -1.3]);
+    let prop = object("prop", "prop", a, true);
+    let cases: Vec<(&str, PathBuf, Option<&str>)> = vec![
+        ("one object", desk_with(dir.path(), "one", &prop, ""), None),
+        (
+            "three from one file",
+            desk_with(
+                dir.path(),
+                "three",
+                &[
+                    prop.clone(),
+                    object("two", "prop", b, true),
+                    object("three", "prop", c, true),
+                ]
+                .concat(),
+                "",
+            ),
+            None,
+        ),
+        (
+            "one, two others disabled",
+            desk_with(
+                dir.path(),
+                "disabled",
+                &[
+                    prop.clone(),
+                    object("a", "other_a", b, false),
+                    object("b", "other_b", c, false),
+                ]
+                .concat(),
+                "",
+            ),
+            None,
+        ),
+        (
+            "one, a variant hiding two others",
+            desk_with(
+                dir.path(),
+                "hidden",
+                &[
+                    prop.clone(),
+                    object("a", "other_a", b, true),
+                    object("b", "other_b", c, true),
+                ]
+                .concat(),
+                "[[variant]]\nname = \"alone\"\nhide = [\"a\", \"b\"]\n",
+            ),
+            Some("alone"),
+        ),
+    ];
+    println!(
+        "{} triangles, {}² textures per file",
+        spec.triangles, spec.texture
+    );
+    println!("| case | wall s | peak MB | vs one object |");
+    println!("| --- | --- | --- | --- |");
+    let mut first: Option<(f64, f64)> = None;
+    for (label, scene, variant) in cases {
+        let r = render(&scene, variant);
+        let (s, peak) = (
+            r["seconds"].as_f64().unwrap(),
+            r["peak_memory_bytes"].as_f64().unwrap_or(f64::NAN),
+        );
+        let (s0, p0) = *first.get_or_insert((s, peak));
+        println!(
+            "| {label} | {s:.2} | {:.0} | time {:.2}×, peak {:.2}× |",
+            peak / 1e6,
+            s / s0,
+            peak / p0
+        );
+    }
+}
