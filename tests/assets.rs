@@ -136,3 +136,46 @@ fn a_normal_mapped_prop_has_no_black_pixels_and_no_negative_layer() {
         object.len()
     );
 }
+
+/// A render reads the meshes of only what it shows: a disabled object, or
+/// one its variant hides, is left unread (its file is not opened past a
+/// check that it exists), and showing an unread object is an error.
+#[test]
+fn only_the_objects_shown_are_read() {
+    use arlux::scene::Showing;
+    let desk = Desk::new();
+    write_asset(&desk.path("geometry"), "prop", &prop());
+    place(&desk, "prop", &[[0.3, 0.0, -0.3]]);
+    let text = std::fs::read_to_string(desk.path("scene.toml")).unwrap();
+    let text = text.replace(
+        "mesh = \"geometry/prop.gltf\"\n",
+        "mesh = \"geometry/prop.gltf\"\nenabled = false\n",
+    ) + "\n[[variant]]\nname = \"with_prop\"\nobjects = { prop_0 = {} }\nhide = [\"box\"]\n";
+    std::fs::write(desk.path("scene.toml"), text).unwrap();
+    let read = |s: &Scene, name: &str| s.objects.iter().find(|o| o.name == name).unwrap().mesh_read;
+
+    let base = Scene::load_showing(desk.path("scene.toml"), Showing::Base).unwrap();
+    assert!(read(&base, "box") && !read(&base, "prop_0"));
+    let err = base.with_variant("with_prop").unwrap_err().to_string();
+    assert!(err.contains("'prop_0', whose mesh was not read"), "{err}");
+    let hidden =
+        Scene::load_showing(desk.path("scene.toml"), Showing::Variant("box_floor_a")).unwrap();
+    assert!(!read(&hidden, "prop_0"));
+    let shown =
+        Scene::load_showing(desk.path("scene.toml"), Showing::Variant("with_prop")).unwrap();
+    assert!(read(&shown, "prop_0") && !read(&shown, "box"));
+    let scene = shown.with_variant("with_prop").unwrap();
+    assert!(
+        scene
+            .objects
+            .iter()
+            .all(|o| o.enabled == (o.name == "prop_0"))
+    );
+    // Everything (a session, `info`) reads every mesh.
+    let all = Scene::load(desk.path("scene.toml")).unwrap();
+    assert!(
+        all.objects
+            .iter()
+            .all(|o| o.mesh_read && !o.surfaces.is_empty())
+    );
+}
