@@ -32,6 +32,7 @@ pub mod objects;
 pub mod output;
 pub mod patches;
 pub mod pda;
+pub mod placement;
 pub mod radiosity;
 pub mod relight;
 pub mod render;

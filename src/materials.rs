@@ -125,6 +125,16 @@ impl Material {
         e.as_dvec3().max(DVec3::ZERO)
     }
 
+    /// The brightest radiance it emits anywhere (its factor times its
+    /// texture's brightest texel).
+    pub fn peak_emission(&self) -> DVec3 {
+        let e = match &self.emissive_texture {
+            Some(t) => self.emissive * t.max().truncate(),
+            None => self.emissive,
+        };
+        e.as_dvec3().max(DVec3::ZERO)
+    }
+
     /// One line for `arlux info`.
     pub fn describe(&self) -> String {
         let c = self.base_colour;

@@ -382,8 +382,12 @@ pub fn render_texture(
     }
     let light_change = times.total() - before;
     let unoccluded = times.time("unoccluded texture", || path.unoccluded_texture());
+    let mut warnings = crate::inputs::input_warnings(&photo, None);
+    warnings.extend(times.time("placement checks", || {
+        crate::placement::warnings(scene, &photo, &tracer)
+    }));
     let out = crate::output::RenderOutput {
-        warnings: crate::inputs::input_warnings(&photo, None),
+        warnings,
         composite,
         left_out,
         pda_bytes: path.memory_bytes(),

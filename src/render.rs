@@ -367,7 +367,10 @@ impl Session {
         };
         let changes = solve_changes(&input, objects.as_ref(), &mut gather_directions, times)
             .with_patches(objects);
-        let warnings = crate::inputs::input_warnings(&photo, Some(&model.estimate));
+        let mut warnings = crate::inputs::input_warnings(&photo, Some(&model.estimate));
+        warnings.extend(times.time("placement checks", || {
+            crate::placement::warnings(scene, &photo, &tracer)
+        }));
         let mut session = Session {
             scene: scene.clone(),
             given_lights,

@@ -200,3 +200,25 @@ fn a_required_extension_is_named_and_a_textured_material_said_to_come_from_its_t
         "{text}"
     );
 }
+
+/// An object glowing brighter than anything in the photo is said with the
+/// numbers (the desk's photo peaks at 0.647: an emissive factor of 3 is
+/// 4.6 times that); a plain card says nothing of the kind.
+#[test]
+fn an_emission_brighter_than_the_photo_is_reported() {
+    let (plain, glowing) = (Desk::new(), Desk::new());
+    write_card(&plain, "", "");
+    write_card(&glowing, "", r#", "emissiveFactor": [3.0, 0.0, 0.0]"#);
+    let warnings = |desk: &Desk| {
+        let scene = Scene::load(desk.path("scene.toml")).unwrap();
+        common::render_default(&scene).0.warnings
+    };
+    let said = warnings(&glowing);
+    assert!(
+        said.iter().any(|w| w.starts_with(
+            "'card' emits radiance up to 3.000, 4.6x the photo's brightest pixel (0.647)"
+        )),
+        "{said:?}"
+    );
+    assert!(warnings(&plain).is_empty(), "{:?}", warnings(&plain));
+}

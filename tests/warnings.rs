@@ -143,3 +143,58 @@ fn an_object_s_material_is_read_and_its_missing_texture_refused_by_name() {
     );
     assert!(!stderr.contains("does not use"), "{stderr}");
 }
+
+/// `box_floor_a` with its box placed at `translate`, and `extra` appended
+/// to the scene.
+fn box_at(translate: &str, extra: &str) -> Desk {
+    let desk = Desk::new();
+    desk.edit(
+        "scene.toml",
+        "objects = { box = { translate = [0.35, 0.0, -0.25], rotate_y_deg = 20.0 } }",
+        &format!("objects = {{ box = {{ translate = {translate}, rotate_y_deg = 20.0 }} }}"),
+    );
+    let text = std::fs::read_to_string(desk.path("scene.toml")).unwrap();
+    std::fs::write(desk.path("scene.toml"), text + extra).unwrap();
+    desk
+}
+
+/// Likely placement mistakes are said with numbers (errors with
+/// `--strict`): a box sunk half its height into the floor, one entirely
+/// under it (the camera sees none of it), two boxes through each other. A
+/// box touching the floor (the desk) says nothing (the first test).
+#[test]
+fn objects_sunk_unseen_or_through_each_other_are_reported() {
+    let sunk = box_at("[0.35, -0.15, -0.25]", "");
+    let (code, stderr) = render(&sunk, false);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("'box' passes through the room's 'floor' (15.0 cm deep"),
+        "{stderr}"
+    );
+    std::fs::remove_file(sunk.path("a.exr")).unwrap();
+    let (code, stderr) = render(&sunk, true);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(!sunk.path("a.exr").exists());
+
+    let under = box_at("[0.35, -1.0, -0.25]", "");
+    let (code, stderr) = render(&under, false);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("the camera sees no pixel of 'box'"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("passes through"), "{stderr}");
+
+    let twins = box_at(
+        "[0.35, 0.0, -0.25]",
+        "\n[[virtual]]\nname = \"twin\"\nmesh = \"geometry/box.obj\"\nrgb = [0.2, 0.5, 0.8]\ntranslate = [0.45, 0.0, -0.15]\n",
+    );
+    let (code, stderr) = render(&twins, false);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("'box' passes through 'twin'")
+            && stderr.contains("'twin' passes through 'box'"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("the room's"), "{stderr}");
+}

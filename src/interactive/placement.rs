@@ -6,18 +6,13 @@ use glam::DVec3;
 use super::Refusal;
 use crate::camera::Camera;
 use crate::error::{Error, Result};
+use crate::placement::object_points;
 use crate::scene::{Pose, Scene, VirtualObject};
 use crate::surface_ids::SurfaceIds;
 use crate::trace::{Layer, TraceRay, Tracer};
 
 /// A surface is floor-like when its normal lies within this angle of +y.
 const FLOOR_DEG: f64 = 30.0;
-/// Points of an object checked against the room's solids, at most.
-const CHECKED_POINTS: usize = 1024;
-/// How deep an object may sink into a surface, as a fraction of its box's
-/// diagonal: one standing on a rough model's floor (vertices a few
-/// centimetres off) touches it unevenly; one pushed into a wall goes deeper.
-const TOUCH: f64 = 0.05;
 
 /// The room's real geometry, for picking and checking places.
 pub struct Room {
@@ -109,7 +104,7 @@ impl Room {
     /// Refuses `object` where it stands (its pose) when it leaves the
     /// room's box or cuts into a real surface: a segment from its centre to
     /// one of its vertices or face centres that crosses the room's geometry
-    /// deeper than 5% of its size (see `TOUCH`).
+    /// deeper than 5% of its size (see [`crate::placement::TOUCH`]).
     pub fn check_place(&self, object: &VirtualObject) -> std::result::Result<(), String> {
         let points: Vec<DVec3> = object_points(object, &object.pose).collect();
         let (lo, hi) = crate::geometry::bounds(points.iter().copied());
@@ -119,45 +114,14 @@ impl Room {
                 object.name, self.lo, self.hi
             ));
         }
-        let centre = (0.5 * (lo + hi)).as_vec3();
-        let depth = TOUCH * (hi - lo).length();
-        let centroids = object
-            .surfaces
-            .iter()
-            .flat_map(|s| s.triangles.iter())
-            .map(|t| object.pose.apply((t[0] + t[1] + t[2]) / 3.0).as_dvec3());
-        let all: Vec<DVec3> = points.iter().copied().chain(centroids).collect();
-        let step = all.len().div_ceil(CHECKED_POINTS).max(1);
-        for p in all.iter().step_by(step) {
-            let length = (*p - centre.as_dvec3()).length();
-            if length <= depth {
-                continue;
-            }
-            let ray = TraceRay {
-                origin: centre,
-                direction: p.as_vec3() - centre,
-                tnear: 0.0,
-                tfar: (1.0 - depth / length) as f32,
-            };
-            if let Some(hit) = self.tracer.intersect(&ray, Layer::Real) {
-                return Err(format!(
-                    "'{}' would cut into '{}'",
-                    object.name, self.names[hit.surface as usize]
-                ));
-            }
+        if let Some((surface, _)) =
+            crate::placement::cut_into(&self.tracer, Layer::Real, object, &[])
+        {
+            return Err(format!(
+                "'{}' would cut into '{}'",
+                object.name, self.names[surface as usize]
+            ));
         }
         Ok(())
     }
-}
-
-/// The object's vertices placed by `pose`, in world space.
-fn object_points<'a>(
-    object: &'a VirtualObject,
-    pose: &'a Pose,
-) -> impl Iterator<Item = DVec3> + 'a {
-    object
-        .surfaces
-        .iter()
-        .flat_map(|s| s.triangles.iter().flatten())
-        .map(move |&p| pose.apply(p).as_dvec3())
 }

@@ -105,6 +105,13 @@ impl Texture {
         (sum / l.texels.len() as f64).as_vec4()
     }
 
+    /// Each channel's largest full-resolution texel value.
+    pub fn max(&self) -> Vec4 {
+        (self.levels[0].texels.iter())
+            .map(|t| unpack(*t))
+            .fold(Vec4::ZERO, Vec4::max)
+    }
+
     /// The value at `uv` for a pixel footprint `texels` wide on the full
     /// level (≤ √2: bilinear on it, as glTF's LINEAR filter without
     /// mipmaps). The level is the one whose bilinear tent (variance 2^2k/6)
