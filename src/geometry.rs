@@ -200,25 +200,31 @@ pub(crate) fn encloses(triangles: &[Triangle], p: DVec3) -> bool {
 
 /// Möller-Trumbore in f64, for geometric checks outside the tracer.
 fn ray_hits_triangle(o: DVec3, d: DVec3, t: &Triangle) -> bool {
+    ray_triangle(o, d, t).is_some()
+}
+
+/// Where the ray from `o` along `d` meets triangle `t` (Möller-Trumbore in
+/// f64): its parameter, in units of `d`, when in front of `o`.
+pub(crate) fn ray_triangle(o: DVec3, d: DVec3, t: &Triangle) -> Option<f64> {
     let [a, b, c] = t.map(|v| v.as_dvec3());
     let (e1, e2) = (b - a, c - a);
     let pv = d.cross(e2);
     let det = e1.dot(pv);
     if det.abs() < 1e-14 {
-        return false;
+        return None;
     }
     let inv = 1.0 / det;
     let tv = o - a;
     let u = tv.dot(pv) * inv;
     if !(0.0..=1.0).contains(&u) {
-        return false;
+        return None;
     }
     let q = tv.cross(e1);
     let v = d.dot(q) * inv;
     if v < 0.0 || u + v > 1.0 {
-        return false;
+        return None;
     }
-    e2.dot(q) * inv > 0.0
+    Some(e2.dot(q) * inv).filter(|&t| t > 0.0)
 }
 
 /// The smallest box holding the points: (min corner, max corner); an empty

@@ -179,3 +179,111 @@ fn only_the_objects_shown_are_read() {
             .all(|o| o.mesh_read && !o.surfaces.is_empty())
     );
 }
+
+/// The bounds of an object's triangles as placed.
+fn placed_bounds(scene: &Scene, name: &str) -> (glam::DVec3, glam::DVec3) {
+    let o = scene.objects.iter().find(|o| o.name == name).unwrap();
+    let points = (0..o.surfaces.len())
+        .flat_map(|i| {
+            o.surfaces[i]
+                .triangles
+                .iter()
+                .map(|t| t.map(|p| o.pose.apply(p)))
+        })
+        .flatten()
+        .map(|p| p.as_dvec3());
+    arlux::geometry::bounds(points)
+}
+
+/// `up = "z"` turns a file's Z-up frame into the scene's Y-up one: the
+/// prop (made Y-up, 0.45 m tall) read as Z-up lies along −z, and its
+/// normals turn with it (still pointing out of the solid).
+#[test]
+fn up_z_turns_a_z_up_file_upright() {
+    let desk = Desk::new();
+    write_asset(&desk.path("geometry"), "prop", &prop());
+    place(&desk, "prop", &[[0.0, 0.0, 0.0]]);
+    desk.edit(
+        "scene.toml",
+        "mesh = \"geometry/prop.gltf\"\n",
+        "mesh = \"geometry/prop.gltf\"\nup = \"z\"\n",
+    );
+    let scene = Scene::load(desk.path("scene.toml")).unwrap();
+    let (lo, hi) = placed_bounds(&scene, "prop_0");
+    assert!((lo.z + 0.45).abs() < 1e-4 && hi.z.abs() < 1e-4, "{lo} {hi}");
+    assert!(
+        (hi.y - lo.y - 0.22).abs() < 0.01 && (lo.y + hi.y).abs() < 1e-4,
+        "{lo} {hi}"
+    );
+    let o = scene.objects.iter().find(|o| o.name == "prop_0").unwrap();
+    let s = &o.surfaces[0];
+    let normals = &s.material.as_ref().unwrap().attributes.normals;
+    let outward = (s.triangles.iter().zip(normals.iter()))
+        .filter(|(t, n)| {
+            let c = (t[0] + t[1] + t[2]) / 3.0;
+            // The body's side: away from its axis (now the z axis).
+            let radial = glam::Vec3::new(c.x, c.y, 0.0);
+            radial.length() < 0.05 || n[0].dot(radial) > 0.0 || n[0].z.abs() > 0.9
+        })
+        .count();
+    assert_eq!(
+        outward,
+        s.triangles.len(),
+        "normals not turned with the mesh"
+    );
+    let err = {
+        desk.edit("scene.toml", "up = \"z\"", "up = \"x\"");
+        Scene::load(desk.path("scene.toml"))
+            .unwrap_err()
+            .to_string()
+    };
+    assert!(
+        err.contains("virtual[1].up: \"y\" or \"z\", not \"x\""),
+        "{err}"
+    );
+}
+
+/// `stand = "below"` rests the object on the highest real surface under
+/// its footprint, wherever the scene or a variant puts it: floating above
+/// the floor or sunk into it, it stands on the floor (y = 0); above the
+/// table, on its top; nothing below is an error naming the object.
+#[test]
+fn stand_below_rests_an_object_on_the_surface_under_it() {
+    let desk = Desk::new();
+    write_asset(&desk.path("geometry"), "prop", &prop());
+    place(&desk, "prop", &[[0.3, 0.4, -0.3]]);
+    desk.edit(
+        "scene.toml",
+        "mesh = \"geometry/prop.gltf\"\n",
+        "mesh = \"geometry/prop.gltf\"\nstand = \"below\"\n",
+    );
+    let text = std::fs::read_to_string(desk.path("scene.toml")).unwrap()
+        + "\n[[variant]]\nname = \"sunk\"\nobjects = { prop_0 = { translate = [0.3, -0.1, -0.3] } }\n"
+        + "\n[[variant]]\nname = \"on_table\"\nobjects = { prop_0 = { translate = [-0.35, 1.3, -1.4] } }\n"
+        + "\n[[variant]]\nname = \"outside\"\nobjects = { prop_0 = { translate = [3.0, 0.0, 0.0] } }\n";
+    std::fs::write(desk.path("scene.toml"), text).unwrap();
+    let scene = Scene::load(desk.path("scene.toml")).unwrap();
+    let floor = |s: &Scene| placed_bounds(s, "prop_0").0.y;
+    assert!(floor(&scene).abs() < 1e-6, "floating: {}", floor(&scene));
+    let sunk = scene.with_variant("sunk").unwrap();
+    assert!(floor(&sunk).abs() < 1e-6, "sunk: {}", floor(&sunk));
+    let table_top = (scene.surfaces.iter())
+        .find(|s| s.name == "table_top")
+        .unwrap()
+        .triangles
+        .iter()
+        .flatten()
+        .map(|p| p.y)
+        .fold(f32::MIN, f32::max) as f64;
+    let on_table = scene.with_variant("on_table").unwrap();
+    assert!(
+        (floor(&on_table) - table_top).abs() < 1e-6,
+        "{} against the top at {table_top}",
+        floor(&on_table)
+    );
+    let err = scene.with_variant("outside").unwrap_err().to_string();
+    assert!(
+        err.contains("virtual 'prop_0'.stand: no real surface lies below its footprint"),
+        "{err}"
+    );
+}

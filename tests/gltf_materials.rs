@@ -222,3 +222,40 @@ fn an_emission_brighter_than_the_photo_is_reported() {
     );
     assert!(warnings(&plain).is_empty(), "{:?}", warnings(&plain));
 }
+
+/// `emission` scales a file's emitted light, and 0 turns it off (with its
+/// texture): the glowing card's factor 3 becomes 6, or nothing, and off it
+/// raises no warning.
+#[test]
+fn the_emission_key_scales_or_turns_off_a_file_s_glow() {
+    let emissive = |desk: &Desk| {
+        let scene = Scene::load(desk.path("scene.toml")).unwrap();
+        let card = scene.objects.iter().find(|o| o.name == "card").unwrap();
+        card.surfaces[0]
+            .material
+            .as_ref()
+            .unwrap()
+            .material
+            .emissive
+    };
+    let (doubled, off) = (Desk::new(), Desk::new());
+    for (desk, scale) in [(&doubled, "2.0"), (&off, "0")] {
+        write_card(desk, "", r#", "emissiveFactor": [3.0, 0.0, 0.0]"#);
+        desk.edit(
+            "scene.toml",
+            "mesh = \"geometry/card.gltf\"\n",
+            &format!("mesh = \"geometry/card.gltf\"\nemission = {scale}\n"),
+        );
+    }
+    assert_eq!(emissive(&doubled), glam::Vec3::new(6.0, 0.0, 0.0));
+    assert_eq!(emissive(&off), glam::Vec3::ZERO);
+    let scene = Scene::load(off.path("scene.toml")).unwrap();
+    let out = common::render_default(&scene).0;
+    assert!(out.warnings.is_empty(), "{:?}", out.warnings);
+    off.edit("scene.toml", "emission = 0", "emission = -1");
+    let err = Scene::load(off.path("scene.toml")).unwrap_err().to_string();
+    assert!(
+        err.contains(".emission: a scale of 0 (off) or more"),
+        "{err}"
+    );
+}

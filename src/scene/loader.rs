@@ -5,6 +5,7 @@ use std::sync::Arc;
 
 use super::*;
 
+mod objects;
 mod showing;
 mod variants;
 
@@ -31,7 +32,7 @@ pub(super) fn real_surface<'a>(r: &Fields<'a>, surfaces: &[Surface]) -> Result<(
 
 /// Refuses a pose that places any of the object's vertices beyond
 /// [`geometry::MAX_COORDINATE`] (a huge scale, or a far translation).
-fn within_reach(object: &VirtualObject, pose: &Pose) -> std::result::Result<(), String> {
+pub(super) fn within_reach(object: &VirtualObject, pose: &Pose) -> std::result::Result<(), String> {
     let reach = object.reach(pose);
     let max = geometry::MAX_COORDINATE as f64;
     if reach.is_finite() && reach <= max {
@@ -72,7 +73,7 @@ fn mesh_warnings(path: &Path, mesh: &geometry::Mesh, is_virtual: bool) -> Vec<St
 }
 
 /// An optional key whose value lies in [0, 1].
-fn unit_interval(v: &Fields, key: &'static str) -> Result<Option<f64>> {
+pub(super) fn unit_interval(v: &Fields, key: &'static str) -> Result<Option<f64>> {
     match v.opt_f64(key)? {
         Some(x) if !(0.0..=1.0).contains(&x) => Err(v.error(key, "lies in [0, 1]")),
         x => Ok(x),
@@ -100,7 +101,7 @@ pub(super) struct Loader<'a> {
     pub(super) meshes: std::cell::RefCell<HashMap<PathBuf, std::rc::Rc<geometry::Mesh>>>,
     /// A shaded surface's per-corner attributes (with the tangent frames a
     /// normal map needs), by mesh file and surface: shared the same way.
-    shading: std::cell::RefCell<HashMap<(PathBuf, usize), Arc<crate::materials::Attributes>>>,
+    shading: std::cell::RefCell<HashMap<(PathBuf, usize, bool), Arc<crate::materials::Attributes>>>,
     /// The objects whose meshes are read (None: all of them).
     pub(super) shown: Option<std::collections::HashSet<String>>,
 }
@@ -157,32 +158,8 @@ impl<'a> Loader<'a> {
         }
     }
 
-    /// Surface `i` of the mesh at `path`: its attributes for shading, with
-    /// MikkTSpace tangents when its material has a normal map.
-    fn attributes(
-        &self,
-        path: &Path,
-        i: usize,
-        s: &geometry::MeshSurface,
-    ) -> Arc<crate::materials::Attributes> {
-        let key = (path.to_path_buf(), i);
-        if let Some(a) = self.shading.borrow().get(&key) {
-            return a.clone();
-        }
-        let normal_map = s
-            .material
-            .as_ref()
-            .is_some_and(|m| m.normal_texture.is_some());
-        let a = Arc::new(match normal_map {
-            true => s.attributes.clone().with_mikktspace(&s.triangles),
-            false => s.attributes.clone(),
-        });
-        self.shading.borrow_mut().insert(key, a.clone());
-        a
-    }
-
     /// The mesh at `path`, read on first use (its warnings given then).
-    fn mesh(
+    pub(super) fn mesh(
         &self,
         path: &Path,
         is_virtual: bool,
@@ -298,7 +275,7 @@ impl<'a> Loader<'a> {
         top.finish()?;
         warnings.extend(missing_references(&variants, &motions));
 
-        let scene = Scene {
+        let mut scene = Scene {
             name,
             file: self.file.to_path_buf(),
             source: String::new(),
@@ -314,6 +291,7 @@ impl<'a> Loader<'a> {
             motions,
             warnings,
         };
+        scene.stand_objects()?;
         scene.check_light_clearance()?;
         Ok(scene)
     }
@@ -658,81 +636,6 @@ impl<'a> Loader<'a> {
                 Ok(out)
             }
         }
-    }
-
-    pub(super) fn object(&self, v: &Fields, warnings: &mut Vec<String>) -> Result<VirtualObject> {
-        let name = v.req_str("name")?.to_string();
-        let path = self.existing_path(v, "mesh", v.req_str("mesh")?)?;
-        let rgb = v.opt_vec3("rgb")?;
-        if let Some(rgb) = rgb
-            && (rgb.min_element() < 0.0 || rgb.max_element() > 1.0)
-        {
-            return Err(v.error("rgb", "a reflectance lies in [0, 1]"));
-        }
-        let pose = super::placement::pose_change(v)?.applied_to(&Pose {
-            translate: DVec3::ZERO,
-            rotation: DMat3::IDENTITY,
-            scale: 1.0,
-        });
-        let enabled = v.opt_bool("enabled")?.unwrap_or(true);
-        let looks = super::materials::Overrides {
-            metallic: unit_interval(v, "metallic")?,
-            roughness: unit_interval(v, "roughness")?,
-        };
-        v.finish()?;
-        if self
-            .shown
-            .as_ref()
-            .is_some_and(|shown| !shown.contains(&name))
-        {
-            return Ok(VirtualObject {
-                name,
-                mesh: path,
-                surfaces: Vec::new(),
-                pose,
-                enabled,
-                mesh_read: false,
-            });
-        }
-        let mesh = (self.mesh(&path, true, warnings))
-            .map_err(|e| e.within(self.file, v.key_path("mesh")))?;
-        let mut surfaces = Vec::new();
-        for (i, s) in mesh.surfaces.iter().enumerate() {
-            let attributes = || self.attributes(&path, i, s);
-            let material = super::materials::surface_material(s, rgb, looks, attributes)
-                .map_err(|m| v.error("rgb", m))?;
-            let rgb = match (&material, rgb, s.material_rgb) {
-                (Some(m), _, _) => m.material.mean_albedo(),
-                (None, Some(rgb), _) => rgb,
-                (None, None, Some(kd)) => kd.as_dvec3().clamp(DVec3::ZERO, DVec3::ONE),
-                (None, None, None) => {
-                    return Err(v.error(
-                        "rgb",
-                        format!(
-                            "missing, and surface '{}' of {} has no material Kd to take it from",
-                            s.name,
-                            path.display()
-                        ),
-                    ));
-                }
-            };
-            surfaces.push(ObjectSurface {
-                name: s.name.clone(),
-                triangles: s.triangles.clone(),
-                rgb,
-                material,
-            });
-        }
-        let object = VirtualObject {
-            name,
-            mesh: path,
-            surfaces,
-            pose,
-            enabled,
-            mesh_read: true,
-        };
-        within_reach(&object, &pose).map_err(|m| v.error("scale", m))?;
-        Ok(object)
     }
 }
 

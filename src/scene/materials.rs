@@ -16,6 +16,8 @@ use crate::materials::{Material, SurfaceMaterial};
 pub(super) struct Overrides {
     pub metallic: Option<f64>,
     pub roughness: Option<f64>,
+    /// A scale on the emitted light (0: none).
+    pub emission: Option<f64>,
 }
 
 /// Surface `s`'s material with the scene's keys over it, or None for clay.
@@ -51,6 +53,12 @@ pub(super) fn surface_material(
     if let Some(r) = looks.roughness {
         material.roughness = r as f32;
         material.metallic_roughness_texture = None;
+    }
+    if let Some(e) = looks.emission {
+        material.emissive *= e as f32;
+        if e == 0.0 {
+            material.emissive_texture = None;
+        }
     }
     Ok(Some(SurfaceMaterial {
         material: Arc::new(material),

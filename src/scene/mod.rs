@@ -11,6 +11,7 @@ mod fields;
 mod loader;
 mod materials;
 mod placement;
+mod stand;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -240,6 +241,9 @@ pub struct VirtualObject {
     /// ([`Scene::load_showing`]) leaves the others' unread (no surfaces),
     /// and refuses to show them.
     pub mesh_read: bool,
+    /// `stand = "below"`: dropped onto the real surface under it wherever
+    /// it is placed ([`Scene::stand_objects`]).
+    pub stand_below: bool,
 }
 
 impl VirtualObject {
@@ -478,6 +482,7 @@ impl Scene {
             s.objects[o].enabled = false;
         }
         s.check_shown_read(&format!("variant '{}'", variant.name))?;
+        s.stand_objects()?;
         for &l in &variant.hide_lights {
             s.lights[l].scale = 0.0;
         }
@@ -520,7 +525,8 @@ impl Scene {
         o.enabled = true;
         o.pose.translate = t;
         s.check_shown_read(&format!("motion '{name}'"))?;
-        s.check_light_clearance()
+        (s.stand_objects())
+            .and_then(|_| s.check_light_clearance())
             .map_err(|e| e.within(&self.file, format!("motion '{name}' pose {index}")))?;
         Ok(s)
     }
