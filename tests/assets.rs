@@ -287,3 +287,72 @@ fn stand_below_rests_an_object_on_the_surface_under_it() {
         "{err}"
     );
 }
+
+/// A motion may start from a variant and hide objects: its poses show what
+/// the variant shows, less what it hides, with the moving object placed
+/// (and a motion run reads only those meshes).
+#[test]
+fn a_motion_starts_from_a_variant_and_hides() {
+    use arlux::scene::Showing;
+    let desk = Desk::new();
+    write_asset(&desk.path("geometry"), "prop", &prop());
+    place(&desk, "prop", &[[0.3, 0.0, -0.3]]);
+    desk.edit(
+        "scene.toml",
+        "mesh = \"geometry/prop.gltf\"\n",
+        "mesh = \"geometry/prop.gltf\"\nenabled = false\n",
+    );
+    let text = std::fs::read_to_string(desk.path("scene.toml")).unwrap()
+        + "\n[[motion]]\nname = \"roll\"\nobject = \"prop_0\"\nvariant = \"spot_x2\"\nhide = [\"box\", \"bulb\"]\n"
+        + "translations = [[0.3, 0.0, -0.3], [0.1, 0.0, -0.1]]\n"
+        + "\n[[motion]]\nname = \"lit_slide\"\nobject = \"box\"\nvariant = \"spot_x2\"\n"
+        + "translations = [[0.3, 0.0, -0.3]]\n";
+    std::fs::write(desk.path("scene.toml"), text).unwrap();
+    let scene = Scene::load_showing(desk.path("scene.toml"), Showing::Motion("roll")).unwrap();
+    let read = |name: &str| {
+        scene
+            .objects
+            .iter()
+            .find(|o| o.name == name)
+            .unwrap()
+            .mesh_read
+    };
+    assert!(read("prop_0") && !read("box"));
+    let pose = scene.with_motion_pose("roll", 1).unwrap();
+    let spot_x2 = scene.with_variant("spot_x2").unwrap();
+    for (l, v) in pose.lights.iter().zip(&spot_x2.lights) {
+        let expected = if l.name == "bulb" { 0.0 } else { v.scale };
+        assert_eq!(l.scale, expected, "{}", l.name);
+    }
+    let shown: Vec<&str> = (pose.objects.iter())
+        .filter(|o| o.enabled)
+        .map(|o| o.name.as_str())
+        .collect();
+    assert_eq!(shown, ["prop_0"]);
+    let prop = pose.objects.iter().find(|o| o.name == "prop_0").unwrap();
+    assert_eq!(prop.pose.translate, glam::DVec3::new(0.1, 0.0, -0.1));
+    // A variant hiding the moving object (spot_x2 hides the box) still
+    // shows it in the motion.
+    let lit = Scene::load_showing(desk.path("scene.toml"), Showing::Motion("lit_slide")).unwrap();
+    let pose = lit.with_motion_pose("lit_slide", 0).unwrap();
+    assert!(
+        pose.objects
+            .iter()
+            .find(|o| o.name == "box")
+            .unwrap()
+            .enabled
+    );
+    // Hiding the object that moves is refused, naming the key.
+    desk.edit(
+        "scene.toml",
+        "hide = [\"box\", \"bulb\"]",
+        "hide = [\"prop_0\"]",
+    );
+    let err = Scene::load(desk.path("scene.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("motion[1].hide: hides 'prop_0', which this motion moves"),
+        "{err}"
+    );
+}

@@ -263,7 +263,7 @@ impl<'a> Loader<'a> {
         }
         let mut motions: Vec<Motion> = Vec::new();
         for m in top.tables("motion")? {
-            let motion = self.motion(&m, &objects)?;
+            let motion = self.motion(&m, &lights, &objects, &variants)?;
             if motions.iter().any(|o| o.name == motion.name) {
                 return Err(m.error(
                     "name",

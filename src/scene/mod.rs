@@ -316,6 +316,9 @@ pub enum ReferenceNoise {
 pub struct Motion {
     pub name: String,
     pub object: usize,
+    /// What the poses start from (`variant`, `hide`): None for the scene
+    /// as written.
+    pub start: Option<Variant>,
     pub translations: Vec<DVec3>,
     /// Empty, or one reference photograph per pose.
     pub references: Vec<PathBuf>,
@@ -520,7 +523,10 @@ impl Scene {
                 ),
             ));
         };
-        let mut s = self.clone();
+        let mut s = match &motion.start {
+            Some(v) => self.with_given_variant(v)?,
+            None => self.clone(),
+        };
         let o = &mut s.objects[motion.object];
         o.enabled = true;
         o.pose.translate = t;

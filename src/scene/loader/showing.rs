@@ -13,7 +13,8 @@ pub enum Showing<'a> {
     Base,
     /// A variant's objects.
     Variant(&'a str),
-    /// A motion's poses: the enabled objects and the one that moves.
+    /// A motion's poses: what its `variant` shows (else the enabled
+    /// objects) less what it hides, and the object that moves.
     Motion(&'a str),
 }
 
@@ -44,21 +45,27 @@ pub(in crate::scene) fn shown_names(
             .find(|t| t.get("name").and_then(|n| n.as_str()) == Some(name))
             .cloned()
     };
-    match showing {
-        Showing::Everything | Showing::Base => {}
-        Showing::Variant(v) => {
-            let t = named("variant", v)?;
-            if let Some(hide) = t.get("hide") {
-                for n in hide.as_array()? {
-                    shown.remove(n.as_str()?);
-                }
-            }
-            if let Some(objects) = t.get("objects") {
-                shown.extend(objects.as_table()?.keys().cloned());
+    // A variant's (or a motion's) hidden names go, its posed objects come.
+    let change = |t: &toml::Table, shown: &mut HashSet<String>| -> Option<()> {
+        if let Some(hide) = t.get("hide") {
+            for n in hide.as_array()? {
+                shown.remove(n.as_str()?);
             }
         }
+        if let Some(objects) = t.get("objects") {
+            shown.extend(objects.as_table()?.keys().cloned());
+        }
+        Some(())
+    };
+    match showing {
+        Showing::Everything | Showing::Base => {}
+        Showing::Variant(v) => change(&named("variant", v)?, &mut shown)?,
         Showing::Motion(m) => {
             let t = named("motion", m)?;
+            if let Some(v) = t.get("variant") {
+                change(&named("variant", v.as_str()?)?, &mut shown)?;
+            }
+            change(&t, &mut shown)?;
             shown.insert(t.get("object")?.as_str()?.to_string());
         }
     }

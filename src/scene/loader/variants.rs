@@ -61,40 +61,7 @@ impl Loader<'_> {
             }
         }
         if let Some(items) = v.opt_array("hide")? {
-            for (path, item) in items {
-                let toml::Value::String(n) = item else {
-                    return Err(Error::key(
-                        self.file,
-                        path,
-                        "must be the name of a virtual object or light",
-                    ));
-                };
-                if let Some(o) = objects.iter().position(|o| &o.name == n) {
-                    if variant.objects.iter().any(|(i, _)| *i == o) {
-                        return Err(Error::key(
-                            self.file,
-                            path,
-                            format!("'{n}' is both posed and hidden"),
-                        ));
-                    }
-                    variant.hide_objects.push(o);
-                } else if let Some(l) = lights.iter().position(|l| &l.name == n) {
-                    if variant.lights.iter().any(|(i, _)| *i == l) {
-                        return Err(Error::key(
-                            self.file,
-                            path,
-                            format!("'{n}' is both given a scale and hidden"),
-                        ));
-                    }
-                    variant.hide_lights.push(l);
-                } else {
-                    return Err(Error::key(
-                        self.file,
-                        path,
-                        format!("no virtual object or light named '{n}'"),
-                    ));
-                }
-            }
+            self.hide(items, lights, objects, &mut variant)?;
         }
         if let Some(rel) = v.opt_str("reference")? {
             variant.reference = Some(self.reference_path(v, "reference", rel)?);
@@ -122,13 +89,120 @@ impl Loader<'_> {
         Ok(variant)
     }
 
-    pub(in crate::scene) fn motion(&self, m: &Fields, objects: &[VirtualObject]) -> Result<Motion> {
+    /// A `hide` list's names, each a virtual object or a light, added to
+    /// `variant`'s hidden ones (an error for a name it poses or scales).
+    fn hide(
+        &self,
+        items: Vec<(String, &toml::Value)>,
+        lights: &[Light],
+        objects: &[VirtualObject],
+        variant: &mut Variant,
+    ) -> Result<()> {
+        for (path, item) in items {
+            let toml::Value::String(n) = item else {
+                return Err(Error::key(
+                    self.file,
+                    path,
+                    "must be the name of a virtual object or light",
+                ));
+            };
+            if let Some(o) = objects.iter().position(|o| &o.name == n) {
+                if variant.objects.iter().any(|(i, _)| *i == o) {
+                    return Err(Error::key(
+                        self.file,
+                        path,
+                        format!("'{n}' is both posed and hidden"),
+                    ));
+                }
+                variant.hide_objects.push(o);
+            } else if let Some(l) = lights.iter().position(|l| &l.name == n) {
+                if variant.lights.iter().any(|(i, _)| *i == l) {
+                    return Err(Error::key(
+                        self.file,
+                        path,
+                        format!("'{n}' is both given a scale and hidden"),
+                    ));
+                }
+                variant.hide_lights.push(l);
+            } else {
+                return Err(Error::key(
+                    self.file,
+                    path,
+                    format!("no virtual object or light named '{n}'"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// What a motion's poses start from: the variant it names (`variant`),
+    /// with what it hides (`hide`) hidden too; None for the scene as
+    /// written. The motion may not hide the moving object, nor the variant
+    /// pose it (a variant hiding it shows it in the motion).
+    fn motion_start(
+        &self,
+        m: &Fields,
+        lights: &[Light],
+        objects: &[VirtualObject],
+        variants: &[Variant],
+        object: usize,
+    ) -> Result<Option<Variant>> {
+        let named = |v: &str| variants.iter().find(|x| x.name == v).cloned();
+        let mut start = match m.opt_str("variant")? {
+            None => None,
+            Some(v) => Some(named(v).ok_or_else(|| {
+                m.error(
+                    "variant",
+                    format!("no variant named '{v}' (before this motion)"),
+                )
+            })?),
+        };
+        // A variant that hides the moving object (a light change without
+        // it) still shows it in the motion.
+        if let Some(s) = &mut start {
+            s.hide_objects.retain(|&o| o != object);
+        }
+        if let Some(items) = m.opt_array("hide")? {
+            let s = start.get_or_insert_with(|| Variant {
+                name: String::new(),
+                lights: vec![],
+                objects: vec![],
+                hide_objects: vec![],
+                hide_lights: vec![],
+                reference: None,
+                reference_noise: None,
+            });
+            self.hide(items, lights, objects, s)?;
+        }
+        if let Some(s) = &start {
+            let moving = &objects[object].name;
+            if s.hide_objects.contains(&object) {
+                return Err(m.error("hide", format!("hides '{moving}', which this motion moves")));
+            }
+            if s.objects.iter().any(|(o, _)| *o == object) {
+                return Err(m.error(
+                    "variant",
+                    format!("poses '{moving}', which this motion moves: give the motion's translations alone"),
+                ));
+            }
+        }
+        Ok(start)
+    }
+
+    pub(in crate::scene) fn motion(
+        &self,
+        m: &Fields,
+        lights: &[Light],
+        objects: &[VirtualObject],
+        variants: &[Variant],
+    ) -> Result<Motion> {
         let name = m.req_str("name")?.to_string();
         let oname = m.req_str("object")?;
         let object = objects
             .iter()
             .position(|o| o.name == oname)
             .ok_or_else(|| m.error("object", format!("no virtual object named '{oname}'")))?;
+        let start = self.motion_start(m, lights, objects, variants, object)?;
         let items = m
             .opt_array("translations")?
             .ok_or_else(|| m.error("translations", "missing"))?;
@@ -173,6 +247,7 @@ impl Loader<'_> {
         Ok(Motion {
             name,
             object,
+            start,
             translations,
             references,
             reference_noise,
