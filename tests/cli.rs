@@ -69,6 +69,11 @@ fn info_and_ids_work_on_the_desk() {
     }
     assert!(b["min"][1].as_f64().unwrap().abs() < 1e-6, "{b}");
     assert!(stdout.contains("size 0.385 × 0.300 × 0.385 m"), "{stdout}");
+    let f = &report["virtual_objects"][0]["footprint"];
+    let area = f["area_m2"].as_f64().unwrap();
+    assert!((area - wide * wide).abs() < 1e-6, "{f}");
+    let centre = |i: usize| f["centre"][i].as_f64().unwrap();
+    assert!((centre(0) - 0.35).abs() < 1e-6 && (centre(1) + 0.25).abs() < 1e-6, "{f}");
 
     let desk = Desk::new();
     let out = desk.path("ids.png");

@@ -136,6 +136,8 @@ fn info_report(
             json!({
                 "name": o.name, "mesh": rel(scene, &o.mesh), "enabled": o.enabled,
                 "bounds": { "min": lo.to_array(), "max": hi.to_array(), "size_m": (hi - lo).to_array() },
+                // The floor area it covers, what `stand` and `serve` put down.
+                "footprint": { "x": [lo.x, hi.x], "z": [lo.z, hi.z], "centre": [0.5 * (lo.x + hi.x), 0.5 * (lo.z + hi.z)], "area_m2": (hi.x - lo.x) * (hi.z - lo.z) },
                 "triangles": o.surfaces.iter().map(|s| s.triangles.len()).sum::<usize>(),
                 "surfaces": o.surfaces.iter().map(|s| json!({
                     "name": s.name, "rgb": s.rgb.to_array(),
@@ -288,6 +290,17 @@ impl Report for InfoReport {
                 at("size_m", 2),
                 at("min", 1),
                 at("max", 1)
+            ));
+            let f = |k: &str, i: usize| o["footprint"][k][i].as_f64().unwrap_or(f64::NAN);
+            out.push(format!(
+                "    footprint x {:.3} to {:.3}, z {:.3} to {:.3} m (centre {:.3}, {:.3}; {:.3} m²)",
+                f("x", 0),
+                f("x", 1),
+                f("z", 0),
+                f("z", 1),
+                f("centre", 0),
+                f("centre", 1),
+                o["footprint"]["area_m2"].as_f64().unwrap_or(f64::NAN)
             ));
             for s in o["surfaces"].as_array().into_iter().flatten() {
                 let material = match s["material"].as_str() {
