@@ -73,7 +73,10 @@ fn info_and_ids_work_on_the_desk() {
     let area = f["area_m2"].as_f64().unwrap();
     assert!((area - wide * wide).abs() < 1e-6, "{f}");
     let centre = |i: usize| f["centre"][i].as_f64().unwrap();
-    assert!((centre(0) - 0.35).abs() < 1e-6 && (centre(1) + 0.25).abs() < 1e-6, "{f}");
+    assert!(
+        (centre(0) - 0.35).abs() < 1e-6 && (centre(1) + 0.25).abs() < 1e-6,
+        "{f}"
+    );
 
     let desk = Desk::new();
     let out = desk.path("ids.png");

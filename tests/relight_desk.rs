@@ -75,6 +75,8 @@ fn both(base: &Scene, variant: &str) -> (f64, f64, f64, Image, Image, Image) {
         &mut StageTimes::default(),
     )
     .unwrap();
+    common::assert_layers_sound(&format!("{variant}, texture"), &texture.composite);
+    common::assert_layers_sound(&format!("{variant}, pda"), &pda.composite);
     let (t, p) = (
         compare(&texture.composite.image, &truth, None).rmse,
         compare(&pda.composite.image, &truth, None).rmse,

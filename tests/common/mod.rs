@@ -182,15 +182,39 @@ pub fn rendered(base: &Scene, variant: &str) -> (Image, Image, Image) {
     .unwrap();
     let reference = base.variant(variant).unwrap().reference.clone().unwrap();
     let truth = arlux::image_io::read_image(&reference).unwrap();
-    let image = out.composite.image;
+    assert_layers_sound(variant, &out.composite);
+    (out.composite.image, truth, photo)
+}
+
+/// Every layer a compositor reads is finite and not negative (but
+/// `change`, image − photo, which is signed), coverage lies in [0, 1].
+pub fn assert_layers_sound(label: &str, c: &arlux::composite::Composite) {
+    for (name, layer) in [
+        ("image", &c.image),
+        ("direct", &c.direct),
+        ("indirect", &c.indirect),
+        ("object", &c.object),
+    ] {
+        let bad = (layer.pixels.iter())
+            .filter(|p| !(p.is_finite() && p.min_element() >= 0.0))
+            .count();
+        assert_eq!(
+            bad, 0,
+            "{label}: {bad} pixels of '{name}' negative or not finite"
+        );
+    }
     assert!(
-        image
-            .pixels
-            .iter()
-            .all(|p| p.is_finite() && p.min_element() >= 0.0),
-        "{variant}: a pixel is negative or not finite"
+        c.change.pixels.iter().all(|p| p.is_finite()),
+        "{label}: change"
     );
-    (image, truth, photo)
+    assert!(
+        c.alpha.iter().all(|a| (0.0..=1.0).contains(a)),
+        "{label}: alpha"
+    );
+    assert!(
+        c.noise.iter().all(|n| n.is_finite() && *n >= 0.0),
+        "{label}: noise"
+    );
 }
 
 /// The names of a report's stages.
