@@ -474,3 +474,49 @@ fn binding_every_address_needs_the_names_other_machines_use() {
     assert!(ask("127.0.0.1").contains(" 200 "));
     assert!(ask("elsewhere.example").contains(" 403 "));
 }
+
+/// One truth across tabs: an edit or a save made on a version another page
+/// has changed since is refused (409) with the state as it is; the page's
+/// own edits in flight are not; an edit without a version is not checked.
+#[test]
+fn an_edit_made_on_a_state_another_page_changed_is_refused_with_the_new_state() {
+    let desk = Desk::new();
+    let server = Server::start(&desk.scene(), &[]);
+    let v0 = server.wait_ready()["version"].as_u64().unwrap();
+    let light = |scale: f64, version: u64, client: &str| {
+        server.post(
+            "/api/light",
+            &json!({ "light": "spot", "scale": scale, "version": version, "client": client }),
+        )
+    };
+    // Tab a edits; tab b, still on v0, is refused and given a's state.
+    assert_eq!(light(1.5, v0, "tab-a").status, 200);
+    let refused = light(0.5, v0, "tab-b");
+    assert_eq!(refused.status, 409);
+    let body = refused.json();
+    assert_eq!(body["error"]["field"], "version");
+    assert_eq!(body["state"]["version"].as_u64(), Some(v0 + 1));
+    let spot = |state: &Value| {
+        (state["lights"].as_array().unwrap().iter())
+            .find(|l| l["name"] == "spot")
+            .unwrap()["scale"]
+            .as_f64()
+            .unwrap()
+    };
+    assert_eq!(spot(&body["state"]), 1.5, "the refusal carries a's state");
+    assert_eq!(
+        spot(&server.get("/api/state").json()),
+        1.5,
+        "b's edit changed nothing"
+    );
+    // Tab a's next edit sent before its first reply (still stamped v0) is its own.
+    assert_eq!(light(1.25, v0, "tab-a").status, 200);
+    // b's save on the state it has not seen is refused too; on the new one, b may edit.
+    let save = server.post("/api/save", &json!({ "version": v0, "client": "tab-b" }));
+    assert_eq!(save.status, 409, "{}", String::from_utf8_lossy(&save.body));
+    let now = server.get("/api/state").json()["version"].as_u64().unwrap();
+    assert_eq!(light(0.5, now, "tab-b").status, 200);
+    // Unstamped (curl, scripts): applied as before.
+    let plain = server.post("/api/light", &json!({ "light": "spot", "scale": 1.0 }));
+    assert_eq!(plain.status, 200);
+}

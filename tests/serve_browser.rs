@@ -420,3 +420,80 @@ async fn the_page_refines_hides_the_wipe_and_serves_a_scene_without_objects() {
     assert_eq!(errors, json!([]), "the page threw");
     client.close().await.unwrap();
 }
+
+/// Two tabs on one session: a change in one shows in the other (it looks
+/// once a second while idle), and an edit a tab makes on a state it has
+/// not seen is refused by the server; the tab then shows the session's
+/// state instead of its own stale one.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn two_tabs_stay_in_step_and_a_stale_edit_is_refused() {
+    let _one = ONE_BROWSER.lock().await;
+    let Some(driver) = Driver::start() else {
+        panic!(
+            "chromedriver is not installed: `bash .ci/setup` installs Chromium and chromedriver"
+        );
+    };
+    let profile = tempfile::tempdir().unwrap();
+    let client = browser(&driver, profile.path()).await;
+    let desk = Desk::new();
+    let server = Server::start(&desk.scene(), &[]);
+    let ready = "document.getElementById('status').dataset.ready === 'true'";
+    client.goto(&server.url).await.unwrap();
+    wait_until(&client, ready).await;
+    let a = client.window().await.unwrap();
+    let b = client.new_window(true).await.unwrap().handle;
+    client.switch_to_window(b.clone()).await.unwrap();
+    client.goto(&server.url).await.unwrap();
+    wait_until(&client, ready).await;
+    let v0 = server.get("/api/state").json()["version"].as_u64().unwrap();
+
+    // Tab a switches the box off.
+    client.switch_to_window(a.clone()).await.unwrap();
+    client
+        .execute(
+            "const e = document.getElementById('enabled'); e.checked = false; e.dispatchEvent(new Event('change'));",
+            vec![],
+        )
+        .await
+        .unwrap();
+    wait_until(&client, &format!("state.version > {v0} && !busy")).await;
+    // Tab b follows: its control and its image are the new state's.
+    client.switch_to_window(b.clone()).await.unwrap();
+    wait_until(
+        &client,
+        &format!("state.version > {v0} && !document.getElementById('enabled').checked && +document.getElementById('view').dataset.version === state.version"),
+    )
+    .await;
+    // Tab b edits on the old state (as if it had not looked yet): the
+    // server refuses, nothing changes, and b shows the session's state.
+    let v1 = server.get("/api/state").json()["version"].as_u64().unwrap();
+    client
+        .execute(
+            &format!("state.version = {v0}; const e = document.getElementById('enabled'); e.checked = true; e.dispatchEvent(new Event('change'));"),
+            vec![],
+        )
+        .await
+        .unwrap();
+    wait_until(
+        &client,
+        &format!("!busy && state.version === {v1} && document.getElementById('message').textContent.startsWith('version:')"),
+    )
+    .await;
+    assert!(
+        !client
+            .execute("return document.getElementById('enabled').checked;", vec![])
+            .await
+            .unwrap()
+            .as_bool()
+            .unwrap(),
+        "the stale tab shows its own edit"
+    );
+    let state = server.get("/api/state").json();
+    assert_eq!(
+        state["version"].as_u64(),
+        Some(v1),
+        "the stale edit was applied"
+    );
+    assert_eq!(state["objects"][0]["enabled"], false);
+    client.close().await.unwrap();
+}

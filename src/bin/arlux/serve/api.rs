@@ -22,6 +22,7 @@ use tokio::sync::oneshot;
 use arlux::interactive::{Edit, View};
 
 use super::Shared;
+use super::versions::Stamp;
 use super::worker::{Job, Reply};
 
 /// The largest request body, bytes: an edit is a few numbers.
@@ -354,15 +355,32 @@ async fn ask(shared: &Shared, job: impl FnOnce(oneshot::Sender<Reply>) -> Job) -
     }
 }
 
-async fn edit(shared: &Shared, edit: Edit, drag: bool) -> Response {
+async fn edit(shared: &Shared, edit: Edit, drag: bool, stamp: Stamp) -> Response {
     let received = Instant::now();
     ask(shared, |reply| Job::Edit {
         edit,
         drag,
+        stamp,
         received,
         reply,
     })
     .await
+}
+
+/// The state version an edit was made on, and the page that made it
+/// (both optional: an edit without them is not checked for staleness).
+fn stamp(version: Option<u64>, client: Option<String>) -> Result<Stamp, Refused> {
+    if client
+        .as_ref()
+        .is_some_and(|c| c.is_empty() || c.len() > 64)
+    {
+        return Err(refused(
+            StatusCode::BAD_REQUEST,
+            "client",
+            "1 to 64 characters",
+        ));
+    }
+    Ok(Stamp { version, client })
 }
 
 #[derive(Deserialize)]
@@ -373,11 +391,14 @@ struct Place {
     y: f64,
     #[serde(default)]
     drag: bool,
+    version: Option<u64>,
+    client: Option<String>,
 }
 
 async fn place(State(shared): State<Arc<Shared>>, request: Request) -> Result<Response, Refused> {
     let p: Place = body(request).await?;
     let object = index(&shared.objects, &p.object, "object")?;
+    let stamp = stamp(p.version, p.client)?;
     Ok(edit(
         &shared,
         Edit::Place {
@@ -386,6 +407,7 @@ async fn place(State(shared): State<Arc<Shared>>, request: Request) -> Result<Re
             y: p.y,
         },
         p.drag,
+        stamp,
     )
     .await)
 }
@@ -397,6 +419,8 @@ struct ObjectChange {
     yaw_deg: Option<f64>,
     scale: Option<f64>,
     enabled: Option<bool>,
+    version: Option<u64>,
+    client: Option<String>,
 }
 
 async fn object(State(shared): State<Arc<Shared>>, request: Request) -> Result<Response, Refused> {
@@ -414,7 +438,7 @@ async fn object(State(shared): State<Arc<Shared>>, request: Request) -> Result<R
             ));
         }
     };
-    Ok(edit(&shared, edit_of, false).await)
+    Ok(edit(&shared, edit_of, false, stamp(c.version, c.client)?).await)
 }
 
 #[derive(Deserialize)]
@@ -422,11 +446,14 @@ async fn object(State(shared): State<Arc<Shared>>, request: Request) -> Result<R
 struct LightChange {
     light: String,
     scale: f64,
+    version: Option<u64>,
+    client: Option<String>,
 }
 
 async fn light(State(shared): State<Arc<Shared>>, request: Request) -> Result<Response, Refused> {
     let c: LightChange = body(request).await?;
     let light = index(&shared.lights, &c.light, "light")?;
+    let stamp = stamp(c.version, c.client)?;
     Ok(edit(
         &shared,
         Edit::Light {
@@ -434,6 +461,7 @@ async fn light(State(shared): State<Arc<Shared>>, request: Request) -> Result<Re
             scale: c.scale,
         },
         false,
+        stamp,
     )
     .await)
 }
@@ -442,12 +470,16 @@ async fn light(State(shared): State<Arc<Shared>>, request: Request) -> Result<Re
 #[serde(deny_unknown_fields)]
 struct Save {
     name: Option<String>,
+    version: Option<u64>,
+    client: Option<String>,
 }
 
 async fn save(State(shared): State<Arc<Shared>>, request: Request) -> Result<Response, Refused> {
     let s: Save = body(request).await?;
+    let stamp = stamp(s.version, s.client)?;
     Ok(ask(&shared, |reply| Job::Save {
         name: s.name,
+        stamp,
         reply,
     })
     .await)

@@ -15,6 +15,7 @@ use serde_json::{Value, json};
 use arlux::interactive::{Frame, Interactive, Outcome, Refusal};
 
 mod api;
+mod versions;
 mod worker;
 
 /// Arguments of `arlux serve`.

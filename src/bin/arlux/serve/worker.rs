@@ -18,6 +18,7 @@ use arlux::model::StageTimes;
 use arlux::render::RenderSettings;
 use arlux::scene::Scene;
 
+use super::versions::{History, Stamp};
 use super::{Published, Shared};
 
 /// Jobs that may wait for the worker; beyond, a request is refused (503).
@@ -31,11 +32,13 @@ pub(crate) enum Job {
         edit: Edit,
         /// A drag's move: may be superseded by a later move of the same object.
         drag: bool,
+        stamp: Stamp,
         received: Instant,
         reply: oneshot::Sender<Reply>,
     },
     Save {
         name: Option<String>,
+        stamp: Stamp,
         reply: oneshot::Sender<Reply>,
     },
     Render {
@@ -88,6 +91,7 @@ pub(crate) fn run(
         started.elapsed().as_secs_f64()
     );
     let mut held: VecDeque<Job> = VecDeque::new();
+    let mut history = History::default();
     loop {
         let job = match held.pop_front() {
             Some(j) => j,
@@ -99,7 +103,7 @@ pub(crate) fn run(
         let job = coalesce(job, &queue, &mut held);
         // A bug in a stage must not end the session: the job fails, the
         // session goes on from its last state.
-        let job_run = std::panic::AssertUnwindSafe(|| serve_job(&cx, &mut it, job));
+        let job_run = std::panic::AssertUnwindSafe(|| serve_job(&cx, &mut it, &mut history, job));
         if std::panic::catch_unwind(job_run).is_err() {
             eprintln!("arlux serve: a job failed (see above); the session goes on");
         }
@@ -167,16 +171,39 @@ fn coalesce(mut job: Job, queue: &Receiver<Job>, held: &mut VecDeque<Job>) -> Jo
     job
 }
 
-fn serve_job(cx: &Context, it: &mut Interactive, job: Job) {
+/// The refusal of an edit made on a state another page has changed since,
+/// with the state as it is now (the page shows it).
+fn stale(cx: &Context, it: &Interactive, stamp: &Stamp) -> Reply {
+    let state = (cx.shared.latest.read().unwrap_or_else(|e| e.into_inner()))
+        .as_ref()
+        .map(|p| p.state.clone());
+    let message = format!(
+        "made on version {} but the session is at {}: another page changed it (its state is here)",
+        stamp.version.unwrap_or_default(),
+        it.version()
+    );
+    (
+        409,
+        json!({ "error": { "field": "version", "message": message }, "state": state }),
+    )
+}
+
+fn serve_job(cx: &Context, it: &mut Interactive, history: &mut History, job: Job) {
     match job {
         Job::Edit {
             edit,
+            stamp,
             received,
             reply,
             ..
         } => {
+            if history.stale(&stamp, it.version()) {
+                let _ = reply.send(stale(cx, it, &stamp));
+                return;
+            }
             let reply_body = match it.apply(edit, &mut StageTimes::default()) {
                 Ok(outcome) => {
+                    history.record(it.version(), stamp.client.clone());
                     let server_ms = received.elapsed().as_secs_f64() * 1e3;
                     let last = json!({ "path": outcome.path, "update_ms": outcome.millis });
                     let state = publish(cx, it, Some(&last));
@@ -186,7 +213,11 @@ fn serve_job(cx: &Context, it: &mut Interactive, job: Job) {
             };
             let _ = reply.send(reply_body);
         }
-        Job::Save { name, reply } => {
+        Job::Save { name, stamp, reply } => {
+            if history.stale(&stamp, it.version()) {
+                let _ = reply.send(stale(cx, it, &stamp));
+                return;
+            }
             let name = name.unwrap_or_else(|| it.next_variant_name());
             let body = match it.save_variant(&name) {
                 Ok(path) => (

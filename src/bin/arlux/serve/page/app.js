@@ -8,9 +8,15 @@ let view = "final";
 let evOffset = 0;
 let shown = -1;
 
+// This tab's id: an edit names it with the state version it was made on,
+// and the server refuses one made on a state another tab has changed.
+const client = Array.from(crypto.getRandomValues(new Uint8Array(8)), (b) => b.toString(16).padStart(2, "0")).join("");
+const stamped = ["/api/place", "/api/object", "/api/light", "/api/save"];
+
 async function api(path, body) {
   const init = { headers: { "x-arlux-token": token } };
   if (body !== undefined) {
+    if (stamped.includes(path) && state) body = Object.assign({ version: state.version, client }, body);
     init.method = "POST";
     init.headers["content-type"] = "application/json";
     init.body = JSON.stringify(body);
@@ -19,9 +25,33 @@ async function api(path, body) {
   const json = await r.json().catch(() => ({ error: { message: "unreadable reply" } }));
   if (!r.ok) {
     const e = json.error || {};
-    throw new Error((e.field ? e.field + ": " : "") + (e.message || r.status));
+    const err = new Error((e.field ? e.field + ": " : "") + (e.message || r.status));
+    err.reply = json;
+    throw err;
   }
   return json;
+}
+
+// Another tab's change: its state and image replace this one's.
+async function adopt(s) {
+  state = Object.assign(state, s);
+  fillControls();
+  await refresh();
+}
+
+// While idle, the page looks for changes made elsewhere once a second.
+async function follow() {
+  for (;;) {
+    await new Promise((done) => setTimeout(done, 1000));
+    if (busy || watching) continue;
+    try {
+      const s = await api("/api/state");
+      if (!busy && s.ready && s.version !== state.version) {
+        await adopt(s);
+        say("another page changed the scene: this shows its state");
+      }
+    } catch (e) { /* the server may be gone; the next look says so */ }
+  }
 }
 
 async function fetchImage(which) {
@@ -186,6 +216,11 @@ async function edit(path, body) {
     }
   } catch (e) {
     say(e.message);
+    if (e.reply && e.reply.state) {
+      pendingMove = null;
+      waiting.clear();
+      await adopt(e.reply.state);
+    }
   } finally {
     clearTimeout(slow);
     $("status").textContent = "ready";
@@ -250,7 +285,10 @@ $("save").addEventListener("click", async () => {
       : "");
     $("saved").dataset.file = r.file;
     $("saved").dataset.variant = r.variant;
-  } catch (e) { say(e.message); }
+  } catch (e) {
+    say(e.message);
+    if (e.reply && e.reply.state) await adopt(e.reply.state);
+  }
 });
 $("render").addEventListener("click", async () => {
   try {
@@ -275,5 +313,6 @@ async function start() {
   $("status").textContent = "ready";
   $("status").dataset.ready = "true";
   watchRefining();
+  follow();
 }
 start();
