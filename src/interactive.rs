@@ -56,7 +56,17 @@ pub enum Edit {
         light: usize,
         scale: f64,
     },
+    /// Back to the state before the last step (a drag's moves are one step).
+    Undo,
+    /// The step the last undo took back, again.
+    Redo,
 }
+
+/// The user's edits of objects and lights: what one undo step restores.
+type Snapshot = (Vec<ObjectEdit>, Vec<Option<f64>>);
+
+/// Undo steps kept, at most (the oldest go first).
+const UNDO_STEPS: usize = 1000;
 
 /// An edit that is not made, with the request field it is about.
 #[derive(Debug, Clone, PartialEq)]
@@ -138,6 +148,11 @@ pub struct Interactive {
     /// Rounds of per-pixel samples the image was last refined with
     /// ([`Interactive::refine`]; 0 after every change), and their report.
     refined: (u32, Option<crate::residual::ResidualStats>),
+    /// States to go back to (newest last), and to go forward to again.
+    undo: Vec<Snapshot>,
+    redo: Vec<Snapshot>,
+    /// The object the last step placed: a drag's next move continues it.
+    placing: Option<usize>,
 }
 
 impl Interactive {
@@ -161,6 +176,9 @@ impl Interactive {
             room,
             version: 0,
             refined: (0, None),
+            undo: Vec::new(),
+            redo: Vec::new(),
+            placing: None,
         };
         let scene = s.state_scene()?;
         s.render_full(scene, "the first image".into(), times)?;
@@ -221,7 +239,108 @@ impl Interactive {
     }
 
     /// Makes `edit` and renders its state; a refused edit changes nothing.
+    /// Each edit that changes the state is one undo step.
     pub fn apply(
+        &mut self,
+        edit: Edit,
+        times: &mut StageTimes,
+    ) -> std::result::Result<Outcome, Refusal> {
+        self.step(edit, false, times)
+    }
+
+    /// [`Interactive::apply`] of a drag's move: a move of the object the
+    /// last step placed belongs to that step (one undo takes the whole
+    /// drag back).
+    pub fn apply_drag(
+        &mut self,
+        edit: Edit,
+        times: &mut StageTimes,
+    ) -> std::result::Result<Outcome, Refusal> {
+        self.step(edit, true, times)
+    }
+
+    /// Steps that undo and redo can take now.
+    pub fn history(&self) -> (usize, usize) {
+        (self.undo.len(), self.redo.len())
+    }
+
+    fn step(
+        &mut self,
+        edit: Edit,
+        drag: bool,
+        times: &mut StageTimes,
+    ) -> std::result::Result<Outcome, Refusal> {
+        let before: Snapshot = (self.objects.clone(), self.lights.clone());
+        let placed = match edit {
+            Edit::Undo => return self.travel(false, times),
+            Edit::Redo => return self.travel(true, times),
+            Edit::Place { object, .. } => Some(object),
+            _ => None,
+        };
+        let outcome = self.change(edit, times)?;
+        let continues = drag && placed.is_some() && placed == self.placing;
+        if !continues && before != (self.objects.clone(), self.lights.clone()) {
+            if self.undo.len() == UNDO_STEPS {
+                self.undo.remove(0);
+            }
+            self.undo.push(before);
+            self.redo.clear();
+        }
+        self.placing = placed;
+        Ok(outcome)
+    }
+
+    /// Back to the last undo step's state (`forward`: the last redo's),
+    /// rendered; the state left goes on the other list.
+    fn travel(
+        &mut self,
+        forward: bool,
+        times: &mut StageTimes,
+    ) -> std::result::Result<Outcome, Refusal> {
+        let (field, what) = match forward {
+            true => ("redo", "nothing to redo"),
+            false => ("undo", "nothing to undo"),
+        };
+        let list = if forward {
+            &mut self.redo
+        } else {
+            &mut self.undo
+        };
+        let Some(target) = list.pop() else {
+            return Err(Refusal::new(field, what));
+        };
+        let left: Snapshot = (self.objects.clone(), self.lights.clone());
+        (self.objects, self.lights) = target.clone();
+        let rendered = self
+            .state_scene()
+            .and_then(|scene| self.render(scene, times))
+            .map_err(|e| Refusal::new("state", e.to_string()));
+        match rendered {
+            Ok(outcome) => {
+                let other = if forward {
+                    &mut self.undo
+                } else {
+                    &mut self.redo
+                };
+                other.push(left);
+                self.placing = None;
+                Ok(outcome)
+            }
+            Err(r) => {
+                (self.objects, self.lights) = left;
+                let list = if forward {
+                    &mut self.redo
+                } else {
+                    &mut self.undo
+                };
+                list.push(target);
+                Err(r)
+            }
+        }
+    }
+
+    /// Makes `edit` (not undo or redo) and renders its state.
+    fn change(
         &mut self,
         edit: Edit,
         times: &mut StageTimes,
@@ -233,6 +352,8 @@ impl Interactive {
             Edit::Scale { object, .. } => (Some(object), "scale"),
             Edit::Enable { object, .. } => (Some(object), "enabled"),
             Edit::Light { .. } => (None, "scale"),
+            // Taken by `step` before; no state of its own to change here.
+            Edit::Undo | Edit::Redo => (None, "edit"),
         };
         let result = self.edit(edit).and_then(|()| {
             let scene = self
@@ -311,6 +432,9 @@ impl Interactive {
                     ));
                 }
                 self.lights[light] = Some(s);
+            }
+            Edit::Undo | Edit::Redo => {
+                return Err(Refusal::new("edit", "undo and redo are steps, not changes"));
             }
         }
         Ok(())

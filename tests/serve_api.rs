@@ -520,3 +520,85 @@ fn an_edit_made_on_a_state_another_page_changed_is_refused_with_the_new_state() 
     let plain = server.post("/api/light", &json!({ "light": "spot", "scale": 1.0 }));
     assert_eq!(plain.status, 200);
 }
+
+/// Undo and redo over every edit: a drag's moves are one step; undoing
+/// every step gives back the first image bit for bit, redoing them the
+/// last; a new edit clears what redo had; nothing to undo is a 422.
+#[test]
+fn undo_and_redo_step_through_the_edits_and_give_back_their_images() {
+    let desk = Desk::new();
+    let server = Server::start(&desk.scene(), &[]);
+    let first = server.wait_ready();
+    assert_eq!(first["history"], json!({ "undo": 0, "redo": 0 }));
+    let (image0, _) = server.linear();
+    let scene = arlux::scene::Scene::load(desk.scene()).unwrap();
+    let at = |x: f64, z: f64| {
+        let (px, py, _) = scene.camera.project(glam::DVec3::new(x, 0.0, z)).unwrap();
+        (px, py)
+    };
+    let ok = |path: &str, body: Value| {
+        let r = server.post(path, &body);
+        assert_eq!(
+            r.status,
+            200,
+            "{path}: {}",
+            String::from_utf8_lossy(&r.body)
+        );
+        r.json()
+    };
+    // A click, a turn, then a click-and-drag (its moves one step with
+    // the click), a light: four steps.
+    let (x, y) = at(-0.6, 0.6);
+    ok("/api/place", json!({ "object": "box", "x": x, "y": y }));
+    ok("/api/object", json!({ "object": "box", "yaw_deg": 45.0 }));
+    for k in 0..=3 {
+        let (x, y) = at(0.2 + 0.1 * k as f64, 0.3);
+        ok(
+            "/api/place",
+            json!({ "object": "box", "x": x, "y": y, "drag": k > 0 }),
+        );
+    }
+    let last = ok("/api/light", json!({ "light": "spot", "scale": 0.5 }));
+    assert_eq!(last["state"]["history"], json!({ "undo": 4, "redo": 0 }));
+    let (image_last, _) = server.linear();
+    // Undo the light, then the click-and-drag: the box back at the first
+    // click, still turned.
+    ok("/api/undo", json!({}));
+    let after_drag = ok("/api/undo", json!({}));
+    let box_state = &after_drag["state"]["objects"][0];
+    assert_eq!(box_state["yaw_deg"], 45.0);
+    let t: Vec<f64> = (0..3)
+        .map(|i| box_state["translate"][i].as_f64().unwrap())
+        .collect();
+    let (px, py, _) = scene
+        .camera
+        .project(glam::DVec3::new(t[0], t[1], t[2]))
+        .unwrap();
+    assert!(
+        (px - x).abs() < 3.0 && (py - y).abs() < 3.0,
+        "after undoing the drag the box is at the first click: {px},{py} against {x},{y}"
+    );
+    ok("/api/undo", json!({}));
+    let back = ok("/api/undo", json!({}));
+    assert_eq!(back["state"]["history"], json!({ "undo": 0, "redo": 4 }));
+    assert_eq!(
+        server.linear().0,
+        image0,
+        "undoing every step gives the first image"
+    );
+    let none = server.post("/api/undo", &json!({}));
+    assert_eq!(none.status, 422);
+    assert_eq!(none.json()["error"]["field"], "undo");
+    for _ in 0..4 {
+        ok("/api/redo", json!({}));
+    }
+    assert_eq!(
+        server.linear().0,
+        image_last,
+        "redoing every step gives the last image"
+    );
+    // A new edit after an undo clears the redo list.
+    ok("/api/undo", json!({}));
+    let fresh = ok("/api/light", json!({ "light": "spot", "scale": 2.0 }));
+    assert_eq!(fresh["state"]["history"], json!({ "undo": 4, "redo": 0 }));
+}

@@ -497,3 +497,81 @@ async fn two_tabs_stay_in_step_and_a_stale_edit_is_refused() {
     assert_eq!(state["objects"][0]["enabled"], false);
     client.close().await.unwrap();
 }
+
+/// Undo and redo from the page: Ctrl+Z takes an edit back, the Redo
+/// button makes it again, Delete hides the selected object; the buttons
+/// are off when there is nothing to take.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn undo_redo_and_delete_from_the_keyboard_and_buttons() {
+    use fantoccini::key::Key;
+    let _one = ONE_BROWSER.lock().await;
+    let Some(driver) = Driver::start() else {
+        panic!(
+            "chromedriver is not installed: `bash .ci/setup` installs Chromium and chromedriver"
+        );
+    };
+    let profile = tempfile::tempdir().unwrap();
+    let client = browser(&driver, profile.path()).await;
+    let desk = Desk::new();
+    let server = Server::start(&desk.scene(), &[]);
+    client.goto(&server.url).await.unwrap();
+    wait_until(
+        &client,
+        "document.getElementById('status').dataset.ready === 'true'",
+    )
+    .await;
+    wait_until(
+        &client,
+        "document.getElementById('undo').disabled && document.getElementById('redo').disabled",
+    )
+    .await;
+    let shown = || async {
+        server.get("/api/state").json()["objects"][0]["enabled"]
+            .as_bool()
+            .unwrap()
+    };
+    // Switch the spot to half: one step.
+    client
+        .execute(
+            "const r = document.querySelector(\"[data-light='spot'] input[type=range]\"); r.value = 0.5; r.dispatchEvent(new Event('change'));",
+            vec![],
+        )
+        .await
+        .unwrap();
+    wait_until(
+        &client,
+        "!busy && !document.getElementById('undo').disabled",
+    )
+    .await;
+    let body = client.find(Locator::Css("body")).await.unwrap();
+    let ctrl_z = format!("{}z{}", char::from(Key::Control), char::from(Key::Control));
+    body.send_keys(&ctrl_z).await.unwrap();
+    wait_until(&client, "!busy && document.getElementById('undo').disabled && !document.getElementById('redo').disabled").await;
+    let spot = |s: &serde_json::Value| s["lights"][1]["scale"].as_f64().unwrap();
+    assert_eq!(
+        spot(&server.get("/api/state").json()),
+        1.0,
+        "Ctrl+Z took the change back"
+    );
+    client
+        .find(Locator::Id("redo"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    wait_until(&client, "!busy && document.getElementById('redo').disabled").await;
+    assert_eq!(
+        spot(&server.get("/api/state").json()),
+        0.5,
+        "Redo made it again"
+    );
+    // Delete hides the selected object (the box).
+    assert!(shown().await);
+    body.send_keys(&char::from(Key::Delete).to_string())
+        .await
+        .unwrap();
+    wait_until(&client, "!busy && !state.objects[0].enabled").await;
+    assert!(!shown().await, "Delete hid the box");
+    client.close().await.unwrap();
+}

@@ -48,6 +48,8 @@ pub(crate) fn router(shared: Arc<Shared>) -> Router {
         .route("/api/place", post(place))
         .route("/api/object", post(object))
         .route("/api/light", post(light))
+        .route("/api/undo", post(undo))
+        .route("/api/redo", post(redo))
         .route("/api/save", post(save))
         .route("/api/render", post(render))
         .fallback(|| async { error(StatusCode::NOT_FOUND, "path", "no such page or API call") })
@@ -488,6 +490,24 @@ async fn save(State(shared): State<Arc<Shared>>, request: Request) -> Result<Res
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct Nothing {}
+
+/// An undo or redo: only its stamp.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Step {
+    version: Option<u64>,
+    client: Option<String>,
+}
+
+async fn undo(State(shared): State<Arc<Shared>>, request: Request) -> Result<Response, Refused> {
+    let s: Step = body(request).await?;
+    Ok(edit(&shared, Edit::Undo, false, stamp(s.version, s.client)?).await)
+}
+
+async fn redo(State(shared): State<Arc<Shared>>, request: Request) -> Result<Response, Refused> {
+    let s: Step = body(request).await?;
+    Ok(edit(&shared, Edit::Redo, false, stamp(s.version, s.client)?).await)
+}
 
 async fn render(State(shared): State<Arc<Shared>>, request: Request) -> Result<Response, Refused> {
     body::<Nothing>(request).await?;

@@ -312,6 +312,7 @@ pub(crate) fn state_json(it: &Interactive, last: Option<&Value>) -> Value {
         "lights": lights,
         "last": last,
         "refined": refined_json(it),
+        "history": { "undo": it.history().0, "redo": it.history().1 },
     })
 }
 

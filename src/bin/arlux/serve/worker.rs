@@ -192,18 +192,26 @@ fn serve_job(cx: &Context, it: &mut Interactive, history: &mut History, job: Job
     match job {
         Job::Edit {
             edit,
+            drag,
             stamp,
             received,
             reply,
-            ..
         } => {
             if history.stale(&stamp, it.version()) {
                 let _ = reply.send(stale(cx, it, &stamp));
                 return;
             }
-            let reply_body = match it.apply(edit, &mut StageTimes::default()) {
+            let version = it.version();
+            let applied = match drag {
+                true => it.apply_drag(edit, &mut StageTimes::default()),
+                false => it.apply(edit, &mut StageTimes::default()),
+            };
+            let reply_body = match applied {
                 Ok(outcome) => {
-                    history.record(it.version(), stamp.client.clone());
+                    // An edit that changes nothing keeps the version.
+                    if it.version() > version {
+                        history.record(it.version(), stamp.client.clone());
+                    }
                     let server_ms = received.elapsed().as_secs_f64() * 1e3;
                     let last = json!({ "path": outcome.path, "update_ms": outcome.millis });
                     let state = publish(cx, it, Some(&last));

@@ -11,7 +11,7 @@ let shown = -1;
 // This tab's id: an edit names it with the state version it was made on,
 // and the server refuses one made on a state another tab has changed.
 const client = Array.from(crypto.getRandomValues(new Uint8Array(8)), (b) => b.toString(16).padStart(2, "0")).join("");
-const stamped = ["/api/place", "/api/object", "/api/light", "/api/save"];
+const stamped = ["/api/place", "/api/object", "/api/light", "/api/save", "/api/undo", "/api/redo"];
 
 async function api(path, body) {
   const init = { headers: { "x-arlux-token": token } };
@@ -102,6 +102,9 @@ function showOutcome(r) {
 function selected() { return state.objects[$("object").selectedIndex]; }
 
 function fillControls() {
+  const h = state.history || { undo: 0, redo: 0 };
+  $("undo").disabled = h.undo === 0;
+  $("redo").disabled = h.redo === 0;
   const o = selected();
   if (!o) return;
   $("enabled").checked = o.enabled;
@@ -264,6 +267,26 @@ $("view").addEventListener("pointerup", stop);
 $("view").addEventListener("pointercancel", stop);
 
 $("object").addEventListener("change", fillControls);
+// Undo and redo, by button or key; Delete hides the selected object.
+// Each press is its own step (not coalesced like a slider's moves).
+let steps = 0;
+const step = (path) => submit(`${path}#${steps++}`, path, {});
+$("undo").addEventListener("click", () => step("/api/undo"));
+$("redo").addEventListener("click", () => step("/api/redo"));
+document.addEventListener("keydown", (ev) => {
+  if (ev.target.matches && ev.target.matches("input[type=text], input:not([type]), select")) return;
+  const key = ev.key.toLowerCase();
+  if ((ev.ctrlKey || ev.metaKey) && key === "z") {
+    ev.preventDefault();
+    step(ev.shiftKey ? "/api/redo" : "/api/undo");
+  } else if ((ev.ctrlKey || ev.metaKey) && key === "y") {
+    ev.preventDefault();
+    step("/api/redo");
+  } else if (ev.key === "Delete" && selected() && selected().enabled) {
+    ev.preventDefault();
+    submit(selected().name + ":enabled", "/api/object", { object: selected().name, enabled: false });
+  }
+});
 // Each object control edits the selected object; a scene without objects has none.
 const onObject = (f) => () => { const o = selected(); if (o) f(o); };
 $("enabled").addEventListener("change", onObject((o) => submit(o.name + ":enabled", "/api/object", { object: o.name, enabled: $("enabled").checked })));
