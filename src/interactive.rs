@@ -153,6 +153,8 @@ pub struct Interactive {
     redo: Vec<Snapshot>,
     /// The object the last step placed: a drag's next move continues it.
     placing: Option<usize>,
+    /// The other objects' geometry the last placement was checked against.
+    others: Option<crate::placement::Others>,
 }
 
 impl Interactive {
@@ -179,6 +181,7 @@ impl Interactive {
             undo: Vec::new(),
             redo: Vec::new(),
             placing: None,
+            others: None,
         };
         let scene = s.state_scene()?;
         s.render_full(scene, "the first image".into(), times)?;
@@ -359,10 +362,23 @@ impl Interactive {
             let scene = self
                 .state_scene()
                 .map_err(|e| Refusal::new(field, e.message))?;
-            if let Some(o) = object.map(|o| &scene.objects[o]).filter(|o| o.enabled) {
+            if let Some(k) = object.filter(|&o| scene.objects[o].enabled) {
+                let o = &scene.objects[k];
                 self.room
                     .check_place(o)
                     .map_err(|m| Refusal::new(field, m))?;
+                let through = crate::placement::Others::passed_through(&mut self.others, &scene, k)
+                    .map_err(|e| Refusal::new("state", e.to_string()))?;
+                if let Some((other, depth)) = through {
+                    return Err(Refusal::new(
+                        field,
+                        format!(
+                            "'{}' would pass through '{other}' ({:.1} cm deep)",
+                            o.name,
+                            100.0 * depth
+                        ),
+                    ));
+                }
             }
             self.render(scene, times)
                 .map_err(|e| Refusal::new("state", e.to_string()))

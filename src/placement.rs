@@ -86,6 +86,69 @@ pub fn cut_into(
     deepest
 }
 
+/// The enabled objects other than one, as geometry to check that one
+/// against: built once and kept while they stay where they are (a drag
+/// moves one object; the others' tracer is reused for every step).
+pub struct Others {
+    /// The object left out, and every other object's pose and whether shown.
+    key: (usize, Vec<Option<(Pose, bool)>>),
+    tracer: Option<Tracer>,
+}
+
+impl Others {
+    /// The other object `object` passes through deeper than [`TOUCH`] of
+    /// its size, by name, with the depth (metres); `kept` holds the others'
+    /// geometry from the last call and is rebuilt when they changed.
+    pub fn passed_through(
+        kept: &mut Option<Others>,
+        scene: &Scene,
+        object: usize,
+    ) -> crate::error::Result<Option<(String, f64)>> {
+        // The moving object's own pose is not part of the key.
+        let key = (
+            object,
+            (scene.objects.iter().enumerate())
+                .map(|(i, o)| (i != object).then_some((o.pose, o.enabled)))
+                .collect::<Vec<_>>(),
+        );
+        if kept.as_ref().is_none_or(|k| k.key != key) {
+            let ids = surface_ids(scene);
+            let others: Vec<(u32, Vec<crate::geometry::Triangle>)> = scene
+                .virtual_world_surfaces()
+                .into_iter()
+                .filter(|(id, _)| !ids[object].contains(id))
+                .collect();
+            let sets: Vec<crate::trace::SurfaceTriangles> = (others.iter())
+                .map(|(id, t)| crate::trace::SurfaceTriangles {
+                    surface: *id,
+                    triangles: t,
+                    mask: None,
+                })
+                .collect();
+            let tracer = match sets.is_empty() {
+                true => None,
+                false => Some(
+                    Tracer::build(&[], &sets)
+                        .map_err(|e| crate::error::Error::file(&scene.file, e.to_string()))?,
+                ),
+            };
+            *kept = Some(Others { key, tracer });
+        }
+        let Some(tracer) = kept.as_ref().and_then(|k| k.tracer.as_ref()) else {
+            return Ok(None);
+        };
+        let ids = surface_ids(scene);
+        let hit = cut_into(tracer, Layer::Virtual, &scene.objects[object], &ids[object]);
+        Ok(hit.map(|(surface, depth)| {
+            let other = (ids.iter().position(|o| o.contains(&surface)))
+                .map_or("another object".to_string(), |o| {
+                    scene.objects[o].name.clone()
+                });
+            (other, depth)
+        }))
+    }
+}
+
 /// Each object's virtual surface ids, in the scene's numbering (after the
 /// real surfaces, over every object, enabled or not).
 fn surface_ids(scene: &Scene) -> Vec<Vec<u32>> {

@@ -335,3 +335,38 @@ fn a_save_after_the_scene_file_was_edited_renders_what_the_session_shows() {
         "{differ} pixels differ from what the session shows"
     );
 }
+
+/// Objects are checked against each other as against the room: the box
+/// stood where a second box already stands is refused, naming it, and
+/// nothing changes; beside it, it stands.
+#[test]
+fn an_object_placed_into_another_is_refused_naming_it() {
+    let desk = Desk::new();
+    let text = std::fs::read_to_string(desk.scene()).unwrap()
+        + "\n[[virtual]]\nname = \"twin\"\nmesh = \"geometry/box.obj\"\nrgb = [0.2, 0.5, 0.8]\ntranslate = [-0.8, 0.0, 0.6]\n";
+    std::fs::write(desk.scene(), text).unwrap();
+    let mut it = session(&desk);
+    let mut times = StageTimes::default();
+    let before = it.version();
+    let onto = pixel_of(&it, DVec3::new(-0.8, 0.0, 0.6));
+    let refused = it
+        .apply(
+            Edit::Place {
+                object: 0,
+                x: onto.0,
+                y: onto.1,
+            },
+            &mut times,
+        )
+        .unwrap_err();
+    assert_eq!(refused.field, "x");
+    assert!(
+        refused.message.contains("'box' would pass through 'twin'"),
+        "{}",
+        refused.message
+    );
+    assert_eq!(it.version(), before, "a refused place changed the state");
+    let beside = pixel_of(&it, DVec3::new(0.2, 0.0, 0.6));
+    place(&mut it, beside, &mut times);
+    assert!(it.version() > before);
+}
