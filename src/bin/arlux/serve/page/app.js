@@ -69,7 +69,15 @@ function draw(canvas, image) {
   canvas.getContext("2d").putImageData(image, 0, 0);
 }
 
+// The exposure the image is shown at: the session's (the photo's mean to
+// 0.18) plus the slider's offset, in stops.
+function showExposure() {
+  const ev = state.exposure + evOffset;
+  $("ev-value").textContent = `${ev >= 0 ? "+" : ""}${ev.toFixed(2)} EV`;
+}
+
 async function refresh() {
+  showExposure();
   const which = view === "wipe" ? "final" : view;
   const main = await fetchImage(which);
   draw($("view"), main.image);
