@@ -478,3 +478,69 @@ fn radiosity_recovers_a_light_marked_reconstruct_first() {
     let rmse = report["comparison"]["rmse"].as_f64().unwrap();
     assert!(rmse < 0.012, "model against the photo {rmse}");
 }
+
+/// A motion takes the render flags as `render` does: its first frame with
+/// `--patch-size`, `--min-level`, `--penumbra-level` and `--samples` is the
+/// render of a variant posing the box there with the same flags, bit for bit.
+#[test]
+fn a_motion_takes_the_render_flags() {
+    let desk = Desk::new();
+    let scene = desk.scene();
+    let text = std::fs::read_to_string(&scene).unwrap()
+        + "\n[[variant]]\nname = \"slide_0\"\nobjects = { box = { translate = [-1.3, 0.0, 0.5] } }\n";
+    std::fs::write(&scene, text).unwrap();
+    let flags = [
+        "--patch-size",
+        "0.5",
+        "--min-level",
+        "3",
+        "--penumbra-level",
+        "5",
+        "--samples",
+        "2",
+    ];
+    let frames = desk.path("m");
+    let mut motion = vec![
+        "motion",
+        &scene,
+        "--motion",
+        "box_slide",
+        "--frames",
+        "0..1",
+    ];
+    let out = frames.to_str().unwrap().to_string();
+    motion.extend(["-o", &out]);
+    motion.extend(flags);
+    common::arlux_ok(&motion);
+    let still = desk.path("still.exr");
+    let mut render = vec![
+        "render",
+        &scene,
+        "--variant",
+        "slide_0",
+        "-o",
+        still.to_str().unwrap(),
+    ];
+    render.extend(flags);
+    common::arlux_ok(&render);
+    let a = arlux::image_io::read_image(&frames.join("box_slide_000.exr")).unwrap();
+    let b = arlux::image_io::read_image(&still).unwrap();
+    assert!(
+        a.pixels == b.pixels,
+        "the motion's frame differs from the render with the same flags"
+    );
+    // And the flags matter: the default first frame differs.
+    let plain = desk.path("plain");
+    common::arlux_ok(&[
+        "motion",
+        &scene,
+        "--motion",
+        "box_slide",
+        "--frames",
+        "0..1",
+        "-o",
+        plain.to_str().unwrap(),
+    ]);
+    let c = arlux::image_io::read_image(&plain.join("box_slide_000.exr")).unwrap();
+    assert!(a.pixels != c.pixels);
+}

@@ -18,6 +18,7 @@ macro_rules! say {
 
 mod common;
 mod compare;
+mod flags;
 mod gonio;
 mod hdr;
 mod ids;

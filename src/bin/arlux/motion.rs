@@ -37,14 +37,9 @@ pub struct Args {
     /// layers `render` writes (a tenth to a fifth less work per update).
     #[arg(long)]
     pub image_only: bool,
-    /// Refine the room's links again rather than read them from
-    /// `.arlux-cache/` next to the scene (nor keep them there).
-    #[arg(long)]
-    pub no_cache: bool,
-    /// Rounds of per-pixel samples over the radiosity solution in every
-    /// frame, where the objects change it (as `render --samples`).
-    #[arg(long, default_value_t = arlux::settings::RenderOptions::default().samples)]
-    pub samples: u32,
+    /// The render flags, as `render` takes them (every frame).
+    #[command(flatten)]
+    pub flags: crate::flags::RenderFlags,
     #[arg(long)]
     pub json: bool,
 }
@@ -123,11 +118,8 @@ pub fn run(args: &Args) -> Result<()> {
     use arlux::model::StageTimes;
     use arlux::render::Session;
     // The settings checked before any work.
-    let options = arlux::settings::RenderOptions {
-        cache: !args.no_cache,
-        samples: args.samples,
-        ..Default::default()
-    };
+    let mut options = arlux::settings::RenderOptions::default();
+    args.flags.apply(&mut options);
     let arlux::settings::Method::Pda(settings) = options.resolve()? else {
         unreachable!("the default method is the pixel path")
     };

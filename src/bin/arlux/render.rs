@@ -11,7 +11,6 @@ use arlux::image_io::{self, ExrMeta, PixelRect};
 use arlux::model::StageTimes;
 use arlux::output::{AOV_LAYERS, FrameFiles, FrameWriter, RenderOutput};
 
-use arlux::composite::CompositeMode;
 use arlux::settings::{Method, RenderMethod, RenderOptions};
 
 use crate::common::*;
@@ -40,32 +39,6 @@ pub struct Args {
     /// or texture (shadow-free textures × B/D, Loscos).
     #[arg(long, value_enum, default_value_t = RenderOptions::default().method)]
     pub method: RenderMethod,
-    /// How real pixels take the change: ratio (photo × L_with/L_without) or additive.
-    #[arg(long, value_enum, default_value_t = RenderOptions::default().composite)]
-    pub composite: CompositeMode,
-    /// The room's largest patch edge, metres (default: from what the
-    /// scene changes: the room's diagonal / 24 for light changes, / 6 for
-    /// added objects only).
-    #[arg(long)]
-    pub patch_size: Option<f64>,
-    /// Largest patch edge on virtual objects, metres.
-    #[arg(long, default_value_t = RenderOptions::default().virtual_patch_size)]
-    pub virtual_patch_size: f64,
-    /// Every patch against every other (the form-factor oracle) instead
-    /// of hierarchical radiosity; pixel path only.
-    #[arg(long)]
-    pub full: bool,
-    /// Hierarchical radiosity's link threshold (both methods).
-    #[arg(long, default_value_t = RenderOptions::default().epsilon)]
-    pub epsilon: f64,
-    /// 2^level shadow rays per rect light everywhere, 2^penumbra_level in penumbra.
-    #[arg(long, default_value_t = RenderOptions::default().min_level)]
-    pub min_level: usize,
-    #[arg(long, default_value_t = RenderOptions::default().penumbra_level)]
-    pub penumbra_level: usize,
-    /// n×n sub-pixels where real and virtual surfaces meet.
-    #[arg(long, default_value_t = RenderOptions::default().supersample)]
-    pub supersample: u32,
     /// Texture path: CIELAB distance under which two leaves have similar colour (default 10).
     #[arg(long)]
     pub colour_threshold: Option<f64>,
@@ -91,15 +64,8 @@ pub struct Args {
     /// path composites the whole frame.
     #[arg(long)]
     pub memory: Option<String>,
-    /// Refine the room's links again rather than read them from
-    /// `.arlux-cache/` next to the scene (nor keep them there).
-    #[arg(long)]
-    pub no_cache: bool,
-    /// Rounds of per-pixel samples over the radiosity solution, where the
-    /// objects change the image: each round lowers the noise by sqrt(r/(r+1))
-    /// (0: the solution alone; pixel path only).
-    #[arg(long, default_value_t = RenderOptions::default().samples)]
-    pub samples: u32,
+    #[command(flatten)]
+    pub flags: crate::flags::RenderFlags,
     /// Seconds the render may take: as many rounds as fit (at most
     /// --samples when given); the report says how many ran.
     #[arg(long)]
@@ -110,16 +76,8 @@ pub struct Args {
 
 impl Args {
     fn options(&self) -> RenderOptions {
-        RenderOptions {
+        let mut options = RenderOptions {
             method: self.method,
-            composite: self.composite,
-            patch_size: self.patch_size,
-            virtual_patch_size: self.virtual_patch_size,
-            full: self.full,
-            epsilon: self.epsilon,
-            min_level: self.min_level,
-            penumbra_level: self.penumbra_level,
-            supersample: self.supersample,
             colour_threshold: self.colour_threshold,
             visibility_threshold: self.visibility_threshold,
             reference_colour_threshold: self.reference_colour_threshold,
@@ -130,10 +88,11 @@ impl Args {
                 y0: c[2],
                 y1: c[3],
             }),
-            cache: !self.no_cache,
-            samples: self.samples,
             time: self.time,
-        }
+            ..RenderOptions::default()
+        };
+        self.flags.apply(&mut options);
+        options
     }
 }
 
@@ -260,7 +219,7 @@ fn frame_files(
             .folder(dir)
             .with_context(|| format!("{}: could not create the folder", dir.display()))?;
         // The noise layer only where rounds of samples run to estimate it.
-        let sampled = args.samples > 0 || args.time.is_some();
+        let sampled = args.flags.samples > 0 || args.time.is_some();
         for (name, layer) in AOV_LAYERS {
             if layer != arlux::output::FrameLayer::Noise || sampled {
                 aov.push((layer, batch.stage(&dir.join(format!("{name}.exr")))));

@@ -1,0 +1,63 @@
+//! The render flags every command that renders takes alike (`render`,
+//! `motion`): the composite, the radiosity's and the pixel data's
+//! settings, the links cache and the rounds of per-pixel samples. Mapped
+//! onto the library's [`RenderOptions`], where their defaults and checks live.
+
+use arlux::composite::CompositeMode;
+use arlux::settings::RenderOptions;
+
+/// The render flags (see the module's documentation).
+#[derive(clap::Args, Debug, Clone)]
+pub struct RenderFlags {
+    /// How real pixels take the change: ratio (photo × L_with/L_without) or additive.
+    #[arg(long, value_enum, default_value_t = RenderOptions::default().composite)]
+    pub composite: CompositeMode,
+    /// The room's largest patch edge, metres (default: from what the
+    /// scene changes: the room's diagonal / 24 for light changes, / 6 for
+    /// added objects only).
+    #[arg(long)]
+    pub patch_size: Option<f64>,
+    /// Largest patch edge on virtual objects, metres.
+    #[arg(long, default_value_t = RenderOptions::default().virtual_patch_size)]
+    pub virtual_patch_size: f64,
+    /// Every patch against every other (the form-factor oracle) instead
+    /// of hierarchical radiosity; pixel path only.
+    #[arg(long)]
+    pub full: bool,
+    /// Hierarchical radiosity's link threshold (both methods).
+    #[arg(long, default_value_t = RenderOptions::default().epsilon)]
+    pub epsilon: f64,
+    /// 2^level shadow rays per rect light everywhere, 2^penumbra_level in penumbra.
+    #[arg(long, default_value_t = RenderOptions::default().min_level)]
+    pub min_level: usize,
+    #[arg(long, default_value_t = RenderOptions::default().penumbra_level)]
+    pub penumbra_level: usize,
+    /// n×n sub-pixels where real and virtual surfaces meet.
+    #[arg(long, default_value_t = RenderOptions::default().supersample)]
+    pub supersample: u32,
+    /// Refine the room's links again rather than read them from
+    /// `.arlux-cache/` next to the scene (nor keep them there).
+    #[arg(long)]
+    pub no_cache: bool,
+    /// Rounds of per-pixel samples over the radiosity solution, where the
+    /// objects change the image: each round lowers the noise by sqrt(r/(r+1))
+    /// (0: the solution alone; pixel path only).
+    #[arg(long, default_value_t = RenderOptions::default().samples)]
+    pub samples: u32,
+}
+
+impl RenderFlags {
+    /// Sets these flags' settings in `options`.
+    pub fn apply(&self, options: &mut RenderOptions) {
+        options.composite = self.composite;
+        options.patch_size = self.patch_size;
+        options.virtual_patch_size = self.virtual_patch_size;
+        options.full = self.full;
+        options.epsilon = self.epsilon;
+        options.min_level = self.min_level;
+        options.penumbra_level = self.penumbra_level;
+        options.supersample = self.supersample;
+        options.cache = !self.no_cache;
+        options.samples = self.samples;
+    }
+}
