@@ -3,7 +3,7 @@
 
 /// Registers the shipped font as plotters' "sans-serif" (once per process).
 pub(crate) fn register_font() {
-    static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+    static FONT: &[u8] = include_bytes!("fonts/DejaVuSans.ttf");
     static REGISTERED: std::sync::Once = std::sync::Once::new();
     REGISTERED.call_once(|| {
         let _ =

@@ -4,7 +4,8 @@
 //! stages (run the old and the new binary alternately; this machine's
 //! timings move by ±15–30% between runs).
 //!
-//! `cargo run --release --example update_stages [UPDATES [SCENE MOTION A B]]`
+//! `cargo bench --bench update_stages -- [UPDATES [SCENE MOTION A B]]` (a
+//! report, not criterion; `cargo test --benches` runs nothing).
 
 use std::collections::BTreeMap;
 
@@ -13,7 +14,13 @@ use arlux::render::{RenderSettings, Session};
 use arlux::scene::Scene;
 
 fn main() -> anyhow::Result<()> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+    // `cargo bench` passes its own flags; `cargo test --benches` asks for a quick pass.
+    if std::env::args().any(|a| a == "--test" || a == "--list") {
+        return Ok(());
+    }
+    let args: Vec<String> = (std::env::args().skip(1))
+        .filter(|a| !a.starts_with("--"))
+        .collect();
     let updates: usize = args.first().map_or(Ok(60), |a| a.parse())?;
     let desk = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/desk/scene.toml");
     let (scene, motion, a, b) = match &args[..] {

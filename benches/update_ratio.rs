@@ -4,7 +4,8 @@
 //! one session (the desk's box moving between poses 3 and 4 of
 //! `box_slide`) and one full render of pose 4; prints the medians.
 //!
-//! `cargo run --release --example update_ratio [ROUNDS] [UPDATES]`
+//! `cargo bench --bench update_ratio -- [ROUNDS] [UPDATES]` (a report, not
+//! criterion; `cargo test --benches` runs nothing).
 
 use std::time::Instant;
 
@@ -13,6 +14,10 @@ use arlux::render::{RenderSettings, Session, render};
 use arlux::scene::Scene;
 
 fn main() -> anyhow::Result<()> {
+    // `cargo bench` passes its own flags; `cargo test --benches` asks for a quick pass.
+    if std::env::args().any(|a| a == "--test" || a == "--list") {
+        return Ok(());
+    }
     let base = Scene::load(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/scenes/desk/scene.toml"
@@ -23,7 +28,9 @@ fn main() -> anyhow::Result<()> {
     );
     let photo = p3.load_photo()?;
     let settings = RenderSettings::default();
-    let mut args = std::env::args().skip(1).map(|a| a.parse::<usize>());
+    let mut args = (std::env::args().skip(1))
+        .filter(|a| !a.starts_with("--"))
+        .map(|a| a.parse::<usize>());
     let rounds = args.next().transpose()?.unwrap_or(15);
     let updates = args.next().transpose()?.unwrap_or(20);
     let mut session = Session::start(&p3, &photo, &settings, &mut StageTimes::default())?;
