@@ -4,6 +4,9 @@
 //! ÷ the occlusion throughput of the `trace` bench (measured here the same
 //! way, packets of 16 on all threads).
 
+#[path = "../tests/common/asset.rs"]
+mod asset;
+
 use std::path::Path;
 use std::time::Instant;
 
@@ -61,7 +64,7 @@ fn bench(c: &mut Criterion) {
     });
     drop(session);
     // The rendered images are likewise dropped untimed.
-    full_renders(&mut g, "box_slide_pose_4", &p4, &photo, &settings);
+    full_renders(&mut g, "box_slide_pose_4", &p4, &photo, &settings, true);
     drop(start);
     g.finish();
 
@@ -250,11 +253,19 @@ fn dense(c: &mut Criterion) {
 /// next to a full render of the pose, and the update's indirect part
 /// (the change, solve, gather) on its own; benchmarks named after `label`.
 fn stool_walk(c: &mut Criterion, scene: &str, label: &str) {
-    let base = Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join(scene)).unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join(scene);
+    walk(c, &scene, "stool_walk", label, true);
+}
+
+/// Poses 2 and 3 of `motion` in `scene`: the move back and forth on one
+/// session, its indirect part, and a full render of pose 3 (with a cold
+/// links cache too when `cold`).
+fn walk(c: &mut Criterion, scene: &Path, motion: &str, label: &str, cold: bool) {
+    let base = Scene::load(scene).unwrap();
     let settings = RenderSettings::default();
     let (p2, p3) = (
-        base.with_motion_pose("stool_walk", 2).unwrap(),
-        base.with_motion_pose("stool_walk", 3).unwrap(),
+        base.with_motion_pose(motion, 2).unwrap(),
+        base.with_motion_pose(motion, 3).unwrap(),
     );
     let photo = p2.load_photo().unwrap();
     let mut g = c.benchmark_group("update");
@@ -300,8 +311,88 @@ fn stool_walk(c: &mut Criterion, scene: &str, label: &str) {
             indirect.len()
         );
     }
-    full_renders(&mut g, &format!("{label}_pose_3"), &p3, &photo, &settings);
+    full_renders(
+        &mut g,
+        &format!("{label}_pose_3"),
+        &p3,
+        &photo,
+        &settings,
+        cold,
+    );
     g.finish();
+}
+
+/// Real-looking assets in the lounge (generated as a Blender export would
+/// be: `tests/common/asset.rs`): an 80k-triangle prop with 2k textures
+/// walking the stool's path, a 2 m wide round table moving a little, and
+/// the stool walking while that table stands still in the room.
+fn real_assets(c: &mut Criterion) {
+    use asset::{AssetSpec, write_asset};
+    let dir = tempfile::tempdir().unwrap();
+    let lounge = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/lounge");
+    std::fs::create_dir(dir.path().join("geometry")).unwrap();
+    for f in ["room.obj", "furniture.obj", "stool.obj"] {
+        std::os::unix::fs::symlink(
+            lounge.join("geometry").join(f),
+            dir.path().join("geometry").join(f),
+        )
+        .unwrap();
+    }
+    std::os::unix::fs::symlink(lounge.join("photo.exr"), dir.path().join("photo.exr")).unwrap();
+    write_asset(
+        &dir.path().join("geometry"),
+        "prop",
+        &AssetSpec::heavy_prop(),
+    );
+    let wide = AssetSpec {
+        triangles: 20_000,
+        texture: 1024,
+        width: 2.0,
+        height: 0.45,
+        groove_deg: 0.0,
+        grooves: 1,
+    };
+    write_asset(&dir.path().join("geometry"), "wide", &wide);
+    let text = std::fs::read_to_string(lounge.join("scene.toml")).unwrap();
+    // The room, lights and the stool; no references (not measured here).
+    let cut = text.find("[[variant]]").unwrap_or(text.len());
+    let scene = format!(
+        "{}{}",
+        &text[..cut],
+        r#"
+[[virtual]]
+name = "prop"
+mesh = "geometry/prop.gltf"
+enabled = false
+
+[[virtual]]
+name = "wide"
+mesh = "geometry/wide.gltf"
+translate = [-0.6, 0.0, -0.9]
+
+[[motion]]
+name = "prop_walk"
+object = "prop"
+hide = ["stool", "wide"]
+translations = [[-2.0, 0.0, 1.5], [-1.26, 0.0, 1.36], [-0.52, 0.0, 1.22], [0.22, 0.0, 1.08], [0.96, 0.0, 0.94]]
+
+[[motion]]
+name = "wide_walk"
+object = "wide"
+hide = ["stool"]
+translations = [[-0.6, 0.0, -0.9], [-0.5, 0.0, -0.85], [-0.4, 0.0, -0.8], [-0.3, 0.0, -0.75]]
+
+[[motion]]
+name = "stool_walk"
+object = "stool"
+translations = [[-2.0, 0.0, 1.5], [-1.26, 0.0, 1.36], [-0.52, 0.0, 1.22], [0.22, 0.0, 1.08], [0.96, 0.0, 0.94]]
+"#
+    );
+    let file = dir.path().join("scene.toml");
+    std::fs::write(&file, scene).unwrap();
+    walk(c, &file, "prop_walk", "asset_80k_walk", false);
+    walk(c, &file, "wide_walk", "asset_2m_walk", false);
+    walk(c, &file, "stool_walk", "stool_walk_beside_2m_asset", false);
 }
 
 /// Full renders of `scene` beside its updates: with the room's links
@@ -314,12 +405,15 @@ fn full_renders(
     scene: &Scene,
     photo: &arlux::image_io::Image,
     settings: &RenderSettings,
+    cold: bool,
 ) {
-    g.bench_function(format!("{label}_full_render_cold_cache"), |b| {
-        b.iter_with_large_drop(|| {
-            render(scene, photo, settings, &mut StageTimes::default()).unwrap()
-        })
-    });
+    if cold {
+        g.bench_function(format!("{label}_full_render_cold_cache"), |b| {
+            b.iter_with_large_drop(|| {
+                render(scene, photo, settings, &mut StageTimes::default()).unwrap()
+            })
+        });
+    }
     let mut warm = *settings;
     warm.model.cache_links = true;
     render(scene, photo, &warm, &mut StageTimes::default()).unwrap();
@@ -328,5 +422,5 @@ fn full_renders(
     });
 }
 
-criterion_group!(benches, bench, parts, lounge, dense);
+criterion_group!(benches, bench, parts, lounge, dense, real_assets);
 criterion_main!(benches);
