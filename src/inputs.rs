@@ -22,27 +22,46 @@ pub(crate) fn resolve_inputs(
     times: &mut StageTimes,
     left_out: &mut Vec<String>,
 ) -> Result<(Option<Scene>, Image)> {
-    let photo = if scene.photo_is_relative() {
-        match times.time("bracket scale", || {
-            bracket_scale_cached(scene, photo, tracer, settings, fine_patch_size(scene))
-        }) {
-            Some(s) => Image {
-                pixels: photo.pixels.iter().map(|p| *p * s as f32).collect(),
-                ..photo.clone()
-            },
-            None => {
-                left_out.push("absolute scale: the photo comes from brackets and no reflectance is known, so radiance is relative".to_string());
-                photo.clone()
-            }
-        }
-    } else {
-        photo.clone()
-    };
+    let (photo, relative) = photo_in_units(scene, photo, tracer, settings, times);
+    left_out.extend(relative.map(|why| format!("absolute scale: {why}")));
     let resolved = match crate::gonio::light_to_reconstruct(scene)? {
         Some(_) => Some(times.time("goniometric", || reconstruct_cached(scene, &photo, tracer))?),
         None => None,
     };
     Ok((resolved, photo))
+}
+
+/// The photo in the scene's units: merged brackets (radiance up to a
+/// factor) scaled by the factor the known reflectances fix, through a
+/// cache next to the scene; an HDR photo as it is. With brackets and no
+/// known reflectance the photo stays relative, and the second value says
+/// so (every command that needs absolute radiance says it its own way).
+pub fn photo_in_units(
+    scene: &Scene,
+    photo: &Image,
+    tracer: &Tracer,
+    settings: &ModelSettings,
+    times: &mut StageTimes,
+) -> (Image, Option<String>) {
+    if !scene.photo_is_relative() {
+        return (photo.clone(), None);
+    }
+    let scale = times.time("bracket scale", || {
+        bracket_scale_cached(scene, photo, tracer, settings, fine_patch_size(scene))
+    });
+    match scale {
+        Some(s) => (
+            Image {
+                pixels: photo.pixels.iter().map(|p| *p * s as f32).collect(),
+                ..photo.clone()
+            },
+            None,
+        ),
+        None => (
+            photo.clone(),
+            Some("the photo comes from brackets and no reflectance is known, so radiance is relative".into()),
+        ),
+    }
 }
 
 /// The diagonal of the real geometry's bounding box.

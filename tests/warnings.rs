@@ -198,3 +198,43 @@ fn objects_sunk_unseen_or_through_each_other_are_reported() {
     );
     assert!(!stderr.contains("the room's"), "{stderr}");
 }
+
+/// Brackets with no known reflectance leave radiance relative: `radiosity`
+/// (absolute figures) warns through the same path as every warning, so
+/// `--strict` refuses; a render (a ratio of the photo) only notes it.
+#[test]
+fn a_relative_photo_is_a_warning_that_strict_refuses() {
+    let desk = Desk::new();
+    std::os::unix::fs::symlink(
+        std::path::Path::new(common::DESK).join("brackets"),
+        desk.path("brackets"),
+    )
+    .unwrap();
+    let text =
+        std::fs::read_to_string(std::path::Path::new(common::DESK).join("scene_brackets.toml"))
+            .unwrap();
+    let start = text.find("[[reflectance]]").expect("a known reflectance");
+    let end = start + text[start..].find("\n\n").unwrap_or(text.len() - start);
+    std::fs::write(
+        desk.path("b.toml"),
+        format!("{}{}", &text[..start], &text[end..]),
+    )
+    .unwrap();
+    let scene = desk.path("b.toml").display().to_string();
+    let out = desk.path("m.exr").display().to_string();
+    let run = arlux(&["radiosity", &scene, "-o", &out]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains("warning:") && stderr.contains("radiance is relative"),
+        "{stderr}"
+    );
+    std::fs::remove_file(desk.path("m.exr")).unwrap();
+    let run = arlux(&["radiosity", &scene, "-o", &out, "--strict"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("radiance is relative (--strict)"),
+        "{stderr}"
+    );
+}

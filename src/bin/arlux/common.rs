@@ -169,29 +169,19 @@ pub(crate) fn display_photo(scene: &Scene) -> Result<Image> {
     }
 }
 
-/// The photo in the scene's units: merged brackets scaled by the known reflectances.
+/// The photo in the scene's units ([`arlux::inputs::photo_in_units`], with
+/// the model `settings` the command uses); a photo left relative is a
+/// warning (an error with `--strict`): these commands give absolute figures.
 pub(crate) fn photo_in_units(
     scene: &Scene,
     tracer: &arlux::trace::Tracer,
+    settings: &arlux::model::ModelSettings,
     times: &mut arlux::model::StageTimes,
 ) -> Result<Image> {
-    let mut photo = times.time("read photo", || read_photo(scene))?;
-    if scene.photo_is_relative() {
-        let base = arlux::model::ModelSettings::default();
-        match times.time("bracket scale", || {
-            arlux::inputs::bracket_scale_cached(
-                scene,
-                &photo,
-                tracer,
-                &base,
-                arlux::inputs::fine_patch_size(scene),
-            )
-        }) {
-            Some(s) => photo.pixels.iter_mut().for_each(|p| *p *= s as f32),
-            None => eprintln!(
-                "warning: the photo comes from brackets and no reflectance is known: radiance is relative"
-            ),
-        }
+    let photo = times.time("read photo", || read_photo(scene))?;
+    let (photo, relative) = arlux::inputs::photo_in_units(scene, &photo, tracer, settings, times);
+    if let Some(why) = relative {
+        warn(scene, &why)?;
     }
     Ok(photo)
 }

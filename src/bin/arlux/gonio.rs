@@ -54,7 +54,12 @@ pub fn run(args: &Args) -> Result<()> {
         );
     }
     let tracer = times.time("tracer", || arlux::scene_tracer::build_tracer(&scene))?;
-    let photo = photo_in_units(&scene, &tracer, &mut times)?;
+    let photo = photo_in_units(
+        &scene,
+        &tracer,
+        &arlux::model::ModelSettings::default(),
+        &mut times,
+    )?;
     let rec = times.time("reconstruct", || {
         reconstruct(&scene, &photo, &tracer, &settings)
     })?;

@@ -67,7 +67,7 @@ pub fn run(args: &Args) -> Result<()> {
     let mut times = StageTimes::default();
     let scene = times.time("load", || load(path, None))?;
     let tracer = times.time("tracer", || arlux::scene_tracer::build_tracer(&scene))?;
-    let photo = photo_in_units(&scene, &tracer, &mut times)?;
+    let photo = photo_in_units(&scene, &tracer, &settings, &mut times)?;
     // A light to reconstruct is recovered first, as `render` does.
     let scene = match arlux::gonio::light_to_reconstruct(&scene)? {
         Some(_) => times.time("goniometric", || {
