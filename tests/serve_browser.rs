@@ -55,6 +55,23 @@ impl Drop for Driver {
     }
 }
 
+/// chromedriver started, or a failure that says how to install it.
+fn driver() -> Driver {
+    Driver::start().unwrap_or_else(|| {
+        panic!("chromedriver is not installed: `bash .ci/setup` installs Chromium and chromedriver")
+    })
+}
+
+/// The page at `url` opened and ready (its first image shown).
+async fn open_page(client: &Client, url: &str) {
+    client.goto(url).await.unwrap();
+    wait_until(
+        client,
+        "document.getElementById('status').dataset.ready === 'true'",
+    )
+    .await;
+}
+
 async fn browser(driver: &Driver, profile: &std::path::Path) -> Client {
     let mut caps = serde_json::Map::new();
     caps.insert(
@@ -100,22 +117,13 @@ async fn wait_until(client: &Client, condition: &str) {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_box_clicked_dragged_and_saved_in_the_browser_renders_as_the_server_showed_it() {
     let _one = ONE_BROWSER.lock().await;
-    let Some(driver) = Driver::start() else {
-        panic!(
-            "chromedriver is not installed: `bash .ci/setup` installs Chromium and chromedriver"
-        );
-    };
+    let driver = driver();
     let desk = Desk::new();
     let out = tempfile::tempdir().unwrap();
     let server = Server::start(&desk.scene(), &["--out", &out.path().display().to_string()]);
     let profile = tempfile::tempdir().unwrap();
     let client = browser(&driver, profile.path()).await;
-    client.goto(&server.url).await.unwrap();
-    wait_until(
-        &client,
-        "document.getElementById('status').dataset.ready === 'true'",
-    )
-    .await;
+    open_page(&client, &server.url).await;
 
     // Where the canvas is in the viewport, and the image points to click.
     let rect = client
@@ -284,11 +292,7 @@ async fn displayed(client: &Client, id: &str) -> bool {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_page_refines_hides_the_wipe_and_serves_a_scene_without_objects() {
     let _one = ONE_BROWSER.lock().await;
-    let Some(driver) = Driver::start() else {
-        panic!(
-            "chromedriver is not installed: `bash .ci/setup` installs Chromium and chromedriver"
-        );
-    };
+    let driver = driver();
     let profile = tempfile::tempdir().unwrap();
     let client = browser(&driver, profile.path()).await;
     // Errors the page's script throws, kept for the test to read.
@@ -428,23 +432,16 @@ async fn the_page_refines_hides_the_wipe_and_serves_a_scene_without_objects() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn two_tabs_stay_in_step_and_a_stale_edit_is_refused() {
     let _one = ONE_BROWSER.lock().await;
-    let Some(driver) = Driver::start() else {
-        panic!(
-            "chromedriver is not installed: `bash .ci/setup` installs Chromium and chromedriver"
-        );
-    };
+    let driver = driver();
     let profile = tempfile::tempdir().unwrap();
     let client = browser(&driver, profile.path()).await;
     let desk = Desk::new();
     let server = Server::start(&desk.scene(), &[]);
-    let ready = "document.getElementById('status').dataset.ready === 'true'";
-    client.goto(&server.url).await.unwrap();
-    wait_until(&client, ready).await;
+    open_page(&client, &server.url).await;
     let a = client.window().await.unwrap();
     let b = client.new_window(true).await.unwrap().handle;
     client.switch_to_window(b.clone()).await.unwrap();
-    client.goto(&server.url).await.unwrap();
-    wait_until(&client, ready).await;
+    open_page(&client, &server.url).await;
     let v0 = server.get("/api/state").json()["version"].as_u64().unwrap();
 
     // Tab a switches the box off.
@@ -505,21 +502,12 @@ async fn two_tabs_stay_in_step_and_a_stale_edit_is_refused() {
 async fn undo_redo_and_delete_from_the_keyboard_and_buttons() {
     use fantoccini::key::Key;
     let _one = ONE_BROWSER.lock().await;
-    let Some(driver) = Driver::start() else {
-        panic!(
-            "chromedriver is not installed: `bash .ci/setup` installs Chromium and chromedriver"
-        );
-    };
+    let driver = driver();
     let profile = tempfile::tempdir().unwrap();
     let client = browser(&driver, profile.path()).await;
     let desk = Desk::new();
     let server = Server::start(&desk.scene(), &[]);
-    client.goto(&server.url).await.unwrap();
-    wait_until(
-        &client,
-        "document.getElementById('status').dataset.ready === 'true'",
-    )
-    .await;
+    open_page(&client, &server.url).await;
     wait_until(
         &client,
         "document.getElementById('undo').disabled && document.getElementById('redo').disabled",
