@@ -51,6 +51,14 @@ pub enum Edit {
         object: usize,
         enabled: bool,
     },
+    /// Slide the object along the floor by `right_m` metres to the image's
+    /// right and `forward_m` away from the camera (the camera's axes laid
+    /// flat), at most a metre each way.
+    Nudge {
+        object: usize,
+        right_m: f64,
+        forward_m: f64,
+    },
     /// A light's scale: 0 switches it off; for a virtual light, its intensity.
     Light {
         light: usize,
@@ -354,6 +362,7 @@ impl Interactive {
             Edit::Turn { object, .. } => (Some(object), "yaw_deg"),
             Edit::Scale { object, .. } => (Some(object), "scale"),
             Edit::Enable { object, .. } => (Some(object), "enabled"),
+            Edit::Nudge { object, .. } => (Some(object), "nudge"),
             Edit::Light { .. } => (None, "scale"),
             // Taken by `step` before; no state of its own to change here.
             Edit::Undo | Edit::Redo => (None, "edit"),
@@ -434,6 +443,23 @@ impl Interactive {
             Edit::Enable { object: o, enabled } => {
                 let o = object(o)?;
                 self.objects[o].enabled = Some(enabled);
+            }
+            Edit::Nudge {
+                object: o,
+                right_m,
+                forward_m,
+            } => {
+                let o = object(o)?;
+                let (r, f) = (finite("nudge", right_m)?, finite("nudge", forward_m)?);
+                if r.abs() > 1.0 || f.abs() > 1.0 {
+                    return Err(Refusal::new("nudge", "at most a metre each way"));
+                }
+                let flat = |v: DVec3| DVec3::new(v.x, 0.0, v.z).normalize_or_zero();
+                let camera = &self.base.camera;
+                let t = self.scene.objects[o].pose.translate;
+                self.objects[o].translate =
+                    Some(t + flat(camera.right) * r + flat(camera.forward) * f);
+                self.objects[o].enabled = Some(true);
             }
             Edit::Light { light, scale } => {
                 if light >= self.base.lights.len() {

@@ -370,3 +370,68 @@ fn an_object_placed_into_another_is_refused_naming_it() {
     place(&mut it, beside, &mut times);
     assert!(it.version() > before);
 }
+
+/// Arrow-key nudges slide the object along the floor, along the camera's
+/// right and forward laid flat; more than a metre, or into a wall, is
+/// refused.
+#[test]
+fn a_nudge_slides_the_object_along_the_floor_as_the_camera_sees_it() {
+    let desk = Desk::new();
+    let mut it = session(&desk);
+    let mut times = StageTimes::default();
+    let before = it.scene().objects[0].pose.translate;
+    it.apply(
+        Edit::Nudge {
+            object: 0,
+            right_m: 0.2,
+            forward_m: -0.1,
+        },
+        &mut times,
+    )
+    .unwrap();
+    let after = it.scene().objects[0].pose.translate;
+    let camera = &it.base().camera;
+    let flat = |v: DVec3| DVec3::new(v.x, 0.0, v.z).normalize();
+    let moved = after - before;
+    assert!(moved.y.abs() < 1e-12, "{moved}");
+    assert!(
+        (moved.dot(flat(camera.right)) - 0.2).abs() < 1e-9,
+        "{moved}"
+    );
+    assert!(
+        (moved.dot(flat(camera.forward)) + 0.1).abs() < 1e-9,
+        "{moved}"
+    );
+    let far = it.apply(
+        Edit::Nudge {
+            object: 0,
+            right_m: 1.5,
+            forward_m: 0.0,
+        },
+        &mut times,
+    );
+    assert_eq!(far.unwrap_err().field, "nudge");
+    // Towards the back wall until it would cut in.
+    let version = it.version();
+    let mut refused = None;
+    for _ in 0..20 {
+        if let Err(r) = it.apply(
+            Edit::Nudge {
+                object: 0,
+                right_m: 0.0,
+                forward_m: 0.5,
+            },
+            &mut times,
+        ) {
+            refused = Some(r);
+            break;
+        }
+    }
+    let r = refused.expect("the wall stops it");
+    assert!(
+        r.message.contains("would cut into") || r.message.contains("outside the room"),
+        "{}",
+        r.message
+    );
+    assert!(it.version() > version);
+}

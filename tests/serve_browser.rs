@@ -496,8 +496,8 @@ async fn two_tabs_stay_in_step_and_a_stale_edit_is_refused() {
 }
 
 /// Undo and redo from the page: Ctrl+Z takes an edit back, the Redo
-/// button makes it again, Delete hides the selected object; the buttons
-/// are off when there is nothing to take.
+/// button makes it again, an arrow key slides the selected object, Delete
+/// hides it; the buttons are off when there is nothing to take.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn undo_redo_and_delete_from_the_keyboard_and_buttons() {
     use fantoccini::key::Key;
@@ -553,6 +553,24 @@ async fn undo_redo_and_delete_from_the_keyboard_and_buttons() {
         spot(&server.get("/api/state").json()),
         0.5,
         "Redo made it again"
+    );
+    // An arrow key slides the box 5 cm along the floor.
+    let x0 = server.get("/api/state").json()["objects"][0]["translate"][0]
+        .as_f64()
+        .unwrap();
+    body.send_keys(&char::from(Key::Right).to_string())
+        .await
+        .unwrap();
+    wait_until(
+        &client,
+        &format!("!busy && state.objects[0].translate[0] !== {x0}"),
+    )
+    .await;
+    let t = server.get("/api/state").json()["objects"][0]["translate"].clone();
+    let moved = (t[0].as_f64().unwrap() - x0).hypot(0.0);
+    assert!(
+        moved > 0.01 && moved <= 0.05 + 1e-9,
+        "moved {moved} m in x: {t}"
     );
     // Delete hides the selected object (the box).
     assert!(shown().await);

@@ -421,6 +421,8 @@ struct ObjectChange {
     yaw_deg: Option<f64>,
     scale: Option<f64>,
     enabled: Option<bool>,
+    /// [right, forward] metres along the floor.
+    nudge: Option<[f64; 2]>,
     version: Option<u64>,
     client: Option<String>,
 }
@@ -428,15 +430,20 @@ struct ObjectChange {
 async fn object(State(shared): State<Arc<Shared>>, request: Request) -> Result<Response, Refused> {
     let c: ObjectChange = body(request).await?;
     let object = index(&shared.objects, &c.object, "object")?;
-    let edit_of = match (c.yaw_deg, c.scale, c.enabled) {
-        (Some(yaw_deg), None, None) => Edit::Turn { object, yaw_deg },
-        (None, Some(scale), None) => Edit::Scale { object, scale },
-        (None, None, Some(enabled)) => Edit::Enable { object, enabled },
+    let edit_of = match (c.yaw_deg, c.scale, c.enabled, c.nudge) {
+        (Some(yaw_deg), None, None, None) => Edit::Turn { object, yaw_deg },
+        (None, Some(scale), None, None) => Edit::Scale { object, scale },
+        (None, None, Some(enabled), None) => Edit::Enable { object, enabled },
+        (None, None, None, Some([right_m, forward_m])) => Edit::Nudge {
+            object,
+            right_m,
+            forward_m,
+        },
         _ => {
             return Err(refused(
                 StatusCode::BAD_REQUEST,
                 "yaw_deg",
-                "give exactly one of yaw_deg, scale, enabled",
+                "give exactly one of yaw_deg, scale, enabled, nudge",
             ));
         }
     };
