@@ -601,6 +601,42 @@ impl Interactive {
         }
     }
 
+    /// The rectangle of the image the object's box covers as placed (pixel
+    /// coordinates x0, y0, x1, y1, clipped to the frame): what the page
+    /// outlines for the selected object. None where the box is out of the
+    /// frame or reaches behind the camera.
+    pub fn screen_box(&self, object: usize) -> Option<[f64; 4]> {
+        let o = self.scene.objects.get(object)?;
+        let points = (o.surfaces.iter())
+            .flat_map(|s| s.triangles.iter().flatten())
+            .map(|&p| o.pose.apply(p).as_dvec3());
+        let (lo, hi) = crate::geometry::bounds(points);
+        let camera = &self.base.camera;
+        let mut rect = [
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        for c in crate::geometry::box_corners(lo, hi) {
+            let (x, y, _) = camera.project(c)?;
+            rect = [
+                rect[0].min(x),
+                rect[1].min(y),
+                rect[2].max(x),
+                rect[3].max(y),
+            ];
+        }
+        let (w, h) = (camera.width as f64, camera.height as f64);
+        let clipped = [
+            rect[0].max(0.0),
+            rect[1].max(0.0),
+            rect[2].min(w),
+            rect[3].min(h),
+        ];
+        (clipped[0] < clipped[2] && clipped[1] < clipped[3]).then_some(clipped)
+    }
+
     /// The object's state as the page shows it: enabled, where it stands,
     /// its heading and scale.
     pub fn object_state(&self, object: usize) -> (bool, DVec3, f64, f64) {

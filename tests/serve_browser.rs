@@ -554,6 +554,35 @@ async fn undo_redo_and_delete_from_the_keyboard_and_buttons() {
         0.5,
         "Redo made it again"
     );
+    // The selected box is outlined where its box covers the image.
+    wait_until(
+        &client,
+        "document.getElementById('outline').dataset.box !== ''",
+    )
+    .await;
+    let outlined = client
+        .execute(
+            "return document.getElementById('outline').dataset.box;",
+            vec![],
+        )
+        .await
+        .unwrap();
+    let b: Vec<f64> = (outlined.as_str().unwrap().split(','))
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let state = server.get("/api/state").json();
+    let t = &state["objects"][0]["translate"];
+    let scene = arlux::scene::Scene::load(desk.scene()).unwrap();
+    let centre = DVec3::new(
+        t[0].as_f64().unwrap(),
+        t[1].as_f64().unwrap() + 0.15,
+        t[2].as_f64().unwrap(),
+    );
+    let (x, y, _) = scene.camera.project(centre).unwrap();
+    assert!(
+        b[0] < x && x < b[2] && b[1] < y && y < b[3],
+        "outline {b:?} misses the box's centre {x},{y}"
+    );
     // An arrow key slides the box 5 cm along the floor.
     let x0 = server.get("/api/state").json()["objects"][0]["translate"][0]
         .as_f64()
@@ -579,5 +608,10 @@ async fn undo_redo_and_delete_from_the_keyboard_and_buttons() {
         .unwrap();
     wait_until(&client, "!busy && !state.objects[0].enabled").await;
     assert!(!shown().await, "Delete hid the box");
+    wait_until(
+        &client,
+        "document.getElementById('outline').dataset.box === ''",
+    )
+    .await;
     client.close().await.unwrap();
 }

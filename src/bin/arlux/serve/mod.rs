@@ -293,6 +293,7 @@ pub(crate) fn state_json(it: &Interactive, last: Option<&Value>) -> Value {
                 "translate": t.to_array(),
                 "yaw_deg": yaw,
                 "scale": scale,
+                "screen_box": it.screen_box(k),
             })
         })
         .collect();

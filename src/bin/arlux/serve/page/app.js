@@ -81,6 +81,7 @@ async function refresh() {
   const which = view === "wipe" ? "final" : view;
   const main = await fetchImage(which);
   draw($("view"), main.image);
+  drawOutline();
   shown = main.version;
   $("view").dataset.version = String(main.version);
   const before = $("before");
@@ -109,7 +110,25 @@ function showOutcome(r) {
 
 function selected() { return state.objects[$("object").selectedIndex]; }
 
+// The selected object's outline (the rectangle its box covers), on a
+// canvas of its own over the image.
+function drawOutline() {
+  const canvas = $("outline"), view = $("view");
+  if (canvas.width !== view.width) { canvas.width = view.width; canvas.height = view.height; }
+  const ctx = canvas.getContext("2d");
+  ctx.clearRect(0, 0, canvas.width, canvas.height);
+  const o = selected();
+  const b = o && o.enabled && o.screen_box;
+  canvas.dataset.box = b ? b.map((v) => v.toFixed(1)).join(",") : "";
+  if (!b) return;
+  ctx.setLineDash([4, 3]);
+  ctx.strokeStyle = "#ffd24a";
+  ctx.lineWidth = 1;
+  ctx.strokeRect(b[0] + 0.5, b[1] + 0.5, b[2] - b[0] - 1, b[3] - b[1] - 1);
+}
+
 function fillControls() {
+  drawOutline();
   const h = state.history || { undo: 0, redo: 0 };
   $("undo").disabled = h.undo === 0;
   $("redo").disabled = h.redo === 0;
