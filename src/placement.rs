@@ -149,6 +149,57 @@ impl Others {
     }
 }
 
+/// Where along motion `name` (its poses `poses`) the moving object passes
+/// through the room or another object deeper than [`TOUCH`] of its size:
+/// one sentence per kind, naming the first such pose and how many there
+/// are. Checked before a motion renders (no pose is rendered for it).
+pub fn motion_warnings(
+    base: &Scene,
+    name: &str,
+    poses: std::ops::Range<usize>,
+) -> crate::error::Result<Vec<String>> {
+    let object = base.motion(name)?.object;
+    let room = Tracer::build(&crate::scene_tracer::real_triangle_sets(base), &[])
+        .map_err(|e| crate::error::Error::file(&base.file, e.to_string()))?;
+    let mut others = None;
+    // (what it passes through, the first pose, the deepest, how many poses)
+    let mut found: Vec<(String, usize, f64, usize)> = Vec::new();
+    for pose in poses {
+        let scene = base.with_motion_pose(name, pose)?;
+        let o = &scene.objects[object];
+        let mut hits = Vec::new();
+        if let Some((surface, depth)) = cut_into(&room, Layer::Real, o, &[]) {
+            hits.push((
+                format!("the room's '{}'", scene.surfaces[surface as usize].name),
+                depth,
+            ));
+        }
+        if let Some((other, depth)) = Others::passed_through(&mut others, &scene, object)? {
+            hits.push((format!("'{other}'"), depth));
+        }
+        for (what, depth) in hits {
+            match found.iter_mut().find(|f| f.0 == what) {
+                Some(f) => {
+                    f.2 = f.2.max(depth);
+                    f.3 += 1;
+                }
+                None => found.push((what, pose, depth, 1)),
+            }
+        }
+    }
+    let moving = &base.objects[object].name;
+    Ok(found
+        .into_iter()
+        .map(|(what, first, depth, count)| {
+            format!(
+                "motion '{name}': '{moving}' passes through {what} at {count} pose(s) from pose {first} (up to {:.1} cm deep; more than {:.0}% of its size is not a touch)",
+                100.0 * depth,
+                100.0 * TOUCH
+            )
+        })
+        .collect())
+}
+
 /// Each object's virtual surface ids, in the scene's numbering (after the
 /// real surfaces, over every object, enabled or not).
 fn surface_ids(scene: &Scene) -> Vec<Vec<u32>> {

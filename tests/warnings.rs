@@ -238,3 +238,51 @@ fn a_relative_photo_is_a_warning_that_strict_refuses() {
         "{stderr}"
     );
 }
+
+/// A motion whose object passes through another object at some poses is
+/// said before any frame (errors with `--strict`, no folder made); the
+/// desk's own motion says nothing.
+#[test]
+fn a_motion_through_another_object_is_reported_before_its_frames() {
+    let desk = Desk::new();
+    let frames = desk.path("frames");
+    let motion = |strict: bool| {
+        let mut args = vec![
+            "motion".to_string(),
+            desk.scene(),
+            "--motion".into(),
+            "box_slide".into(),
+            "--frames".into(),
+            "2..5".into(),
+            "-o".into(),
+            frames.display().to_string(),
+        ];
+        if strict {
+            args.push("--strict".into());
+        }
+        let args: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
+        let run = arlux(&args);
+        (
+            run.status.code(),
+            String::from_utf8_lossy(&run.stderr).into_owned(),
+        )
+    };
+    let (code, stderr) = motion(true);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(!stderr.contains("warning"), "{stderr}");
+    std::fs::remove_dir_all(&frames).unwrap();
+    let text = std::fs::read_to_string(desk.scene()).unwrap()
+        + "\n[[virtual]]\nname = \"twin\"\nmesh = \"geometry/box.obj\"\nrgb = [0.2, 0.5, 0.8]\ntranslate = [-0.27, 0.0, 0.11]\n";
+    std::fs::write(desk.scene(), text).unwrap();
+    let (code, stderr) = motion(false);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("motion 'box_slide': 'box' passes through 'twin' at")
+            && stderr.contains("cm deep"),
+        "{stderr}"
+    );
+    std::fs::remove_dir_all(&frames).unwrap();
+    let (code, stderr) = motion(true);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(!frames.exists(), "--strict made the frames' folder");
+}

@@ -155,6 +155,12 @@ pub fn run(args: &Args) -> Result<()> {
         }
         Ok(())
     })?;
+    let crossings = stage("placement checks", || {
+        arlux::placement::motion_warnings(&base, name, poses.clone())
+    })?;
+    for w in &crossings {
+        warn(&base, w)?;
+    }
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: could not create the folder", dir.display()))?;
     let write = |pose: usize, c: &arlux::composite::Composite, photo: &Image| -> Result<()> {
