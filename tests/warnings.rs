@@ -6,19 +6,20 @@ mod common;
 use common::{Desk, arlux};
 
 fn render(desk: &Desk, strict: bool) -> (Option<i32>, String) {
-    let out = desk.path("a.exr");
-    let mut args = vec![
-        "render".to_string(),
-        desk.scene(),
-        "--variant".into(),
-        "box_floor_a".into(),
-        "-o".into(),
-        out.display().to_string(),
-    ];
+    let out = desk.path("a.exr").display().to_string();
+    let scene = desk.scene();
+    run(
+        &["render", &scene, "--variant", "box_floor_a", "-o", &out],
+        strict,
+    )
+}
+
+/// arlux with `args` (and `--strict`): its exit status and what it said.
+fn run(args: &[&str], strict: bool) -> (Option<i32>, String) {
+    let mut args = args.to_vec();
     if strict {
-        args.push("--strict".into());
+        args.push("--strict");
     }
-    let args: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
     let run = arlux(&args);
     (
         run.status.code(),
@@ -246,27 +247,18 @@ fn a_relative_photo_is_a_warning_that_strict_refuses() {
 fn a_motion_through_another_object_is_reported_before_its_frames() {
     let desk = Desk::new();
     let frames = desk.path("frames");
-    let motion = |strict: bool| {
-        let mut args = vec![
-            "motion".to_string(),
-            desk.scene(),
-            "--motion".into(),
-            "box_slide".into(),
-            "--frames".into(),
-            "2..5".into(),
-            "-o".into(),
-            frames.display().to_string(),
-        ];
-        if strict {
-            args.push("--strict".into());
-        }
-        let args: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
-        let run = arlux(&args);
-        (
-            run.status.code(),
-            String::from_utf8_lossy(&run.stderr).into_owned(),
-        )
-    };
+    let (scene, out) = (desk.scene(), frames.display().to_string());
+    let args = [
+        "motion",
+        &scene,
+        "--motion",
+        "box_slide",
+        "--frames",
+        "2..5",
+        "-o",
+        &out,
+    ];
+    let motion = |strict: bool| run(&args, strict);
     let (code, stderr) = motion(true);
     assert_eq!(code, Some(0), "{stderr}");
     assert!(!stderr.contains("warning"), "{stderr}");
