@@ -62,6 +62,33 @@ fn driver() -> Driver {
     })
 }
 
+/// A copy of the desk served, and its page open and ready in a browser.
+struct DeskPage {
+    client: Client,
+    desk: Desk,
+    server: Server,
+    _profile: tempfile::TempDir,
+    _driver: Driver,
+}
+
+impl DeskPage {
+    async fn open() -> DeskPage {
+        let driver = driver();
+        let profile = tempfile::tempdir().unwrap();
+        let client = browser(&driver, profile.path()).await;
+        let desk = Desk::new();
+        let server = Server::start(&desk.scene(), &[]);
+        open_page(&client, &server.url).await;
+        DeskPage {
+            client,
+            desk,
+            server,
+            _profile: profile,
+            _driver: driver,
+        }
+    }
+}
+
 /// The page at `url` opened and ready (its first image shown).
 async fn open_page(client: &Client, url: &str) {
     client.goto(url).await.unwrap();
@@ -432,16 +459,12 @@ async fn the_page_refines_hides_the_wipe_and_serves_a_scene_without_objects() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn two_tabs_stay_in_step_and_a_stale_edit_is_refused() {
     let _one = ONE_BROWSER.lock().await;
-    let driver = driver();
-    let profile = tempfile::tempdir().unwrap();
-    let client = browser(&driver, profile.path()).await;
-    let desk = Desk::new();
-    let server = Server::start(&desk.scene(), &[]);
-    open_page(&client, &server.url).await;
+    let page = DeskPage::open().await;
+    let (client, server) = (&page.client, &page.server);
     let a = client.window().await.unwrap();
     let b = client.new_window(true).await.unwrap().handle;
     client.switch_to_window(b.clone()).await.unwrap();
-    open_page(&client, &server.url).await;
+    open_page(client, &server.url).await;
     let v0 = server.get("/api/state").json()["version"].as_u64().unwrap();
 
     // Tab a switches the box off.
@@ -453,11 +476,11 @@ async fn two_tabs_stay_in_step_and_a_stale_edit_is_refused() {
         )
         .await
         .unwrap();
-    wait_until(&client, &format!("state.version > {v0} && !busy")).await;
+    wait_until(client, &format!("state.version > {v0} && !busy")).await;
     // Tab b follows: its control and its image are the new state's.
     client.switch_to_window(b.clone()).await.unwrap();
     wait_until(
-        &client,
+        client,
         &format!("state.version > {v0} && !document.getElementById('enabled').checked && +document.getElementById('view').dataset.version === state.version"),
     )
     .await;
@@ -472,7 +495,7 @@ async fn two_tabs_stay_in_step_and_a_stale_edit_is_refused() {
         .await
         .unwrap();
     wait_until(
-        &client,
+        client,
         &format!("!busy && state.version === {v1} && document.getElementById('message').textContent.startsWith('version:')"),
     )
     .await;
@@ -492,7 +515,7 @@ async fn two_tabs_stay_in_step_and_a_stale_edit_is_refused() {
         "the stale edit was applied"
     );
     assert_eq!(state["objects"][0]["enabled"], false);
-    client.close().await.unwrap();
+    client.clone().close().await.unwrap();
 }
 
 /// Undo and redo from the page: Ctrl+Z takes an edit back, the Redo
@@ -502,14 +525,10 @@ async fn two_tabs_stay_in_step_and_a_stale_edit_is_refused() {
 async fn undo_redo_and_delete_from_the_keyboard_and_buttons() {
     use fantoccini::key::Key;
     let _one = ONE_BROWSER.lock().await;
-    let driver = driver();
-    let profile = tempfile::tempdir().unwrap();
-    let client = browser(&driver, profile.path()).await;
-    let desk = Desk::new();
-    let server = Server::start(&desk.scene(), &[]);
-    open_page(&client, &server.url).await;
+    let page = DeskPage::open().await;
+    let (client, desk, server) = (&page.client, &page.desk, &page.server);
     wait_until(
-        &client,
+        client,
         "document.getElementById('undo').disabled && document.getElementById('redo').disabled",
     )
     .await;
@@ -526,15 +545,11 @@ async fn undo_redo_and_delete_from_the_keyboard_and_buttons() {
         )
         .await
         .unwrap();
-    wait_until(
-        &client,
-        "!busy && !document.getElementById('undo').disabled",
-    )
-    .await;
+    wait_until(client, "!busy && !document.getElementById('undo').disabled").await;
     let body = client.find(Locator::Css("body")).await.unwrap();
     let ctrl_z = format!("{}z{}", char::from(Key::Control), char::from(Key::Control));
     body.send_keys(&ctrl_z).await.unwrap();
-    wait_until(&client, "!busy && document.getElementById('undo').disabled && !document.getElementById('redo').disabled").await;
+    wait_until(client, "!busy && document.getElementById('undo').disabled && !document.getElementById('redo').disabled").await;
     let spot = |s: &serde_json::Value| s["lights"][1]["scale"].as_f64().unwrap();
     assert_eq!(
         spot(&server.get("/api/state").json()),
@@ -548,7 +563,7 @@ async fn undo_redo_and_delete_from_the_keyboard_and_buttons() {
         .click()
         .await
         .unwrap();
-    wait_until(&client, "!busy && document.getElementById('redo').disabled").await;
+    wait_until(client, "!busy && document.getElementById('redo').disabled").await;
     assert_eq!(
         spot(&server.get("/api/state").json()),
         0.5,
@@ -556,7 +571,7 @@ async fn undo_redo_and_delete_from_the_keyboard_and_buttons() {
     );
     // The selected box is outlined where its box covers the image.
     wait_until(
-        &client,
+        client,
         "document.getElementById('outline').dataset.box !== ''",
     )
     .await;
@@ -591,7 +606,7 @@ async fn undo_redo_and_delete_from_the_keyboard_and_buttons() {
         .await
         .unwrap();
     wait_until(
-        &client,
+        client,
         &format!("!busy && state.objects[0].translate[0] !== {x0}"),
     )
     .await;
@@ -606,12 +621,12 @@ async fn undo_redo_and_delete_from_the_keyboard_and_buttons() {
     body.send_keys(&char::from(Key::Delete).to_string())
         .await
         .unwrap();
-    wait_until(&client, "!busy && !state.objects[0].enabled").await;
+    wait_until(client, "!busy && !state.objects[0].enabled").await;
     assert!(!shown().await, "Delete hid the box");
     wait_until(
-        &client,
+        client,
         "document.getElementById('outline').dataset.box === ''",
     )
     .await;
-    client.close().await.unwrap();
+    client.clone().close().await.unwrap();
 }
