@@ -200,10 +200,9 @@ impl<'a> Loader<'a> {
         key: &'static str,
         rel: &str,
     ) -> Result<PathBuf> {
-        let p = self.dir.join(rel);
-        match std::fs::metadata(&p) {
-            Ok(m) if !m.is_file() => Err(f.error(key, format!("{} is not a file", p.display()))),
-            _ => Ok(p),
+        match self.dir.join(rel).exists() {
+            true => self.existing_path(f, key, rel),
+            false => Ok(self.dir.join(rel)),
         }
     }
 
