@@ -107,36 +107,55 @@ pub struct Skill {
 pub(crate) const SKILL_RELATIVE: f64 = 0.03;
 pub const SKILL_FLOOR: f64 = 0.002;
 
-/// Mean over a (2r+1)² window of an image-sized field, the window clamped
-/// at the image's edges (edge values repeated), by a summed-area table.
-fn box_filter(values: &[f64], width: usize, height: usize, r: usize) -> Vec<f64> {
-    let (pw, ph) = (width + 2 * r, height + 2 * r);
-    let at = |x: usize, y: usize| {
-        let cx = x.saturating_sub(r).min(width - 1);
-        let cy = y.saturating_sub(r).min(height - 1);
-        values[cy * width + cx]
+/// Means over a (2r+1)² window of `N` image-sized fields (`at(x, y)` gives
+/// their values), the window clamped at the image's edges (edge values
+/// repeated), handed to `each` a row at a time. Holds 2r+1 rows of
+/// horizontal sums, never a whole field: a 24-megapixel frame's skill took
+/// four field-sized f64 arrays (760 MB) by a summed-area table.
+fn box_rows<const N: usize>(
+    width: usize,
+    height: usize,
+    r: usize,
+    at: impl Fn(usize, usize) -> [f64; N],
+    mut each: impl FnMut(usize, &[[f64; N]]),
+) {
+    let clamp = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
+    // Row y's sums over x − r..=x + r, for every x.
+    let horizontal = |y: usize| -> Vec<[f64; N]> {
+        let row: Vec<[f64; N]> = (0..width).map(|x| at(x, y)).collect();
+        (0..width)
+            .map(|x| {
+                let mut sum = [0.0; N];
+                for dx in -(r as isize)..=r as isize {
+                    let v = row[clamp(x as isize + dx, width)];
+                    (0..N).for_each(|n| sum[n] += v[n]);
+                }
+                sum
+            })
+            .collect()
     };
-    let mut sat = vec![0.0f64; (pw + 1) * (ph + 1)];
-    for y in 0..ph {
-        for x in 0..pw {
-            sat[(y + 1) * (pw + 1) + x + 1] =
-                at(x, y) + sat[y * (pw + 1) + x + 1] + sat[(y + 1) * (pw + 1) + x]
-                    - sat[y * (pw + 1) + x];
-        }
-    }
-    let k = 2 * r + 1;
-    let area = (k * k) as f64;
-    let mut out = vec![0.0; width * height];
+    let area = ((2 * r + 1) * (2 * r + 1)) as f64;
+    let mut window: std::collections::VecDeque<(usize, Vec<[f64; N]>)> = Default::default();
+    let mut means = vec![[0.0; N]; width];
     for y in 0..height {
-        for x in 0..width {
-            let (x1, y1) = (x + k, y + k);
-            out[y * width + x] =
-                (sat[y1 * (pw + 1) + x1] - sat[y * (pw + 1) + x1] - sat[y1 * (pw + 1) + x]
-                    + sat[y * (pw + 1) + x])
-                    / area;
+        let (lo, hi) = (y.saturating_sub(r), (y + r).min(height - 1));
+        while window.front().is_some_and(|(row, _)| *row < lo) {
+            window.pop_front();
         }
+        for row in window.back().map_or(lo, |(last, _)| last + 1)..=hi {
+            window.push_back((row, horizontal(row)));
+        }
+        for (x, mean) in means.iter_mut().enumerate() {
+            let mut sum = [0.0; N];
+            for dy in -(r as isize)..=r as isize {
+                let row = clamp(y as isize + dy, height);
+                let (_, sums) = &window[row - lo];
+                (0..N).for_each(|n| sum[n] += sums[x][n]);
+            }
+            *mean = sum.map(|v| v / area);
+        }
+        each(y, &means);
     }
-    out
 }
 
 /// The skill of `result` at reproducing the change from `photo` to
@@ -163,18 +182,17 @@ pub fn skill(result: &Image, truth: &Image, photo: &Image) -> Skill {
 pub fn changed_pixels(truth: &Image, photo: &Image) -> Vec<bool> {
     let (w, h) = (truth.width as usize, truth.height as usize);
     let mean = |p: glam::Vec3| (p.x as f64 + p.y as f64 + p.z as f64) / 3.0;
-    let diff: Vec<f64> = truth
-        .pixels
-        .iter()
-        .zip(&photo.pixels)
-        .map(|(t, p)| mean((*t - *p).abs()))
-        .collect();
-    let level: Vec<f64> = photo.pixels.iter().map(|p| mean(*p)).collect();
-    let (diff, level) = (box_filter(&diff, w, h, 2), box_filter(&level, w, h, 2));
-    diff.iter()
-        .zip(&level)
-        .map(|(d, l)| *d > SKILL_RELATIVE * l + SKILL_FLOOR)
-        .collect()
+    let at = |x: usize, y: usize| {
+        let (t, p) = (truth.pixels[y * w + x], photo.pixels[y * w + x]);
+        [mean((t - p).abs()), mean(p)]
+    };
+    let mut changed = vec![false; w * h];
+    box_rows(w, h, 2, at, |y, means| {
+        for (c, [diff, level]) in changed[y * w..(y + 1) * w].iter_mut().zip(means) {
+            *c = *diff > SKILL_RELATIVE * level + SKILL_FLOOR;
+        }
+    });
+    changed
 }
 
 /// The best skill a reference allows when its own Monte Carlo noise is
@@ -268,12 +286,23 @@ mod tests {
     }
 
     #[test]
-    fn box_filter_clamps_at_the_edges() {
-        // 3×1 row [0, 3, 6], radius 1: windows of 3×3 with edges repeated.
-        let f = box_filter(&[0.0, 3.0, 6.0], 3, 1, 1);
-        let expect = [(0.0 + 0.0 + 3.0) / 3.0, 3.0, (3.0 + 6.0 + 6.0) / 3.0];
-        for (a, b) in f.iter().zip(expect) {
-            assert!((a - b).abs() < 1e-12, "{f:?}");
+    fn box_means_clamp_at_the_edges() {
+        // 3×2 field, rows [0, 3, 6] and [6, 9, 12], radius 1: 3×3 windows
+        // with edges repeated (the first row's window takes it twice).
+        let field = [[0.0, 3.0, 6.0], [6.0, 9.0, 12.0]];
+        let mut rows = Vec::new();
+        box_rows(3, 2, 1, |x, y| [field[y][x]], |_, m| rows.push(m.to_vec()));
+        let row_mean = |r: [f64; 3], x: usize| match x {
+            0 => (2.0 * r[0] + r[1]) / 3.0,
+            1 => r[1],
+            _ => (r[1] + 2.0 * r[2]) / 3.0,
+        };
+        for (y, row) in rows.iter().enumerate() {
+            for (x, m) in row.iter().enumerate() {
+                let (a, b) = (row_mean(field[0], x), row_mean(field[1], x));
+                let expect = if y == 0 { (2.0 * a + b) / 3.0 } else { (a + 2.0 * b) / 3.0 };
+                assert!((m[0] - expect).abs() < 1e-12, "({x}, {y}): {m:?} against {expect}");
+            }
         }
     }
 
