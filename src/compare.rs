@@ -300,8 +300,15 @@ mod tests {
         for (y, row) in rows.iter().enumerate() {
             for (x, m) in row.iter().enumerate() {
                 let (a, b) = (row_mean(field[0], x), row_mean(field[1], x));
-                let expect = if y == 0 { (2.0 * a + b) / 3.0 } else { (a + 2.0 * b) / 3.0 };
-                assert!((m[0] - expect).abs() < 1e-12, "({x}, {y}): {m:?} against {expect}");
+                let expect = if y == 0 {
+                    (2.0 * a + b) / 3.0
+                } else {
+                    (a + 2.0 * b) / 3.0
+                };
+                assert!(
+                    (m[0] - expect).abs() < 1e-12,
+                    "({x}, {y}): {m:?} against {expect}"
+                );
             }
         }
     }
