@@ -606,27 +606,8 @@ impl Interactive {
     /// outlines for the selected object. None where the box is out of the
     /// frame or reaches behind the camera.
     pub fn screen_box(&self, object: usize) -> Option<[f64; 4]> {
-        let o = self.scene.objects.get(object)?;
-        let points = (o.surfaces.iter())
-            .flat_map(|s| s.triangles.iter().flatten())
-            .map(|&p| o.pose.apply(p).as_dvec3());
-        let (lo, hi) = crate::geometry::bounds(points);
         let camera = &self.base.camera;
-        let mut rect = [
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-        ];
-        for c in crate::geometry::box_corners(lo, hi) {
-            let (x, y, _) = camera.project(c)?;
-            rect = [
-                rect[0].min(x),
-                rect[1].min(y),
-                rect[2].max(x),
-                rect[3].max(y),
-            ];
-        }
+        let rect = crate::placement::screen_rect(camera, self.scene.objects.get(object)?)?;
         let (w, h) = (camera.width as f64, camera.height as f64);
         let clipped = [
             rect[0].max(0.0),

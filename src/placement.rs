@@ -111,8 +111,8 @@ impl Others {
                 .map(|(i, o)| (i != object).then_some((o.pose, o.enabled)))
                 .collect::<Vec<_>>(),
         );
+        let ids = surface_ids(scene);
         if kept.as_ref().is_none_or(|k| k.key != key) {
-            let ids = surface_ids(scene);
             let others: Vec<(u32, Vec<crate::geometry::Triangle>)> = scene
                 .virtual_world_surfaces()
                 .into_iter()
@@ -137,13 +137,11 @@ impl Others {
         let Some(tracer) = kept.as_ref().and_then(|k| k.tracer.as_ref()) else {
             return Ok(None);
         };
-        let ids = surface_ids(scene);
         let hit = cut_into(tracer, Layer::Virtual, &scene.objects[object], &ids[object]);
         Ok(hit.map(|(surface, depth)| {
-            let other = (ids.iter().position(|o| o.contains(&surface)))
-                .map_or("another object".to_string(), |o| {
-                    scene.objects[o].name.clone()
-                });
+            let other = object_of(&ids, surface).map_or("another object".to_string(), |o| {
+                scene.objects[o].name.clone()
+            });
             (other, depth)
         }))
     }
@@ -221,10 +219,9 @@ pub fn warnings(scene: &Scene, photo: &Image, tracer: &Tracer) -> Vec<String> {
     let name_of = |surface: u32| -> String {
         match scene.surfaces.get(surface as usize) {
             Some(s) => format!("the room's '{}'", s.name),
-            None => (ids.iter().position(|o| o.contains(&surface)))
-                .map_or("an object".to_string(), |o| {
-                    format!("'{}'", scene.objects[o].name)
-                }),
+            None => object_of(&ids, surface).map_or("an object".to_string(), |o| {
+                format!("'{}'", scene.objects[o].name)
+            }),
         }
     };
     let peak_photo = (photo.pixels.iter())
@@ -276,34 +273,50 @@ pub fn warnings(scene: &Scene, photo: &Image, tracer: &Tracer) -> Vec<String> {
     out
 }
 
+/// The image rectangle (x0, y0, x1, y1, pixel coordinates, not clipped to
+/// the frame) that the object's box covers as placed; None when a corner of
+/// the box lies at or behind the camera.
+pub fn screen_rect(camera: &Camera, object: &VirtualObject) -> Option<[f64; 4]> {
+    let (lo, hi) = crate::geometry::bounds(object_points(object, &object.pose));
+    let mut rect = [
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    for c in crate::geometry::box_corners(lo, hi) {
+        let (x, y, _) = camera.project(c)?;
+        rect = [
+            rect[0].min(x),
+            rect[1].min(y),
+            rect[2].max(x),
+            rect[3].max(y),
+        ];
+    }
+    Some(rect)
+}
+
+/// Which object surface id `surface` belongs to, by the objects' `ids`.
+fn object_of(ids: &[Vec<u32>], surface: u32) -> Option<usize> {
+    ids.iter().position(|o| o.contains(&surface))
+}
+
 /// How many pixel centres (of a sample of them, at most [`SEEN_RAYS`],
 /// within the object's box on screen) see `object` first; 0 only when
 /// every pixel of its box was tried.
 fn pixels_seen(camera: &Camera, tracer: &Tracer, object: &VirtualObject, own: &[u32]) -> usize {
     let (w, h) = (camera.width as i64, camera.height as i64);
-    let (lo, hi) = crate::geometry::bounds(object_points(object, &object.pose));
-    let corners = (0..8).map(|k| {
-        DVec3::new(
-            if k & 1 == 0 { lo.x } else { hi.x },
-            if k & 2 == 0 { lo.y } else { hi.y },
-            if k & 4 == 0 { lo.z } else { hi.z },
-        )
-    });
     // The box's rectangle on screen (the whole frame when a corner is
     // behind the camera).
-    let mut rect = (w, h, -1i64, -1i64);
-    for c in corners {
-        let Some((x, y, _)) = camera.project(c) else {
-            rect = (0, 0, w - 1, h - 1);
-            break;
-        };
-        rect = (
-            rect.0.min(x.floor() as i64),
-            rect.1.min(y.floor() as i64),
-            rect.2.max(x.ceil() as i64),
-            rect.3.max(y.ceil() as i64),
-        );
-    }
+    let rect = match screen_rect(camera, object) {
+        Some([x0, y0, x1, y1]) => (
+            x0.floor() as i64,
+            y0.floor() as i64,
+            x1.ceil() as i64,
+            y1.ceil() as i64,
+        ),
+        None => (0, 0, w - 1, h - 1),
+    };
     let (x0, y0) = (rect.0.max(0), rect.1.max(0));
     let (x1, y1) = (rect.2.min(w - 1), rect.3.min(h - 1));
     if x1 < x0 || y1 < y0 {
