@@ -422,5 +422,51 @@ fn full_renders(
     });
 }
 
-criterion_group!(benches, bench, parts, lounge, dense, real_assets);
+/// A light's slider in a session whose lights already differ from the
+/// photo's (`Session::relight`: the pixel data kept), on the desk's box and
+/// `lounge`'s stool, beside a full render of the same scales (warm links).
+fn sliders(c: &mut Criterion) {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut g = c.benchmark_group("update");
+    g.sample_size(10);
+    for (label, file, variant, light) in [
+        ("desk_light_slider", "desk/scene.toml", "box_floor_a", 1),
+        ("lounge_light_slider", "lounge/scene.toml", "stool_a", 1),
+    ] {
+        let base = Scene::load(dir.join(file))
+            .unwrap()
+            .with_variant(variant)
+            .unwrap();
+        let photo = base.load_photo().unwrap();
+        let mut settings = RenderSettings::default();
+        settings.model.cache_links = true;
+        let at = |scale: f64| {
+            let mut s = base.clone();
+            s.lights[light].scale = scale;
+            s
+        };
+        let (low, high) = (at(1.5), at(2.0));
+        let mut session =
+            Session::start(&low, &photo, &settings, &mut StageTimes::default()).unwrap();
+        let mut times = StageTimes::default();
+        session.relight(&high, &mut times).unwrap();
+        println!("{label}, one step:");
+        for (name, d) in &times.0 {
+            println!("    {name:<28} {:>7.1} ms", d.as_secs_f64() * 1e3);
+        }
+        let mut up = false;
+        g.bench_function(format!("{label}_step"), |b| {
+            b.iter(|| {
+                up = !up;
+                let scene = if up { &low } else { &high };
+                session.relight(scene, &mut StageTimes::default()).unwrap()
+            })
+        });
+        drop(session);
+        full_renders(&mut g, label, &high, &photo, &settings, false);
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench, parts, lounge, dense, real_assets, sliders);
 criterion_main!(benches);

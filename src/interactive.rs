@@ -112,6 +112,9 @@ pub enum RenderPath {
         pixels_retraced: u64,
         rays: u64,
     },
+    /// The lights' scales changed: the kept pixel data recombined, the room's
+    /// solution and the objects' change solved again at the new scales.
+    Relight,
     /// A full render of the pixel path (lights or the set of objects changed).
     Full { reason: String },
 }
@@ -560,6 +563,19 @@ impl Interactive {
                 pixels_recomputed: stats.pixels_recomputed,
                 pixels_retraced: stats.pixels_retraced,
                 rays: stats.rays,
+            }
+        } else if let (Rendered::Session(session), true) =
+            (&mut self.rendered, same_shown && same_poses)
+        {
+            match session.relight(&scene, times) {
+                Ok(()) => {
+                    self.scene = scene;
+                    RenderPath::Relight
+                }
+                Err(why) => {
+                    let reason = format!("the lights changed ({})", why.describe());
+                    self.render_full(scene, reason, times)?
+                }
             }
         } else {
             let reason = if !same_lights {

@@ -646,7 +646,7 @@ fn ratio_floor(model: &Model, scales_without: &[f64]) -> DVec3 {
 fn room_patch_size(scene: &Scene, patch_size: PatchSize) -> f64 {
     match patch_size {
         PatchSize::Metres(m) => m,
-        PatchSize::Auto if lights_change(scene) => fine_patch_size(scene),
+        PatchSize::Auto if lights_change(&scene.lights) => fine_patch_size(scene),
         PatchSize::Auto => room_diagonal(scene) / 6.0,
     }
 }
@@ -661,7 +661,7 @@ fn photo_model(
     times: &mut StageTimes,
 ) -> Result<Model> {
     let mut model = Model::build(scene, photo, tracer, &settings.model, times)?;
-    if settings.patch_size == PatchSize::Auto && !lights_change(scene) {
+    if settings.patch_size == PatchSize::Auto && !lights_change(&scene.lights) {
         let finer = settings.model.patch_size * interreflection_scale(&model);
         if finer < 0.9 * settings.model.patch_size {
             settings.model.patch_size = finer.max(fine_patch_size(scene));
@@ -671,10 +671,9 @@ fn photo_model(
     Ok(model)
 }
 
-/// Whether the scene switches, scales or adds a light.
-fn lights_change(scene: &Scene) -> bool {
-    scene
-        .lights
+/// Whether a scene's lights switch, scale or add a light.
+fn lights_change(lights: &[crate::scene::Light]) -> bool {
+    lights
         .iter()
         .any(|l| l.scale != if l.real { 1.0 } else { 0.0 })
 }
@@ -721,6 +720,7 @@ fn merge_sorted(a: &[u32], b: &[u32]) -> Vec<u32> {
 
 mod bands;
 mod changes;
+mod light_scales;
 mod pixels;
 mod recompose;
 
@@ -728,6 +728,7 @@ pub use bands::{
     BYTES_PER_BAND_PIXEL, BYTES_PER_FRAME_PIXEL, BandSink, band_rows, default_memory, parse_memory,
     render_bands,
 };
+pub use light_scales::Relight;
 
 use changes::*;
 use pixels::*;

@@ -115,6 +115,17 @@ fn what_the_session_shows_is_the_render_of_the_variant_it_saves() {
         )
         .unwrap();
     assert!(matches!(out.path, RenderPath::Full { .. }), "{out:?}");
+    // The lights changed already: a slider now recombines the kept pixels.
+    let out = it
+        .apply(
+            Edit::Light {
+                light: 1,
+                scale: 1.5,
+            },
+            times,
+        )
+        .unwrap();
+    assert_eq!(out.path, RenderPath::Relight);
     let p = pixel_of(&it, DVec3::new(0.2, 0.0, 0.1));
     let out = place(&mut it, p, times);
     assert!(matches!(out.path, RenderPath::Update { .. }), "{out:?}");

@@ -104,7 +104,8 @@ function showOutcome(r) {
   const p = r.path;
   const what = p.kind === "update"
     ? `update: ${p.pixels_recomputed} pixels recomputed, ${p.pixels_retraced} re-traced, ${p.rays} rays`
-    : p.kind === "full" ? `full render (${p.reason})` : p.kind;
+    : p.kind === "full" ? `full render (${p.reason})`
+    : p.kind === "relight" ? "relit: the kept pixel data at the new scales" : p.kind;
   $("last").textContent = `${what} — ${r.update_ms.toFixed(1)} ms`;
 }
 

@@ -1,0 +1,125 @@
+//! A session's lights scaled and switched in place ([`Session::relight`]):
+//! each image is the one a full render of the new scales gives, bit for
+//! bit, and so is an object's move after it.
+
+mod common;
+use common::desk;
+
+use arlux::image_io::Image;
+use arlux::render::{Relight, RenderSettings, Session, render};
+use arlux::scene::Scene;
+use arlux::util::stages::StageTimes;
+
+fn differing(a: &Image, b: &Image) -> usize {
+    a.pixels
+        .iter()
+        .zip(&b.pixels)
+        .filter(|(x, y)| x.to_array().map(f32::to_bits) != y.to_array().map(f32::to_bits))
+        .count()
+}
+
+fn scaled(base: &Scene, panel: f64, spot: f64) -> Scene {
+    let mut scene = base.clone();
+    scene.lights[0].scale = panel;
+    scene.lights[1].scale = spot;
+    scene
+}
+
+fn scales(scene: &Scene) -> Vec<f64> {
+    scene.lights.iter().map(|l| l.scale).collect()
+}
+
+fn assert_same(session: &Session, scene: &Scene, photo: &Image, settings: &RenderSettings) {
+    let full = render(scene, photo, settings, &mut StageTimes::default()).unwrap();
+    let (a, b) = (&session.composite, &full.composite);
+    for (layer, x, y) in [
+        ("image", &a.image, &b.image),
+        ("direct", &a.direct, &b.direct),
+        ("indirect", &a.indirect, &b.indirect),
+    ] {
+        assert_eq!(
+            differing(x, y),
+            0,
+            "{layer} differs at scales {:?}",
+            scales(scene)
+        );
+    }
+    assert!(
+        a.alpha == b.alpha,
+        "alpha differs at scales {:?}",
+        scales(scene)
+    );
+}
+
+#[test]
+fn a_relit_session_equals_a_full_render_of_its_scales() {
+    let base = desk().with_variant("box_floor_a").unwrap();
+    let photo = base.load_photo().unwrap();
+    // With rounds too: the per-pixel samples read the scales as well.
+    for samples in [0, 2] {
+        let mut settings = RenderSettings::default();
+        settings.residual.samples = samples;
+        let first = scaled(&base, 1.0, 2.0);
+        let mut session =
+            Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+        // Dimmed, switched off, brightened (the photo's grain then), back.
+        for (panel, spot) in [(0.5, 2.0), (0.0, 1.0), (3.0, 0.25), (1.0, 2.0)] {
+            let scene = scaled(&base, panel, spot);
+            session.relight(&scene, &mut StageTimes::default()).unwrap();
+            assert_same(&session, &scene, &photo, &settings);
+        }
+        // An object moved after a relight: the update keeps the new scales.
+        let mut moved = scaled(&base, 0.0, 1.5);
+        session.relight(&moved, &mut StageTimes::default()).unwrap();
+        moved.objects[0].pose.translate.x += 0.1;
+        session.update(&moved, &mut StageTimes::default()).unwrap();
+        assert_same(&session, &moved, &photo, &settings);
+    }
+}
+
+#[test]
+fn what_a_relight_cannot_do_is_refused_and_the_session_kept() {
+    let base = desk().with_variant("box_floor_a").unwrap();
+    let photo = base.load_photo().unwrap();
+    let settings = RenderSettings::default();
+    let first = scaled(&base, 0.5, 1.0);
+    let mut session =
+        Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+    let before = session.composite.image.clone();
+    let mut times = StageTimes::default();
+    // The lights as photographed: a full render meshes the room coarser.
+    assert_eq!(
+        session.relight(&scaled(&base, 1.0, 1.0), &mut times),
+        Err(Relight::PatchSize)
+    );
+    // The virtual bulb switched on: the pixel data holds no terms for it.
+    let mut bulb = first.clone();
+    bulb.lights[2].scale = 1.0;
+    assert_eq!(
+        session.relight(&bulb, &mut times),
+        Err(Relight::LightsTraced)
+    );
+    let mut moved = first.clone();
+    moved.objects[0].pose.translate.x += 0.1;
+    assert_eq!(
+        session.relight(&moved, &mut times),
+        Err(Relight::NotOnlyScales)
+    );
+    let mut hidden = first.clone();
+    hidden.objects[0].enabled = false;
+    assert_eq!(
+        session.relight(&hidden, &mut times),
+        Err(Relight::NotOnlyScales)
+    );
+    assert_eq!(differing(&session.composite.image, &before), 0);
+    // With the patch size given, the lights as photographed are a relight.
+    let settings = RenderSettings {
+        patch_size: arlux::render::PatchSize::Metres(0.5),
+        ..RenderSettings::default()
+    };
+    let mut session =
+        Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+    let photographed = scaled(&base, 1.0, 1.0);
+    session.relight(&photographed, &mut times).unwrap();
+    assert_same(&session, &photographed, &photo, &settings);
+}
