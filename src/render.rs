@@ -232,6 +232,9 @@ pub struct Session {
     for_updates: bool,
     /// The room without the objects at the lights' new scales, kept for every pose.
     room: Solution,
+    /// The room's solution per light, once the session's lights are scaled
+    /// (see [`Session::relight`]).
+    room_per_light: Option<Vec<Option<Solution>>>,
     /// The rows of a still rendered band by band (see [`render_bands`]).
     band: Option<(u32, u32)>,
     /// Pixels whose centre sees a real surface, over the bands so far.
@@ -365,8 +368,14 @@ impl Session {
             bounds: &bounds,
             room: &room,
         };
-        let changes = solve_changes(&input, objects.as_ref(), &mut gather_directions, times)
-            .with_patches(objects);
+        let changes = solve_changes(
+            &input,
+            objects.as_ref(),
+            &mut gather_directions,
+            None,
+            times,
+        )
+        .with_patches(objects);
         let mut warnings = crate::inputs::input_warnings(&photo, Some(&model.estimate));
         warnings.extend(times.time("placement checks", || {
             crate::placement::warnings(scene, &photo, &tracer)
@@ -397,6 +406,7 @@ impl Session {
             band,
             covered: 0,
             room,
+            room_per_light: None,
             layers: true,
             gather_directions,
             reached: Vec::new(),
@@ -496,7 +506,8 @@ impl Session {
                 .as_ref()
                 .map_or(0, |b| b.memory_bytes() + shafts),
             room_solution: solution_bytes(&self.room),
-            change: self.changes.bytes,
+            change: self.changes.bytes
+                + (self.changes.rays.near.as_ref()).map_or(0, |n| n.memory_bytes()),
         }
     }
 
@@ -574,7 +585,7 @@ impl Session {
         let objects_ref = objects.as_ref();
         let (solved, (touched, pixel_rays, retraced)) = times.concurrently(
             "radiosity | pixels",
-            |times| solve_changes(&input, objects_ref, directions, times),
+            |times| solve_changes(&input, objects_ref, directions, None, times),
             |times| pixels.run(&input, objects_ref, times),
         );
         self.changes = solved.with_patches(objects);

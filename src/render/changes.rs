@@ -18,6 +18,18 @@ pub(super) struct Changes {
     /// Bytes of the change: the rays' record of what the room sees of the
     /// objects and the change's solution.
     pub(super) bytes: usize,
+    /// The pose's rays, which depend on geometry only: kept for a relight
+    /// of the same pose (see [`super::Session::relight`]).
+    pub(super) rays: PoseRays,
+}
+
+/// What a pose's rays found, whatever the radiosity they are read with.
+#[derive(Default)]
+pub(super) struct PoseRays {
+    /// From the room's patches towards the objects.
+    pub(super) view: Option<crate::radiosity::ObjectView>,
+    /// From the points near the objects that the camera sees.
+    pub(super) near: Option<crate::radiosity::NearView>,
 }
 
 /// Final gathering's directions per virtual vertex (its number, normal
@@ -92,6 +104,7 @@ pub(super) struct Solved {
     pub(super) indirect_with: Vec<DVec3>,
     pub(super) near: Option<NearSource>,
     pub(super) bytes: usize,
+    pub(super) view: Option<crate::radiosity::ObjectView>,
 }
 
 /// What [`near_field`] reads of a pose's change: the radiosity of the room
@@ -106,21 +119,25 @@ pub(super) struct NearSource {
 /// ([`crate::radiosity::NearField`]), on the room patches that hold one of
 /// the pixel data's real points (the only ones a composite reads): an
 /// update pays for what the camera sees near the objects.
+/// `kept`: the pose's rays from an earlier composite (traced and kept when None).
 pub(super) fn near_field(
     input: &ChangeInput,
     objects: &Patches,
     source: &NearSource,
     pda: &crate::pda::PixelDataArray,
+    kept: &mut Option<crate::radiosity::NearView>,
 ) -> crate::radiosity::NearField {
-    let model = input.model;
-    let mut shown = vec![false; model.patches.patch_count()];
-    for p in &pda.real.points {
-        if let Some(s) = shown.get_mut(p.location.patch as usize) {
-            *s = true;
+    let view = kept.get_or_insert_with(|| {
+        let model = input.model;
+        let mut shown = vec![false; model.patches.patch_count()];
+        for p in &pda.real.points {
+            if let Some(s) = shown.get_mut(p.location.patch as usize) {
+                *s = true;
+            }
         }
-    }
-    let cell = input.settings.virtual_patch_size;
-    let view = crate::radiosity::NearView::trace(objects, &shown, input.tracer, input.bounds, cell);
+        let cell = input.settings.virtual_patch_size;
+        crate::radiosity::NearView::trace(objects, &shown, input.tracer, input.bounds, cell)
+    });
     view.field(
         objects,
         &source.radiosity,
@@ -137,6 +154,10 @@ impl Solved {
             indirect_with: self.indirect_with,
             near: self.near,
             bytes: self.bytes,
+            rays: PoseRays {
+                view: self.view,
+                near: None,
+            },
         }
     }
 }
@@ -186,10 +207,13 @@ pub(super) fn room_solution(
 /// with virtual objects (`objects`, from [`object_patches`]) the change
 /// they make to it, their radiosity, and their own indirect light
 /// gathered from the photo.
+/// `view`: the pose's rays from the room towards the objects, traced
+/// before at the same pose (traced here when None).
 pub(super) fn solve_changes(
     input: &ChangeInput,
     objects: Option<&Patches>,
     directions: &mut GatherDirections,
+    view: Option<crate::radiosity::ObjectView>,
     times: &mut StageTimes,
 ) -> Solved {
     let model = input.model;
@@ -199,6 +223,7 @@ pub(super) fn solve_changes(
             indirect_with: model.patches.vertex_values(&input.room.indirect_irradiance),
             near: None,
             bytes: 0,
+            view: None,
         };
     };
     let room_count = model.patches.patch_count();
@@ -221,9 +246,12 @@ pub(super) fn solve_changes(
         )
     });
     let scales_on: Vec<f64> = on.iter().map(|&l| input.scales_with[l]).collect();
-    let view = times.time("objects seen from the room", || {
-        crate::radiosity::ObjectView::trace(patches, room_count, input.tracer, input.bounds)
-    });
+    let view = match view {
+        Some(kept) => kept,
+        None => times.time("objects seen from the room", || {
+            crate::radiosity::ObjectView::trace(patches, room_count, input.tracer, input.bounds)
+        }),
+    };
     let virtual_rgb: HashMap<u32, DVec3> = input.scene.virtual_surface_rgb();
     let reflectance: Vec<DVec3> = (0..patches.patch_count())
         .map(|k| match k < room_count {
@@ -299,6 +327,7 @@ pub(super) fn solve_changes(
         indirect_with,
         bytes: bytes + (radiosity.len() + coarse.len()) * std::mem::size_of::<DVec3>(),
         near: Some(NearSource { radiosity, coarse }),
+        view: Some(view),
     }
 }
 

@@ -9,6 +9,7 @@ impl Session {
     /// point's light terms changed since the last composite.
     pub(super) fn recomposite(&mut self, times: &mut StageTimes, recomputed: &[u32]) {
         let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| o);
+        let kept = &mut self.changes.rays.near;
         let near = match (&self.changes.near, &self.changes.own) {
             (Some(source), Some(objects)) => {
                 Some(times.time("the change near the objects", || {
@@ -22,7 +23,7 @@ impl Session {
                         bounds: &self.bounds,
                         room: &self.room,
                     };
-                    changes::near_field(&input, objects, source, &self.pda)
+                    changes::near_field(&input, objects, source, &self.pda, kept)
                 }))
             }
             _ => None,

@@ -188,6 +188,17 @@ pub fn rendered(base: &Scene, variant: &str) -> (Image, Image, Image) {
 
 /// Every layer a compositor reads is finite and not negative (but
 /// `change`, image − photo, which is signed), coverage lies in [0, 1].
+/// The largest difference between two images relative to the second's
+/// value (a floor of 1e-3 of its mean for the darkest pixels).
+pub fn relative_difference(a: &Image, b: &Image) -> f64 {
+    let mean = b.pixels.iter().map(|p| p.element_sum() as f64).sum::<f64>()
+        / (3 * b.pixels.len().max(1)) as f64;
+    (a.pixels.iter().zip(&b.pixels))
+        .flat_map(|(x, y)| (0..3).map(move |c| (x[c] as f64, y[c] as f64)))
+        .map(|(x, y)| (x - y).abs() / y.abs().max(1e-3 * mean))
+        .fold(0.0, f64::max)
+}
+
 pub fn assert_layers_sound(label: &str, c: &arlux::composite::Composite) {
     for (name, layer) in [
         ("image", &c.image),
