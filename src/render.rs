@@ -368,14 +368,15 @@ impl Session {
             bounds: &bounds,
             room: &room,
         };
+        let mut rays = PoseRays::default();
         let changes = solve_changes(
             &input,
             objects.as_ref(),
             &mut gather_directions,
-            None,
+            &mut rays.view,
             times,
         )
-        .with_patches(objects);
+        .with_patches(objects, rays);
         let mut warnings = crate::inputs::input_warnings(&photo, Some(&model.estimate));
         warnings.extend(times.time("placement checks", || {
             crate::placement::warnings(scene, &photo, &tracer)
@@ -507,7 +508,8 @@ impl Session {
                 .map_or(0, |b| b.memory_bytes() + shafts),
             room_solution: solution_bytes(&self.room),
             change: self.changes.bytes
-                + (self.changes.rays.near.as_ref()).map_or(0, |n| n.memory_bytes()),
+                + (self.changes.rays.near.as_ref()).map_or(0, |n| n.memory_bytes())
+                + (self.changes.per_light.as_ref()).map_or(0, |b| b.memory_bytes()),
         }
     }
 
@@ -583,12 +585,14 @@ impl Session {
         };
         let directions = &mut self.gather_directions;
         let objects_ref = objects.as_ref();
+        let mut rays = PoseRays::default();
+        let view = &mut rays.view;
         let (solved, (touched, pixel_rays, retraced)) = times.concurrently(
             "radiosity | pixels",
-            |times| solve_changes(&input, objects_ref, directions, None, times),
+            |times| solve_changes(&input, objects_ref, directions, view, times),
             |times| pixels.run(&input, objects_ref, times),
         );
-        self.changes = solved.with_patches(objects);
+        self.changes = solved.with_patches(objects, rays);
         stats.rays += pixel_rays;
         stats.pixels_retraced = retraced;
         self.rays = stats.rays;

@@ -127,3 +127,28 @@ fn what_a_relight_cannot_do_is_refused_and_the_session_kept() {
     session.relight(&photographed, &mut times).unwrap();
     assert_same(&session, &photographed, &photo, &settings);
 }
+
+/// Rooms with more lights and objects whose light bounces between them:
+/// the lounge's stool (three lights and a real bulb) and the materials'
+/// trio of glTF objects; the room meshed at a given size so that the
+/// lights as photographed are a relight too.
+#[test]
+fn relit_sessions_of_other_rooms_equal_their_full_renders() {
+    for (scene, variant, metres) in [("lounge", "stool_a", 0.8), ("materials", "trio", 0.5)] {
+        let base = common::load(scene, "scene.toml")
+            .with_variant(variant)
+            .unwrap();
+        let photo = base.load_photo().unwrap();
+        let settings = RenderSettings {
+            patch_size: arlux::render::PatchSize::Metres(metres),
+            ..RenderSettings::default()
+        };
+        let mut session =
+            Session::start(&base, &photo, &settings, &mut StageTimes::default()).unwrap();
+        for (panel, spot) in [(0.5, 1.5), (1.25, 0.0)] {
+            let scene = scaled(&base, panel, spot);
+            session.relight(&scene, &mut StageTimes::default()).unwrap();
+            assert_same(&session, &scene, &photo, &settings);
+        }
+    }
+}

@@ -21,6 +21,8 @@ pub(super) struct Changes {
     /// The pose's rays, which depend on geometry only: kept for a relight
     /// of the same pose (see [`super::Session::relight`]).
     pub(super) rays: PoseRays,
+    /// The change of each light alone, once the pose has been relit.
+    pub(super) per_light: Option<super::light_scales::ChangeBasis>,
 }
 
 /// What a pose's rays found, whatever the radiosity they are read with.
@@ -99,17 +101,18 @@ pub(super) fn object_patches(
 /// [`Changes`] but for the objects' patches, which the caller keeps while
 /// it is solved (an update builds the Pixel Data Array's virtual part on
 /// them meanwhile).
+#[derive(Clone)]
 pub(super) struct Solved {
     pub(super) reflectance: Vec<DVec3>,
     pub(super) indirect_with: Vec<DVec3>,
     pub(super) near: Option<NearSource>,
     pub(super) bytes: usize,
-    pub(super) view: Option<crate::radiosity::ObjectView>,
 }
 
 /// What [`near_field`] reads of a pose's change: the radiosity of the room
 /// and the objects, and the patch means' change to the room's indirect
 /// light as vertex values.
+#[derive(Clone)]
 pub(super) struct NearSource {
     pub(super) radiosity: Vec<DVec3>,
     pub(super) coarse: Vec<DVec3>,
@@ -147,17 +150,16 @@ pub(super) fn near_field(
 }
 
 impl Solved {
-    pub(super) fn with_patches(self, patches: Option<Patches>) -> Changes {
+    /// The change of a pose as `rays` found it, with its patches.
+    pub(super) fn with_patches(self, patches: Option<Patches>, rays: PoseRays) -> Changes {
         Changes {
             own: patches,
             reflectance: self.reflectance,
             indirect_with: self.indirect_with,
             near: self.near,
             bytes: self.bytes,
-            rays: PoseRays {
-                view: self.view,
-                near: None,
-            },
+            rays,
+            per_light: None,
         }
     }
 }
@@ -208,12 +210,12 @@ pub(super) fn room_solution(
 /// they make to it, their radiosity, and their own indirect light
 /// gathered from the photo.
 /// `view`: the pose's rays from the room towards the objects, traced
-/// before at the same pose (traced here when None).
+/// before at the same pose (traced and kept there when None).
 pub(super) fn solve_changes(
     input: &ChangeInput,
     objects: Option<&Patches>,
     directions: &mut GatherDirections,
-    view: Option<crate::radiosity::ObjectView>,
+    view: &mut Option<crate::radiosity::ObjectView>,
     times: &mut StageTimes,
 ) -> Solved {
     let model = input.model;
@@ -223,7 +225,6 @@ pub(super) fn solve_changes(
             indirect_with: model.patches.vertex_values(&input.room.indirect_irradiance),
             near: None,
             bytes: 0,
-            view: None,
         };
     };
     let room_count = model.patches.patch_count();
@@ -246,12 +247,12 @@ pub(super) fn solve_changes(
         )
     });
     let scales_on: Vec<f64> = on.iter().map(|&l| input.scales_with[l]).collect();
-    let view = match view {
-        Some(kept) => kept,
-        None => times.time("objects seen from the room", || {
+    if view.is_none() {
+        *view = Some(times.time("objects seen from the room", || {
             crate::radiosity::ObjectView::trace(patches, room_count, input.tracer, input.bounds)
-        }),
-    };
+        }));
+    }
+    let view = view.as_ref().expect("traced above");
     let virtual_rgb: HashMap<u32, DVec3> = input.scene.virtual_surface_rgb();
     let reflectance: Vec<DVec3> = (0..patches.patch_count())
         .map(|k| match k < room_count {
@@ -272,7 +273,7 @@ pub(super) fn solve_changes(
         .collect();
     let system = ChangeSystem {
         input,
-        view: &view,
+        view,
         direct: total_direct(patches.patch_count(), &scales_on, &direct),
         room_direct: total_direct(room_count, input.scales_with, &model.direct_per_light),
         reflectance: &reflectance,
@@ -327,7 +328,6 @@ pub(super) fn solve_changes(
         indirect_with,
         bytes: bytes + (radiosity.len() + coarse.len()) * std::mem::size_of::<DVec3>(),
         near: Some(NearSource { radiosity, coarse }),
-        view: Some(view),
     }
 }
 

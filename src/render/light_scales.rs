@@ -87,6 +87,120 @@ fn superposed(per_light: &[Option<Solution>], scales: &[f64]) -> Solution {
     out
 }
 
+/// The final gather reads the photo times the room's radiosity with the
+/// change over the photo's, that ratio capped at 4
+/// ([`super::changes`]): below the cap the change is linear in the
+/// lights' scales. Where the room alone comes within 3 of it (leaving the
+/// objects' own light a third of the room's before the cap could bind),
+/// the change is solved at the scales instead.
+fn below_gather_clamp(room: &Solution, model: &Model) -> bool {
+    let without = &model.estimate.solution.radiosity;
+    (room.radiosity.iter().zip(without))
+        .all(|(b, w)| (*b / w.max(DVec3::splat(1e-12))).max_element() <= 3.0)
+}
+
+/// The objects' change made by each light alone at scale 1 (and by the
+/// objects' own glow with every light off), at one pose: the change at any
+/// scales is their weighted sum, as the room's solution is.
+pub(super) struct ChangeBasis {
+    lights: Vec<Option<Solved>>,
+    glow: Option<Solved>,
+}
+
+/// What a [`ChangeBasis`] is solved from.
+struct BasisParts<'a> {
+    input: &'a ChangeInput<'a>,
+    patches: &'a Patches,
+    /// The room's solution per light ([`room_per_light`]).
+    rooms: &'a [Option<Solution>],
+}
+
+impl BasisParts<'_> {
+    fn solve(
+        &self,
+        directions: &mut GatherDirections,
+        view: &mut Option<crate::radiosity::ObjectView>,
+        times: &mut StageTimes,
+    ) -> ChangeBasis {
+        let n = self.input.scales_with.len();
+        let mut part = |scales: &[f64], room: &Solution| {
+            let input = ChangeInput {
+                scales_with: scales,
+                room,
+                ..*self.input
+            };
+            solve_changes(&input, Some(self.patches), directions, view, times)
+        };
+        let lights = (0..n)
+            .map(|l| {
+                let room = self.rooms.get(l)?.as_ref()?;
+                let mut unit = vec![0.0; n];
+                unit[l] = 1.0;
+                Some(part(&unit, room))
+            })
+            .collect();
+        let glow = (!self.input.scene.virtual_surface_emission().is_empty()).then(|| {
+            let rooms = self.input.model.patches.patch_count();
+            let dark = Solution {
+                radiosity: vec![DVec3::ZERO; rooms],
+                indirect_irradiance: vec![DVec3::ZERO; rooms],
+                iterations: 0,
+                residual: 0.0,
+            };
+            part(&vec![0.0; n], &dark)
+        });
+        ChangeBasis { lights, glow }
+    }
+}
+
+impl ChangeBasis {
+    /// Σ scaleₗ · changeₗ, plus the glow's (None: the basis is empty, no
+    /// light traced and no glow).
+    fn at(&self, scales: &[f64]) -> Option<Solved> {
+        let parts = (self.lights.iter().zip(scales))
+            .filter_map(|(s, &scale)| Some((s.as_ref().filter(|_| scale > 0.0)?, scale)))
+            .chain(self.glow.as_ref().map(|g| (g, 1.0)));
+        let first = (self.lights.iter().flatten().chain(&self.glow)).next()?;
+        let zero = |v: &[DVec3]| vec![DVec3::ZERO; v.len()];
+        let mut out = Solved {
+            reflectance: first.reflectance.clone(),
+            indirect_with: zero(&first.indirect_with),
+            near: first.near.as_ref().map(|n| NearSource {
+                radiosity: zero(&n.radiosity),
+                coarse: zero(&n.coarse),
+            }),
+            bytes: first.bytes,
+        };
+        let add = |out: &mut [DVec3], part: &[DVec3], scale: f64| {
+            for (o, p) in out.iter_mut().zip(part) {
+                *o += *p * scale;
+            }
+        };
+        for (part, scale) in parts {
+            add(&mut out.indirect_with, &part.indirect_with, scale);
+            if let (Some(o), Some(p)) = (out.near.as_mut(), part.near.as_ref()) {
+                add(&mut o.radiosity, &p.radiosity, scale);
+                add(&mut o.coarse, &p.coarse, scale);
+            }
+        }
+        Some(out)
+    }
+
+    /// Bytes of the parts' vertex and patch values.
+    pub(super) fn memory_bytes(&self) -> usize {
+        let values = |s: &Solved| {
+            s.indirect_with.len()
+                + s.near
+                    .as_ref()
+                    .map_or(0, |n| n.radiosity.len() + n.coarse.len())
+        };
+        let count: usize = (self.lights.iter().flatten().chain(&self.glow))
+            .map(values)
+            .sum();
+        count * std::mem::size_of::<DVec3>()
+    }
+}
+
 impl Relight {
     /// Why, in a few words, for a report.
     pub fn describe(&self) -> &'static str {
@@ -136,7 +250,21 @@ impl Session {
         self.room = times.time("solve the room", || {
             superposed(per_light, &self.scales_with)
         });
+        self.relit_change(times);
+        // Every real pixel's composite reads the scales: none is kept.
+        self.known = None;
+        self.recomposite(times, &[]);
+        Ok(())
+    }
+
+    /// The objects' change at the session's scales: the sum of each
+    /// light's alone (solved once per pose) where that is the change a full
+    /// render computes, else solved at the scales.
+    fn relit_change(&mut self, times: &mut StageTimes) {
         let objects = self.changes.own.take().filter(|_| self.has_objects());
+        // The pose is the same: its rays are read with the new radiosity.
+        let mut rays = std::mem::take(&mut self.changes.rays);
+        let kept = self.changes.per_light.take();
         let input = ChangeInput {
             scene: &self.scene,
             photo: &self.photo,
@@ -147,16 +275,34 @@ impl Session {
             bounds: &self.bounds,
             room: &self.room,
         };
-        // The pose is the same: its rays are read with the new radiosity.
-        let rays = std::mem::take(&mut self.changes.rays);
         let directions = &mut self.gather_directions;
-        let solved = solve_changes(&input, objects.as_ref(), directions, rays.view, times);
-        self.changes = solved.with_patches(objects);
-        self.changes.rays.near = rays.near;
-        // Every real pixel's composite reads the scales: none is kept.
-        self.known = None;
-        self.recomposite(times, &[]);
-        Ok(())
+        let linear = below_gather_clamp(&self.room, &self.model);
+        let (solved, per_light) = match (objects.as_ref(), &self.room_per_light, linear) {
+            (Some(patches), Some(rooms), true) => {
+                let basis = kept.unwrap_or_else(|| {
+                    let parts = BasisParts {
+                        input: &input,
+                        patches,
+                        rooms,
+                    };
+                    parts.solve(directions, &mut rays.view, times)
+                });
+                let solved = times.time("sum the change per light", || basis.at(&self.scales_with));
+                match solved {
+                    Some(solved) => (solved, Some(basis)),
+                    None => (
+                        solve_changes(&input, objects.as_ref(), directions, &mut rays.view, times),
+                        None,
+                    ),
+                }
+            }
+            _ => (
+                solve_changes(&input, objects.as_ref(), directions, &mut rays.view, times),
+                None,
+            ),
+        };
+        self.changes = solved.with_patches(objects, rays);
+        self.changes.per_light = per_light;
     }
 
     fn has_objects(&self) -> bool {
