@@ -2,7 +2,8 @@
 //! to the new image being available to the page (the edit's reply, then the
 //! tone-mapped image fetched), beside the update's own time as the session
 //! reports it; the difference is what the server adds. Desk's box and
-//! lounge's stool, dragged over the floor; median and 95th percentile.
+//! lounge's stool, dragged over the floor, and a light's slider moved on
+//! `lounge` with the stool shown; median and 95th percentile.
 //! `cargo bench --bench serve`.
 
 #[path = "../tests/common/serve.rs"]
@@ -15,7 +16,8 @@ use std::time::Instant;
 use glam::DVec3;
 use serde_json::json;
 
-/// Copies a scene folder (symlinking its truth) into `to`.
+/// Copies a scene's files into `to` (its folders linked: a session writes
+/// only beside its scene file).
 fn copy_scene(name: &str, to: &Path) {
     let from = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("scenes")
@@ -23,14 +25,8 @@ fn copy_scene(name: &str, to: &Path) {
     for entry in std::fs::read_dir(&from).unwrap() {
         let e = entry.unwrap();
         let target = to.join(e.file_name());
-        if e.file_name() == "truth" {
+        if e.file_type().unwrap().is_dir() {
             std::os::unix::fs::symlink(e.path(), target).unwrap();
-        } else if e.file_type().unwrap().is_dir() {
-            std::fs::create_dir(&target).unwrap();
-            for f in std::fs::read_dir(e.path()).unwrap() {
-                let f = f.unwrap();
-                std::fs::copy(f.path(), target.join(f.file_name())).unwrap();
-            }
         } else {
             std::fs::copy(e.path(), target).unwrap();
         }
@@ -97,6 +93,56 @@ fn drag(name: &str, object: &str, a: DVec3, b: DVec3, steps: usize) {
     row("request → reply (inside the server)", &server_ms);
 }
 
+/// Moves `light`'s slider in `steps` steps between 1.2 and 2.0 on scene
+/// `name` as its file has it. The first two moves are left
+/// out: the first renders in full (the room meshed for light changes), the
+/// second solves the room and the objects' change per light.
+fn slide(name: &str, light: &str, steps: usize) {
+    let dir = tempfile::tempdir().unwrap();
+    copy_scene(name, dir.path());
+    let file = dir.path().join("scene.toml");
+    let server = serve::Server::start(file.to_str().unwrap(), &[]);
+    server.wait_ready();
+    let (mut total, mut update, mut kinds) = (vec![], vec![], Vec::new());
+    let warm = 2;
+    for k in 0..steps + warm {
+        let scale = 1.2 + 0.8 * (k % 5) as f64 / 4.0;
+        let start = Instant::now();
+        let r = server.post("/api/light", &json!({ "light": light, "scale": scale }));
+        assert_eq!(r.status, 200);
+        let reply = r.json();
+        let image = server.get("/api/image?view=final");
+        assert_eq!(image.status, 200);
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        if k >= warm {
+            total.push(ms);
+            update.push(reply["update_ms"].as_f64().unwrap());
+            kinds.push(reply["path"]["kind"].as_str().unwrap_or("").to_string());
+        } else {
+            println!(
+                "{name}: '{light}' to {scale}: {:?} in {ms:.0} ms",
+                reply["path"]["kind"]
+            );
+        }
+    }
+    let relit = kinds.iter().filter(|k| *k == "relight").count();
+    println!(
+        "{name}: {} steps of '{light}''s slider ({relit} relit)",
+        total.len()
+    );
+    for (label, v) in [
+        ("request → image available", &total),
+        ("relight (the session's own time)", &update),
+    ] {
+        let mut v = v.to_vec();
+        println!(
+            "{name:<7} {label:<34} median {:>7.1} ms   p95 {:>7.1} ms",
+            percentile(&mut v, 0.5),
+            percentile(&mut v, 0.95)
+        );
+    }
+}
+
 fn main() {
     // `cargo test --benches` runs benches with --bench absent: one short pass.
     let steps = if std::env::args().any(|a| a == "--bench") {
@@ -118,4 +164,5 @@ fn main() {
         DVec3::new(-0.2, 0.0, 0.9),
         steps,
     );
+    slide("lounge", "panel_2", steps);
 }
