@@ -1,8 +1,9 @@
 //! A session's lights scaled or switched in place: the pixel data, the
-//! room's model and links and the objects' patches are kept, and what
-//! depends on the lights' scales (the room's solution, the objects' change
-//! to it, the composite) is computed again by the functions a full render
-//! uses, so the image is the one a full render of the new scales gives.
+//! room's model and links, the objects' patches and the pose's rays are
+//! kept; the room's solution and the objects' change are sums of each
+//! light's alone (superposition: radiosity is linear in the emission on
+//! fixed links), and the composite is computed again. The image is a full
+//! render's of the new scales to the solvers' tolerances (1e-5 relative).
 
 use super::*;
 
@@ -214,9 +215,9 @@ impl Relight {
 
 impl Session {
     /// Renders `scene`, which differs from the session's only in its
-    /// lights' scales, without tracing a pixel again; the image is bit for
-    /// bit what [`Session::start`] of `scene` gives. `Err` says why it
-    /// cannot (the caller renders in full).
+    /// lights' scales, without tracing a pixel again; the image is what
+    /// [`Session::start`] of `scene` gives, to 1e-5 relative. `Err` says why
+    /// it cannot (the caller renders in full).
     pub fn relight(
         &mut self,
         scene: &Scene,
