@@ -7,9 +7,11 @@
 //!   is read once, its textures shared),
 //! - one object shown while two more from other files are disabled, hidden
 //!   by the variant, or not in the scene at all (what is not shown is not
-//!   read).
+//!   read);
+//! - the texture path against the pixel path on one object of 8,000 and
+//!   30,000 triangles.
 //!
-//! `cargo bench --bench assets` (about a minute on 2 cores).
+//! `cargo bench --bench assets` (about three minutes on 2 cores).
 
 #[path = "../tests/common/asset.rs"]
 mod asset;
@@ -42,10 +44,12 @@ fn object(name: &str, file: &str, at: [f64; 3], enabled: bool) -> String {
 }
 
 /// One `arlux render` run's report.
-fn render(scene: &Path, variant: Option<&str>) -> serde_json::Value {
+fn render(scene: &Path, variant: Option<&str>, method: &str) -> serde_json::Value {
     let out = scene.with_file_name("out.exr");
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_arlux"));
-    cmd.args(["render", "--json", "-o"]).arg(&out).arg(scene);
+    cmd.args(["render", "--json", "--method", method, "-o"])
+        .arg(&out)
+        .arg(scene);
     if let Some(v) = variant {
         cmd.args(["--variant", v]);
     }
@@ -133,7 +137,7 @@ fn main() {
     println!("| --- | --- | --- | --- |");
     let mut first: Option<(f64, f64)> = None;
     for (label, scene, variant) in cases {
-        let r = render(&scene, variant);
+        let r = render(&scene, variant, "pda");
         let (s, peak) = (
             r["seconds"].as_f64().unwrap(),
             r["peak_memory_bytes"].as_f64().unwrap_or(f64::NAN),
@@ -144,6 +148,35 @@ fn main() {
             peak / 1e6,
             s / s0,
             peak / p0
+        );
+    }
+    methods(dir.path(), &geometry, a);
+}
+
+/// The texture path beside the pixel path, one object of each size.
+fn methods(dir: &Path, geometry: &Path, at: [f64; 3]) {
+    println!("| triangles | pixel path s / MB | texture path s / MB | texture / pixel |");
+    println!("| --- | --- | --- | --- |");
+    for triangles in [8_000, 30_000] {
+        let name = format!("t{triangles}");
+        let spec = AssetSpec {
+            triangles,
+            ..AssetSpec::heavy_prop()
+        };
+        write_asset(geometry, &name, &spec);
+        let scene = desk_with(dir, &name, &object("prop", &name, at, true), "");
+        let run = |method| {
+            let r = render(&scene, None, method);
+            (
+                r["seconds"].as_f64().unwrap(),
+                r["peak_memory_bytes"].as_f64().unwrap_or(f64::NAN) / 1e6,
+            )
+        };
+        let ((ps, pm), (ts, tm)) = (run("pda"), run("texture"));
+        println!(
+            "| {triangles} | {ps:.2} / {pm:.0} | {ts:.2} / {tm:.0} | time {:.1}×, peak {:.2}× |",
+            ts / ps,
+            tm / pm
         );
     }
 }
