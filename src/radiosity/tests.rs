@@ -700,3 +700,80 @@ fn near_a_box_the_change_is_held_at_points_finer_than_the_patches() {
         "the patch means are as good: {worst_coarse} against {worst_near}"
     );
 }
+
+/// The per-pixel residual's estimator of the objects' change at a room
+/// point ([`ChangeSampler`], what `--samples` rounds average) against a
+/// brute-force trace of the same change (40,000 rays a point): with the
+/// exact value as the control variate the residual is zero in expectation.
+/// Sixteen independent scramblings (seeds) of 64 rounds each give the
+/// estimate and its standard error (randomised quasi-Monte Carlo); their
+/// mean must lie within 4 standard errors of the truth, and 64 rounds
+/// must come closer than 4.
+#[test]
+fn rounds_of_the_per_point_estimator_converge_to_the_traced_change() {
+    let w = walls_with_box(Vec3::new(1.55, 0.7, 0.7), 0.4);
+    let room_count = w.room.patch_count();
+    let bounds = VirtualBounds::of(&[(2, w.cube.clone())]);
+    let sampler = ChangeSampler::new(&w.with, &bounds, room_count, &w.tracer_with);
+    // Radiance: the glowing wall's 1/π (B = 1), the black box's none.
+    let read = |h: &crate::trace::Hit, _: DVec3, _: DVec3, _: u64| {
+        let glows = !h.is_virtual && h.surface == 0;
+        (DVec3::splat(glows as u8 as f64 / std::f64::consts::PI), 0)
+    };
+    let (mut early, mut late) = (0.0f64, 0.0f64);
+    for (y, z) in [(0.9, 0.9), (1.05, 0.9), (1.3, 0.8), (0.6, 0.6), (1.1, 1.25)] {
+        let x = DVec3::new(2.0, y, z);
+        let k = (0..room_count)
+            .find(|&k| {
+                let el = w.room.patch(k);
+                let st = el.shape.params(x);
+                el.surface == 1 && st.cmpge(DVec2::ZERO).all() && st.cmple(DVec2::ONE).all()
+            })
+            .expect("a patch of the right wall holds the point");
+        let truth = -loss_from(|_, _| x, -DVec3::X, &w.tracer_with, &w.tracer_room);
+        // Per seed, the mean after 4 and after 64 rounds.
+        let estimates: Vec<(f64, f64)> = (0..16u64)
+            .map(|seed| {
+                let (mut sum, mut count, mut after_4) = (0.0, 0usize, 0.0);
+                for round in 0..64 {
+                    sampler.sample(k as u32, x, (seed, round), &read, &mut |v: DVec3| {
+                        sum += v.x;
+                        count += 1;
+                    });
+                    if round == 3 {
+                        after_4 = sum / count as f64;
+                    }
+                }
+                assert!(count > 0, "no ray at {x}");
+                (after_4, sum / count as f64)
+            })
+            .collect();
+        let m = estimates.len() as f64;
+        let mean = estimates.iter().map(|e| e.1).sum::<f64>() / m;
+        let var = estimates.iter().map(|e| (e.1 - mean).powi(2)).sum::<f64>() / (m - 1.0);
+        // With the brute force's own error (a fraction of 40,000 rays).
+        let se = (var / m + truth.abs() * (1.0 - truth.abs()) / 40_000.0).sqrt();
+        let rms = |f: fn(&(f64, f64)) -> f64| {
+            (estimates
+                .iter()
+                .map(|e| (f(e) - truth).powi(2))
+                .sum::<f64>()
+                / m)
+                .sqrt()
+        };
+        let (e4, e64) = (rms(|e| e.0), rms(|e| e.1));
+        println!(
+            "({y}, {z}): traced {truth:.4}; 16 × 64 rounds {mean:.4} ± {se:.4}; rms error of one seed: 4 rounds {e4:.4}, 64 rounds {e64:.4}"
+        );
+        assert!(
+            (mean - truth).abs() < 4.0 * se,
+            "({y}, {z}): {mean} against {truth} (standard error {se})"
+        );
+        early += e4 * e4;
+        late += e64 * e64;
+    }
+    assert!(
+        late < early / 4.0,
+        "64 rounds not closer than 4: squared error {late} against {early}"
+    );
+}
