@@ -36,6 +36,7 @@ pub mod placement;
 pub mod radiosity;
 pub mod relight;
 pub mod render;
+pub mod renderer;
 pub mod residual;
 pub mod scene;
 pub mod scene_tracer;

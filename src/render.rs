@@ -440,6 +440,8 @@ impl Session {
             band: self.band,
         };
         self.pda = times.time("pixel data array", || PixelDataArray::build(&input));
+        // The grid near the objects covers the patches these pixels see.
+        self.changes.rays.near = None;
         self.rays += self.pda.rays;
         // Its own pixels (the crop's, within the band), not the margin.
         self.covered += self.pda.covered(self.pda.own);

@@ -544,3 +544,61 @@ fn a_motion_takes_the_render_flags() {
     let c = arlux::image_io::read_image(&plain.join("box_slide_000.exr")).unwrap();
     assert!(a.pixels != c.pixels);
 }
+
+/// A motion takes `--method texture` as `render` does: each frame is the
+/// texture path's render of a variant posing the box there, bit for bit,
+/// and the report says every pose was rendered in full.
+#[test]
+fn a_motion_renders_by_the_texture_path_as_render_does() {
+    let desk = Desk::new();
+    let scene = desk.scene();
+    let text = std::fs::read_to_string(&scene).unwrap()
+        + "\n[[variant]]\nname = \"slide_1\"\nobjects = { box = { translate = [-0.9571, 0.0, 0.3714] } }\n";
+    std::fs::write(&scene, text).unwrap();
+    let frames = desk.path("m");
+    let report = common::arlux_json(&[
+        "motion",
+        &scene,
+        "--motion",
+        "box_slide",
+        "--frames",
+        "0..2",
+        "--method",
+        "texture",
+        "--json",
+        "-o",
+        frames.to_str().unwrap(),
+    ]);
+    let poses = report["poses"].as_array().unwrap();
+    assert_eq!(poses.len(), 2);
+    assert!(poses.iter().all(|p| p["full_render"] == true), "{report}");
+    let still = desk.path("still.exr");
+    common::arlux_ok(&[
+        "render",
+        &scene,
+        "--variant",
+        "slide_1",
+        "--method",
+        "texture",
+        "-o",
+        still.to_str().unwrap(),
+    ]);
+    let a = arlux::image_io::read_image(&frames.join("box_slide_001.exr")).unwrap();
+    let b = arlux::image_io::read_image(&still).unwrap();
+    assert!(
+        a.pixels == b.pixels,
+        "the motion's frame differs from the texture path's render of its pose"
+    );
+    // The pixel path's frame of the same pose is another image.
+    let pixels = desk.path("pixels.exr");
+    common::arlux_ok(&[
+        "render",
+        &scene,
+        "--variant",
+        "slide_1",
+        "-o",
+        pixels.to_str().unwrap(),
+    ]);
+    let c = arlux::image_io::read_image(&pixels).unwrap();
+    assert!(a.pixels != c.pixels, "the method was not the texture path");
+}

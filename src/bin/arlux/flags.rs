@@ -1,14 +1,30 @@
 //! The render flags every command that renders takes alike (`render`,
-//! `motion`): the composite, the radiosity's and the pixel data's
+//! `motion`): the method, the composite, the radiosity's and the pixel data's
 //! settings, the links cache and the rounds of per-pixel samples. Mapped
 //! onto the library's [`RenderOptions`], where their defaults and checks live.
 
 use arlux::composite::CompositeMode;
-use arlux::settings::RenderOptions;
+use arlux::settings::{RenderMethod, RenderOptions};
 
 /// The render flags (see the module's documentation).
 #[derive(clap::Args, Debug, Clone)]
 pub struct RenderFlags {
+    /// Rendering method: pda (per-pixel differential rendering, Grosch)
+    /// or texture (shadow-free textures × B/D, Loscos).
+    #[arg(long, value_enum, default_value_t = RenderOptions::default().method)]
+    pub method: RenderMethod,
+    /// Texture path: CIELAB distance under which two leaves have similar colour (default 10).
+    #[arg(long)]
+    pub colour_threshold: Option<f64>,
+    /// Texture path: visibility difference (0..0.5) under which two leaves see a light alike (default 0.2).
+    #[arg(long)]
+    pub visibility_threshold: Option<f64>,
+    /// Texture path: CIELAB distance under which a frontier leaf may be a reference (default 10).
+    #[arg(long)]
+    pub reference_colour_threshold: Option<f64>,
+    /// Texture path: the smallest leaf, in pixel footprints (default 3).
+    #[arg(long)]
+    pub min_leaf_pixels: Option<f64>,
     /// How real pixels take the change: ratio (photo × L_with/L_without) or additive.
     #[arg(long, value_enum, default_value_t = RenderOptions::default().composite)]
     pub composite: CompositeMode,
@@ -49,6 +65,11 @@ pub struct RenderFlags {
 impl RenderFlags {
     /// Sets these flags' settings in `options`.
     pub fn apply(&self, options: &mut RenderOptions) {
+        options.method = self.method;
+        options.colour_threshold = self.colour_threshold;
+        options.visibility_threshold = self.visibility_threshold;
+        options.reference_colour_threshold = self.reference_colour_threshold;
+        options.min_leaf_pixels = self.min_leaf_pixels;
         options.composite = self.composite;
         options.patch_size = self.patch_size;
         options.virtual_patch_size = self.virtual_patch_size;

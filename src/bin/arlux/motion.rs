@@ -116,13 +116,11 @@ pub fn run(args: &Args) -> Result<()> {
     let name = args.motion.as_str();
     let dir = args.output.as_path();
     use arlux::model::StageTimes;
-    use arlux::render::Session;
+    use arlux::renderer::Renderer;
     // The settings checked before any work.
     let mut options = arlux::settings::RenderOptions::default();
     args.flags.apply(&mut options);
-    let arlux::settings::Method::Pda(settings) = options.resolve()? else {
-        unreachable!("the default method is the pixel path")
-    };
+    let method = options.resolve()?;
     let base = stage("load", || {
         load_showing(&args.scene, arlux::scene::Showing::Motion(name))
     })?;
@@ -183,14 +181,14 @@ pub fn run(args: &Args) -> Result<()> {
     let mut times = StageTimes::default();
     // Each shard of a farm starts with a full render of its first pose:
     // all but the first read the room's links.
-    let mut session = Session::start(&first, &photo, &settings, &mut times)?;
+    let mut session = Renderer::start(&first, &photo, &method, &mut times)?;
     session.prepare_updates(&mut times);
     if args.image_only {
         session.image_only();
     }
     keep(&times);
     let full_seconds = full_render_seconds(&times);
-    stage("write", || write(poses.start, &session.composite, &photo))?;
+    stage("write", || write(poses.start, session.composite(), &photo))?;
     bar.inc(1);
     let memory = session.memory_bytes();
     let (pda_bytes, block_bytes) = (memory.pixel_data, memory.pixel_blocks);
@@ -201,7 +199,7 @@ pub fn run(args: &Args) -> Result<()> {
         speedup: None,
         update: None,
         comparison: stage("compare", || {
-            error_at(poses.start, &session.composite.image)
+            error_at(poses.start, &session.composite().image)
         })?,
         stages: None,
     };
@@ -216,19 +214,20 @@ pub fn run(args: &Args) -> Result<()> {
         let stats = session.update(&scene, &mut times)?;
         keep(&times);
         let seconds = times.total().as_secs_f64();
-        stage("write", || write(pose, &session.composite, &photo))?;
+        stage("write", || write(pose, session.composite(), &photo))?;
+        // The texture path renders every pose in full.
         let row = PoseReport {
             pose,
             seconds,
-            full_render: false,
-            speedup: Some(full_seconds / seconds),
-            update: Some(UpdateReport {
+            full_render: stats.is_none(),
+            speedup: stats.as_ref().map(|_| full_seconds / seconds),
+            update: stats.as_ref().map(|stats| UpdateReport {
                 pixels_recomputed: stats.pixels_recomputed,
                 pixels_retraced: stats.pixels_retraced,
                 shaft_tests: stats.shaft_tests,
                 rays: stats.rays,
             }),
-            comparison: stage("compare", || error_at(pose, &session.composite.image))?,
+            comparison: stage("compare", || error_at(pose, &session.composite().image))?,
             stages: Some(stages_json(&times)),
         };
         if !args.json {
@@ -238,7 +237,7 @@ pub fn run(args: &Args) -> Result<()> {
             })?;
         }
         rows.push(row);
-        last_skipped = stats.skipped_blocks;
+        last_skipped = stats.map(|s| s.skipped_blocks).unwrap_or_default();
         bar.inc(1);
     }
     bar.finish_and_clear();

@@ -11,7 +11,7 @@ use arlux::image_io::{self, ExrMeta, PixelRect};
 use arlux::model::StageTimes;
 use arlux::output::{AOV_LAYERS, FrameFiles, FrameWriter, RenderOutput};
 
-use arlux::settings::{Method, RenderMethod, RenderOptions};
+use arlux::settings::{Method, RenderOptions};
 
 use crate::common::*;
 use crate::timing::*;
@@ -35,22 +35,6 @@ pub struct Args {
     /// Also each layer as its own EXR in this folder.
     #[arg(long)]
     pub aov: Option<PathBuf>,
-    /// Rendering method: pda (per-pixel differential rendering, Grosch)
-    /// or texture (shadow-free textures × B/D, Loscos).
-    #[arg(long, value_enum, default_value_t = RenderOptions::default().method)]
-    pub method: RenderMethod,
-    /// Texture path: CIELAB distance under which two leaves have similar colour (default 10).
-    #[arg(long)]
-    pub colour_threshold: Option<f64>,
-    /// Texture path: visibility difference (0..0.5) under which two leaves see a light alike (default 0.2).
-    #[arg(long)]
-    pub visibility_threshold: Option<f64>,
-    /// Texture path: CIELAB distance under which a frontier leaf may be a reference (default 10).
-    #[arg(long)]
-    pub reference_colour_threshold: Option<f64>,
-    /// Texture path: the smallest leaf, in pixel footprints (default 3).
-    #[arg(long)]
-    pub min_leaf_pixels: Option<f64>,
     /// Render only this window of the frame, as fractions of its width and
     /// height (pbrt's crop window): columns ⌈w·X0⌉..⌈w·X1⌉, rows likewise.
     /// The EXR holds the window as its data window within the whole frame,
@@ -77,11 +61,6 @@ pub struct Args {
 impl Args {
     fn options(&self) -> RenderOptions {
         let mut options = RenderOptions {
-            method: self.method,
-            colour_threshold: self.colour_threshold,
-            visibility_threshold: self.visibility_threshold,
-            reference_colour_threshold: self.reference_colour_threshold,
-            min_leaf_pixels: self.min_leaf_pixels,
             crop: self.crop.as_ref().map(|c| arlux::image_io::CropWindow {
                 x0: c[0],
                 x1: c[1],

@@ -1,0 +1,110 @@
+//! One interface over both methods, as a command sees them: start a frame
+//! of a scene, move its objects, read the composite. The pixel path
+//! (Grosch: [`Session`]) updates a move by pixel shafts over the kept room;
+//! the texture path (Loscos: [`crate::relight`]) refines its mesh around
+//! the variant's objects, so a move renders the pose again. `arlux motion`
+//! renders through it; either way a frame is what `arlux render` of its
+//! pose with the same settings gives.
+
+use crate::composite::Composite;
+use crate::error::Result;
+use crate::image_io::Image;
+use crate::output::RenderOutput;
+use crate::render::{Session, SessionMemory, UpdateStats};
+use crate::scene::Scene;
+use crate::settings::Method;
+use crate::util::stages::StageTimes;
+
+/// A frame being rendered by one of the methods.
+pub enum Renderer {
+    /// The pixel path's session.
+    Pixels(Box<Session>),
+    /// The texture path's last frame, and what renders the next.
+    Textures(Box<Textures>),
+}
+
+/// The texture path's state: its settings, the photo and the last frame.
+pub struct Textures {
+    settings: crate::relight::TextureSettings,
+    photo: Image,
+    out: RenderOutput,
+}
+
+impl Renderer {
+    /// The frame of `scene` over `photo` by `method`, kept for moves.
+    pub fn start(
+        scene: &Scene,
+        photo: &Image,
+        method: &Method,
+        times: &mut StageTimes,
+    ) -> Result<Renderer> {
+        Ok(match method {
+            Method::Pda(settings) => {
+                Renderer::Pixels(Box::new(Session::start(scene, photo, settings, times)?))
+            }
+            Method::Texture(settings) => Renderer::Textures(Box::new(Textures {
+                out: crate::relight::render_texture(scene, photo, settings, times)?,
+                settings: *settings,
+                photo: photo.clone(),
+            })),
+        })
+    }
+
+    /// The frame's composite.
+    pub fn composite(&self) -> &Composite {
+        match self {
+            Renderer::Pixels(s) => &s.composite,
+            Renderer::Textures(t) => &t.out.composite,
+        }
+    }
+
+    /// Moves to `scene` (the objects moved, all else kept): the pixel
+    /// path's update (its statistics), or the texture path's frame of the
+    /// pose rendered again (None).
+    pub fn update(&mut self, scene: &Scene, times: &mut StageTimes) -> Result<Option<UpdateStats>> {
+        match self {
+            Renderer::Pixels(s) => s.update(scene, times).map(Some),
+            Renderer::Textures(t) => {
+                t.out = crate::relight::render_texture(scene, &t.photo, &t.settings, times)?;
+                Ok(None)
+            }
+        }
+    }
+
+    /// Builds what the pixel path's updates traverse (nothing on the texture path).
+    pub fn prepare_updates(&mut self, times: &mut StageTimes) {
+        if let Renderer::Pixels(s) = self {
+            s.prepare_updates(times);
+        }
+    }
+
+    /// From the next update on, composites hold the image and alpha only
+    /// (the pixel path; the texture path writes every layer).
+    pub fn image_only(&mut self) {
+        if let Renderer::Pixels(s) = self {
+            s.image_only();
+        }
+    }
+
+    /// Bytes held for moves: the pixel path's parts, the texture path's
+    /// pixels and textures as pixel data.
+    pub fn memory_bytes(&self) -> SessionMemory {
+        match self {
+            Renderer::Pixels(s) => s.memory_bytes(),
+            Renderer::Textures(t) => SessionMemory {
+                pixel_data: t.out.pda_bytes,
+                pixel_blocks: 0,
+                room_solution: 0,
+                change: 0,
+            },
+        }
+    }
+
+    /// The pixel path's block hierarchy, once built.
+    pub fn blocks(&self) -> Option<&crate::blocks::BlockHierarchy> {
+        match self {
+            Renderer::Pixels(s) => s.blocks(),
+            Renderer::Textures(_) => None,
+        }
+    }
+}
