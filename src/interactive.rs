@@ -16,8 +16,10 @@ use glam::{DMat3, DQuat, DVec3};
 
 use crate::error::{Error, Result};
 use crate::image_io::Image;
-use crate::render::{RenderSettings, Session};
+use crate::render::RenderSettings;
+use crate::renderer::Renderer;
 use crate::scene::Scene;
+use crate::settings::Method;
 use crate::util::stages::StageTimes;
 
 mod display;
@@ -141,14 +143,14 @@ struct ObjectEdit {
 /// The image of the current state, and what can update it.
 enum Rendered {
     Photo,
-    Session(Box<Session>),
+    Frame(Box<Renderer>),
 }
 
 /// An editing session (see the module's documentation).
 pub struct Interactive {
     base: Scene,
     photo: Image,
-    settings: RenderSettings,
+    method: Method,
     objects: Vec<ObjectEdit>,
     lights: Vec<Option<f64>>,
     /// The effective scene of the state, as rendered.
@@ -177,6 +179,17 @@ impl Interactive {
         settings: RenderSettings,
         times: &mut StageTimes,
     ) -> Result<Interactive> {
+        Interactive::with_method(base, photo, Method::Pda(settings), times)
+    }
+
+    /// [`Interactive::new`] by either method: the texture path renders
+    /// every change in full (as `arlux render --method texture` of the state).
+    pub fn with_method(
+        base: Scene,
+        photo: Image,
+        method: Method,
+        times: &mut StageTimes,
+    ) -> Result<Interactive> {
         let room = Room::new(&base)?;
         let mut s = Interactive {
             objects: vec![ObjectEdit::default(); base.objects.len()],
@@ -185,7 +198,7 @@ impl Interactive {
             rendered: Rendered::Photo,
             base,
             photo,
-            settings,
+            method,
             room,
             version: 0,
             refined: (0, None),
@@ -231,7 +244,7 @@ impl Interactive {
         rounds: u32,
         times: &mut StageTimes,
     ) -> Option<crate::residual::ResidualStats> {
-        let Rendered::Session(session) = &mut self.rendered else {
+        let Rendered::Frame(session) = &mut self.rendered else {
             self.refined = (rounds, None);
             return None;
         };
@@ -243,7 +256,7 @@ impl Interactive {
     pub fn composite(&self) -> Option<&crate::composite::Composite> {
         match &self.rendered {
             Rendered::Photo => None,
-            Rendered::Session(s) => Some(&s.composite),
+            Rendered::Frame(s) => Some(s.composite()),
         }
     }
 
@@ -554,17 +567,22 @@ impl Interactive {
             self.rendered = Rendered::Photo;
             self.scene = scene;
             RenderPath::Photo
-        } else if let (Rendered::Session(session), true) =
+        } else if let (Rendered::Frame(session), true) =
             (&mut self.rendered, same_lights && same_shown)
         {
             let stats = session.update(&scene, times)?;
             self.scene = scene;
-            RenderPath::Update {
-                pixels_recomputed: stats.pixels_recomputed,
-                pixels_retraced: stats.pixels_retraced,
-                rays: stats.rays,
+            match stats {
+                Some(stats) => RenderPath::Update {
+                    pixels_recomputed: stats.pixels_recomputed,
+                    pixels_retraced: stats.pixels_retraced,
+                    rays: stats.rays,
+                },
+                None => RenderPath::Full {
+                    reason: "the texture path renders every move in full".into(),
+                },
             }
-        } else if let (Rendered::Session(session), true) =
+        } else if let (Rendered::Frame(session), true) =
             (&mut self.rendered, same_shown && same_poses)
         {
             match session.relight(&scene, times) {
@@ -596,10 +614,10 @@ impl Interactive {
         times: &mut StageTimes,
     ) -> Result<RenderPath> {
         self.rendered = if scene.changes_the_photo() {
-            Rendered::Session(Box::new(Session::start(
+            Rendered::Frame(Box::new(Renderer::start(
                 &scene,
                 &self.photo,
-                &self.settings,
+                &self.method,
                 times,
             )?))
         } else {

@@ -10,7 +10,7 @@ use crate::composite::Composite;
 use crate::error::Result;
 use crate::image_io::Image;
 use crate::output::RenderOutput;
-use crate::render::{Session, SessionMemory, UpdateStats};
+use crate::render::{Relight, Session, SessionMemory, UpdateStats};
 use crate::scene::Scene;
 use crate::settings::Method;
 use crate::util::stages::StageTimes;
@@ -68,6 +68,33 @@ impl Renderer {
                 t.out = crate::relight::render_texture(scene, &t.photo, &t.settings, times)?;
                 Ok(None)
             }
+        }
+    }
+
+    /// New scales of the lights, all else kept: the pixel path relights
+    /// in place ([`Session::relight`]); `Err` says why not (the texture
+    /// path renders in full).
+    pub fn relight(
+        &mut self,
+        scene: &Scene,
+        times: &mut StageTimes,
+    ) -> std::result::Result<(), Relight> {
+        match self {
+            Renderer::Pixels(s) => s.relight(scene, times),
+            Renderer::Textures(_) => Err(Relight::Method),
+        }
+    }
+
+    /// The frame with `rounds` rounds of per-pixel samples (the pixel
+    /// path's [`Session::refine`]; None: none ran, or the texture path).
+    pub fn refine(
+        &mut self,
+        rounds: u32,
+        times: &mut StageTimes,
+    ) -> Option<crate::residual::ResidualStats> {
+        match self {
+            Renderer::Pixels(s) => s.refine(rounds, times),
+            Renderer::Textures(_) => None,
         }
     }
 

@@ -444,3 +444,46 @@ fn a_nudge_slides_the_object_along_the_floor_as_the_camera_sees_it() {
     );
     assert!(it.version() > version);
 }
+
+/// `arlux serve --method texture`: the session renders each change by the
+/// texture path in full, and shows what `arlux render --method texture`
+/// gives of the variant it saves, bit for bit.
+#[test]
+fn a_texture_path_session_shows_the_texture_render_of_its_saved_state() {
+    let desk = Desk::new();
+    let scene = Scene::load(desk.scene()).unwrap();
+    let photo = scene.read_photo().unwrap().0;
+    let options = arlux::settings::RenderOptions {
+        method: arlux::settings::RenderMethod::Texture,
+        ..Default::default()
+    };
+    let method = options.resolve().unwrap();
+    let arlux::settings::Method::Texture(settings) = method else {
+        panic!("not the texture path: {method:?}");
+    };
+    let times = &mut StageTimes::default();
+    let mut it = Interactive::with_method(scene, photo.clone(), method, times).unwrap();
+    let p = pixel_of(&it, DVec3::new(0.2, 0.0, 0.1));
+    let out = place(&mut it, p, times);
+    assert!(matches!(out.path, RenderPath::Full { .. }), "{out:?}");
+    let out = it
+        .apply(
+            Edit::Light {
+                light: 1,
+                scale: 1.5,
+            },
+            times,
+        )
+        .unwrap();
+    assert!(matches!(out.path, RenderPath::Full { .. }), "{out:?}");
+    // No rounds on the texture path: nothing to refine.
+    assert!(it.refine(4, times).is_none());
+    let name = it.next_variant_name();
+    let file = it.save_variant(&name).unwrap();
+    let saved = Scene::load(&file).unwrap().with_variant(&name).unwrap();
+    let full = arlux::relight::render_texture(&saved, &photo, &settings, times).unwrap();
+    assert!(
+        bits(it.image()) == bits(&full.composite.image),
+        "the session differs from the texture path's render of its saved variant"
+    );
+}

@@ -18,6 +18,8 @@ pub enum Relight {
     /// A full render of the new scales would mesh the room otherwise (the
     /// automatic patch size follows whether the scene changes its lights).
     PatchSize,
+    /// The texture path prepares every change in full.
+    Method,
 }
 
 /// The room's solution for each light alone at scale 1 (None for a light
@@ -209,6 +211,7 @@ impl Relight {
             Relight::NotOnlyScales => "more than their scales changed",
             Relight::LightsTraced => "a light switched on or off that the pixel data does not hold",
             Relight::PatchSize => "the room meshed finer or coarser for the new scales",
+            Relight::Method => "the texture path prepares every change",
         }
     }
 }

@@ -41,6 +41,11 @@ pub struct Args {
     /// the page then shows what `render --samples N` gives of the state.
     #[arg(long, default_value_t = 0)]
     pub samples: u32,
+    /// Rendering method: pda (per-pixel differential rendering, Grosch:
+    /// moves and light sliders update in milliseconds) or texture
+    /// (shadow-free textures × B/D, Loscos: every change prepared in full).
+    #[arg(long, value_enum, default_value_t = arlux::settings::RenderOptions::default().method)]
+    pub method: arlux::settings::RenderMethod,
     /// A name or address other machines reach this one by (repeatable):
     /// requests naming it in their Host header are served. Needed with
     /// `--bind 0.0.0.0` (or `::`), which names no address of its own.
@@ -90,13 +95,15 @@ pub fn run(args: &Args) -> Result<()> {
     // (each edit's first image is as fast as without).
     let checked = arlux::settings::RenderOptions {
         samples: args.samples,
+        method: args.method,
         ..Default::default()
     };
     checked.resolve()?;
-    let settings = match arlux::settings::RenderOptions::default().resolve()? {
-        arlux::settings::Method::Pda(s) => s,
-        arlux::settings::Method::Texture(_) => unreachable!("the default method is the pixel path"),
-    };
+    let method = arlux::settings::RenderOptions {
+        method: args.method,
+        ..Default::default()
+    }
+    .resolve()?;
     if let Some(out) = &args.out {
         std::fs::create_dir_all(out)
             .with_context(|| format!("--out {}: cannot create the folder", out.display()))?;
@@ -174,7 +181,7 @@ pub fn run(args: &Args) -> Result<()> {
     };
     std::thread::Builder::new()
         .name("session".into())
-        .spawn(move || worker::run(scene, photo, settings, context, queue))?;
+        .spawn(move || worker::run(scene, photo, method, context, queue))?;
     if args.open {
         let _ = std::process::Command::new("xdg-open").arg(&url).spawn();
     }

@@ -15,7 +15,6 @@ use tokio::sync::oneshot;
 use arlux::image_io::{ExrMeta, Image};
 use arlux::interactive::{Edit, Interactive, Refusal};
 use arlux::model::StageTimes;
-use arlux::render::RenderSettings;
 use arlux::scene::Scene;
 
 use super::versions::{History, Stamp};
@@ -61,12 +60,12 @@ pub(crate) struct Context {
 pub(crate) fn run(
     scene: Scene,
     photo: Image,
-    settings: RenderSettings,
+    method: arlux::settings::Method,
     cx: Context,
     queue: Receiver<Job>,
 ) {
     let started = Instant::now();
-    let made = Interactive::new(scene, photo, settings, &mut StageTimes::default());
+    let made = Interactive::with_method(scene, photo, method, &mut StageTimes::default());
     cx.bar.finish_and_clear();
     let mut it = match made {
         Ok(it) => it,
