@@ -198,6 +198,17 @@ fn render_reachable(
 /// A render kept alive for updates: after virtual objects move,
 /// [`Session::update`] recomputes only what their old and new places can change.
 pub struct Session {
+    /// The room as prepared for the photo: what every pose reads.
+    prepared: Prepared,
+    /// The current pose: the lights' scales, the objects' change, the pixel data.
+    pose: Pose,
+    /// How the render runs, and what it did.
+    run: Run,
+    pub composite: Composite,
+}
+
+/// A session's room and inputs, prepared once (a relight changes the scales they record).
+struct Prepared {
     /// The scene as rendered (a light to reconstruct replaced by what was recovered).
     scene: Scene,
     /// The lights as the caller gave them: updates must keep them.
@@ -215,32 +226,25 @@ pub struct Session {
     tracer: crate::trace::Tracer,
     model: Model,
     scales_without: Vec<f64>,
+    indirect_without: Vec<DVec3>,
+}
+
+/// A session's current pose and light scales, and what updates keep of it.
+struct Pose {
     scales_with: Vec<f64>,
     active: Vec<bool>,
-    indirect_without: Vec<DVec3>,
     changes: Changes,
     bounds: VirtualBounds,
     pda: PixelDataArray,
     /// Built for the first update only: a still render does not need it.
     blocks: Option<crate::blocks::BlockHierarchy>,
-    pub composite: Composite,
     /// Each real pixel's composite as prepared (see [`RealPixels`]), kept for updates.
     known: Option<RealPixels>,
-    left_out: Vec<String>,
-    rays: u64,
-    /// Kept for updates (see [`Session::start`]), or a still image.
-    for_updates: bool,
     /// The room without the objects at the lights' new scales, kept for every pose.
     room: Solution,
     /// The room's solution per light, once the session's lights are scaled
     /// (see [`Session::relight`]).
     room_per_light: Option<Vec<Option<Solution>>>,
-    /// The rows of a still rendered band by band (see [`render_bands`]).
-    band: Option<(u32, u32)>,
-    /// Pixels whose centre sees a real surface, over the bands so far.
-    covered: usize,
-    /// Whether composites keep the direct, indirect and change layers (see [`Session::image_only`]).
-    layers: bool,
     /// The objects' gather directions, for the next pose.
     gather_directions: GatherDirections,
     /// Per light, the pixels the last traversal (an update's, or the
@@ -249,6 +253,20 @@ pub struct Session {
     reached: Vec<Vec<u32>>,
     /// Per light, the blocks' shafts the traversals built so far.
     block_shafts: Vec<crate::blocks::BlockShafts>,
+}
+
+/// How a session renders (band, layers, budget) and its tallies.
+struct Run {
+    left_out: Vec<String>,
+    rays: u64,
+    /// Kept for updates (see [`Session::start`]), or a still image.
+    for_updates: bool,
+    /// The rows of a still rendered band by band (see [`render_bands`]).
+    band: Option<(u32, u32)>,
+    /// Pixels whose centre sees a real surface, over the bands so far.
+    covered: usize,
+    /// Whether composites keep the direct, indirect and change layers (see [`Session::image_only`]).
+    layers: bool,
     /// When the render (or the update) began: a time budget counts from it.
     started: std::time::Instant,
     /// What the last composite's rounds of per-pixel samples did.
@@ -256,6 +274,28 @@ pub struct Session {
     /// The share of the time left that a composite's rounds may take (a
     /// still's first band: one over the bands).
     time_share: f64,
+}
+
+impl Prepared {
+    /// What the objects' change reads of the room, at `scales_with` with
+    /// the objects within `bounds`, over the room's solution `room`.
+    fn change_input<'a>(
+        &'a self,
+        scales_with: &'a [f64],
+        bounds: &'a VirtualBounds,
+        room: &'a Solution,
+    ) -> ChangeInput<'a> {
+        ChangeInput {
+            scene: &self.scene,
+            photo: &self.photo,
+            tracer: &self.tracer,
+            model: &self.model,
+            scales_with,
+            settings: &self.settings,
+            bounds,
+            room,
+        }
+    }
 }
 
 /// Bytes a [`Session`] holds for updates.
@@ -382,42 +422,48 @@ impl Session {
             crate::placement::warnings(scene, &photo, &tracer)
         }));
         let mut session = Session {
-            scene: scene.clone(),
-            given_lights,
-            warnings,
-            photo,
-            photo_base,
-            lamps,
-            settings,
-            tracer,
-            model,
-            scales_without,
-            scales_with,
-            active,
-            indirect_without,
-            changes,
-            bounds,
-            pda: PixelDataArray::default(),
-            blocks: None,
+            prepared: Prepared {
+                scene: scene.clone(),
+                given_lights,
+                photo,
+                photo_base,
+                lamps,
+                warnings,
+                settings,
+                tracer,
+                model,
+                scales_without,
+                indirect_without,
+            },
+            pose: Pose {
+                scales_with,
+                active,
+                changes,
+                bounds,
+                pda: PixelDataArray::default(),
+                blocks: None,
+                known: None,
+                room,
+                room_per_light: None,
+                gather_directions,
+                reached: Vec::new(),
+                block_shafts: Vec::new(),
+            },
+            run: Run {
+                left_out,
+                rays: 0,
+                for_updates,
+                band,
+                covered: 0,
+                layers: true,
+                started,
+                residual_stats: None,
+                // The first band's share of the frame's rows.
+                time_share: band.map_or(1.0, |(a, b)| {
+                    ((b - a) as f64 / scene.camera.height.max(1) as f64).min(1.0)
+                }),
+            },
             composite: Composite::empty(),
-            known: None,
-            left_out,
-            rays: 0,
-            for_updates,
-            band,
-            covered: 0,
-            room,
-            room_per_light: None,
-            layers: true,
-            gather_directions,
-            reached: Vec::new(),
-            block_shafts: Vec::new(),
-            started,
-            residual_stats: None,
-            // The first band's share of the frame's rows.
-            time_share: band.map_or(1.0, |(a, b)| {
-                ((b - a) as f64 / scene.camera.height.max(1) as f64).min(1.0)
-            }),
         };
         session.trace_pixels(times);
         session.recomposite(times, &[]);
@@ -427,31 +473,36 @@ impl Session {
     /// Builds the Pixel Data Array for the session's pixels (its crop's,
     /// and its band's when rendered by bands).
     fn trace_pixels(&mut self, times: &mut StageTimes) {
-        let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| o);
+        let patches = self
+            .pose
+            .changes
+            .own
+            .as_ref()
+            .map_or(&self.prepared.model.patches, |o| o);
         let input = PdaInput {
-            camera: &self.scene.camera,
-            tracer: &self.tracer,
+            camera: &self.prepared.scene.camera,
+            tracer: &self.prepared.tracer,
             patches,
-            lights: &self.model.lights,
-            active: &self.active,
-            bounds: &self.bounds,
-            settings: self.settings.pda,
-            for_updates: self.for_updates,
-            band: self.band,
+            lights: &self.prepared.model.lights,
+            active: &self.pose.active,
+            bounds: &self.pose.bounds,
+            settings: self.prepared.settings.pda,
+            for_updates: self.run.for_updates,
+            band: self.run.band,
         };
-        self.pda = times.time("pixel data array", || PixelDataArray::build(&input));
+        self.pose.pda = times.time("pixel data array", || PixelDataArray::build(&input));
         // The grid near the objects covers the patches these pixels see.
-        self.changes.rays.near = None;
-        self.rays += self.pda.rays;
+        self.pose.changes.rays.near = None;
+        self.run.rays += self.pose.pda.rays;
         // Its own pixels (the crop's, within the band), not the margin.
-        self.covered += self.pda.covered(self.pda.own);
+        self.run.covered += self.pose.pda.covered(self.pose.pda.own);
     }
 
     /// The pixels of the image: its crop's, or the frame's.
     fn image_pixels(&self) -> crate::image_io::PixelRect {
-        let cam = &self.scene.camera;
+        let cam = &self.prepared.scene.camera;
         let (w, h) = (cam.width, cam.height);
-        (self.settings.pda.crop)
+        (self.prepared.settings.pda.crop)
             .and_then(|c| c.pixels(w, h))
             .unwrap_or(crate::image_io::PixelRect::full(w, h))
     }
@@ -460,19 +511,19 @@ impl Session {
     /// (the direct, indirect and change layers are left empty): what a
     /// motion writes, a tenth to a fifth less work in each update's composite.
     pub fn image_only(&mut self) {
-        self.layers = false;
+        self.run.layers = false;
     }
 
     /// Builds the pixel-block hierarchy updates traverse, and traverses it
     /// against the objects where they stand (done by the first update when
     /// not asked for before).
     pub fn prepare_updates(&mut self, times: &mut StageTimes) {
-        if self.blocks.is_none() {
+        if self.pose.blocks.is_none() {
             let (pda, lights, active, objects) = (
-                &self.pda,
-                &self.model.lights,
-                &self.active,
-                &self.bounds.objects,
+                &self.pose.pda,
+                &self.prepared.model.lights,
+                &self.pose.active,
+                &self.pose.bounds.objects,
             );
             let (blocks, (reached, shafts)) = times.time("pixel blocks", || {
                 use rayon::prelude::*;
@@ -493,34 +544,36 @@ impl Session {
                     .unzip();
                 (blocks, reached)
             });
-            self.blocks = Some(blocks);
-            self.reached = reached;
-            self.block_shafts = shafts;
+            self.pose.blocks = Some(blocks);
+            self.pose.reached = reached;
+            self.pose.block_shafts = shafts;
         }
     }
 
     /// Bytes held by what the session keeps for updates.
     pub fn memory_bytes(&self) -> SessionMemory {
-        let shafts: usize = self.block_shafts.iter().map(|s| s.memory_bytes()).sum();
+        let shafts: usize = self
+            .pose
+            .block_shafts
+            .iter()
+            .map(|s| s.memory_bytes())
+            .sum();
         SessionMemory {
-            pixel_data: self.pda.memory_bytes(),
-            pixel_blocks: self
-                .blocks
-                .as_ref()
-                .map_or(0, |b| b.memory_bytes() + shafts),
-            room_solution: solution_bytes(&self.room),
-            change: self.changes.bytes
-                + (self.changes.rays.near.as_ref()).map_or(0, |n| n.memory_bytes())
-                + (self.changes.per_light.as_ref()).map_or(0, |b| b.memory_bytes()),
+            pixel_data: self.pose.pda.memory_bytes(),
+            pixel_blocks: (self.pose.blocks.as_ref()).map_or(0, |b| b.memory_bytes() + shafts),
+            room_solution: solution_bytes(&self.pose.room),
+            change: self.pose.changes.bytes
+                + (self.pose.changes.rays.near.as_ref()).map_or(0, |n| n.memory_bytes())
+                + (self.pose.changes.per_light.as_ref()).map_or(0, |b| b.memory_bytes()),
         }
     }
 
     pub fn pda(&self) -> &PixelDataArray {
-        &self.pda
+        &self.pose.pda
     }
 
     pub fn blocks(&self) -> Option<&crate::blocks::BlockHierarchy> {
-        self.blocks.as_ref()
+        self.pose.blocks.as_ref()
     }
 
     /// Moves to `scene`, which must differ from the current one only in
@@ -530,24 +583,28 @@ impl Session {
     /// objects' image and edges are re-traced; the indirect light is solved
     /// again on the room's links with the objects re-linked.
     pub fn update(&mut self, scene: &Scene, times: &mut StageTimes) -> Result<UpdateStats> {
-        let same_lights = scene.lights == self.given_lights;
+        let same_lights = scene.lights == self.prepared.given_lights;
         if !same_lights
-            || scene.camera != self.scene.camera
-            || scene.surfaces.len() != self.scene.surfaces.len()
+            || scene.camera != self.prepared.scene.camera
+            || scene.surfaces.len() != self.prepared.scene.surfaces.len()
         {
             return Err(crate::error::Error::file(
                 &scene.file,
                 "an update moves virtual objects only; lights, camera and real geometry must stay",
             ));
         }
-        self.started = std::time::Instant::now();
+        self.run.started = std::time::Instant::now();
         self.prepare_updates(times);
         let mut stats = UpdateStats::default();
         let virt = scene.virtual_world_surfaces();
         let sets = crate::scene_tracer::virtual_triangle_sets(scene, &virt);
         // The tracer's objects, their bounds and their mesh, side by side.
         let has_objects = sets.iter().any(|s| !s.triangles.is_empty());
-        let (tracer, model, settings) = (&mut self.tracer, &self.model, &self.settings);
+        let (tracer, model, settings) = (
+            &mut self.prepared.tracer,
+            &self.prepared.model,
+            &self.prepared.settings,
+        );
         let (moved, (bounds, objects)) = times.concurrently(
             "place objects",
             |times| times.time("move objects", || tracer.rebuild_virtual(&sets)),
@@ -563,29 +620,22 @@ impl Session {
         moved.map_err(|e| crate::error::Error::file(&scene.file, e.to_string()))?;
         // Only the objects move (checked above): the room's surfaces, and the
         // lights as rendered (a reconstructed one stays recovered), are kept.
-        self.scene.objects.clone_from(&scene.objects);
-        self.bounds = bounds;
+        self.prepared.scene.objects.clone_from(&scene.objects);
+        self.pose.bounds = bounds;
         // The Pixel Data Array does not depend on the radiosity solution:
         // the two are computed side by side.
-        let input = ChangeInput {
-            scene: &self.scene,
-            photo: &self.photo,
-            tracer: &self.tracer,
-            model: &self.model,
-            scales_with: &self.scales_with,
-            settings: &self.settings,
-            bounds: &self.bounds,
-            room: &self.room,
-        };
+        let input =
+            self.prepared
+                .change_input(&self.pose.scales_with, &self.pose.bounds, &self.pose.room);
         let pixels = PixelUpdate {
-            pda: &mut self.pda,
-            blocks: self.blocks.as_ref().expect("prepared above"),
-            active: &self.active,
-            reached: &mut self.reached,
-            block_shafts: &mut self.block_shafts,
+            pda: &mut self.pose.pda,
+            blocks: self.pose.blocks.as_ref().expect("prepared above"),
+            active: &self.pose.active,
+            reached: &mut self.pose.reached,
+            block_shafts: &mut self.pose.block_shafts,
             stats: &mut stats,
         };
-        let directions = &mut self.gather_directions;
+        let directions = &mut self.pose.gather_directions;
         let objects_ref = objects.as_ref();
         let mut rays = PoseRays::default();
         let view = &mut rays.view;
@@ -594,125 +644,43 @@ impl Session {
             |times| solve_changes(&input, objects_ref, directions, view, times),
             |times| pixels.run(&input, objects_ref, times),
         );
-        self.changes = solved.with_patches(objects, rays);
+        self.pose.changes = solved.with_patches(objects, rays);
         stats.rays += pixel_rays;
         stats.pixels_retraced = retraced;
-        self.rays = stats.rays;
+        self.run.rays = stats.rays;
         self.recomposite(times, &touched);
         Ok(stats)
     }
 
     pub(crate) fn into_output(self) -> RenderOutput {
         let pixels = self.image_pixels().pixel_count();
-        let mut warnings = self.warnings;
-        warnings.extend(coverage_warning(self.covered, pixels));
-        let patches = self.changes.own.as_ref().map_or(&self.model.patches, |o| o);
-        let transport = &self.model.transport;
+        let mut warnings = self.prepared.warnings;
+        warnings.extend(coverage_warning(self.run.covered, pixels));
+        let patches = self
+            .pose
+            .changes
+            .own
+            .as_ref()
+            .map_or(&self.prepared.model.patches, |o| o);
+        let transport = &self.prepared.model.transport;
         RenderOutput {
-            pda_bytes: self.pda.memory_bytes(),
-            pda_pixels: (self.pda.width * self.pda.height) as usize,
-            rays: self.rays,
+            pda_bytes: self.pose.pda.memory_bytes(),
+            pda_pixels: (self.pose.pda.width * self.pose.pda.height) as usize,
+            rays: self.run.rays,
             patches: patches.patch_count(),
             links: transport.link_count(),
             elements: patches.elements.len(),
             links_bytes: transport.memory_bytes(),
-            room_solution_bytes: solution_bytes(&self.room),
-            change_bytes: self.changes.bytes,
-            patch_size: self.settings.model.patch_size,
+            room_solution_bytes: solution_bytes(&self.pose.room),
+            change_bytes: self.pose.changes.bytes,
+            patch_size: self.prepared.settings.model.patch_size,
             composite: self.composite,
             warnings,
-            left_out: self.left_out,
+            left_out: self.run.left_out,
             texture: None,
-            residual: self.residual_stats,
+            residual: self.run.residual_stats,
         }
     }
-}
-
-/// The photo smoothed within its own grain, what a brightening multiplies
-/// (see [`crate::composite::grain`]).
-fn photo_without_grain(photo: &Image, lamps: Option<&LampPixels>) -> Image {
-    let noise = crate::composite::grain::relative_noise(photo);
-    let mut base = crate::composite::grain::smoothed(photo, noise);
-    // A lamp's pixels hold a fill, not a photographed surface: smoothing it
-    // across a lamp's hot spot only biases what the lamp's scale multiplies.
-    for i in lamps.iter().flat_map(|l| l.pixel_indices()) {
-        base.pixels[i] = photo.pixels[i];
-    }
-    base
-}
-
-/// The irradiance under which a composite's ratio is not trusted: a
-/// thousandth of the mean "without" irradiance over the pixels that see
-/// the room, from the model's patches, each weighted by the pixels that
-/// see it (the same number for the whole frame, a crop and a band).
-fn ratio_floor(model: &Model, scales_without: &[f64]) -> DVec3 {
-    let (mut sum, mut count) = (DVec3::ZERO, 0.0);
-    for (p, &n) in model.photo.pixels.iter().enumerate() {
-        if n > 0 {
-            let direct: DVec3 = (model.direct_per_light.iter().zip(scales_without))
-                .map(|(d, s)| d[p] * *s)
-                .sum();
-            sum += (direct + model.estimate.solution.indirect_irradiance[p]) * n as f64;
-            count += n as f64;
-        }
-    }
-    sum / count.max(1.0) * 1e-3
-}
-
-/// The room's largest patch edge: the user's, or from what the scene changes.
-fn room_patch_size(scene: &Scene, patch_size: PatchSize) -> f64 {
-    match patch_size {
-        PatchSize::Metres(m) => m,
-        PatchSize::Auto if lights_change(&scene.lights) => fine_patch_size(scene),
-        PatchSize::Auto => room_diagonal(scene) / 6.0,
-    }
-}
-
-/// The photo's model; with an automatic patch size and no light change,
-/// built again finer where the room's interreflection asks for it.
-fn photo_model(
-    scene: &Scene,
-    photo: &Image,
-    tracer: &crate::trace::Tracer,
-    settings: &mut RenderSettings,
-    times: &mut StageTimes,
-) -> Result<Model> {
-    let mut model = Model::build(scene, photo, tracer, &settings.model, times)?;
-    if settings.patch_size == PatchSize::Auto && !lights_change(&scene.lights) {
-        let finer = settings.model.patch_size * interreflection_scale(&model);
-        if finer < 0.9 * settings.model.patch_size {
-            settings.model.patch_size = finer.max(fine_patch_size(scene));
-            model = Model::build(scene, photo, tracer, &settings.model, times)?;
-        }
-    }
-    Ok(model)
-}
-
-/// Whether a scene's lights switch, scale or add a light.
-fn lights_change(lights: &[crate::scene::Light]) -> bool {
-    lights
-        .iter()
-        .any(|l| l.scale != if l.real { 1.0 } else { 0.0 })
-}
-
-/// How much finer than the coarse room an object's change of the indirect
-/// light needs the room's mesh, from the room's area-weighted mean
-/// reflectance ρ̄ as estimated: (1 − ρ̄)/0.5, between ¼ and 1. The coarse
-/// mesh holds where most of an object's change is the first bounce (rooms
-/// of ρ̄ up to one half); the interreflections spread the change through
-/// the room with a gain of 1/(1 − ρ̄), twice as much at ρ̄ = 0.75, five
-/// times at 0.9, and the mesh refines in proportion (measured on
-/// `whitebox`, ρ̄ ≈ 0.8: skill 0.62–0.79 with the coarse mesh, 0.69–0.86
-/// at a quarter of its size).
-fn interreflection_scale(model: &Model) -> f64 {
-    let (mut sum, mut area) = (0.0, 0.0);
-    for (k, rho) in model.estimate.reflectance.iter().enumerate() {
-        let a = model.patches.patch(k).area;
-        sum += a * rho.element_sum() / 3.0;
-        area += a;
-    }
-    let mean = if area > 0.0 { sum / area } else { 0.0 };
-    ((1.0 - mean) / 0.5).clamp(0.25, 1.0)
 }
 
 /// The union of two sorted lists, sorted, each value once.
@@ -740,6 +708,7 @@ mod changes;
 mod light_scales;
 mod pixels;
 mod recompose;
+mod room;
 
 pub use bands::{
     BYTES_PER_BAND_PIXEL, BYTES_PER_FRAME_PIXEL, BandSink, band_rows, default_memory, parse_memory,
@@ -749,6 +718,7 @@ pub use light_scales::Relight;
 
 use changes::*;
 use pixels::*;
+use room::*;
 
 #[cfg(test)]
 mod tests;

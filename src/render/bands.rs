@@ -115,7 +115,7 @@ pub fn render_bands(
     }
     let scene = reachable.as_ref().unwrap_or(scene);
     let mut session = Session::begin(scene, photo, settings, times, false, Some(bands[0]))?;
-    session.left_out.extend(dropped);
+    session.run.left_out.extend(dropped);
     let mut counts = Composite::empty();
     let mut pda_bytes = 0;
     let mut per_band = StageTimes::default();
@@ -124,20 +124,24 @@ pub fn render_bands(
         if k > 0 {
             // A time budget not yet spent on rounds: this band's share of
             // what is left, by its rows.
-            session.time_share = (y1 - y0) as f64 / (last_row - y0).max(1) as f64;
+            session.run.time_share = (y1 - y0) as f64 / (last_row - y0).max(1) as f64;
             session.move_to_band((y0, y1), &mut per_band);
         }
-        let timed = session.settings.residual.time.is_some();
-        if let Some(stats) = session.residual_stats.filter(|s| timed && s.pixels() > 0) {
+        let timed = session.prepared.settings.residual.time.is_some();
+        if let Some(stats) = session
+            .run
+            .residual_stats
+            .filter(|s| timed && s.pixels() > 0)
+        {
             // Every band runs the rounds of the first that sampled any
             // pixel: a time budget gives the frame one number of rounds,
             // as `--samples` reproduces.
-            session.settings.residual = crate::residual::ResidualSettings {
+            session.prepared.settings.residual = crate::residual::ResidualSettings {
                 samples: stats.rounds,
                 time: None,
             };
         }
-        pda_bytes = pda_bytes.max(session.pda.memory_bytes());
+        pda_bytes = pda_bytes.max(session.pose.pda.memory_bytes());
         counts = Composite::empty()
             .with_counts(&session.composite)
             .added(&counts);
@@ -154,9 +158,9 @@ impl Session {
     /// Moves a still to the band `rows`: its Pixel Data Array traced and
     /// composited there, the model and radiosity kept.
     fn move_to_band(&mut self, rows: (u32, u32), times: &mut StageTimes) {
-        self.band = Some(rows);
+        self.run.band = Some(rows);
         // The last band's data goes before the next is built.
-        self.pda = PixelDataArray::default();
+        self.pose.pda = PixelDataArray::default();
         self.composite = Composite::empty();
         self.trace_pixels(times);
         self.recomposite(times, &[]);

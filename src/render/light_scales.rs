@@ -227,36 +227,45 @@ impl Session {
         times: &mut StageTimes,
     ) -> std::result::Result<(), Relight> {
         self.check_relight(scene)?;
-        self.started = std::time::Instant::now();
-        for (kept, given) in self.scene.lights.iter_mut().zip(&scene.lights) {
+        self.run.started = std::time::Instant::now();
+        for (kept, given) in self.prepared.scene.lights.iter_mut().zip(&scene.lights) {
             kept.scale = given.scale;
         }
-        for (light, given) in self.model.lights.iter_mut().zip(&scene.lights) {
+        for (light, given) in self.prepared.model.lights.iter_mut().zip(&scene.lights) {
             light.scale = given.scale;
         }
-        self.given_lights.clone_from(&scene.lights);
-        self.scales_with = self.model.lights.iter().map(|l| l.scale).collect();
-        let brightens = (self.scales_with.iter().zip(&self.scales_without)).any(|(w, wo)| w > wo);
+        self.prepared.given_lights.clone_from(&scene.lights);
+        self.pose.scales_with = self.prepared.model.lights.iter().map(|l| l.scale).collect();
+        let brightens = (self
+            .pose
+            .scales_with
+            .iter()
+            .zip(&self.prepared.scales_without))
+        .any(|(w, wo)| w > wo);
         let grain = "the photo's grain: no light is added or scaled up";
-        self.left_out.retain(|l| l != grain);
+        self.run.left_out.retain(|l| l != grain);
         if !brightens {
-            self.photo_base = None;
-            self.left_out.push(grain.to_string());
-        } else if self.photo_base.is_none() {
-            let lamps = self.lamps.as_ref().map(|l| &l.0);
-            let photo = &self.photo;
-            self.photo_base = Some(times.time("photo grain", || photo_without_grain(photo, lamps)));
+            self.prepared.photo_base = None;
+            self.run.left_out.push(grain.to_string());
+        } else if self.prepared.photo_base.is_none() {
+            let lamps = self.prepared.lamps.as_ref().map(|l| &l.0);
+            let photo = &self.prepared.photo;
+            self.prepared.photo_base =
+                Some(times.time("photo grain", || photo_without_grain(photo, lamps)));
         }
-        let (model, active, settings) = (&self.model, &self.active, &self.settings);
-        let per_light = self
-            .room_per_light
+        let (model, active, settings) = (
+            &self.prepared.model,
+            &self.pose.active,
+            &self.prepared.settings,
+        );
+        let per_light = (self.pose.room_per_light)
             .get_or_insert_with(|| room_per_light(model, active, settings, times));
-        self.room = times.time("solve the room", || {
-            superposed(per_light, &self.scales_with)
+        self.pose.room = times.time("solve the room", || {
+            superposed(per_light, &self.pose.scales_with)
         });
         self.relit_change(times);
         // Every real pixel's composite reads the scales: none is kept.
-        self.known = None;
+        self.pose.known = None;
         self.recomposite(times, &[]);
         Ok(())
     }
@@ -265,23 +274,16 @@ impl Session {
     /// light's alone (solved once per pose) where that is the change a full
     /// render computes, else solved at the scales.
     fn relit_change(&mut self, times: &mut StageTimes) {
-        let objects = self.changes.own.take().filter(|_| self.has_objects());
+        let objects = self.pose.changes.own.take().filter(|_| self.has_objects());
         // The pose is the same: its rays are read with the new radiosity.
-        let mut rays = std::mem::take(&mut self.changes.rays);
-        let kept = self.changes.per_light.take();
-        let input = ChangeInput {
-            scene: &self.scene,
-            photo: &self.photo,
-            tracer: &self.tracer,
-            model: &self.model,
-            scales_with: &self.scales_with,
-            settings: &self.settings,
-            bounds: &self.bounds,
-            room: &self.room,
-        };
-        let directions = &mut self.gather_directions;
-        let linear = below_gather_clamp(&self.room, &self.model);
-        let (solved, per_light) = match (objects.as_ref(), &self.room_per_light, linear) {
+        let mut rays = std::mem::take(&mut self.pose.changes.rays);
+        let kept = self.pose.changes.per_light.take();
+        let input =
+            self.prepared
+                .change_input(&self.pose.scales_with, &self.pose.bounds, &self.pose.room);
+        let directions = &mut self.pose.gather_directions;
+        let linear = below_gather_clamp(&self.pose.room, &self.prepared.model);
+        let (solved, per_light) = match (objects.as_ref(), &self.pose.room_per_light, linear) {
             (Some(patches), Some(rooms), true) => {
                 let basis = kept.unwrap_or_else(|| {
                     let parts = BasisParts {
@@ -291,7 +293,9 @@ impl Session {
                     };
                     parts.solve(directions, &mut rays.view, times)
                 });
-                let solved = times.time("sum the change per light", || basis.at(&self.scales_with));
+                let solved = times.time("sum the change per light", || {
+                    basis.at(&self.pose.scales_with)
+                });
                 match solved {
                     Some(solved) => (solved, Some(basis)),
                     None => (
@@ -305,12 +309,12 @@ impl Session {
                 None,
             ),
         };
-        self.changes = solved.with_patches(objects, rays);
-        self.changes.per_light = per_light;
+        self.pose.changes = solved.with_patches(objects, rays);
+        self.pose.changes.per_light = per_light;
     }
 
     fn has_objects(&self) -> bool {
-        self.tracer.virtual_objects.is_some()
+        self.prepared.tracer.virtual_objects.is_some()
     }
 
     /// Whether `scene` is the session's but for its lights' scales, with the
@@ -320,28 +324,28 @@ impl Session {
             scale: 0.0,
             ..l.clone()
         };
-        let same_lights = scene.lights.len() == self.given_lights.len()
-            && (scene.lights.iter().zip(&self.given_lights))
+        let same_lights = scene.lights.len() == self.prepared.given_lights.len()
+            && (scene.lights.iter().zip(&self.prepared.given_lights))
                 .all(|(a, b)| unscaled(a) == unscaled(b));
-        let same_objects = scene.objects.len() == self.scene.objects.len()
-            && (scene.objects.iter().zip(&self.scene.objects))
+        let same_objects = scene.objects.len() == self.prepared.scene.objects.len()
+            && (scene.objects.iter().zip(&self.prepared.scene.objects))
                 .all(|(a, b)| a.enabled == b.enabled && a.pose == b.pose);
         if !same_lights
             || !same_objects
-            || scene.camera != self.scene.camera
-            || scene.surfaces.len() != self.scene.surfaces.len()
+            || scene.camera != self.prepared.scene.camera
+            || scene.surfaces.len() != self.prepared.scene.surfaces.len()
         {
             return Err(Relight::NotOnlyScales);
         }
-        let active = (scene.lights.iter().zip(&self.scales_without))
+        let active = (scene.lights.iter().zip(&self.prepared.scales_without))
             .map(|(l, &without)| l.scale > 0.0 || without > 0.0);
-        if !active.eq(self.active.iter().copied()) {
+        if !active.eq(self.pose.active.iter().copied()) {
             return Err(Relight::LightsTraced);
         }
         // A goniometric reconstruction or a patch size given in metres keeps
         // the mesh; the automatic one is fine exactly when lights change.
-        if self.settings.patch_size == PatchSize::Auto
-            && lights_change(&scene.lights) != lights_change(&self.given_lights)
+        if self.prepared.settings.patch_size == PatchSize::Auto
+            && lights_change(&scene.lights) != lights_change(&self.prepared.given_lights)
         {
             return Err(Relight::PatchSize);
         }
