@@ -623,7 +623,10 @@ impl Session {
         self.prepared.scene.objects.clone_from(&scene.objects);
         self.pose.bounds = bounds;
         // The Pixel Data Array does not depend on the radiosity solution:
-        // the two are computed side by side.
+        // the two are computed side by side, and beside them the rays of the
+        // grid near the objects (geometry only; the patches the camera sees
+        // stay with the room).
+        let seen = changes::seen_patches(&self.prepared.model, &self.pose.pda);
         let input =
             self.prepared
                 .change_input(&self.pose.scales_with, &self.pose.bounds, &self.pose.room);
@@ -639,11 +642,20 @@ impl Session {
         let objects_ref = objects.as_ref();
         let mut rays = PoseRays::default();
         let view = &mut rays.view;
-        let (solved, (touched, pixel_rays, retraced)) = times.concurrently(
+        let (solved, ((touched, pixel_rays, retraced), near)) = times.concurrently(
             "radiosity | pixels",
             |times| solve_changes(&input, objects_ref, directions, view, times),
-            |times| pixels.run(&input, objects_ref, times),
+            |times| {
+                let out = pixels.run(&input, objects_ref, times);
+                let near = objects_ref.map(|o| {
+                    times.time("rays near the objects", || {
+                        changes::near_rays(&input, o, &seen)
+                    })
+                });
+                (out, near)
+            },
         );
+        rays.near = near;
         self.pose.changes = solved.with_patches(objects, rays);
         stats.rays += pixel_rays;
         stats.pixels_retraced = retraced;

@@ -130,23 +130,36 @@ pub(super) fn near_field(
     pda: &crate::pda::PixelDataArray,
     kept: &mut Option<crate::radiosity::NearView>,
 ) -> crate::radiosity::NearField {
-    let view = kept.get_or_insert_with(|| {
-        let model = input.model;
-        let mut shown = vec![false; model.patches.patch_count()];
-        for p in &pda.real.points {
-            if let Some(s) = shown.get_mut(p.location.patch as usize) {
-                *s = true;
-            }
-        }
-        let cell = input.settings.virtual_patch_size;
-        crate::radiosity::NearView::trace(objects, &shown, input.tracer, input.bounds, cell)
-    });
+    let view =
+        kept.get_or_insert_with(|| near_rays(input, objects, &seen_patches(input.model, pda)));
     view.field(
         objects,
         &source.radiosity,
         &input.room.radiosity,
         &source.coarse,
     )
+}
+
+/// The room patches that hold one of the pixel data's real points.
+pub(super) fn seen_patches(model: &Model, pda: &crate::pda::PixelDataArray) -> Vec<bool> {
+    let mut shown = vec![false; model.patches.patch_count()];
+    for p in &pda.real.points {
+        if let Some(s) = shown.get_mut(p.location.patch as usize) {
+            *s = true;
+        }
+    }
+    shown
+}
+
+/// The rays of the grid near the objects on the room patches `shown`
+/// (geometry only: any radiosity reads them).
+pub(super) fn near_rays(
+    input: &ChangeInput,
+    objects: &Patches,
+    shown: &[bool],
+) -> crate::radiosity::NearView {
+    let cell = input.settings.virtual_patch_size;
+    crate::radiosity::NearView::trace(objects, shown, input.tracer, input.bounds, cell)
 }
 
 impl Solved {
