@@ -397,7 +397,10 @@ impl Session {
         let bounds = VirtualBounds::of(&scene.virtual_world_surfaces())
             .with_room(&model.patches.real_root_polygons(), &model.lights);
         let objects = object_patches(scene, &model.patches, has_objects, &settings, times);
-        let mut gather_directions = GatherDirections::default();
+        let mut gather_directions = GatherDirections {
+            kept: for_updates,
+            ..GatherDirections::default()
+        };
         let input = ChangeInput {
             scene,
             photo: &photo,

@@ -38,9 +38,13 @@ pub(super) struct PoseRays {
 /// and strata per side): they depend on nothing else, so a moved object's
 /// vertices, numbered and facing as before, reuse them (computing them
 /// took about a tenth of the gather).
+/// A still render keeps none (`kept` false): each gathering vertex makes
+/// its own as it gathers (an 80k-triangle object's kept directions were
+/// ~70 MB).
 #[derive(Debug, Default)]
 pub(super) struct GatherDirections {
     pub(super) of: crate::util::FastMap<(u32, [u64; 3], u32), Vec<DVec3>>,
+    pub(super) kept: bool,
 }
 
 impl GatherDirections {
@@ -64,22 +68,22 @@ impl GatherDirections {
             .collect();
         let made: Vec<_> = missing
             .into_par_iter()
-            .map(|&(v, n, side)| {
-                (
-                    GatherDirections::key(v, n, side),
-                    crate::gather::cosine_directions(
-                        n,
-                        side,
-                        crate::util::rng::hash2(v as u64, 0x6A7E),
-                    ),
-                )
-            })
+            .map(|&(v, n, side)| (GatherDirections::key(v, n, side), Self::make(v, n, side)))
             .collect();
         self.of.extend(made);
     }
 
-    pub(super) fn of(&self, v: u32, n: DVec3, side: u32) -> &[DVec3] {
-        &self.of[&GatherDirections::key(v, n, side)]
+    /// The directions vertex `v` gathers along, with `side`² strata about `n`.
+    fn make(v: u32, n: DVec3, side: u32) -> Vec<DVec3> {
+        crate::gather::cosine_directions(n, side, crate::util::rng::hash2(v as u64, 0x6A7E))
+    }
+
+    /// Vertex `v`'s directions: the kept ones, else made now.
+    pub(super) fn of(&self, v: u32, n: DVec3, side: u32) -> std::borrow::Cow<'_, [DVec3]> {
+        match self.kept {
+            true => std::borrow::Cow::Borrowed(&self.of[&GatherDirections::key(v, n, side)]),
+            false => std::borrow::Cow::Owned(Self::make(v, n, side)),
+        }
     }
 }
 
@@ -562,7 +566,9 @@ pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec
         .map(|(v, _)| *v)
         .collect();
     let clear_of_object = object_clearance(g.patches, gathering.len());
-    directions.keep(&gathering);
+    if directions.kept {
+        directions.keep(&gathering);
+    }
     let directions = &*directions;
     let own: Vec<Option<Gathered>> = vertices
         .par_iter()
@@ -577,7 +583,7 @@ pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec
                 };
                 Gathered {
                     objects_of: i,
-                    ..gather_at(g, v, n, directions.of(v, n, side), layer)
+                    ..gather_at(g, v, n, &directions.of(v, n, side), layer)
                 }
             })
         })
