@@ -38,7 +38,8 @@ fn enlarged(name: &str, k: u32, dir: &Path) -> PathBuf {
     .unwrap();
     let text: String = toml
         .lines()
-        .filter(|l| !l.starts_with("reference =") && !l.starts_with("references ="))
+        // The references, and what describes them (their noise, a twin).
+        .filter(|l| !l.starts_with("reference"))
         .map(|l| match l.split_once(" = ") {
             Some(("width", v)) => format!("width = {}", v.parse::<u32>().unwrap() * k),
             Some(("height", v)) => format!("height = {}", v.parse::<u32>().unwrap() * k),
