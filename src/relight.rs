@@ -343,6 +343,127 @@ impl TexturePath {
     }
 }
 
+/// The texture path's frame of a variant: its preprocess and what its
+/// light changes read, kept so that new scales relight it in place.
+pub struct TextureFrame {
+    /// The scene as prepared (a light to reconstruct replaced by what was recovered).
+    scene: Scene,
+    tracer: Tracer,
+    /// The photo as the stages read it (lamps in view filled).
+    photo: Image,
+    lamps: Option<(crate::lamps::LampPixels, Image)>,
+    path: TexturePath,
+    left_out: Vec<String>,
+}
+
+impl TextureFrame {
+    /// The preprocess for `scene` (a variant: its inserted lights and
+    /// objects refine the mesh).
+    pub fn prepare(
+        scene: &Scene,
+        photo: &Image,
+        settings: &TextureSettings,
+        times: &mut StageTimes,
+    ) -> Result<TextureFrame> {
+        let tracer = times.time("tracer", || crate::scene_tracer::build_tracer(scene))?;
+        let mut left_out = Vec::new();
+        let (resolved, photo) = crate::inputs::resolve_inputs(
+            scene,
+            photo,
+            &tracer,
+            &crate::model::ModelSettings::default(),
+            times,
+            &mut left_out,
+        )?;
+        let scene = resolved.unwrap_or_else(|| scene.clone());
+        if tracer.virtual_objects.is_none() {
+            left_out.push("virtual geometry: no virtual object".to_string());
+        }
+        let supersample = crate::pda::PdaSettings::default().supersample;
+        let (photo, lamps) =
+            crate::inputs::lamps_in_view(&scene, photo, &tracer, supersample, times)?;
+        if lamps.is_none() {
+            left_out.push("lamps in view: no rect light is seen".to_string());
+        }
+        let path = TexturePath::prepare(&scene, &photo, &tracer, settings, times)?;
+        Ok(TextureFrame {
+            scene,
+            tracer,
+            photo,
+            lamps,
+            path,
+            left_out,
+        })
+    }
+
+    /// The scene as prepared.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// Whether `scene` is this frame's but for its lights' scales, with the
+    /// same lights on: the preprocess reads which lights are on, not their
+    /// scales, so a relight of it is the frame a preprocess of `scene` gives.
+    pub fn relights(&self, scene: &Scene) -> bool {
+        let on = |s: &Scene| s.lights.iter().map(|l| l.scale > 0.0).collect::<Vec<_>>();
+        let unscaled = |s: &Scene| {
+            let mut s = s.clone();
+            s.lights.iter_mut().for_each(|l| l.scale = 0.0);
+            (
+                s.lights,
+                s.objects
+                    .iter()
+                    .map(|o| (o.enabled, o.pose))
+                    .collect::<Vec<_>>(),
+            )
+        };
+        on(scene) == on(&self.scene)
+            && scene.camera == self.scene.camera
+            && scene.objects.len() == self.scene.objects.len()
+            && unscaled(scene) == unscaled(&self.scene)
+    }
+
+    /// The frame at the scene's scales: one light change (Loscos §5), with
+    /// the lamps in view at their scales; its report.
+    pub fn render(&mut self, scene: &Scene, times: &mut StageTimes) -> crate::output::RenderOutput {
+        for (kept, given) in self.scene.lights.iter_mut().zip(&scene.lights) {
+            kept.scale = given.scale;
+        }
+        let (scene, path, tracer, photo) = (&self.scene, &self.path, &self.tracer, &self.photo);
+        let scales: Vec<f64> = scene.lights.iter().map(|l| l.scale).collect();
+        let before = times.total();
+        let mut composite = path.relight_with_objects(&scales, Some((scene, tracer)), times);
+        if let Some((lamps, shot)) = &self.lamps {
+            times.time("lamps in view", || {
+                lamps.apply(&mut composite, shot, photo, &scales, tracer)
+            });
+        }
+        let light_change = times.total() - before;
+        let unoccluded = times.time("unoccluded texture", || path.unoccluded_texture());
+        let mut warnings = crate::inputs::input_warnings(photo, None);
+        warnings.extend(times.time("placement checks", || {
+            crate::placement::warnings(scene, photo, tracer)
+        }));
+        crate::output::RenderOutput {
+            warnings,
+            composite,
+            left_out: self.left_out.clone(),
+            pda_bytes: path.memory_bytes(),
+            pda_pixels: path.pixels.len(),
+            rays: 0,
+            patches: path.patch_count(),
+            links: path.stats.links,
+            elements: path.patches.elements.len(),
+            links_bytes: path.links_bytes(),
+            room_solution_bytes: 0,
+            change_bytes: 0,
+            patch_size: path.stats.patch_size,
+            texture: Some((path.stats.clone(), unoccluded, light_change)),
+            residual: None,
+        }
+    }
+}
+
 /// `arlux render --method texture`: the preprocess for `scene` (a variant:
 /// its inserted lights and objects refine the mesh), then one light change
 /// to the variant's scales.
@@ -352,58 +473,9 @@ pub fn render_texture(
     settings: &TextureSettings,
     times: &mut StageTimes,
 ) -> Result<crate::output::RenderOutput> {
-    let tracer = times.time("tracer", || crate::scene_tracer::build_tracer(scene))?;
-    let mut left_out = Vec::new();
-    let (resolved, photo) = crate::inputs::resolve_inputs(
-        scene,
-        photo,
-        &tracer,
-        &crate::model::ModelSettings::default(),
-        times,
-        &mut left_out,
-    )?;
-    let scene = resolved.as_ref().unwrap_or(scene);
-    if tracer.virtual_objects.is_none() {
-        left_out.push("virtual geometry: no virtual object".to_string());
-    }
-    let supersample = crate::pda::PdaSettings::default().supersample;
-    let (photo, lamps) = crate::inputs::lamps_in_view(scene, photo, &tracer, supersample, times)?;
-    if lamps.is_none() {
-        left_out.push("lamps in view: no rect light is seen".to_string());
-    }
-    let path = TexturePath::prepare(scene, &photo, &tracer, settings, times)?;
-    let scales: Vec<f64> = scene.lights.iter().map(|l| l.scale).collect();
-    let before = times.total();
-    let mut composite = path.relight_with_objects(&scales, Some((scene, &tracer)), times);
-    if let Some((lamps, shot)) = &lamps {
-        times.time("lamps in view", || {
-            lamps.apply(&mut composite, shot, &photo, &scales, &tracer)
-        });
-    }
-    let light_change = times.total() - before;
-    let unoccluded = times.time("unoccluded texture", || path.unoccluded_texture());
-    let mut warnings = crate::inputs::input_warnings(&photo, None);
-    warnings.extend(times.time("placement checks", || {
-        crate::placement::warnings(scene, &photo, &tracer)
-    }));
-    let out = crate::output::RenderOutput {
-        warnings,
-        composite,
-        left_out,
-        pda_bytes: path.memory_bytes(),
-        pda_pixels: path.pixels.len(),
-        rays: 0,
-        patches: path.patch_count(),
-        links: path.stats.links,
-        elements: path.patches.elements.len(),
-        links_bytes: path.links_bytes(),
-        room_solution_bytes: 0,
-        change_bytes: 0,
-        patch_size: path.stats.patch_size,
-        texture: Some((path.stats.clone(), unoccluded, light_change)),
-        residual: None,
-    };
-    times.time("free", || drop(path));
+    let mut frame = TextureFrame::prepare(scene, photo, settings, times)?;
+    let out = frame.render(scene, times);
+    times.time("free", || drop(frame));
     Ok(out)
 }
 

@@ -2,7 +2,8 @@
 //! of a scene, move its objects, read the composite. The pixel path
 //! (Grosch: [`Session`]) updates a move by pixel shafts over the kept room;
 //! the texture path (Loscos: [`crate::relight`]) refines its mesh around
-//! the variant's objects, so a move renders the pose again. `arlux motion`
+//! the variant's objects, so a move renders the pose again, and relights
+//! its kept preprocess when only the lights' scales change. `arlux motion`
 //! renders through it; either way a frame is what `arlux render` of its
 //! pose with the same settings gives.
 
@@ -10,6 +11,7 @@ use crate::composite::Composite;
 use crate::error::Result;
 use crate::image_io::Image;
 use crate::output::RenderOutput;
+use crate::relight::TextureFrame;
 use crate::render::{Relight, Session, SessionMemory, UpdateStats};
 use crate::scene::Scene;
 use crate::settings::Method;
@@ -23,11 +25,30 @@ pub enum Renderer {
     Textures(Box<Textures>),
 }
 
-/// The texture path's state: its settings, the photo and the last frame.
+/// The texture path's state: its settings, the photo, the last frame's
+/// preprocess (kept for light changes) and report.
 pub struct Textures {
     settings: crate::relight::TextureSettings,
     photo: Image,
+    frame: Option<TextureFrame>,
     out: RenderOutput,
+}
+
+impl Textures {
+    fn start(
+        scene: &Scene,
+        photo: &Image,
+        settings: &crate::relight::TextureSettings,
+        times: &mut StageTimes,
+    ) -> Result<Textures> {
+        let mut frame = TextureFrame::prepare(scene, photo, settings, times)?;
+        Ok(Textures {
+            out: frame.render(scene, times),
+            frame: Some(frame),
+            settings: *settings,
+            photo: photo.clone(),
+        })
+    }
 }
 
 impl Renderer {
@@ -42,11 +63,9 @@ impl Renderer {
             Method::Pda(settings) => {
                 Renderer::Pixels(Box::new(Session::start(scene, photo, settings, times)?))
             }
-            Method::Texture(settings) => Renderer::Textures(Box::new(Textures {
-                out: crate::relight::render_texture(scene, photo, settings, times)?,
-                settings: *settings,
-                photo: photo.clone(),
-            })),
+            Method::Texture(settings) => {
+                Renderer::Textures(Box::new(Textures::start(scene, photo, settings, times)?))
+            }
         })
     }
 
@@ -65,15 +84,18 @@ impl Renderer {
         match self {
             Renderer::Pixels(s) => s.update(scene, times).map(Some),
             Renderer::Textures(t) => {
-                t.out = crate::relight::render_texture(scene, &t.photo, &t.settings, times)?;
+                // One preprocess held at a time.
+                t.frame = None;
+                **t = Textures::start(scene, &t.photo, &t.settings, times)?;
                 Ok(None)
             }
         }
     }
 
-    /// New scales of the lights, all else kept: the pixel path relights
-    /// in place ([`Session::relight`]); `Err` says why not (the texture
-    /// path renders in full).
+    /// New scales of the lights, all else kept, in place: the pixel path
+    /// by superposition ([`Session::relight`]), the texture path by one light
+    /// change over its kept preprocess (Loscos §5; the same lights on).
+    /// `Err` says why not (the caller renders in full).
     pub fn relight(
         &mut self,
         scene: &Scene,
@@ -81,7 +103,13 @@ impl Renderer {
     ) -> std::result::Result<(), Relight> {
         match self {
             Renderer::Pixels(s) => s.relight(scene, times),
-            Renderer::Textures(_) => Err(Relight::Method),
+            Renderer::Textures(t) => match t.frame.as_mut() {
+                Some(frame) if frame.relights(scene) => {
+                    t.out = frame.render(scene, times);
+                    Ok(())
+                }
+                _ => Err(Relight::LightsTraced),
+            },
         }
     }
 

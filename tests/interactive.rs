@@ -445,9 +445,10 @@ fn a_nudge_slides_the_object_along_the_floor_as_the_camera_sees_it() {
     assert!(it.version() > version);
 }
 
-/// `arlux serve --method texture`: the session renders each change by the
-/// texture path in full, and shows what `arlux render --method texture`
-/// gives of the variant it saves, bit for bit.
+/// `arlux serve --method texture`: the session renders each move by the
+/// texture path in full and relights a scale over its kept preprocess, and
+/// shows what `arlux render --method texture` gives of the variant it
+/// saves, bit for bit.
 #[test]
 fn a_texture_path_session_shows_the_texture_render_of_its_saved_state() {
     let desk = Desk::new();
@@ -475,13 +476,40 @@ fn a_texture_path_session_shows_the_texture_render_of_its_saved_state() {
             times,
         )
         .unwrap();
+    // A scale, the same lights on: one light change over the kept preprocess.
+    assert_eq!(out.path, RenderPath::Relight);
+    println!(
+        "texture path: a light's scale relit in {:.1} ms",
+        out.millis
+    );
+    check_saved(&mut it, &photo, &settings);
+    // A light switched off: the preprocess reads which are on.
+    let out = it
+        .apply(
+            Edit::Light {
+                light: 0,
+                scale: 0.0,
+            },
+            times,
+        )
+        .unwrap();
     assert!(matches!(out.path, RenderPath::Full { .. }), "{out:?}");
     // No rounds on the texture path: nothing to refine.
     assert!(it.refine(4, times).is_none());
+    check_saved(&mut it, &photo, &settings);
+}
+
+/// The texture path's render of the variant `it` saves equals its image.
+fn check_saved(
+    it: &mut Interactive,
+    photo: &arlux::image_io::Image,
+    settings: &arlux::relight::TextureSettings,
+) {
     let name = it.next_variant_name();
     let file = it.save_variant(&name).unwrap();
     let saved = Scene::load(&file).unwrap().with_variant(&name).unwrap();
-    let full = arlux::relight::render_texture(&saved, &photo, &settings, times).unwrap();
+    let times = &mut StageTimes::default();
+    let full = arlux::relight::render_texture(&saved, photo, settings, times).unwrap();
     assert!(
         bits(it.image()) == bits(&full.composite.image),
         "the session differs from the texture path's render of its saved variant"

@@ -12,14 +12,13 @@ use super::*;
 pub enum Relight {
     /// Something besides the lights' scales changed.
     NotOnlyScales,
-    /// A light is switched on that the pixel data holds no terms for, or
-    /// off where a full render would leave it out.
+    /// A light is switched on that the kept pixel data (or the texture
+    /// path's preprocess) holds nothing for, or off where a full render
+    /// would leave it out.
     LightsTraced,
     /// A full render of the new scales would mesh the room otherwise (the
     /// automatic patch size follows whether the scene changes its lights).
     PatchSize,
-    /// The texture path prepares every change in full.
-    Method,
 }
 
 /// The room's solution for each light alone at scale 1 (None for a light
@@ -209,9 +208,8 @@ impl Relight {
     pub fn describe(&self) -> &'static str {
         match self {
             Relight::NotOnlyScales => "more than their scales changed",
-            Relight::LightsTraced => "a light switched on or off that the pixel data does not hold",
+            Relight::LightsTraced => "a light switched on or off that what is kept does not hold",
             Relight::PatchSize => "the room meshed finer or coarser for the new scales",
-            Relight::Method => "the texture path prepares every change",
         }
     }
 }
