@@ -38,6 +38,24 @@ fn percentile(v: &mut [f64], p: f64) -> f64 {
     v[((v.len() - 1) as f64 * p).round() as usize]
 }
 
+/// One edit, awaited with its new image: the reply and the milliseconds
+/// from the request to the image (None: the edit was refused).
+fn edit(
+    server: &serve::Server,
+    path: &str,
+    body: &serde_json::Value,
+) -> Option<(serde_json::Value, f64)> {
+    let start = Instant::now();
+    let r = server.post(path, body);
+    if r.status != 200 {
+        return None;
+    }
+    let reply = r.json();
+    let image = server.get("/api/image?view=final");
+    assert_eq!(image.status, 200);
+    Some((reply, start.elapsed().as_secs_f64() * 1e3))
+}
+
 /// Drags `object` in `steps` steps from `a` to `b` on the floor of scene `name`.
 fn drag(name: &str, object: &str, a: DVec3, b: DVec3, steps: usize) {
     let dir = tempfile::tempdir().unwrap();
@@ -53,17 +71,12 @@ fn drag(name: &str, object: &str, a: DVec3, b: DVec3, steps: usize) {
     for k in 0..steps + warm {
         let f = (k % steps) as f64 / steps as f64;
         let (x, y, _) = scene.camera.project(a.lerp(b, f)).unwrap();
-        let start = Instant::now();
-        let r = server.post("/api/place", &json!({ "object": object, "x": x, "y": y }));
-        if r.status != 200 {
+        let body = json!({ "object": object, "x": x, "y": y });
+        let Some((reply, ms)) = edit(&server, "/api/place", &body) else {
             // A step over what the object cannot stand on (a table's edge).
             refused += 1;
             continue;
-        }
-        let reply = r.json();
-        let image = server.get("/api/image?view=final");
-        assert_eq!(image.status, 200);
-        let ms = start.elapsed().as_secs_f64() * 1e3;
+        };
         if k >= warm {
             total.push(ms);
             update.push(reply["update_ms"].as_f64().unwrap());
@@ -107,13 +120,8 @@ fn slide(name: &str, light: &str, steps: usize) {
     let warm = 2;
     for k in 0..steps + warm {
         let scale = 1.2 + 0.8 * (k % 5) as f64 / 4.0;
-        let start = Instant::now();
-        let r = server.post("/api/light", &json!({ "light": light, "scale": scale }));
-        assert_eq!(r.status, 200);
-        let reply = r.json();
-        let image = server.get("/api/image?view=final");
-        assert_eq!(image.status, 200);
-        let ms = start.elapsed().as_secs_f64() * 1e3;
+        let body = json!({ "light": light, "scale": scale });
+        let (reply, ms) = edit(&server, "/api/light", &body).expect("the slider's edit refused");
         if k >= warm {
             total.push(ms);
             update.push(reply["update_ms"].as_f64().unwrap());

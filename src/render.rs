@@ -298,6 +298,12 @@ impl Prepared {
     }
 }
 
+/// The patches a pose's composite reads: the room's and its objects', or
+/// the room's alone without objects.
+fn own_or_room<'a>(own: &'a Option<Patches>, model: &'a Model) -> &'a Patches {
+    own.as_ref().unwrap_or(&model.patches)
+}
+
 /// Bytes a [`Session`] holds for updates.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct SessionMemory {
@@ -476,12 +482,7 @@ impl Session {
     /// Builds the Pixel Data Array for the session's pixels (its crop's,
     /// and its band's when rendered by bands).
     fn trace_pixels(&mut self, times: &mut StageTimes) {
-        let patches = self
-            .pose
-            .changes
-            .own
-            .as_ref()
-            .map_or(&self.prepared.model.patches, |o| o);
+        let patches = own_or_room(&self.pose.changes.own, &self.prepared.model);
         let input = PdaInput {
             camera: &self.prepared.scene.camera,
             tracer: &self.prepared.tracer,
@@ -671,12 +672,7 @@ impl Session {
         let pixels = self.image_pixels().pixel_count();
         let mut warnings = self.prepared.warnings;
         warnings.extend(coverage_warning(self.run.covered, pixels));
-        let patches = self
-            .pose
-            .changes
-            .own
-            .as_ref()
-            .map_or(&self.prepared.model.patches, |o| o);
+        let patches = own_or_room(&self.pose.changes.own, &self.prepared.model);
         let transport = &self.prepared.model.transport;
         RenderOutput {
             pda_bytes: self.pose.pda.memory_bytes(),

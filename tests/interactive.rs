@@ -56,6 +56,16 @@ fn place(
     it.apply(edit, times).unwrap()
 }
 
+/// Sets light `light`'s scale.
+fn light(
+    it: &mut Interactive,
+    light: usize,
+    scale: f64,
+    times: &mut StageTimes,
+) -> arlux::interactive::Outcome {
+    it.apply(Edit::Light { light, scale }, times).unwrap()
+}
+
 fn bits(a: &arlux::image_io::Image) -> Vec<[u32; 3]> {
     a.pixels
         .iter()
@@ -105,26 +115,10 @@ fn what_the_session_shows_is_the_render_of_the_variant_it_saves() {
         times,
     )
     .unwrap();
-    let out = it
-        .apply(
-            Edit::Light {
-                light: 0,
-                scale: 0.0,
-            },
-            times,
-        )
-        .unwrap();
+    let out = light(&mut it, 0, 0.0, times);
     assert!(matches!(out.path, RenderPath::Full { .. }), "{out:?}");
     // The lights changed already: a slider now recombines the kept pixels.
-    let out = it
-        .apply(
-            Edit::Light {
-                light: 1,
-                scale: 1.5,
-            },
-            times,
-        )
-        .unwrap();
+    let out = light(&mut it, 1, 1.5, times);
     assert_eq!(out.path, RenderPath::Relight);
     let p = pixel_of(&it, DVec3::new(0.2, 0.0, 0.1));
     let out = place(&mut it, p, times);
@@ -467,15 +461,7 @@ fn a_texture_path_session_shows_the_texture_render_of_its_saved_state() {
     let p = pixel_of(&it, DVec3::new(0.2, 0.0, 0.1));
     let out = place(&mut it, p, times);
     assert!(matches!(out.path, RenderPath::Full { .. }), "{out:?}");
-    let out = it
-        .apply(
-            Edit::Light {
-                light: 1,
-                scale: 1.5,
-            },
-            times,
-        )
-        .unwrap();
+    let out = light(&mut it, 1, 1.5, times);
     // A scale, the same lights on: one light change over the kept preprocess.
     assert_eq!(out.path, RenderPath::Relight);
     println!(
@@ -484,15 +470,7 @@ fn a_texture_path_session_shows_the_texture_render_of_its_saved_state() {
     );
     check_saved(&mut it, &photo, &settings);
     // A light switched off: the preprocess reads which are on.
-    let out = it
-        .apply(
-            Edit::Light {
-                light: 0,
-                scale: 0.0,
-            },
-            times,
-        )
-        .unwrap();
+    let out = light(&mut it, 0, 0.0, times);
     assert!(matches!(out.path, RenderPath::Full { .. }), "{out:?}");
     // No rounds on the texture path: nothing to refine.
     assert!(it.refine(4, times).is_none());

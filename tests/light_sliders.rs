@@ -3,20 +3,12 @@
 //! relative, and so is an object's move after it.
 
 mod common;
-use common::{desk, relative_difference};
+use common::{desk, differing, relative_difference};
 
 use arlux::image_io::Image;
 use arlux::render::{Relight, RenderSettings, Session, render};
 use arlux::scene::Scene;
 use arlux::util::stages::StageTimes;
-
-fn differing(a: &Image, b: &Image) -> usize {
-    a.pixels
-        .iter()
-        .zip(&b.pixels)
-        .filter(|(x, y)| x.to_array().map(f32::to_bits) != y.to_array().map(f32::to_bits))
-        .count()
-}
 
 fn scaled(base: &Scene, panel: f64, spot: f64) -> Scene {
     let mut scene = base.clone();

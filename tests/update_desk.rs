@@ -2,19 +2,10 @@
 //! gives the image a full render of that pose gives.
 
 mod common;
-use common::desk;
+use common::{desk, differing};
 
-use arlux::image_io::Image;
 use arlux::model::StageTimes;
 use arlux::render::{RenderSettings, Session, render};
-
-fn differing(a: &Image, b: &Image) -> usize {
-    a.pixels
-        .iter()
-        .zip(&b.pixels)
-        .filter(|(x, y)| x.to_array().map(f32::to_bits) != y.to_array().map(f32::to_bits))
-        .count()
-}
 
 #[test]
 fn every_update_equals_a_full_render_of_its_pose() {

@@ -633,6 +633,17 @@ fn a_box_the_walls_cannot_see_changes_nothing() {
     assert_eq!(view.memory_bytes(), 0);
 }
 
+/// The room patch of the right wall (surface 1) that holds point `x`.
+fn right_wall_patch(w: &Walls, x: DVec3) -> usize {
+    (0..w.room.patch_count())
+        .find(|&k| {
+            let el = w.room.patch(k);
+            let st = el.shape.params(x);
+            el.surface == 1 && st.cmpge(DVec2::ZERO).all() && st.cmple(DVec2::ONE).all()
+        })
+        .expect("a patch of the right wall holds the point")
+}
+
 #[test]
 fn near_a_box_the_change_is_held_at_points_finer_than_the_patches() {
     // A black box 5 cm from the right wall: over a 25 cm patch the light it
@@ -666,13 +677,7 @@ fn near_a_box_the_change_is_held_at_points_finer_than_the_patches() {
         (1.1, 1.25),
     ] {
         let x = DVec3::new(2.0, y, z);
-        let k = (0..room_count)
-            .find(|&k| {
-                let el = w.room.patch(k);
-                let st = el.shape.params(x);
-                el.surface == 1 && st.cmpge(DVec2::ZERO).all() && st.cmple(DVec2::ONE).all()
-            })
-            .expect("a patch of the right wall holds the point");
+        let k = right_wall_patch(&w, x);
         let el = w.room.patch(k);
         let st = el.shape.params(x);
         let corners = w.room.patch_vertices[k].map(|v| coarse[v as usize].x);
@@ -723,13 +728,7 @@ fn rounds_of_the_per_point_estimator_converge_to_the_traced_change() {
     let (mut early, mut late) = (0.0f64, 0.0f64);
     for (y, z) in [(0.9, 0.9), (1.05, 0.9), (1.3, 0.8), (0.6, 0.6), (1.1, 1.25)] {
         let x = DVec3::new(2.0, y, z);
-        let k = (0..room_count)
-            .find(|&k| {
-                let el = w.room.patch(k);
-                let st = el.shape.params(x);
-                el.surface == 1 && st.cmpge(DVec2::ZERO).all() && st.cmple(DVec2::ONE).all()
-            })
-            .expect("a patch of the right wall holds the point");
+        let k = right_wall_patch(&w, x);
         let truth = -loss_from(|_, _| x, -DVec3::X, &w.tracer_with, &w.tracer_room);
         // Per seed, the mean after 4 and after 64 rounds.
         let estimates: Vec<(f64, f64)> = (0..16u64)

@@ -8,12 +8,7 @@ impl Session {
     /// Composites the image; `recomputed` lists the pixels whose real
     /// point's light terms changed since the last composite.
     pub(super) fn recomposite(&mut self, times: &mut StageTimes, recomputed: &[u32]) {
-        let patches = self
-            .pose
-            .changes
-            .own
-            .as_ref()
-            .map_or(&self.prepared.model.patches, |o| o);
+        let patches = own_or_room(&self.pose.changes.own, &self.prepared.model);
         let kept = &mut self.pose.changes.rays.near;
         let near = match (&self.pose.changes.near, &self.pose.changes.own) {
             (Some(source), Some(objects)) => {

@@ -186,8 +186,15 @@ pub fn rendered(base: &Scene, variant: &str) -> (Image, Image, Image) {
     (out.composite.image, truth, photo)
 }
 
-/// Every layer a compositor reads is finite and not negative (but
-/// `change`, image − photo, which is signed), coverage lies in [0, 1].
+/// How many pixels of two images differ in any bit.
+pub fn differing(a: &Image, b: &Image) -> usize {
+    a.pixels
+        .iter()
+        .zip(&b.pixels)
+        .filter(|(x, y)| x.to_array().map(f32::to_bits) != y.to_array().map(f32::to_bits))
+        .count()
+}
+
 /// The largest difference between two images relative to the second's
 /// value (a floor of 1e-3 of its mean for the darkest pixels).
 pub fn relative_difference(a: &Image, b: &Image) -> f64 {
@@ -199,6 +206,8 @@ pub fn relative_difference(a: &Image, b: &Image) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// Every layer a compositor reads is finite and not negative (but
+/// `change`, image − photo, which is signed), coverage lies in [0, 1].
 pub fn assert_layers_sound(label: &str, c: &arlux::composite::Composite) {
     for (name, layer) in [
         ("image", &c.image),
