@@ -9,7 +9,8 @@ use crate::error::{Error, Result};
 use crate::image_io::{Image, read_image};
 use crate::model::TransportMethod;
 use crate::pda::PdaSettings;
-use crate::render::{PatchSize, RenderSettings, Session, render};
+use crate::render::{PatchSize, RenderSettings, render};
+use crate::renderer::Renderer;
 use crate::scene::Scene;
 use crate::util::stages::StageTimes;
 
@@ -132,8 +133,7 @@ fn sample_counts(quick: bool) -> Vec<u32> {
 /// thresholds (120 settings), and at the default rays and supersampling
 /// the objects' mesh twice as fine and twice as coarse as the default
 /// (8 more: it sets how finely their indirect light and the room's
-/// change near them are resolved). With `texture` (a variant: the texture path
-/// has no incremental update for motions), the texture path joins: its
+/// change near them are resolved). With `texture`, the texture path joins: its
 /// defaults in the quick grid, otherwise smallest leaves of 1.5, 3 and 6
 /// pixels × the automatic and 0.5 m starting mesh.
 pub fn grid(quick: bool, texture: bool) -> Vec<SweepSettings> {
@@ -361,22 +361,21 @@ pub fn run(
                     images.push(out.composite.image);
                 }
                 Target::Motion { name } => {
-                    if s.texture_settings().is_some() {
-                        return Err(Error::key(
-                            &scene.file,
-                            format!("motion '{name}'"),
-                            "the texture path renders variants; a motion sweeps the pixel path",
-                        ));
-                    }
+                    // As `arlux motion` renders it: the pixel path updates
+                    // each pose, the texture path prepares each again.
+                    let method = match s.texture_settings() {
+                        Some(t) => crate::settings::Method::Texture(t),
+                        None => crate::settings::Method::Pda(settings),
+                    };
                     let m = scene.motion(name)?;
                     let first = scene.with_motion_pose(name, 0)?;
-                    let mut session = Session::start(&first, &photo, &settings, &mut times)?;
-                    images.push(session.composite.image.clone());
+                    let mut frame = Renderer::start(&first, &photo, &method, &mut times)?;
+                    images.push(frame.composite().image.clone());
                     for pose in 1..m.translations.len() {
                         let posed = scene.with_motion_pose(name, pose)?;
-                        session.update(&posed, &mut times)?;
+                        frame.update(&posed, &mut times)?;
                         if pose < references.len() {
-                            images.push(session.composite.image.clone());
+                            images.push(frame.composite().image.clone());
                         }
                     }
                 }

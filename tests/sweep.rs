@@ -243,13 +243,24 @@ fn a_motion_sweep_compares_every_pose() {
     for line in csv.lines().skip(1) {
         let cells: Vec<&str> = line.split(',').collect();
         assert_eq!(cells[at("images_compared")], "8", "{line}");
-        // The motion's mean error: its poses measured 0.0024-0.0041 each at the defaults.
+        // The motion's mean error: its poses measured 0.0024-0.0041 each at
+        // the pixel path's defaults, 0.0051 on average on the texture path.
         let e: f64 = cells[at("rmse")].parse().unwrap();
-        assert!(e > 0.002 && e < 0.005, "mean rmse {e}");
+        let texture = cells[at("method")] == "texture";
+        let most = if texture { 0.006 } else { 0.005 };
+        assert!(e > 0.002 && e < most, "mean rmse {e} ({line})");
         // The mean over the poses of the skill where each pose changes the photo.
         let k: f64 = cells[at("skill")].parse().unwrap();
-        assert!(k > 0.8 && k < 1.0, "mean skill {k}");
+        println!("{}: rmse {e:.5}, skill {k:.3}", cells[at("method")]);
+        assert!(k > 0.8 && k < 1.0, "mean skill {k} ({line})");
     }
+    // The texture path sweeps motions too, a preprocess per pose.
+    assert!(
+        csv.lines()
+            .skip(1)
+            .any(|l| l.split(',').nth(at("method")) == Some("texture")),
+        "no texture-path row in a motion's sweep"
+    );
 }
 
 /// The desk's photo and `box_floor_a`'s truth.

@@ -21,8 +21,8 @@ pub struct Args {
     #[arg(short, long)]
     pub output: PathBuf,
     /// Six pixel-path settings from cheapest to dearest, the defaults with
-    /// 4 and 16 rounds of per-pixel samples (and, for a variant, the
-    /// texture path at its defaults: nine), for a smoke check.
+    /// 4 and 16 rounds of per-pixel samples, and the texture path at its
+    /// defaults (nine), for a smoke check.
     #[arg(long)]
     pub quick: bool,
     /// Runs per setting; the fastest counts (default 3, 1 with --quick).
@@ -83,7 +83,7 @@ pub fn run(args: &Args) -> Result<()> {
     })?;
     let settings = match args.peer_only {
         true => Vec::new(),
-        false => grid(quick, matches!(target, Target::Variant { .. })),
+        false => grid(quick, true),
     };
     let (share, csv_name) = match &args.shard {
         None => (0..settings.len(), "sweep.csv".to_string()),
