@@ -86,7 +86,9 @@ impl Renderer {
             Renderer::Textures(t) => {
                 // One preprocess held at a time.
                 t.frame = None;
-                **t = Textures::start(scene, &t.photo, &t.settings, times)?;
+                let mut frame = TextureFrame::prepare(scene, &t.photo, &t.settings, times)?;
+                t.out = frame.render(scene, times);
+                t.frame = Some(frame);
                 Ok(None)
             }
         }

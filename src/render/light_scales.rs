@@ -55,38 +55,37 @@ fn room_per_light(
     })
 }
 
-/// Σ scaleₗ · Bₗ over the lights switched on (radiosity and indirect light).
-fn superposed(per_light: &[Option<Solution>], scales: &[f64]) -> Solution {
-    let n = per_light
-        .iter()
-        .flatten()
-        .map(|s| s.radiosity.len())
-        .next()
-        .unwrap_or(0);
-    let mut out = Solution {
-        radiosity: vec![DVec3::ZERO; n],
-        indirect_irradiance: vec![DVec3::ZERO; n],
-        iterations: 0,
-        residual: 0.0,
-    };
+/// Σ scaleₗ · Bₗ over the lights switched on (radiosity and indirect
+/// light), over the room's `n` patches (zero where every light is off).
+fn superposed(per_light: &[Option<Solution>], scales: &[f64], n: usize) -> Solution {
+    let mut out = dark(n);
     for (solution, &scale) in per_light.iter().zip(scales) {
         let Some(s) = solution.as_ref().filter(|_| scale > 0.0) else {
             continue;
         };
-        for (o, b) in out.radiosity.iter_mut().zip(&s.radiosity) {
-            *o += *b * scale;
-        }
-        for (o, h) in out
-            .indirect_irradiance
-            .iter_mut()
-            .zip(&s.indirect_irradiance)
-        {
-            *o += *h * scale;
-        }
+        add_scaled(&mut out.radiosity, &s.radiosity, scale);
+        add_scaled(&mut out.indirect_irradiance, &s.indirect_irradiance, scale);
         out.iterations = out.iterations.max(s.iterations);
         out.residual = out.residual.max(s.residual);
     }
     out
+}
+
+/// The room's solution with every light off.
+fn dark(n: usize) -> Solution {
+    Solution {
+        radiosity: vec![DVec3::ZERO; n],
+        indirect_irradiance: vec![DVec3::ZERO; n],
+        iterations: 0,
+        residual: 0.0,
+    }
+}
+
+/// `out += part × scale`, value by value.
+fn add_scaled(out: &mut [DVec3], part: &[DVec3], scale: f64) {
+    for (o, p) in out.iter_mut().zip(part) {
+        *o += *p * scale;
+    }
 }
 
 /// The final gather reads the photo times the room's radiosity with the
@@ -141,16 +140,8 @@ impl BasisParts<'_> {
                 Some(part(&unit, room))
             })
             .collect();
-        let glow = (!self.input.scene.virtual_surface_emission().is_empty()).then(|| {
-            let rooms = self.input.model.patches.patch_count();
-            let dark = Solution {
-                radiosity: vec![DVec3::ZERO; rooms],
-                indirect_irradiance: vec![DVec3::ZERO; rooms],
-                iterations: 0,
-                residual: 0.0,
-            };
-            part(&vec![0.0; n], &dark)
-        });
+        let glow = (!self.input.scene.virtual_surface_emission().is_empty())
+            .then(|| part(&vec![0.0; n], &dark(self.input.model.patches.patch_count())));
         ChangeBasis { lights, glow }
     }
 }
@@ -173,16 +164,11 @@ impl ChangeBasis {
             }),
             bytes: first.bytes,
         };
-        let add = |out: &mut [DVec3], part: &[DVec3], scale: f64| {
-            for (o, p) in out.iter_mut().zip(part) {
-                *o += *p * scale;
-            }
-        };
         for (part, scale) in parts {
-            add(&mut out.indirect_with, &part.indirect_with, scale);
+            add_scaled(&mut out.indirect_with, &part.indirect_with, scale);
             if let (Some(o), Some(p)) = (out.near.as_mut(), part.near.as_ref()) {
-                add(&mut o.radiosity, &p.radiosity, scale);
-                add(&mut o.coarse, &p.coarse, scale);
+                add_scaled(&mut o.radiosity, &p.radiosity, scale);
+                add_scaled(&mut o.coarse, &p.coarse, scale);
             }
         }
         Some(out)
@@ -258,8 +244,9 @@ impl Session {
         );
         let per_light = (self.pose.room_per_light)
             .get_or_insert_with(|| room_per_light(model, active, settings, times));
+        let n = model.patches.patch_count();
         self.pose.room = times.time("solve the room", || {
-            superposed(per_light, &self.pose.scales_with)
+            superposed(per_light, &self.pose.scales_with, n)
         });
         self.relit_change(times);
         // Every real pixel's composite reads the scales: none is kept.
@@ -272,7 +259,7 @@ impl Session {
     /// light's alone (solved once per pose) where that is the change a full
     /// render computes, else solved at the scales.
     fn relit_change(&mut self, times: &mut StageTimes) {
-        let objects = self.pose.changes.own.take().filter(|_| self.has_objects());
+        let objects = self.pose.changes.own.take();
         // The pose is the same: its rays are read with the new radiosity.
         let mut rays = std::mem::take(&mut self.pose.changes.rays);
         let kept = self.pose.changes.per_light.take();
@@ -281,7 +268,7 @@ impl Session {
                 .change_input(&self.pose.scales_with, &self.pose.bounds, &self.pose.room);
         let directions = &mut self.pose.gather_directions;
         let linear = below_gather_clamp(&self.pose.room, &self.prepared.model);
-        let (solved, per_light) = match (objects.as_ref(), &self.pose.room_per_light, linear) {
+        let summed = match (objects.as_ref(), &self.pose.room_per_light, linear) {
             (Some(patches), Some(rooms), true) => {
                 let basis = kept.unwrap_or_else(|| {
                     let parts = BasisParts {
@@ -294,25 +281,20 @@ impl Session {
                 let solved = times.time("sum the change per light", || {
                     basis.at(&self.pose.scales_with)
                 });
-                match solved {
-                    Some(solved) => (solved, Some(basis)),
-                    None => (
-                        solve_changes(&input, objects.as_ref(), directions, &mut rays.view, times),
-                        None,
-                    ),
-                }
+                solved.map(|s| (s, basis))
             }
-            _ => (
-                solve_changes(&input, objects.as_ref(), directions, &mut rays.view, times),
-                None,
-            ),
+            _ => None,
+        };
+        let (solved, per_light) = match summed {
+            Some((solved, basis)) => (solved, Some(basis)),
+            None => {
+                let solved =
+                    solve_changes(&input, objects.as_ref(), directions, &mut rays.view, times);
+                (solved, None)
+            }
         };
         self.pose.changes = solved.with_patches(objects, rays);
         self.pose.changes.per_light = per_light;
-    }
-
-    fn has_objects(&self) -> bool {
-        self.prepared.tracer.virtual_objects.is_some()
     }
 
     /// Whether `scene` is the session's but for its lights' scales, with the
