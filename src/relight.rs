@@ -396,31 +396,25 @@ impl TextureFrame {
         })
     }
 
-    /// The scene as prepared.
-    pub fn scene(&self) -> &Scene {
-        &self.scene
-    }
-
     /// Whether `scene` is this frame's but for its lights' scales, with the
     /// same lights on: the preprocess reads which lights are on, not their
     /// scales, so a relight of it is the frame a preprocess of `scene` gives.
     pub fn relights(&self, scene: &Scene) -> bool {
-        let on = |s: &Scene| s.lights.iter().map(|l| l.scale > 0.0).collect::<Vec<_>>();
-        let unscaled = |s: &Scene| {
-            let mut s = s.clone();
-            s.lights.iter_mut().for_each(|l| l.scale = 0.0);
-            (
-                s.lights,
-                s.objects
-                    .iter()
-                    .map(|o| (o.enabled, o.pose))
-                    .collect::<Vec<_>>(),
-            )
+        let kept = &self.scene;
+        // Each light but for its scale, with the same on or off.
+        let same_light = |a: &crate::scene::Light, b: &crate::scene::Light| {
+            (a.scale > 0.0) == (b.scale > 0.0)
+                && crate::scene::Light {
+                    scale: b.scale,
+                    ..a.clone()
+                } == *b
         };
-        on(scene) == on(&self.scene)
-            && scene.camera == self.scene.camera
-            && scene.objects.len() == self.scene.objects.len()
-            && unscaled(scene) == unscaled(&self.scene)
+        scene.camera == kept.camera
+            && scene.lights.len() == kept.lights.len()
+            && (scene.lights.iter().zip(&kept.lights)).all(|(a, b)| same_light(a, b))
+            && scene.objects.len() == kept.objects.len()
+            && (scene.objects.iter().zip(&kept.objects))
+                .all(|(a, b)| a.enabled == b.enabled && a.pose == b.pose)
     }
 
     /// The frame at the scene's scales: one light change (Loscos §5), with
