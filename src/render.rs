@@ -255,6 +255,33 @@ struct Pose {
     block_shafts: Vec<crate::blocks::BlockShafts>,
 }
 
+impl Pose {
+    /// The pose a session's first render leaves: no pixel data or blocks yet.
+    fn first(
+        scales_with: Vec<f64>,
+        active: Vec<bool>,
+        changes: Changes,
+        bounds: VirtualBounds,
+        room: Solution,
+        gather_directions: GatherDirections,
+    ) -> Pose {
+        Pose {
+            scales_with,
+            active,
+            changes,
+            bounds,
+            pda: PixelDataArray::default(),
+            blocks: None,
+            known: None,
+            room,
+            room_per_light: None,
+            gather_directions,
+            reached: Vec::new(),
+            block_shafts: Vec::new(),
+        }
+    }
+}
+
 /// How a session renders (band, layers, budget) and its tallies.
 struct Run {
     left_out: Vec<String>,
@@ -375,11 +402,6 @@ impl Session {
         let model = photo_model(scene, &photo, &tracer, &mut settings, times)?;
         let scales_without: Vec<f64> = model.lights.iter().map(|l| l.photo_scale()).collect();
         let scales_with: Vec<f64> = model.lights.iter().map(|l| l.scale).collect();
-        let active: Vec<bool> = scales_with
-            .iter()
-            .zip(&scales_without)
-            .map(|(a, b)| *a > 0.0 || *b > 0.0)
-            .collect();
         let indirect_without = model
             .patches
             .vertex_values(&model.estimate.solution.indirect_irradiance);
@@ -430,6 +452,11 @@ impl Session {
         warnings.extend(times.time("placement checks", || {
             crate::placement::warnings(scene, &photo, &tracer)
         }));
+        let active = scales_with
+            .iter()
+            .zip(&scales_without)
+            .map(|(a, b)| *a > 0.0 || *b > 0.0)
+            .collect();
         let mut session = Session {
             prepared: Prepared {
                 scene: scene.clone(),
@@ -444,20 +471,14 @@ impl Session {
                 scales_without,
                 indirect_without,
             },
-            pose: Pose {
+            pose: Pose::first(
                 scales_with,
                 active,
                 changes,
                 bounds,
-                pda: PixelDataArray::default(),
-                blocks: None,
-                known: None,
                 room,
-                room_per_light: None,
                 gather_directions,
-                reached: Vec::new(),
-                block_shafts: Vec::new(),
-            },
+            ),
             run: Run {
                 left_out,
                 rays: 0,

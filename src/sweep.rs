@@ -337,7 +337,6 @@ pub fn run(
     }
     let mut rows = Vec::with_capacity(grid.len());
     for (i, s) in grid.iter().enumerate() {
-        let settings = s.render_settings();
         // The fastest of `repeats` runs: these machines are shared, and a
         // single run's time is off by tens of milliseconds. Rendering is
         // deterministic, so the error is the same every time.
@@ -347,39 +346,8 @@ pub fn run(
         let mut skills: Vec<Skill> = Vec::new();
         for _ in 0..repeats.max(1) {
             let mut times = StageTimes::default();
-            let mut images: Vec<Image> = Vec::new();
             let t0 = Instant::now();
-            match target {
-                Target::Variant { name } => {
-                    let effective = scene.with_variant(name)?;
-                    let out = match s.texture_settings() {
-                        Some(t) => {
-                            crate::relight::render_texture(&effective, &photo, &t, &mut times)?
-                        }
-                        None => render(&effective, &photo, &settings, &mut times)?,
-                    };
-                    images.push(out.composite.image);
-                }
-                Target::Motion { name } => {
-                    // As `arlux motion` renders it: the pixel path updates
-                    // each pose, the texture path prepares each again.
-                    let method = match s.texture_settings() {
-                        Some(t) => crate::settings::Method::Texture(t),
-                        None => crate::settings::Method::Pda(settings),
-                    };
-                    let m = scene.motion(name)?;
-                    let first = scene.with_motion_pose(name, 0)?;
-                    let mut frame = Renderer::start(&first, &photo, &method, &mut times)?;
-                    images.push(frame.composite().image.clone());
-                    for pose in 1..m.translations.len() {
-                        let posed = scene.with_motion_pose(name, pose)?;
-                        frame.update(&posed, &mut times)?;
-                        if pose < references.len() {
-                            images.push(frame.composite().image.clone());
-                        }
-                    }
-                }
-            }
+            let images = render_target(scene, target, &photo, s, references.len(), &mut times)?;
             let seconds = t0.elapsed().as_secs_f64();
             if comparisons.is_empty() {
                 comparisons = images
@@ -445,6 +413,50 @@ pub fn run(
     }
     mark_pareto(&mut rows);
     Ok(rows)
+}
+
+/// One run of a setting: the variant's image, or a motion's frames that
+/// have references (as `arlux motion` renders them).
+fn render_target(
+    scene: &Scene,
+    target: &Target,
+    photo: &Image,
+    s: &SweepSettings,
+    references: usize,
+    times: &mut StageTimes,
+) -> Result<Vec<Image>> {
+    let settings = s.render_settings();
+    let mut images: Vec<Image> = Vec::new();
+    match target {
+        Target::Variant { name } => {
+            let effective = scene.with_variant(name)?;
+            let out = match s.texture_settings() {
+                Some(t) => crate::relight::render_texture(&effective, photo, &t, times)?,
+                None => render(&effective, photo, &settings, times)?,
+            };
+            images.push(out.composite.image);
+        }
+        Target::Motion { name } => {
+            // As `arlux motion` renders it: the pixel path updates
+            // each pose, the texture path prepares each again.
+            let method = match s.texture_settings() {
+                Some(t) => crate::settings::Method::Texture(t),
+                None => crate::settings::Method::Pda(settings),
+            };
+            let m = scene.motion(name)?;
+            let first = scene.with_motion_pose(name, 0)?;
+            let mut frame = Renderer::start(&first, photo, &method, times)?;
+            images.push(frame.composite().image.clone());
+            for pose in 1..m.translations.len() {
+                let posed = scene.with_motion_pose(name, pose)?;
+                frame.update(&posed, times)?;
+                if pose < references {
+                    images.push(frame.composite().image.clone());
+                }
+            }
+        }
+    }
+    Ok(images)
 }
 
 /// The median of sorted `values` (0 for none).

@@ -150,6 +150,16 @@ pub struct Hit {
     pub is_virtual: bool,
 }
 
+/// One lane of Embree's hit record, as either ray layout stores it.
+struct RawHit {
+    geom_id: u32,
+    prim_id: u32,
+    u: f32,
+    v: f32,
+    t: f32,
+    ng: Vec3,
+}
+
 /// Triangles of one surface, with the id the tracer reports for it.
 pub struct SurfaceTriangles<'a> {
     pub surface: u32,
@@ -305,29 +315,20 @@ impl Geometry {
         self.triangles
     }
 
-    // Embree's hit record, field by field, as its two ray layouts store it.
-    #[allow(clippy::too_many_arguments)]
-    fn hit_from(
-        &self,
-        geom_id: u32,
-        prim_id: u32,
-        u: f32,
-        v: f32,
-        t: f32,
-        ng: Vec3,
-        dir: Vec3,
-    ) -> Option<Hit> {
-        if geom_id == ffi::RTC_INVALID_GEOMETRY_ID {
+    // Embree's hit record, read out of either ray layout; the normal turned
+    // to face the ray.
+    fn hit_from(&self, h: RawHit, dir: Vec3) -> Option<Hit> {
+        if h.geom_id == ffi::RTC_INVALID_GEOMETRY_ID {
             return None;
         }
-        let n = ng.normalize_or_zero();
+        let n = h.ng.normalize_or_zero();
         let normal = if n.dot(dir) > 0.0 { -n } else { n };
         Some(Hit {
-            surface: self.surface_of_geometry[geom_id as usize],
-            triangle: prim_id,
-            u,
-            v,
-            t,
+            surface: self.surface_of_geometry[h.geom_id as usize],
+            triangle: h.prim_id,
+            u: h.u,
+            v: h.v,
+            t: h.t,
             normal,
             is_virtual: self.is_virtual,
         })
@@ -355,15 +356,15 @@ impl Geometry {
         // SAFETY: the scene is committed; ray and context are valid for the call.
         unsafe { ffi::rtcIntersect1(self.scene.as_ptr(), &mut ctx, &mut rh) };
         let h = rh.hit;
-        self.hit_from(
-            h.geom_id,
-            h.prim_id,
-            h.u,
-            h.v,
-            rh.ray.tfar,
-            Vec3::from_array(h.ng),
-            ray.direction,
-        )
+        let raw = RawHit {
+            geom_id: h.geom_id,
+            prim_id: h.prim_id,
+            u: h.u,
+            v: h.v,
+            t: rh.ray.tfar,
+            ng: Vec3::from_array(h.ng),
+        };
+        self.hit_from(raw, ray.direction)
     }
 
     /// Whether anything lies on the ray between tnear and tfar.
@@ -428,16 +429,15 @@ impl Geometry {
             unsafe { ffi::rtcIntersect16(valid.as_ptr(), self.scene.as_ptr(), &mut ctx, &mut rh) };
             let h = &rh.hit;
             for (i, o) in res.iter_mut().enumerate() {
-                let ng = Vec3::new(h.ng_x[i], h.ng_y[i], h.ng_z[i]);
-                *o = self.hit_from(
-                    h.geom_id[i],
-                    h.prim_id[i],
-                    h.u[i],
-                    h.v[i],
-                    rh.ray.tfar[i],
-                    ng,
-                    chunk[i].direction,
-                );
+                let raw = RawHit {
+                    geom_id: h.geom_id[i],
+                    prim_id: h.prim_id[i],
+                    u: h.u[i],
+                    v: h.v[i],
+                    t: rh.ray.tfar[i],
+                    ng: Vec3::new(h.ng_x[i], h.ng_y[i], h.ng_z[i]),
+                };
+                *o = self.hit_from(raw, chunk[i].direction);
             }
         }
     }

@@ -141,6 +141,64 @@ async fn wait_until(client: &Client, condition: &str) {
     }
 }
 
+/// The image canvas's left, top and width in the viewport.
+async fn canvas_rect(client: &Client) -> (f64, f64, f64) {
+    let rect = client
+        .execute(
+            "const r = document.getElementById('view').getBoundingClientRect(); return [r.left, r.top, r.width];",
+            vec![],
+        )
+        .await
+        .unwrap();
+    let at = |i: usize| rect[i].as_f64().unwrap();
+    (at(0), at(1), at(2))
+}
+
+/// A mouse press at `from`, 30 moves of 20 ms to `to` and the release (viewport pixels).
+async fn drag(client: &Client, from: (f64, f64), to: (f64, f64)) {
+    let mut mouse = MouseActions::new("mouse".into())
+        .then(PointerAction::MoveTo {
+            duration: None,
+            x: from.0.round(),
+            y: from.1.round(),
+        })
+        .then(PointerAction::Down {
+            button: MOUSE_BUTTON_LEFT,
+        });
+    let steps = 30;
+    for k in 1..=steps {
+        let f = k as f64 / steps as f64;
+        mouse = mouse.then(PointerAction::MoveTo {
+            duration: Some(Duration::from_millis(20)),
+            x: (from.0 + f * (to.0 - from.0)).round(),
+            y: (from.1 + f * (to.1 - from.1)).round(),
+        });
+    }
+    mouse = mouse.then(PointerAction::Up {
+        button: MOUSE_BUTTON_LEFT,
+    });
+    client.perform_actions(mouse).await.unwrap();
+}
+
+/// Clicks Save and waits for it: the scene file and variant the page names.
+async fn save_in_page(client: &Client) -> (serde_json::Value, serde_json::Value) {
+    client
+        .find(Locator::Id("save"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    wait_until(client, "document.getElementById('saved').dataset.file").await;
+    let mut named = Vec::new();
+    for key in ["file", "variant"] {
+        let js = format!("return document.getElementById('saved').dataset.{key};");
+        named.push(client.execute(&js, vec![]).await.unwrap());
+    }
+    let variant = named.pop().unwrap();
+    (named.pop().unwrap(), variant)
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_box_clicked_dragged_and_saved_in_the_browser_renders_as_the_server_showed_it() {
     let _one = ONE_BROWSER.lock().await;
@@ -153,18 +211,7 @@ async fn a_box_clicked_dragged_and_saved_in_the_browser_renders_as_the_server_sh
     open_page(&client, &server.url).await;
 
     // Where the canvas is in the viewport, and the image points to click.
-    let rect = client
-        .execute(
-            "const r = document.getElementById('view').getBoundingClientRect(); return [r.left, r.top, r.width];",
-            vec![],
-        )
-        .await
-        .unwrap();
-    let (left, top, width) = (
-        rect[0].as_f64().unwrap(),
-        rect[1].as_f64().unwrap(),
-        rect[2].as_f64().unwrap(),
-    );
+    let (left, top, width) = canvas_rect(&client).await;
     assert_eq!(width, 512.0, "the canvas shows the image one to one");
     let scene = arlux::scene::Scene::load(desk.scene()).unwrap();
     let at = |p: DVec3| {
@@ -173,32 +220,12 @@ async fn a_box_clicked_dragged_and_saved_in_the_browser_renders_as_the_server_sh
     };
     let start = at(DVec3::new(-0.9, 0.0, 0.7));
     let end = at(DVec3::new(0.3, 0.0, 0.2));
-    let mut mouse = MouseActions::new("mouse".into())
-        .then(PointerAction::MoveTo {
-            duration: None,
-            x: left + start.0,
-            y: top + start.1,
-        })
-        .then(PointerAction::Down {
-            button: MOUSE_BUTTON_LEFT,
-        });
-    let steps = 30;
-    for k in 1..=steps {
-        let f = k as f64 / steps as f64;
-        let (x, y) = (
-            start.0 + f * (end.0 - start.0),
-            start.1 + f * (end.1 - start.1),
-        );
-        mouse = mouse.then(PointerAction::MoveTo {
-            duration: Some(Duration::from_millis(20)),
-            x: left + x.round(),
-            y: top + y.round(),
-        });
-    }
-    mouse = mouse.then(PointerAction::Up {
-        button: MOUSE_BUTTON_LEFT,
-    });
-    client.perform_actions(mouse).await.unwrap();
+    drag(
+        &client,
+        (left + start.0, top + start.1),
+        (left + end.0, top + end.1),
+    )
+    .await;
     // The drag is over when the page has no edit in flight and shows the
     // server's latest version.
     wait_until(&client, "!busy && !pendingMove").await;
@@ -227,28 +254,7 @@ async fn a_box_clicked_dragged_and_saved_in_the_browser_renders_as_the_server_sh
         &format!("+document.getElementById('view').dataset.version > {dragged} && !busy"),
     )
     .await;
-    client
-        .find(Locator::Id("save"))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
-    wait_until(&client, "document.getElementById('saved').dataset.file").await;
-    let file = client
-        .execute(
-            "return document.getElementById('saved').dataset.file;",
-            vec![],
-        )
-        .await
-        .unwrap();
-    let variant = client
-        .execute(
-            "return document.getElementById('saved').dataset.variant;",
-            vec![],
-        )
-        .await
-        .unwrap();
+    let (file, variant) = save_in_page(&client).await;
     client.close().await.unwrap();
 
     let (served, version) = server.linear();
@@ -316,20 +322,21 @@ async fn displayed(client: &Client, id: &str) -> bool {
     v == json!(true)
 }
 
+/// Keeps the errors the page's script throws, for the test to read.
+const CATCH_ERRORS: &str = "window.__errors = []; window.addEventListener('error', (e) => window.__errors.push(String(e.message)));";
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn the_page_refines_hides_the_wipe_and_serves_a_scene_without_objects() {
+async fn the_page_refines_and_hides_the_wipe() {
     let _one = ONE_BROWSER.lock().await;
     let driver = driver();
     let profile = tempfile::tempdir().unwrap();
     let client = browser(&driver, profile.path()).await;
-    // Errors the page's script throws, kept for the test to read.
-    let catch = "window.__errors = []; window.addEventListener('error', (e) => window.__errors.push(String(e.message)));";
 
     // The desk, refining to 2 rounds once it settles.
     let desk = Desk::new();
     let server = Server::start(&desk.scene(), &["--samples", "2"]);
     client.goto(&server.url).await.unwrap();
-    client.execute(catch, vec![]).await.unwrap();
+    client.execute(CATCH_ERRORS, vec![]).await.unwrap();
     wait_until(
         &client,
         "document.getElementById('status').dataset.ready === 'true'",
@@ -394,17 +401,24 @@ async fn the_page_refines_hides_the_wipe_and_serves_a_scene_without_objects() {
         .await
         .unwrap();
     assert_eq!(errors, json!([]), "the page threw");
-    drop(server);
+    client.close().await.unwrap();
+}
 
-    // A scene without virtual objects: the page is ready, its object
-    // controls are off and say why, and nothing throws.
+/// A scene without virtual objects: the page is ready, its object controls
+/// are off and say why, and nothing throws.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_scene_without_objects_is_served_with_its_object_controls_off() {
+    let _one = ONE_BROWSER.lock().await;
+    let driver = driver();
+    let profile = tempfile::tempdir().unwrap();
+    let client = browser(&driver, profile.path()).await;
     let empty = Desk::new();
     let text = std::fs::read_to_string(empty.scene()).unwrap();
     let cut = text.find("[[virtual]]").expect("the desk has an object");
     std::fs::write(empty.scene(), &text[..cut]).unwrap();
     let server = Server::start(&empty.scene(), &[]);
     client.goto(&server.url).await.unwrap();
-    client.execute(catch, vec![]).await.unwrap();
+    client.execute(CATCH_ERRORS, vec![]).await.unwrap();
     wait_until(
         &client,
         "document.getElementById('status').dataset.ready === 'true'",

@@ -79,11 +79,8 @@ fn load_gltf(path: &Path) -> Result<Mesh> {
     })
 }
 
-fn read_gltf(path: &Path) -> Result<Mesh> {
-    let bad = |e: gltf::Error| Error::file(path, format!("malformed glTF: {e}"));
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
-    let raw = gltf::Gltf::from_slice_without_validation(&bytes).map_err(bad)?;
-    let root = raw.document.into_json();
+/// What the glTF reader would misread or panic on, refused with the reason.
+fn check_gltf_json(path: &Path, root: &gltf::json::Root) -> Result<()> {
     // A required extension changes how the data is read (Draco or meshopt
     // compression, quantized or basis-compressed data): none is read here.
     if let Some(ext) = root.extensions_required.first() {
@@ -120,6 +117,15 @@ fn read_gltf(path: &Path) -> Result<Mesh> {
             }
         }
     }
+    Ok(())
+}
+
+fn read_gltf(path: &Path) -> Result<Mesh> {
+    let bad = |e: gltf::Error| Error::file(path, format!("malformed glTF: {e}"));
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
+    let raw = gltf::Gltf::from_slice_without_validation(&bytes).map_err(bad)?;
+    let root = raw.document.into_json();
+    check_gltf_json(path, &root)?;
     let doc = gltf::Document::from_json(root).map_err(bad)?;
     let base = path.parent().unwrap_or(Path::new("."));
     let buffers = gltf::import_buffers(&doc, Some(base), raw.blob).map_err(bad)?;

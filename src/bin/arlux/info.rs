@@ -269,47 +269,7 @@ impl Report for InfoReport {
         out.push(format!("lights: {}", self.light_lines.len()));
         out.extend(self.light_lines.iter().map(|l| format!("  {l}")));
         out.push(format!("virtual objects: {}", objects.len()));
-        for o in &objects {
-            out.push(format!(
-                "  {:<12} {} triangles, {}, at {} rotated {}° (about x, y, z)",
-                str_of(&o["name"]),
-                o["triangles"],
-                if o["enabled"].as_bool().unwrap_or(false) {
-                    "enabled"
-                } else {
-                    "disabled"
-                },
-                o["translate"],
-                o["rotate_deg"]
-            ));
-            let at = |k: &str, i: usize| o["bounds"][k][i].as_f64().unwrap_or(f64::NAN);
-            out.push(format!(
-                "    size {:.3} × {:.3} × {:.3} m (x, y, z) as placed; from y = {:.3} to {:.3}",
-                at("size_m", 0),
-                at("size_m", 1),
-                at("size_m", 2),
-                at("min", 1),
-                at("max", 1)
-            ));
-            let f = |k: &str, i: usize| o["footprint"][k][i].as_f64().unwrap_or(f64::NAN);
-            out.push(format!(
-                "    footprint x {:.3} to {:.3}, z {:.3} to {:.3} m (centre {:.3}, {:.3}; {:.3} m²)",
-                f("x", 0),
-                f("x", 1),
-                f("z", 0),
-                f("z", 1),
-                f("centre", 0),
-                f("centre", 1),
-                o["footprint"]["area_m2"].as_f64().unwrap_or(f64::NAN)
-            ));
-            for s in o["surfaces"].as_array().into_iter().flatten() {
-                let material = match s["material"].as_str() {
-                    Some(m) => format!("material {m}"),
-                    None => format!("diffuse {}", s["rgb"]),
-                };
-                out.push(format!("    {}: {material}", str_of(&s["name"])));
-            }
-        }
+        out.extend(objects.iter().flat_map(object_lines));
         out.push(format!("variants: {}", variants.len()));
         for v in &variants {
             out.push(format!(
@@ -330,4 +290,50 @@ impl Report for InfoReport {
         }
         out
     }
+}
+
+/// An object's lines in `info`'s text: placement, size, footprint, surfaces.
+fn object_lines(o: &serde_json::Value) -> Vec<String> {
+    let str_of = |v: &serde_json::Value| v.as_str().unwrap_or("").to_string();
+    let mut out = Vec::new();
+    out.push(format!(
+        "  {:<12} {} triangles, {}, at {} rotated {}° (about x, y, z)",
+        str_of(&o["name"]),
+        o["triangles"],
+        if o["enabled"].as_bool().unwrap_or(false) {
+            "enabled"
+        } else {
+            "disabled"
+        },
+        o["translate"],
+        o["rotate_deg"]
+    ));
+    let at = |k: &str, i: usize| o["bounds"][k][i].as_f64().unwrap_or(f64::NAN);
+    out.push(format!(
+        "    size {:.3} × {:.3} × {:.3} m (x, y, z) as placed; from y = {:.3} to {:.3}",
+        at("size_m", 0),
+        at("size_m", 1),
+        at("size_m", 2),
+        at("min", 1),
+        at("max", 1)
+    ));
+    let f = |k: &str, i: usize| o["footprint"][k][i].as_f64().unwrap_or(f64::NAN);
+    out.push(format!(
+        "    footprint x {:.3} to {:.3}, z {:.3} to {:.3} m (centre {:.3}, {:.3}; {:.3} m²)",
+        f("x", 0),
+        f("x", 1),
+        f("z", 0),
+        f("z", 1),
+        f("centre", 0),
+        f("centre", 1),
+        o["footprint"]["area_m2"].as_f64().unwrap_or(f64::NAN)
+    ));
+    for s in o["surfaces"].as_array().into_iter().flatten() {
+        let material = match s["material"].as_str() {
+            Some(m) => format!("material {m}"),
+            None => format!("diffuse {}", s["rgb"]),
+        };
+        out.push(format!("    {}: {material}", str_of(&s["name"])));
+    }
+    out
 }

@@ -112,6 +112,49 @@ impl PoseReport {
     }
 }
 
+/// A job array sized for a longer motion: this shard has no pose to render.
+fn nothing_to_render(args: &Args, name: &str, total: usize) -> Result<()> {
+    eprintln!(
+        "note: --shard {}: no pose falls to this shard ({total} in all): nothing rendered",
+        args.shard.as_deref().unwrap_or(""),
+    );
+    let report = MotionReport {
+        motion: name,
+        seconds: 0.0,
+        poses: Vec::new(),
+        pda_bytes: 0,
+        block_bytes: 0,
+        block_bytes_end: 0,
+        room_solution_bytes: 0,
+        change_bytes: 0,
+    };
+    print_report(&report, args.json)
+}
+
+/// The poses' references and placements, checked before any frame.
+fn check_poses(
+    base: &arlux::scene::Scene,
+    name: &str,
+    motion: &arlux::scene::Motion,
+    poses: std::ops::Range<usize>,
+) -> Result<()> {
+    stage("check inputs", || -> Result<()> {
+        for pose in poses.clone() {
+            if let Some(r) = motion.references.get(pose) {
+                base.check_reference(&format!("motion '{name}'.references[{pose}]"), r)?;
+            }
+        }
+        Ok(())
+    })?;
+    let crossings = stage("placement checks", || {
+        arlux::placement::motion_warnings(base, name, poses)
+    })?;
+    for w in &crossings {
+        warn(base, w)?;
+    }
+    Ok(())
+}
+
 pub fn run(args: &Args) -> Result<()> {
     let name = args.motion.as_str();
     let dir = args.output.as_path();
@@ -127,38 +170,9 @@ pub fn run(args: &Args) -> Result<()> {
     let motion = base.motion(name)?.clone();
     let poses = pose_range(args, motion.translations.len())?;
     if poses.is_empty() {
-        // A job array sized for a longer motion: this task has nothing to do.
-        eprintln!(
-            "note: --shard {}: no pose falls to this shard ({} in all): nothing rendered",
-            args.shard.as_deref().unwrap_or(""),
-            motion.translations.len()
-        );
-        let report = MotionReport {
-            motion: name,
-            seconds: 0.0,
-            poses: Vec::new(),
-            pda_bytes: 0,
-            block_bytes: 0,
-            block_bytes_end: 0,
-            room_solution_bytes: 0,
-            change_bytes: 0,
-        };
-        return print_report(&report, args.json);
+        return nothing_to_render(args, name, motion.translations.len());
     }
-    stage("check inputs", || -> Result<()> {
-        for pose in poses.clone() {
-            if let Some(r) = motion.references.get(pose) {
-                base.check_reference(&format!("motion '{name}'.references[{pose}]"), r)?;
-            }
-        }
-        Ok(())
-    })?;
-    let crossings = stage("placement checks", || {
-        arlux::placement::motion_warnings(&base, name, poses.clone())
-    })?;
-    for w in &crossings {
-        warn(&base, w)?;
-    }
+    check_poses(&base, name, &motion, poses.clone())?;
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: could not create the folder", dir.display()))?;
     let write = |pose: usize, c: &arlux::composite::Composite, photo: &Image| -> Result<()> {

@@ -133,29 +133,9 @@ pub fn run(args: &Args) -> Result<()> {
     })?;
     bar.finish_and_clear();
     if !peers.is_empty() {
-        let photo = scene.load_photo()?;
-        let reference = scene.fit_size(
-            image_io::read_image(&references[0])?,
-            "reference",
-            &references[0],
-        )?;
-        let floor =
-            arlux::sweep::skill_floor(&scene, &target, std::slice::from_ref(&reference), &photo)?;
-        for p in &peers {
-            rows.extend(p.rows(&reference, &photo, floor));
-        }
+        rows.extend(peer_rows(&scene, &target, &references, &peers)?);
     }
-    let reference = match &target {
-        Target::Variant { name } => scene
-            .variant(name)?
-            .reference
-            .as_ref()
-            .map_or(String::new(), |r| rel(&scene, r)),
-        Target::Motion { name } => format!(
-            "{} references of motion {name}",
-            scene.motion(name)?.references.len()
-        ),
-    };
+    let reference = reference_label(&scene, &target)?;
     let csv = dir.join(csv_name);
     let png = dir.join("sweep.png");
     let table = SweepTable {
@@ -189,6 +169,42 @@ pub fn run(args: &Args) -> Result<()> {
         rows: rows.iter().map(RowReport::of).collect(),
     };
     print_report(&report, as_json)
+}
+
+/// The peers' renders as rows, scored against the variant's reference.
+fn peer_rows(
+    scene: &arlux::scene::Scene,
+    target: &arlux::sweep::Target,
+    references: &[std::path::PathBuf],
+    peers: &[arlux::sweep::Peer],
+) -> Result<Vec<arlux::sweep::SweepRow>> {
+    let photo = scene.load_photo()?;
+    let reference = scene.fit_size(
+        image_io::read_image(&references[0])?,
+        "reference",
+        &references[0],
+    )?;
+    let floor = arlux::sweep::skill_floor(scene, target, std::slice::from_ref(&reference), &photo)?;
+    Ok(peers
+        .iter()
+        .flat_map(|p| p.rows(&reference, &photo, floor))
+        .collect())
+}
+
+/// What the sweep compares against, as the table's header names it.
+fn reference_label(scene: &arlux::scene::Scene, target: &arlux::sweep::Target) -> Result<String> {
+    use arlux::sweep::Target;
+    Ok(match target {
+        Target::Variant { name } => scene
+            .variant(name)?
+            .reference
+            .as_ref()
+            .map_or(String::new(), |r| rel(scene, r)),
+        Target::Motion { name } => format!(
+            "{} references of motion {name}",
+            scene.motion(name)?.references.len()
+        ),
+    })
 }
 
 /// `arlux sweep`'s report.
