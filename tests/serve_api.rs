@@ -602,3 +602,66 @@ fn undo_and_redo_step_through_the_edits_and_give_back_their_images() {
     let fresh = ok("/api/light", json!({ "light": "spot", "scale": 2.0 }));
     assert_eq!(fresh["state"]["history"], json!({ "undo": 4, "redo": 0 }));
 }
+
+/// The session takes `arlux render`'s flags: its image after an edit is the
+/// render of the variant it saves with the same flags, bit for bit, and
+/// differs from the default settings' render.
+#[test]
+fn the_session_renders_with_the_render_flags_it_was_given() {
+    let desk = Desk::new();
+    let flags = [
+        "--patch-size",
+        "0.4",
+        "--min-level",
+        "3",
+        "--supersample",
+        "1",
+    ];
+    let server = Server::start(&desk.scene(), &flags);
+    server.wait_ready();
+    let r = server.post("/api/object", &json!({ "object": "box", "yaw_deg": 20.0 }));
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    let (served, _) = server.linear();
+    let saved = server.post("/api/save", &json!({}));
+    assert_eq!(
+        saved.status,
+        200,
+        "{}",
+        String::from_utf8_lossy(&saved.body)
+    );
+    let saved = saved.json();
+    let file = desk.path(saved["file"].as_str().unwrap());
+    let variant = saved["variant"].as_str().unwrap();
+    let out = tempfile::tempdir().unwrap();
+    let render = |extra: &[&str]| {
+        let exr = out.path().join("render.exr");
+        let mut args = vec!["render", file.to_str().unwrap(), "--variant", variant];
+        args.extend(["-o", exr.to_str().unwrap()]);
+        args.extend(extra);
+        common::arlux_ok(&args);
+        let image = arlux::image_io::read_image(&exr).unwrap();
+        image
+            .pixels
+            .iter()
+            .flat_map(|p| p.to_array())
+            .collect::<Vec<f32>>()
+    };
+    let differing = |a: &[f32], b: &[f32]| {
+        a.iter()
+            .zip(b)
+            .filter(|(x, y)| x.to_bits() != y.to_bits())
+            .count()
+    };
+    let same = render(&flags);
+    assert_eq!(same.len(), served.len());
+    let differ = differing(&same, &served);
+    assert_eq!(
+        differ, 0,
+        "{differ} values differ from render with the same flags"
+    );
+    let default = render(&[]);
+    assert!(
+        differing(&default, &served) > 1000,
+        "the flags changed nothing"
+    );
+}

@@ -36,16 +36,13 @@ pub struct Args {
     /// page offers no Render).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Rounds of per-pixel samples the image refines to in the background
-    /// once an edit settles (1, 2, 4 … up to N; the next edit cancels):
-    /// the page then shows what `render --samples N` gives of the state.
-    #[arg(long, default_value_t = 0)]
-    pub samples: u32,
-    /// Rendering method: pda (per-pixel differential rendering, Grosch:
-    /// moves and light sliders update in milliseconds) or texture
-    /// (shadow-free textures × B/D, Loscos: every change prepared in full).
-    #[arg(long, value_enum, default_value_t = arlux::settings::RenderOptions::default().method)]
-    pub method: arlux::settings::RenderMethod,
+    /// The render flags, as `arlux render` takes them. In the session,
+    /// `--samples N` refines the image in the background once an edit
+    /// settles (1, 2, 4 … up to N rounds; the next edit cancels): the page
+    /// then shows what `render --samples N` gives of the state, while each
+    /// edit's first image takes none.
+    #[command(flatten)]
+    pub flags: crate::flags::RenderFlags,
     /// A name or address other machines reach this one by (repeatable):
     /// requests naming it in their Host header are served. Needed with
     /// `--bind 0.0.0.0` (or `::`), which names no address of its own.
@@ -91,19 +88,13 @@ pub(crate) struct Published {
 pub fn run(args: &Args) -> Result<()> {
     let scene = crate::common::load(&args.scene, None)?;
     let photo = crate::common::read_photo(&scene)?;
-    // Checked as render checks it; the session's own images take none
-    // (each edit's first image is as fast as without).
-    let checked = arlux::settings::RenderOptions {
-        samples: args.samples,
-        method: args.method,
-        ..Default::default()
-    };
-    checked.resolve()?;
-    let method = arlux::settings::RenderOptions {
-        method: args.method,
-        ..Default::default()
-    }
-    .resolve()?;
+    // Checked as render checks it; the session's own images take no
+    // rounds of samples (each edit's first image is as fast as without).
+    let mut options = arlux::settings::RenderOptions::default();
+    args.flags.apply(&mut options);
+    options.resolve()?;
+    options.samples = 0;
+    let method = options.resolve()?;
     if let Some(out) = &args.out {
         std::fs::create_dir_all(out)
             .with_context(|| format!("--out {}: cannot create the folder", out.display()))?;
@@ -177,7 +168,7 @@ pub fn run(args: &Args) -> Result<()> {
         out: args.out.clone(),
         meta: crate::common::frame_meta(&scene, json!({ "serve": true })),
         bar,
-        refine_to: args.samples,
+        refine_to: args.flags.samples,
     };
     std::thread::Builder::new()
         .name("session".into())
