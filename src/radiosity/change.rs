@@ -11,7 +11,14 @@
 //! only, so a pose traces them once and the change is a sum over them for
 //! any radiosity; a patch that cannot see an object traces nothing.
 
+use super::transport::*;
 use super::*;
+use crate::light::offset_origin;
+use crate::objects::VirtualBounds;
+use crate::patches::{Element, Patches};
+use crate::trace::{Layer, TraceRay, Tracer};
+use glam::DVec3;
+use rayon::prelude::*;
 
 /// Rays from a patch towards one object when it sees it over its whole
 /// hemisphere; fewer in proportion to the cone's solid angle.

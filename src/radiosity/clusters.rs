@@ -11,7 +11,7 @@
 use glam::{DVec3, Vec3};
 
 use super::form_factor::ShaftTest;
-use super::{Link, Refiner, refine};
+use super::transport::{Link, Refiner, refine};
 use crate::light::{offset_origin, segment};
 use crate::patches::Patches;
 use crate::trace::{Layer, TraceRay};

@@ -1,7 +1,13 @@
 //! Direct irradiance per patch from each light, through the room or the
 //! room and the objects.
 
-use super::*;
+use crate::light::LightSource;
+use crate::objects::VirtualBounds;
+use crate::patches::Patches;
+use crate::shaft::Shaft;
+use crate::trace::{Layer, Tracer};
+use glam::DVec3;
+use rayon::prelude::*;
 
 /// Direct irradiance per patch from each light (before the light's scale):
 /// the mean over 2×2 points of unoccluded irradiance × visibility, with

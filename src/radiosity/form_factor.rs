@@ -2,7 +2,12 @@
 //! integrated over the receiver, and the visibility between them by shafts
 //! and rays.
 
-use super::*;
+use super::transport::*;
+use crate::light::{offset_origin, segment};
+use crate::patches::{Element, Patches};
+use crate::shaft::Shaft;
+use crate::trace::{Layer, TraceRay, Tracer};
+use glam::DVec3;
 
 /// Visibility sampling: rays from `r`×`r` receiver points to `m`×`m`
 /// source points. Elements above the leaves always get 2×2, so that a

@@ -15,9 +15,13 @@
 
 use super::change::{Seen, Target};
 use super::change::{cone_towards, rays_for, receiving_side, targets, towards, trace_seen};
-use super::*;
+use crate::objects::VirtualBounds;
+use crate::patches::Patches;
 use crate::patches::Shape;
+use crate::trace::Tracer;
 use glam::DVec2;
+use glam::DVec3;
+use rayon::prelude::*;
 
 /// Rays from a grid point towards an object that fills its hemisphere
 /// (128 lost 1.3% of skill on `whitebox` `cube_far` and doubled the error

@@ -4,7 +4,11 @@
 
 use super::change::{Target, cone_towards, rays_for, receiving_side, targets, towards};
 use super::near::taper;
-use super::*;
+use crate::light::offset_origin;
+use crate::objects::VirtualBounds;
+use crate::patches::Patches;
+use crate::trace::{Layer, TraceRay, Tracer};
+use glam::DVec3;
 
 /// Rays per round from a point towards an object that fills its
 /// hemisphere (fewer for a smaller cone, at least 4): a round's rays per

@@ -2,7 +2,14 @@
 //! shadow refined again, and the objects linked (element by element, or
 //! through their clusters).
 
+use super::clusters::refine_cluster;
+use super::form_factor::ShaftTest;
+use super::transport::*;
 use super::*;
+use crate::patches::Patches;
+use crate::shaft::Shaft;
+use crate::trace::{Layer, Tracer};
+use rayon::prelude::*;
 
 impl Transport {
     /// This transport (of a room's patches) with virtual objects added:

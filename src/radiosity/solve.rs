@@ -1,7 +1,9 @@
 //! Radiosity solved from a transport: restarted GMRES, or a plain gather
 //! for comparison.
 
-use super::*;
+use super::transport::*;
+use crate::patches::Patches;
+use glam::DVec3;
 
 /// A solved system.
 #[derive(Debug, Clone, PartialEq)]

@@ -1,8 +1,14 @@
+use super::form_factor::*;
+use super::transport::*;
 use super::*;
 use crate::geometry::Triangle;
+use crate::objects::VirtualBounds;
+use crate::patches::{Element, Patches};
 use crate::patches::{Shape, SurfaceInput};
+use crate::trace::{Layer, TraceRay};
 use crate::trace::{SurfaceTriangles, Tracer};
 use crate::util::rng::unit_random;
+use glam::DVec3;
 use glam::{DVec2, Vec3};
 use std::time::Instant;
 

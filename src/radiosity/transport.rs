@@ -1,0 +1,522 @@
+//! The room's transport: the full form-factor matrix or hierarchical
+//! radiosity's links (Hanrahan et al. 1991), refined by an oracle on the
+//! pair's unoccluded form factor and its visibility.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::patches::{Element, Patches};
+use crate::trace::{Layer, TraceRay, Tracer};
+
+use super::form_factor::{
+    PairShafts, ShaftTest, coplanar, faces_away, may_be_occluded, occluders_between,
+    occluders_between_using, point_factor, room_blocked, straddles, unoccluded_form_factor,
+    visibility, visibility_rays, visibility_with_room,
+};
+use super::{ClusterLinks, RootClusters};
+
+/// Default refinement threshold of hierarchical radiosity: on the desk at
+/// 0.5 m patches it keeps every patch within 0.4% of the full matrix with
+/// 80% of its form factors (1.5% at 0.003, 0.3% at 0.001; see
+/// tests/radiosity_desk.rs).
+pub const DEFAULT_LINK_EPSILON: f64 = 0.002;
+
+/// A partly hidden pair is refined while its unoccluded form factor exceeds
+/// this fraction of ε; below it, rays at that level estimate visibility.
+/// Measured on the desk (0.25 m): 1 (refine only above ε) keeps 287k links
+/// but the hierarchical solution drifts 5% from the full matrix; 0.1 stays
+/// within 1% with 359k links; refining every hidden pair to the leaves
+/// needs 387k links and twice the time.
+pub(crate) const VISIBILITY_REFINE_FRACTION: f64 = 0.1;
+
+/// Below this many links a gather runs on one thread: waking the others
+/// costs more than the few microseconds of work (a solve applies it
+/// dozens of times).
+pub(super) const SERIAL_GATHER_LINKS: usize = 1 << 16;
+
+/// Receiver quadrature order of the unoccluded form factor. It is the same
+/// for every pair, so that the factors out of one receiver sum to the exact
+/// fraction of its hemisphere the sources cover (one in a closed room):
+/// per-pair orders would each err a little and the errors add up, which a
+/// reflectance of 0.99 amplifies a hundredfold.
+pub(super) const FF_ORDER: usize = 3;
+
+/// A hierarchical link: `receiver` gathers `form_factor × B(source)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Link {
+    pub receiver: u32,
+    pub source: u32,
+    pub form_factor: f32,
+}
+
+/// How light moves between patches.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Transport {
+    /// Row-major patch × patch form factors.
+    Full { n: usize, form_factors: Vec<f32> },
+    /// Links between elements of the hierarchy, sorted by receiver, and
+    /// each receiver's range of them; and the room's links to clusters of
+    /// the virtual objects, when the objects send through those.
+    Hierarchical {
+        links: Vec<Link>,
+        ranges: Vec<(u32, u32, u32)>,
+        clusters: Option<Box<ClusterLinks>>,
+    },
+}
+
+impl Transport {
+    /// Every patch against every other: N² form factors.
+    pub fn full(patches: &Patches, tracer: &Tracer, layer: Layer) -> Transport {
+        let n = patches.patch_count();
+        // Possible occluders between each pair of roots, narrowed per patch pair.
+        let roots = &patches.roots;
+        let root_index: std::collections::HashMap<u32, usize> =
+            roots.iter().enumerate().map(|(i, r)| (*r, i)).collect();
+        let between: Vec<Vec<u32>> = (0..roots.len() * roots.len())
+            .into_par_iter()
+            .map(|k| {
+                let (a, b) = (
+                    &patches.elements[roots[k / roots.len()] as usize],
+                    &patches.elements[roots[k % roots.len()] as usize],
+                );
+                occluders_between(patches, layer, a, b, roots)
+            })
+            .collect();
+        let mut ff = vec![0f32; n * n];
+        ff.par_chunks_mut(n.max(1))
+            .enumerate()
+            .for_each(|(i, row)| {
+                let p = patches.patch(i);
+                let ri = root_index[&p.root];
+                for (j, f) in row.iter_mut().enumerate() {
+                    if i != j {
+                        let q = patches.patch(j);
+                        let u = unoccluded_form_factor(p, q);
+                        if u > 0.0 {
+                            let candidates = &between[ri * roots.len() + root_index[&q.root]];
+                            let occluded = may_be_occluded(patches, layer, p, q, candidates);
+                            let v = if occluded {
+                                visibility(p, q, tracer, layer)
+                            } else {
+                                1.0
+                            };
+                            *f = (u * v) as f32;
+                        }
+                    }
+                }
+            });
+        Transport::Full {
+            n,
+            form_factors: ff,
+        }
+    }
+
+    /// Hierarchical radiosity: starting from every pair of root elements,
+    /// refined (see `refine`) until one form factor represents each
+    /// exchange to within `epsilon`.
+    pub fn hierarchical(
+        patches: &Patches,
+        tracer: &Tracer,
+        layer: Layer,
+        epsilon: f64,
+    ) -> Transport {
+        let links: Vec<Link> = patches
+            .roots
+            .par_iter()
+            .flat_map_iter(|&p| {
+                let mut out = Vec::new();
+                let with = Refiner {
+                    patches,
+                    tracer,
+                    layer,
+                    epsilon,
+                    split_above_epsilon: true,
+                    objects: None,
+                };
+                for &q in &patches.roots {
+                    if p != q {
+                        refine(&with, p, q, &patches.roots, &mut out);
+                    }
+                }
+                out
+            })
+            .collect();
+        Transport::hierarchical_from_links(links)
+    }
+
+    pub(crate) fn hierarchical_from_links(mut links: Vec<Link>) -> Transport {
+        links.sort_by_key(|l| (l.receiver, l.source));
+        let mut ranges: Vec<(u32, u32, u32)> = Vec::new();
+        for (i, l) in links.iter().enumerate() {
+            match ranges.last_mut() {
+                Some(r) if r.0 == l.receiver => r.2 = i as u32 + 1,
+                _ => ranges.push((l.receiver, i as u32, i as u32 + 1)),
+            }
+        }
+        Transport::Hierarchical {
+            links,
+            ranges,
+            clusters: None,
+        }
+    }
+
+    /// Number of form factors stored (links, or the matrix's non-zeros).
+    pub fn link_count(&self) -> usize {
+        match self {
+            Transport::Full { form_factors, .. } => {
+                form_factors.iter().filter(|f| **f != 0.0).count()
+            }
+            Transport::Hierarchical {
+                links, clusters, ..
+            } => links.len() + clusters.as_ref().map_or(0, |c| c.links.len()),
+        }
+    }
+
+    pub fn memory_bytes(&self) -> usize {
+        match self {
+            Transport::Full { form_factors, .. } => form_factors.len() * 4,
+            Transport::Hierarchical {
+                links,
+                ranges,
+                clusters,
+            } => {
+                links.len() * std::mem::size_of::<Link>()
+                    + ranges.len() * std::mem::size_of::<(u32, u32, u32)>()
+                    + clusters.as_ref().map_or(0, |c| c.memory_bytes())
+            }
+        }
+    }
+
+    /// Irradiance each patch gathers from patch radiosities `b` (one channel).
+    pub fn gather(&self, patches: &Patches, b: &[f64], out: &mut [f64]) {
+        match self {
+            Transport::Full { n, form_factors } => {
+                out.par_iter_mut().enumerate().for_each(|(i, o)| {
+                    let row = &form_factors[i * n..(i + 1) * n];
+                    *o = row.iter().zip(b).map(|(f, b)| *f as f64 * b).sum();
+                });
+            }
+            Transport::Hierarchical {
+                links,
+                ranges,
+                clusters,
+            } => {
+                let elements = &patches.elements;
+                // Pull: an element's radiosity is the area-weighted mean of its
+                // children's (children follow their parent in the arena).
+                let mut node_b = vec![0.0; elements.len()];
+                for (k, &e) in patches.patches.iter().enumerate() {
+                    node_b[e as usize] = b[k];
+                }
+                for e in (0..elements.len()).rev() {
+                    if let Some([c0, c1]) = elements[e].children {
+                        let (a0, a1) = (elements[c0 as usize].area, elements[c1 as usize].area);
+                        node_b[e] =
+                            (node_b[c0 as usize] * a0 + node_b[c1 as usize] * a1) / (a0 + a1);
+                    }
+                }
+                let gather_range = |&(_, a, b): &(u32, u32, u32)| -> f64 {
+                    links[a as usize..b as usize]
+                        .iter()
+                        .map(|l| l.form_factor as f64 * node_b[l.source as usize])
+                        .sum()
+                };
+                let gathered: Vec<f64> = if links.len() < SERIAL_GATHER_LINKS {
+                    ranges.iter().map(gather_range).collect()
+                } else {
+                    ranges.par_iter().map(gather_range).collect()
+                };
+                let mut node_h = vec![0.0; elements.len()];
+                for (&(receiver, _, _), h) in ranges.iter().zip(gathered) {
+                    node_h[receiver as usize] = h;
+                }
+                if let Some(c) = clusters {
+                    c.gather_into(patches, &node_b, &mut node_h);
+                }
+                // Push: what an element gathers reaches every point of its children.
+                for e in 0..elements.len() {
+                    if let Some(parent) = elements[e].parent {
+                        node_h[e] += node_h[parent as usize];
+                    }
+                }
+                for (k, &e) in patches.patches.iter().enumerate() {
+                    out[k] = node_h[e as usize];
+                }
+            }
+        }
+    }
+
+    /// Irradiance per patch from RGB radiosities.
+    pub fn gather_rgb(&self, patches: &Patches, b: &[DVec3]) -> Vec<DVec3> {
+        let n = b.len();
+        let mut out = vec![DVec3::ZERO; n];
+        let mut channel = vec![0.0; n];
+        let mut h = vec![0.0; n];
+        for c in 0..3 {
+            for (x, v) in channel.iter_mut().zip(b) {
+                *x = v[c];
+            }
+            self.gather(patches, &channel, &mut h);
+            for (o, v) in out.iter_mut().zip(&h) {
+                o[c] = *v;
+            }
+        }
+        out
+    }
+}
+
+/// The exact unoccluded point-to-polygon factor towards `q` at the centre
+/// and (slightly inset) corners of `p`: their spread bounds how much the
+/// irradiance p gathers from q varies across p.
+pub(super) fn factor_spread(p: &Element, q: &Element) -> (f64, f64) {
+    let polygon = q.shape.corners();
+    let mut lo = f64::INFINITY;
+    let mut hi: f64 = 0.0;
+    let mut mean = 0.0;
+    let corners = p.shape.corners();
+    for x in corners
+        .iter()
+        .map(|c| p.centre + (*c - p.centre) * 0.9)
+        .chain(std::iter::once(p.centre))
+    {
+        let f = point_factor(x, p, q, &polygon);
+        lo = lo.min(f);
+        hi = hi.max(f);
+        mean += f;
+    }
+    (hi - lo, mean / (corners.len() + 1) as f64)
+}
+
+/// How unevenly `p` sees the points of `q`: the relative spread of the
+/// point-to-point kernel cosθ_p·cosθ_q/r² from p's centre over q's corners
+/// and centre. Averaging q's radiosity over q errs by about F × this × the
+/// relative variation of that radiosity.
+pub(super) fn source_spread(p: &Element, q: &Element) -> f64 {
+    let corners = q.shape.corners();
+    let (mut lo, mut hi, mut sum) = (f64::INFINITY, 0.0f64, 0.0);
+    for y in corners
+        .iter()
+        .map(|c| q.centre + (*c - q.centre) * 0.9)
+        .chain(std::iter::once(q.centre))
+    {
+        let r = y - p.centre;
+        let d2 = r.length_squared().max(1e-300);
+        let k = (p.normal.dot(r) * q.normal.dot(r)).abs() / (d2 * d2);
+        lo = lo.min(k);
+        hi = hi.max(k);
+        sum += k;
+    }
+    let mean = sum / (corners.len() + 1) as f64;
+    if mean > 0.0 { (hi - lo) / mean } else { 0.0 }
+}
+
+/// Links receiver `p` to source `q` where one form factor represents the
+/// exchange to within `epsilon`. The receiver is subdivided while the
+/// factor varies across it by more than epsilon, or while it lies across
+/// the plane of a one-sided source ([`straddles`]): its points would gather
+/// different amounts. The source while F × its [`source_spread`] exceeds
+/// epsilon (its radiosity would be averaged with the wrong weights); the
+/// larger of the two while they are partly hidden from each other.
+pub(super) fn refine(with: &Refiner, p: u32, q: u32, candidates: &[u32], out: &mut Vec<Link>) {
+    let clusters: &[u32] = if with.objects.is_some_and(|t| !t.nodes.is_empty()) {
+        &[0]
+    } else {
+        &[]
+    };
+    refine_from(with, p, q, candidates, clusters, None, out);
+}
+
+/// What [`refine`] works with: the elements, the geometry that may block
+/// them (`layer`), ε, the objects' clusters, and whether a partly hidden
+/// pair above ε is split at once (the room's links, built once per scene)
+/// or, like one below ε, traced first (the objects' links, rebuilt at
+/// every move, where each split costs the update its time).
+#[derive(Clone, Copy)]
+pub(super) struct Refiner<'a> {
+    pub(super) patches: &'a Patches,
+    pub(super) tracer: &'a Tracer,
+    pub(super) layer: Layer,
+    pub(super) epsilon: f64,
+    pub(super) split_above_epsilon: bool,
+    /// The objects' clusters: candidate occluders besides the given roots,
+    /// passed down as the few clusters a pair's shaft may meet.
+    pub(super) objects: Option<&'a RootClusters>,
+}
+
+/// What refinement learns about a pair of the room's elements before any
+/// object matters: its factors and the room's roots that may block it.
+/// Kept per room link, an update that re-refines a link its objects may
+/// shadow starts from these instead of computing them again.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PairFacts {
+    pub(super) spread: f64,
+    pub(super) mean: f64,
+    pub(super) source_spread: f64,
+    pub(super) form_factor: f64,
+    pub(super) occluders: Vec<u32>,
+    /// Which of the pair's visibility rays the room blocks ([`room_blocked`]).
+    pub(super) room_blocked: Option<u64>,
+    /// The pair's visibility rays ([`visibility_rays`]), kept with what
+    /// the room does to them (an update traces them again through the objects).
+    pub(super) rays: Vec<TraceRay>,
+}
+
+impl PairFacts {
+    pub(super) fn of(
+        patches: &Patches,
+        tracer: &Tracer,
+        p: &Element,
+        q: &Element,
+        room_roots: &[u32],
+        shafts: &PairShafts,
+    ) -> PairFacts {
+        let (spread, mean) = factor_spread(p, q);
+        let occluders = occluders_between_using(patches, Layer::All, p, q, room_roots, shafts);
+        let rays = visibility_rays(p, q);
+        PairFacts {
+            spread,
+            mean,
+            source_spread: source_spread(p, q),
+            form_factor: unoccluded_form_factor(p, q),
+            room_blocked: room_blocked(&rays, tracer),
+            rays,
+            occluders,
+        }
+    }
+}
+
+/// [`PairFacts`] and [`PairShafts`] per link of a room's transport, found
+/// when first needed (every update asks each link whether the objects may
+/// shadow it: the shafts are room geometry, the same each time).
+#[derive(Debug, Default)]
+pub struct RoomLinkFacts {
+    pub(super) facts: Vec<std::sync::OnceLock<PairFacts>>,
+    pub(super) shafts: Vec<PairShafts>,
+}
+
+impl RoomLinkFacts {
+    pub fn new(transport: &Transport) -> RoomLinkFacts {
+        let n = transport.link_count();
+        RoomLinkFacts {
+            facts: (0..n).map(|_| std::sync::OnceLock::new()).collect(),
+            shafts: (0..n).map(|_| PairShafts::default()).collect(),
+        }
+    }
+}
+
+/// [`refine`], with the pair's room facts already known (`known`: the
+/// facts and the pair's kept shafts; `candidates` are then ignored) at
+/// this first level.
+pub(super) fn refine_from(
+    with: &Refiner,
+    p: u32,
+    q: u32,
+    candidates: &[u32],
+    clusters: &[u32],
+    known: Option<(&PairFacts, &PairShafts)>,
+    out: &mut Vec<Link>,
+) {
+    let Refiner {
+        patches,
+        tracer,
+        layer,
+        epsilon,
+        split_above_epsilon,
+        objects,
+    } = *with;
+    let (ep, eq) = (&patches.elements[p as usize], &patches.elements[q as usize]);
+    if coplanar(ep, eq) || faces_away(ep, eq) {
+        return;
+    }
+    let fresh = PairShafts::default();
+    let (occluders, shafts) = match known {
+        Some((facts, shafts)) => (facts.occluders.clone(), shafts),
+        None => (
+            occluders_between_using(patches, layer, ep, eq, candidates, &fresh),
+            &fresh,
+        ),
+    };
+    let object_occluders = match objects {
+        Some(tree) if !clusters.is_empty() => {
+            tree.frontier(&ShaftTest::new(patches, layer, ep, eq, shafts), clusters)
+        }
+        _ => Vec::new(),
+    };
+    let facts = known.map(|k| k.0);
+    let (p_leaf, q_leaf) = (ep.children.is_none(), eq.children.is_none());
+    // Two leaves split neither way: their factors' spread decides nothing.
+    let (spread, mean) = if p_leaf && q_leaf {
+        (0.0, 0.0)
+    } else {
+        facts.map_or_else(|| factor_spread(ep, eq), |f| (f.spread, f.mean))
+    };
+    let split_receiver = if (spread > epsilon || straddles(ep, eq)) && !p_leaf {
+        Some(true)
+    } else if !q_leaf
+        && mean * facts.map_or_else(|| source_spread(ep, eq), |f| f.source_spread) > epsilon
+    {
+        Some(false)
+    } else {
+        let f = facts.map_or_else(|| unoccluded_form_factor(ep, eq), |f| f.form_factor);
+        if f <= 0.0 {
+            return;
+        }
+        // Where the shaft between the two holds no possible occluder they
+        // see each other whole. Otherwise rays estimate the visible part:
+        // trusted where the exchange is small (its error is at most F), and
+        // refined where it is not (Hanrahan's BFV refinement, exact shafts).
+        // A pair between ε's fraction and ε is traced first and split only
+        // where its rays disagree: a conservative shaft holds many roots
+        // that block nothing. Above ε a room's pair is split at once, as
+        // its rays could all pass by a small occluder that matters at that
+        // size (see [`Refiner`]).
+        let occluded = !occluders.is_empty() || !object_occluders.is_empty();
+        let splits = occluded && f > epsilon * VISIBILITY_REFINE_FRACTION && !(p_leaf && q_leaf);
+        // A room pair's rays through the room were traced before: only the objects are left.
+        // Where no object may block, the rays skip the objects: one could
+        // meet them only from the part of the receiver behind a one-sided
+        // source's plane, light the form factor already leaves out (lost
+        // twice, were it counted here).
+        let traced = || match facts.and_then(|f| Some((f.room_blocked?, &f.rays))) {
+            Some((room, rays)) if layer == Layer::All => visibility_with_room(rays, tracer, room),
+            _ if layer == Layer::All
+                && object_occluders.is_empty()
+                && !occluders.iter().any(|&r| patches.is_virtual_element(r)) =>
+            {
+                visibility(ep, eq, tracer, Layer::Real)
+            }
+            _ => visibility(ep, eq, tracer, layer),
+        };
+        let visible = match (occluded, splits && split_above_epsilon && f > epsilon) {
+            (false, _) => Some(1.0),
+            (true, true) => None,
+            (true, false) => Some(traced()),
+        };
+        match visible {
+            Some(v) if !(splits && v > 0.0 && v < 1.0) => {
+                if v > 0.0 {
+                    out.push(Link {
+                        receiver: p,
+                        source: q,
+                        form_factor: (f * v) as f32,
+                    });
+                }
+                None
+            }
+            _ => Some(!p_leaf && (q_leaf || ep.area >= eq.area)),
+        }
+    };
+    match split_receiver {
+        Some(true) => ep
+            .children
+            .unwrap()
+            .iter()
+            .for_each(|&c| refine_from(with, c, q, &occluders, &object_occluders, None, out)),
+        Some(false) => eq
+            .children
+            .unwrap()
+            .iter()
+            .for_each(|&c| refine_from(with, p, c, &occluders, &object_occluders, None, out)),
+        None => {}
+    }
+}
