@@ -1,4 +1,4 @@
-//! Radiosity over [`Patches`]: B = ρ·(E + Σ F·B), with E the direct
+//! Radiosity over [`Patches`](crate::patches::Patches): B = ρ·(E + Σ F·B), with E the direct
 //! irradiance from the lights and F the form factors between elements.
 //!
 //! Form factors ([`element_form_factor`]) integrate the exact point-to-polygon

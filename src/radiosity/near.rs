@@ -99,7 +99,7 @@ impl NearView {
 
     /// The field for radiosity `radiosity` (room and objects), the room's
     /// radiosity without them `room`, and `coarse`, the patch means'
-    /// change ([`ObjectView::irradiance_change`]) as vertex values of the
+    /// change ([`ObjectView::irradiance_change`](super::ObjectView::irradiance_change)) as vertex values of the
     /// room's patches.
     pub fn field(
         &self,
