@@ -23,10 +23,13 @@ use crate::settings::Method;
 use crate::util::stages::StageTimes;
 
 mod display;
+mod lights;
 mod placement;
 
+use lights::LightEdit;
+
 pub use display::{Frame, View};
-pub use placement::Room;
+pub use placement::{LIGHT_HEIGHT_M, Room};
 
 /// One change a user makes. Objects and lights are indices into the
 /// scene's `objects` and `lights`.
@@ -66,6 +69,14 @@ pub enum Edit {
         light: usize,
         scale: f64,
     },
+    /// A virtual light placed `height_m` off the real surface seen at image
+    /// point (x, y), along its normal (switched on at scale 1 if it was off).
+    PlaceLight {
+        light: usize,
+        x: f64,
+        y: f64,
+        height_m: f64,
+    },
     /// Back to the state before the last step (a drag's moves are one step).
     Undo,
     /// The step the last undo took back, again.
@@ -73,7 +84,7 @@ pub enum Edit {
 }
 
 /// The user's edits of objects and lights: what one undo step restores.
-type Snapshot = (Vec<ObjectEdit>, Vec<Option<f64>>);
+type Snapshot = (Vec<ObjectEdit>, Vec<LightEdit>);
 
 /// Undo steps kept, at most (the oldest go first).
 const UNDO_STEPS: usize = 1000;
@@ -152,7 +163,7 @@ pub struct Interactive {
     photo: Image,
     method: Method,
     objects: Vec<ObjectEdit>,
-    lights: Vec<Option<f64>>,
+    lights: Vec<LightEdit>,
     /// The effective scene of the state, as rendered.
     scene: Scene,
     rendered: Rendered,
@@ -193,7 +204,7 @@ impl Interactive {
         let room = Room::new(&base)?;
         let mut s = Interactive {
             objects: vec![ObjectEdit::default(); base.objects.len()],
-            lights: vec![None; base.lights.len()],
+            lights: vec![LightEdit::default(); base.lights.len()],
             scene: base.clone(),
             rendered: Rendered::Photo,
             base,
@@ -380,6 +391,7 @@ impl Interactive {
             Edit::Enable { object, .. } => (Some(object), "enabled"),
             Edit::Nudge { object, .. } => (Some(object), "nudge"),
             Edit::Light { .. } => (None, "scale"),
+            Edit::PlaceLight { .. } => (None, "height_m"),
             // Taken by `step` before; no state of its own to change here.
             Edit::Undo | Edit::Redo => (None, "edit"),
         };
@@ -478,18 +490,22 @@ impl Interactive {
                 self.objects[o].enabled = Some(true);
             }
             Edit::Light { light, scale } => {
-                if light >= self.base.lights.len() {
-                    return Err(Refusal::new("light", format!("no light {light}")));
+                let l = self.light(light)?;
+                self.lights[l].scale = Some(lights::checked_scale(scale)?);
+            }
+            Edit::PlaceLight {
+                light,
+                x,
+                y,
+                height_m,
+            } => {
+                let l = self.light(light)?;
+                lights::movable(&self.base.lights[l])?;
+                let at = self.room.light_place(&self.base.camera, (x, y), height_m)?;
+                self.lights[l].position = Some(at);
+                if self.scene.lights[l].scale == 0.0 {
+                    self.lights[l].scale = Some(1.0);
                 }
-                let s = finite("scale", scale)?;
-                // -0.0 too: it would be written into a variant as a negative scale.
-                if s.is_sign_negative() || !(0.0..=MAX_LIGHT_SCALE).contains(&s) {
-                    return Err(Refusal::new(
-                        "scale",
-                        format!("a light's scale must lie in 0..={MAX_LIGHT_SCALE}"),
-                    ));
-                }
-                self.lights[light] = Some(s);
             }
             Edit::Undo | Edit::Redo => {
                 return Err(Refusal::new("edit", "undo and redo are steps, not changes"));
@@ -498,14 +514,21 @@ impl Interactive {
         Ok(())
     }
 
+    /// `light` as an index of the scene's lights.
+    fn light(&self, light: usize) -> std::result::Result<usize, Refusal> {
+        (light < self.base.lights.len())
+            .then_some(light)
+            .ok_or_else(|| Refusal::new("light", format!("no light {light}")))
+    }
+
     /// The state as the `[[variant]]` table named `name` it is saved as.
     pub fn variant_table(&self, name: &str) -> toml::Table {
         let mut t = toml::Table::new();
         t.insert("name".into(), name.into());
         let mut lights = toml::Table::new();
-        for (l, s) in self.base.lights.iter().zip(&self.lights) {
-            if let Some(s) = s.filter(|s| *s != l.scale) {
-                lights.insert(l.name.clone(), s.into());
+        for (l, e) in self.base.lights.iter().zip(&self.lights) {
+            if let Some(value) = lights::variant_value(l, e) {
+                lights.insert(l.name.clone(), value);
             }
         }
         let (mut objects, mut hide) = (toml::Table::new(), toml::value::Array::new());
@@ -552,8 +575,10 @@ impl Interactive {
     fn render(&mut self, scene: Scene, times: &mut StageTimes) -> Result<Outcome> {
         let start = std::time::Instant::now();
         let scales = |s: &Scene| s.lights.iter().map(|l| l.scale).collect::<Vec<_>>();
+        let places = |s: &Scene| (s.lights.iter().map(|l| l.known_position())).collect::<Vec<_>>();
+        let moved = places(&scene) != places(&self.scene);
         let enabled = |s: &Scene| s.objects.iter().map(|o| o.enabled).collect::<Vec<_>>();
-        let same_lights = scales(&scene) == scales(&self.scene);
+        let same_lights = scales(&scene) == scales(&self.scene) && !moved;
         let same_shown = enabled(&scene) == enabled(&self.scene);
         let same_poses =
             (self.scene.objects.iter().zip(&scene.objects)).all(|(a, b)| a.pose == b.pose);
@@ -583,7 +608,7 @@ impl Interactive {
                 },
             }
         } else if let (Rendered::Frame(session), true) =
-            (&mut self.rendered, same_shown && same_poses)
+            (&mut self.rendered, same_shown && same_poses && !moved)
         {
             match session.relight(&scene, times) {
                 Ok(()) => {
@@ -596,7 +621,9 @@ impl Interactive {
                 }
             }
         } else {
-            let reason = if !same_lights {
+            let reason = if moved {
+                "a light moved"
+            } else if !same_lights {
                 "the lights changed"
             } else {
                 "the set of objects shown changed"

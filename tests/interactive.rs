@@ -493,3 +493,83 @@ fn check_saved(
         "the session differs from the texture path's render of its saved variant"
     );
 }
+
+/// A virtual light placed by a click: it goes the height asked above the
+/// floor seen there, switched on; the image is the full render of the
+/// variant the session saves (which writes its position), bit for bit; a
+/// real light, a height the room has no space for, or no number are
+/// refused; undo takes the light back.
+#[test]
+fn a_virtual_light_placed_by_a_click_renders_as_the_variant_it_saves() {
+    let desk = Desk::new();
+    let mut it = session(&desk);
+    let times = &mut StageTimes::default();
+    let bulb = it.base().lights.iter().position(|l| !l.real).unwrap();
+    assert_eq!(
+        it.scene().lights[bulb].scale,
+        0.0,
+        "the desk's bulb starts off"
+    );
+    let place_light = |it: &mut Interactive, light: usize, at: DVec3, height_m: f64| {
+        let (x, y) = pixel_of(it, at);
+        let edit = Edit::PlaceLight {
+            light,
+            x,
+            y,
+            height_m,
+        };
+        it.apply(edit, &mut StageTimes::default())
+    };
+    let out = place_light(&mut it, bulb, DVec3::new(0.3, 0.0, 0.2), 1.2).unwrap();
+    assert!(
+        matches!(&out.path, RenderPath::Full { reason } if reason.contains("light")),
+        "{out:?}"
+    );
+    let l = &it.scene().lights[bulb];
+    assert_eq!(l.scale, 1.0, "placing a light that is off switches it on");
+    let p = l.known_position().unwrap();
+    assert!(
+        (p - DVec3::new(0.3, 1.2, 0.2)).length() < 2e-3,
+        "the bulb is at {p}, not 1.2 m above the floor point clicked"
+    );
+    let first = bits(it.image());
+    // Moved again, a little further.
+    let out = place_light(&mut it, bulb, DVec3::new(-0.4, 0.0, 0.5), 0.8).unwrap();
+    assert!(matches!(out.path, RenderPath::Full { .. }), "{out:?}");
+    assert_ne!(
+        bits(it.image()),
+        first,
+        "the light moved: the image changes"
+    );
+
+    let name = it.next_variant_name();
+    let file = it.save_variant(&name).unwrap();
+    let text = std::fs::read_to_string(&file).unwrap();
+    assert!(
+        text.contains("position"),
+        "the saved variant moves the bulb:\n{text}"
+    );
+    let saved = Scene::load(&file).unwrap().with_variant(&name).unwrap();
+    let (full, _) = common::render_default(&saved);
+    assert_eq!(
+        bits(it.image()),
+        bits(&full.composite.image),
+        "the session's image is not the saved variant's render"
+    );
+
+    // Refused, changing nothing: a real light, no room above, no number.
+    let version = it.version();
+    let panel = it.base().lights.iter().position(|l| l.real).unwrap();
+    let r = place_light(&mut it, panel, DVec3::new(0.3, 0.0, 0.2), 1.0).unwrap_err();
+    assert!(r.message.contains("real light"), "{r:?}");
+    let r = place_light(&mut it, bulb, DVec3::new(0.3, 0.0, 0.2), 4.9).unwrap_err();
+    assert_eq!(r.field, "height_m");
+    assert!(r.message.contains("is free"), "{r:?}");
+    let r = place_light(&mut it, bulb, DVec3::new(0.3, 0.0, 0.2), f64::NAN).unwrap_err();
+    assert_eq!(r.field, "height_m");
+    assert_eq!(it.version(), version);
+
+    // Undo: the light back where the first click put it, the same image.
+    it.apply(Edit::Undo, times).unwrap();
+    assert_eq!(bits(it.image()), first);
+}

@@ -665,3 +665,67 @@ fn the_session_renders_with_the_render_flags_it_was_given() {
         "the flags changed nothing"
     );
 }
+
+/// `/api/light` places a virtual light by an image point and a height: the
+/// state gives its position and where it projects; a real light, a mixed
+/// body and a missing field are refused.
+#[test]
+fn a_virtual_light_is_placed_through_the_api() {
+    let validator = validator();
+    let desk = Desk::new();
+    let server = Server::start(&desk.scene(), &[]);
+    server.wait_ready();
+    let scene = arlux::scene::Scene::load(desk.scene()).unwrap();
+    let (x, y, _) = scene
+        .camera
+        .project(glam::DVec3::new(0.3, 0.0, 0.2))
+        .unwrap();
+    let r = server.post(
+        "/api/light",
+        &json!({ "light": "bulb", "x": x, "y": y, "height_m": 1.2 }),
+    );
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    let state = r.json()["state"].clone();
+    assert!(validator.is_valid(&r.json()), "{}", r.json());
+    let bulb = (state["lights"].as_array().unwrap().iter())
+        .find(|l| l["name"] == "bulb")
+        .unwrap()
+        .clone();
+    assert_eq!(bulb["scale"], 1.0, "{bulb}");
+    let p: Vec<f64> = (bulb["position"].as_array().unwrap().iter())
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!(
+        (p[1] - 1.2).abs() < 2e-3 && (p[0] - 0.3).abs() < 2e-3,
+        "{bulb}"
+    );
+    let screen = bulb["screen"].as_array().unwrap();
+    let (sx, sy, _) = scene.camera.project(glam::DVec3::from_slice(&p)).unwrap();
+    assert!(
+        (screen[0].as_f64().unwrap() - sx).abs() < 1e-6
+            && (screen[1].as_f64().unwrap() - sy).abs() < 1e-6
+    );
+    for (body, status) in [
+        (
+            json!({ "light": "panel", "x": x, "y": y, "height_m": 1.0 }),
+            422,
+        ),
+        (
+            json!({ "light": "bulb", "scale": 1.0, "x": x, "y": y, "height_m": 1.0 }),
+            400,
+        ),
+        (json!({ "light": "bulb", "x": x, "y": y }), 400),
+        (
+            json!({ "light": "bulb", "x": x, "y": y, "height_m": 0.0 }),
+            422,
+        ),
+    ] {
+        let r = server.post("/api/light", &body);
+        assert_eq!(
+            r.status,
+            status,
+            "{body}: {}",
+            String::from_utf8_lossy(&r.body)
+        );
+    }
+}

@@ -14,6 +14,12 @@ use crate::trace::{Layer, TraceRay, Tracer};
 /// A surface is floor-like when its normal lies within this angle of +y.
 const FLOOR_DEG: f64 = 30.0;
 
+/// The range of a placed light's height off the surface clicked, metres.
+pub const LIGHT_HEIGHT_M: (f64, f64) = (0.05, 5.0);
+
+/// Free space a placed light keeps beyond its height (a lamp's bulb is not a point).
+const LIGHT_CLEARANCE_M: f64 = 0.05;
+
 /// The room's real geometry, for picking and checking places.
 pub struct Room {
     tracer: Tracer,
@@ -99,6 +105,48 @@ impl Room {
         let (lo, hi) = crate::geometry::bounds(object_points(object, &turned));
         let footprint = DVec3::new(0.5 * (lo.x + hi.x), lo.y, 0.5 * (lo.z + hi.z));
         Ok(point - footprint)
+    }
+
+    /// Where a light goes when placed `height` metres off the real surface
+    /// seen at (x, y), along its normal (above a floor or a table, out from a
+    /// wall, below a ceiling): refused where less room than that (and a
+    /// lamp's clearance) is free there, or outside the room.
+    pub fn light_place(
+        &self,
+        camera: &Camera,
+        (x, y): (f64, f64),
+        height: f64,
+    ) -> std::result::Result<DVec3, Refusal> {
+        let (lo, hi) = LIGHT_HEIGHT_M;
+        if !(height.is_finite() && (lo..=hi).contains(&height)) {
+            return Err(Refusal::new(
+                "height_m",
+                format!("a light's height off the surface must lie in {lo}..={hi} m"),
+            ));
+        }
+        let (point, normal, name) = self.pick(camera, x, y)?;
+        let ray = TraceRay {
+            tnear: 1e-4,
+            tfar: (height + LIGHT_CLEARANCE_M) as f32,
+            ..TraceRay::new(point.as_vec3(), normal.as_vec3())
+        };
+        if let Some(hit) = self.tracer.intersect(&ray, Layer::Real) {
+            return Err(Refusal::new(
+                "height_m",
+                format!(
+                    "only {:.2} m is free off '{name}' there, before '{}' (a light needs {height:.2} m and {:.2} m of clearance)",
+                    hit.t, self.names[hit.surface as usize], LIGHT_CLEARANCE_M
+                ),
+            ));
+        }
+        let at = point + normal * height;
+        if at.cmplt(self.lo).any() || at.cmpgt(self.hi).any() {
+            return Err(Refusal::new(
+                "height_m",
+                format!("{at:.2} lies outside the room"),
+            ));
+        }
+        Ok(at)
     }
 
     /// Refuses `object` where it stands (its pose) when it leaves the

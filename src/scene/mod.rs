@@ -294,6 +294,8 @@ pub struct Variant {
     pub name: String,
     /// (light index, new scale)
     pub lights: Vec<(usize, f64)>,
+    /// (light index, new position): a virtual light moved.
+    pub light_positions: Vec<(usize, DVec3)>,
     /// (object index, pose change): enables and poses the object.
     pub objects: Vec<(usize, PoseChange)>,
     pub hide_objects: Vec<usize>,
@@ -475,6 +477,9 @@ impl Scene {
         let mut s = self.clone();
         for &(light, scale) in &variant.lights {
             s.lights[light].scale = scale;
+        }
+        for &(light, p) in &variant.light_positions {
+            s.lights[light].position = LightPosition::Known(p);
         }
         for &(object, change) in &variant.objects {
             let o = &mut s.objects[object];

@@ -111,6 +111,23 @@ fn variants_set_scales_pose_objects_and_hide() {
         v.virtual_world_surfaces().is_empty(),
         "a hidden object builds no virtual geometry"
     );
+    // A virtual light moved and scaled by a table: the same scene as the
+    // light declared there.
+    let e = edited(&[(
+        "lights = { panel = 0.0, spot = 0.0, bulb = 1.0 }",
+        "lights = { panel = 0.0, spot = 0.0, bulb = { scale = 1.0, position = [0.2, 1.7, -0.4] } }",
+    )]);
+    let moved = Scene::load(&e.file)
+        .unwrap()
+        .with_variant("virtual_light_only")
+        .unwrap();
+    assert_eq!(
+        moved.lights[2].known_position(),
+        Some(DVec3::new(0.2, 1.7, -0.4))
+    );
+    let mut expected = v.clone();
+    expected.lights[2].position = LightPosition::Known(DVec3::new(0.2, 1.7, -0.4));
+    assert_eq!(moved.lights, expected.lights);
     let x2 = s.with_variant("spot_x2").unwrap();
     assert_eq!(
         x2.lights[1].scale, 2.0,
@@ -342,6 +359,31 @@ const BAD_VALUES: &[(&[(&str, &str)], &str)] = &[
             "[[texture_reference]]\nsurface = \"floor\"\npoint = [0.0, 0.0]\n\n[[light]]\nname = \"panel\"",
         )],
         "texture_reference[0].point: must be an array of 3 numbers",
+    ),
+    (
+        &[(
+            "lights = { spot = 2.0 }",
+            "lights = { spot = { position = [0.0, 1.0, 0.0] } }",
+        )],
+        "lights.spot.position: 'spot' is a real light: it stays where the photo has it",
+    ),
+    (
+        &[("lights = { spot = 2.0 }", "lights = { spot = {} }")],
+        "lights.spot: give scale, position or both",
+    ),
+    (
+        &[(
+            "lights = { spot = 2.0 }",
+            "lights = { spot = { scale = 2.0, colour = 1 } }",
+        )],
+        "lights.spot.colour: unknown key",
+    ),
+    (
+        &[(
+            "lights = { spot = 2.0 }",
+            "lights = { spot = { scale = -2.0 } }",
+        )],
+        "lights.spot: a light's scale must not be negative",
     ),
 ];
 

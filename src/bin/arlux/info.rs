@@ -155,6 +155,7 @@ fn info_report(
             json!({
                 "name": v.name,
                 "lights": v.lights.iter().map(|(l, s)| json!({ "light": scene.lights[*l].name, "scale": s })).collect::<Vec<_>>(),
+                "moved_lights": v.light_positions.iter().map(|(l, p)| json!({ "light": scene.lights[*l].name, "position": p.to_array() })).collect::<Vec<_>>(),
                 "objects": v.objects.iter().map(|(o, _)| scene.objects[*o].name.clone()).collect::<Vec<_>>(),
                 "hide": v.hide_objects.iter().map(|o| scene.objects[*o].name.clone())
                     .chain(v.hide_lights.iter().map(|l| scene.lights[*l].name.clone())).collect::<Vec<_>>(),

@@ -14,6 +14,7 @@ impl Loader<'_> {
         let mut variant = Variant {
             name,
             lights: vec![],
+            light_positions: vec![],
             objects: vec![],
             hide_objects: vec![],
             hide_lights: vec![],
@@ -26,16 +27,13 @@ impl Loader<'_> {
                 let index = lights.iter().position(|l| l.name == lname).ok_or_else(|| {
                     Error::key(self.file, key.clone(), format!("no light named '{lname}'"))
                 })?;
-                let scale =
-                    fields::number(value).map_err(|m| Error::key(self.file, key.clone(), m))?;
-                if scale < 0.0 {
-                    return Err(Error::key(
-                        self.file,
-                        key,
-                        "a light's scale must not be negative",
-                    ));
+                let (scale, position) = self.light_change(&key, value, &lights[index])?;
+                if let Some(scale) = scale {
+                    variant.lights.push((index, scale));
                 }
-                variant.lights.push((index, scale));
+                if let Some(p) = position {
+                    variant.light_positions.push((index, p));
+                }
             }
         }
         if let Some(t) = v.opt_table("objects")? {
@@ -87,6 +85,50 @@ impl Loader<'_> {
         };
         v.finish()?;
         Ok(variant)
+    }
+
+    /// A variant's change of one light: a number is its scale; a table
+    /// `{ scale, position }` may also move a virtual light (a real one stays
+    /// where the photo has it).
+    fn light_change(
+        &self,
+        key: &str,
+        value: &toml::Value,
+        light: &Light,
+    ) -> Result<(Option<f64>, Option<DVec3>)> {
+        let (scale, position) = match value {
+            toml::Value::Table(_) => {
+                let f = Fields::new(self.file, key.to_string(), value)?;
+                let scale = f.opt_f64("scale")?;
+                let position = f.opt_place("position")?;
+                f.finish()?;
+                if scale.is_none() && position.is_none() {
+                    return Err(f.table_error("give scale, position or both"));
+                }
+                if position.is_some() && (light.real || light.known_position().is_none()) {
+                    return Err(f.error(
+                        "position",
+                        format!(
+                            "'{}' is a real light: it stays where the photo has it (a virtual light, real = false, can move)",
+                            light.name
+                        ),
+                    ));
+                }
+                (scale, position)
+            }
+            v => {
+                let s = fields::number(v).map_err(|m| Error::key(self.file, key, m))?;
+                (Some(s), None)
+            }
+        };
+        if scale.is_some_and(|s| s < 0.0) {
+            return Err(Error::key(
+                self.file,
+                key,
+                "a light's scale must not be negative",
+            ));
+        }
+        Ok((scale, position))
     }
 
     /// A `hide` list's names, each a virtual object or a light, added to
@@ -166,6 +208,7 @@ impl Loader<'_> {
             let s = start.get_or_insert_with(|| Variant {
                 name: String::new(),
                 lights: vec![],
+                light_positions: vec![],
                 objects: vec![],
                 hide_objects: vec![],
                 hide_lights: vec![],

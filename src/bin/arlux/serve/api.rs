@@ -454,7 +454,12 @@ async fn object(State(shared): State<Arc<Shared>>, request: Request) -> Result<R
 #[serde(deny_unknown_fields)]
 struct LightChange {
     light: String,
-    scale: f64,
+    /// A new scale; or, for a virtual light, a place: the image point
+    /// (x, y) and the height off the surface seen there.
+    scale: Option<f64>,
+    x: Option<f64>,
+    y: Option<f64>,
+    height_m: Option<f64>,
     version: Option<u64>,
     client: Option<String>,
 }
@@ -463,16 +468,23 @@ async fn light(State(shared): State<Arc<Shared>>, request: Request) -> Result<Re
     let c: LightChange = body(request).await?;
     let light = index(&shared.lights, &c.light, "light")?;
     let stamp = stamp(c.version, c.client)?;
-    Ok(edit(
-        &shared,
-        Edit::Light {
+    let edit_of = match (c.scale, c.x, c.y, c.height_m) {
+        (Some(scale), None, None, None) => Edit::Light { light, scale },
+        (None, Some(x), Some(y), Some(height_m)) => Edit::PlaceLight {
             light,
-            scale: c.scale,
+            x,
+            y,
+            height_m,
         },
-        false,
-        stamp,
-    )
-    .await)
+        _ => {
+            return Err(refused(
+                StatusCode::BAD_REQUEST,
+                "scale",
+                "give scale, or x, y and height_m (a virtual light's place)",
+            ));
+        }
+    };
+    Ok(edit(&shared, edit_of, false, stamp).await)
 }
 
 #[derive(Deserialize)]

@@ -298,7 +298,16 @@ pub(crate) fn state_json(it: &Interactive, last: Option<&Value>) -> Value {
     let lights: Vec<Value> = scene
         .lights
         .iter()
-        .map(|l| json!({ "name": l.name, "real": l.real, "scale": l.scale }))
+        .map(|l| {
+            let at = l.known_position();
+            json!({
+                "name": l.name,
+                "real": l.real,
+                "scale": l.scale,
+                "position": at.map(|p| p.to_array()),
+                "screen": at.and_then(|p| scene.camera.project(p)).map(|(x, y, _)| [x, y]),
+            })
+        })
         .collect();
     json!({
         "ready": true,

@@ -128,8 +128,29 @@ function drawOutline() {
   ctx.strokeRect(b[0] + 0.5, b[1] + 0.5, b[2] - b[0] - 1, b[3] - b[1] - 1);
 }
 
+// A ring where each light that is on projects into the frame (on the
+// outline's canvas, drawn after it).
+function drawLights() {
+  const canvas = $("outline");
+  const ctx = canvas.getContext("2d");
+  const seen = [];
+  for (const l of state.lights) {
+    const p = l.screen;
+    if (!p || l.scale === 0 || p[0] < 0 || p[1] < 0 || p[0] > canvas.width || p[1] > canvas.height) continue;
+    seen.push(l.name);
+    ctx.setLineDash([]);
+    ctx.strokeStyle = l.real ? "#ffffff" : "#7fd4ff";
+    ctx.lineWidth = 1.5;
+    ctx.beginPath();
+    ctx.arc(p[0], p[1], 6, 0, 2 * Math.PI);
+    ctx.stroke();
+  }
+  canvas.dataset.lights = seen.join(",");
+}
+
 function fillControls() {
   drawOutline();
+  drawLights();
   const h = state.history || { undo: 0, redo: 0 };
   $("undo").disabled = h.undo === 0;
   $("redo").disabled = h.redo === 0;
@@ -175,6 +196,20 @@ function buildControls() {
     box.addEventListener("change", send);
     range.addEventListener("input", () => { value.textContent = (+range.value).toFixed(2); });
     range.addEventListener("change", () => { if (box.checked) send(); });
+    if (!l.real && l.position) {
+      // A virtual light is placed by a click on the photo, a height off the surface there.
+      const place = document.createElement("button");
+      place.className = "place-light";
+      place.textContent = "place";
+      place.title = "then click the photo: the light goes this height off the surface there";
+      const height = document.createElement("input");
+      Object.assign(height, { type: "number", min: "0.05", max: "5", step: "0.05", value: "0.5", className: "height", title: "height off the surface, m" });
+      place.addEventListener("click", () => {
+        placingLight = { name: l.name, height };
+        say(`click the photo to place ${l.name} ${(+height.value).toFixed(2)} m off the surface there`);
+      });
+      row.append(place, height);
+    }
     lights.appendChild(row);
   }
   $("render").disabled = !state.can_render;
@@ -276,7 +311,16 @@ function pixelOf(ev) {
 }
 
 let dragging = false;
+// A virtual light waiting for its place (its "place" button was pressed).
+let placingLight = null;
 $("view").addEventListener("pointerdown", (ev) => {
+  if (state && placingLight) {
+    const p = pixelOf(ev);
+    const { name, height } = placingLight;
+    placingLight = null;
+    submit(`light:${name}:place`, "/api/light", { light: name, x: p.x, y: p.y, height_m: +height.value });
+    return;
+  }
   if (!state || !selected()) return;
   dragging = true;
   $("view").setPointerCapture(ev.pointerId);
