@@ -10,11 +10,9 @@
 //! saved file are the same scene, bit for bit. The module knows nothing of
 //! HTTP; it takes edits and returns plain data.
 
-use std::path::PathBuf;
-
 use glam::{DMat3, DQuat, DVec3};
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::image_io::Image;
 use crate::render::RenderSettings;
 use crate::renderer::Renderer;
@@ -22,12 +20,15 @@ use crate::scene::Scene;
 use crate::settings::Method;
 use crate::util::stages::StageTimes;
 
+mod assets;
 mod display;
 mod lights;
 mod placement;
+mod save;
 
 use lights::LightEdit;
 
+pub use assets::{MESH_EXTENSIONS, list_assets};
 pub use display::{Frame, View};
 pub use placement::{LIGHT_HEIGHT_M, Room};
 
@@ -179,6 +180,9 @@ pub struct Interactive {
     placing: Option<usize>,
     /// The other objects' geometry the last placement was checked against.
     others: Option<crate::placement::Others>,
+    /// The scene file's text as loaded (the session's own text also holds
+    /// the objects added since).
+    file_text: String,
 }
 
 impl Interactive {
@@ -217,7 +221,9 @@ impl Interactive {
             redo: Vec::new(),
             placing: None,
             others: None,
+            file_text: String::new(),
         };
+        s.file_text = s.base.source.clone();
         let scene = s.state_scene()?;
         s.render_full(scene, "the first image".into(), times)?;
         Ok(s)
@@ -349,6 +355,9 @@ impl Interactive {
         };
         let left: Snapshot = (self.objects.clone(), self.lights.clone());
         (self.objects, self.lights) = target.clone();
+        // A state from before an object was added: the object as added (hidden).
+        self.objects
+            .resize(self.base.objects.len(), ObjectEdit::default());
         let rendered = self
             .state_scene()
             .and_then(|scene| self.render(scene, times))
@@ -441,7 +450,13 @@ impl Interactive {
         match edit {
             Edit::Place { object: o, x, y } => {
                 let o = object(o)?;
-                let pose = self.scene.objects[o].pose;
+                // An object being added is not in the state's scene yet.
+                let pose = self
+                    .scene
+                    .objects
+                    .get(o)
+                    .unwrap_or(&self.base.objects[o])
+                    .pose;
                 let translate = self.room.standing_place(
                     &self.base.camera,
                     &self.base.objects[o],
@@ -687,71 +702,6 @@ impl Interactive {
             .yaw_deg
             .unwrap_or_else(|| heading_deg(o.pose.rotation));
         (o.enabled, o.pose.translate, yaw, o.pose.scale)
-    }
-
-    /// Writes the state as a `[[variant]]` named `name` into a new file
-    /// beside the scene, `STEM.NAME.toml`: the scene file's own text with the
-    /// variant appended, so that `arlux render` accepts it as it is. The
-    /// scene file is never touched, nor an existing file replaced.
-    pub fn save_variant(&self, name: &str) -> Result<PathBuf> {
-        // Not starting with '-': the name is passed as `--variant NAME`.
-        let valid = !name.is_empty()
-            && name.len() <= 64
-            && !name.starts_with('-')
-            && name
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
-        if !valid || self.base.variants.iter().any(|v| v.name == name) {
-            return Err(Error::key(
-                &self.base.file,
-                "variant",
-                format!(
-                    "'{name}': a variant's new name is 1-64 letters, digits, '-' or '_', not starting with '-', not one the scene has"
-                ),
-            ));
-        }
-        // The session's own text: the saved variant renders what the page
-        // shows even if the file was edited meanwhile (`file_changed` says so).
-        let text = &self.base.source;
-        let mut variant = toml::Table::new();
-        variant.insert(
-            "variant".into(),
-            toml::Value::Array(vec![self.variant_table(name).into()]),
-        );
-        let appended =
-            toml::to_string(&variant).map_err(|e| Error::file(&self.base.file, e.to_string()))?;
-        let path = self.variant_file(name);
-        let content = format!("{}\n# Saved by arlux serve.\n{appended}", text.trim_end());
-        crate::image_io::write_new(&path, content.as_bytes())?;
-        Ok(path)
-    }
-
-    /// Whether the scene file on disk no longer holds the text the session
-    /// was loaded from (an edit made while serving, which the session does
-    /// not show and a save does not carry).
-    pub fn file_changed(&self) -> bool {
-        std::fs::read_to_string(&self.base.file).map_or(true, |t| t != self.base.source)
-    }
-
-    /// The file a variant named `name` is saved in: `STEM.NAME.toml` beside the scene.
-    fn variant_file(&self, name: &str) -> PathBuf {
-        let stem = self
-            .base
-            .file
-            .file_stem()
-            .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
-        self.base.dir().join(format!("{stem}.{name}.toml"))
-    }
-
-    /// A name `session-N` no file beside the scene and no variant has.
-    pub fn next_variant_name(&self) -> String {
-        (1..)
-            .map(|n| format!("session-{n}"))
-            .find(|name| {
-                !self.base.variants.iter().any(|v| &v.name == name)
-                    && !self.variant_file(name).exists()
-            })
-            .expect("some number is free")
     }
 
     /// The room the edits are checked against.

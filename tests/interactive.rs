@@ -573,3 +573,96 @@ fn a_virtual_light_placed_by_a_click_renders_as_the_variant_it_saves() {
     it.apply(Edit::Undo, times).unwrap();
     assert_eq!(bits(it.image()), first);
 }
+
+/// A folder of meshes for `--assets`: the desk's box as an OBJ without
+/// materials, the materials scene's globe as a glTF, and files that are not
+/// meshes (which the listing leaves out).
+fn asset_folder() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    let scenes = common::scene_dir("desk").parent().unwrap().to_path_buf();
+    std::fs::copy(
+        scenes.join("desk/geometry/box.obj"),
+        dir.path().join("crate.obj"),
+    )
+    .unwrap();
+    std::fs::copy(
+        scenes.join("materials/geometry/globe.glb"),
+        dir.path().join("globe.glb"),
+    )
+    .unwrap();
+    std::fs::write(dir.path().join("notes.txt"), "not a mesh").unwrap();
+    std::fs::create_dir(dir.path().join("more.obj")).unwrap();
+    dir
+}
+
+/// Objects added from a folder: listed by name, each stood where a click
+/// sees the floor, named after its file (made unique), a mesh without
+/// materials in clay; the session's image is the render of the variant it
+/// saves (which carries the added objects), bit for bit; a place that is
+/// not floor-like is refused and adds nothing; undo hides the object again.
+#[test]
+fn objects_added_from_an_asset_folder_render_as_the_variant_saved() {
+    let assets = asset_folder();
+    let listed = arlux::interactive::list_assets(assets.path()).unwrap();
+    let names: Vec<&str> = listed.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["crate.obj", "globe.glb"]);
+    let desk = Desk::new();
+    let mut it = session(&desk);
+    let times = &mut StageTimes::default();
+    let objects = it.base().objects.len();
+    let click = pixel_of(&it, DVec3::new(0.4, 0.0, 0.3));
+    let (out, name) = it.add_object(&listed[0].1, click, times).unwrap();
+    assert_eq!(name, "crate");
+    assert!(matches!(out.path, RenderPath::Full { .. }), "{out:?}");
+    assert_eq!(it.scene().objects.len(), objects + 1);
+    let (x, y) = pixel_of(&it, footprint_centre(&it, objects));
+    assert!(((x - click.0).powi(2) + (y - click.1).powi(2)).sqrt() < 1.0);
+    let one = bits(it.image());
+    let click = pixel_of(&it, DVec3::new(-0.5, 0.0, 0.6));
+    let (_, name) = it.add_object(&listed[0].1, click, times).unwrap();
+    assert_eq!(name, "crate-2", "a second copy takes a name of its own");
+    let click = pixel_of(&it, DVec3::new(-0.9, 0.0, 0.2));
+    let (_, globe) = it.add_object(&listed[1].1, click, times).unwrap();
+    assert_eq!(globe, "globe");
+    assert!(
+        it.scene().objects[objects + 2].surfaces[0]
+            .material
+            .is_some(),
+        "the glTF's material"
+    );
+
+    let variant = it.next_variant_name();
+    let file = it.save_variant(&variant).unwrap();
+    let saved = Scene::load(&file).unwrap().with_variant(&variant).unwrap();
+    assert_eq!(saved.objects.len(), objects + 3);
+    let (full, _) = common::render_default(&saved);
+    assert_eq!(
+        bits(it.image()),
+        bits(&full.composite.image),
+        "the saved variant renders otherwise"
+    );
+    assert!(
+        !it.file_changed(),
+        "adding objects does not count as the file changing"
+    );
+
+    // A wall is no place to stand: refused, nothing added.
+    let version = it.version();
+    let wall = pixel_of(&it, DVec3::new(0.0, 1.2, -1.6));
+    let r = it.add_object(&listed[0].1, wall, times).unwrap_err();
+    assert!(r.message.contains("not floor-like"), "{r:?}");
+    assert_eq!(
+        (it.version(), it.base().objects.len()),
+        (version, objects + 3)
+    );
+
+    // Undo twice: the globe, then the second crate, hidden again.
+    it.apply(Edit::Undo, times).unwrap();
+    it.apply(Edit::Undo, times).unwrap();
+    assert!(!it.scene().objects[objects + 1].enabled);
+    assert_eq!(
+        bits(it.image()),
+        one,
+        "undo gives back the image with one crate"
+    );
+}

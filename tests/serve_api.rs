@@ -729,3 +729,64 @@ fn a_virtual_light_is_placed_through_the_api() {
         );
     }
 }
+
+/// `--assets DIR`: the state lists the folder's meshes by name; `/api/add`
+/// stands one where a point sees the floor and the object's name joins the
+/// others (it can then be turned by name); names not listed, paths and a
+/// server without assets are refused.
+#[test]
+fn objects_are_added_from_the_asset_folder_by_name() {
+    let validator = validator();
+    let desk = Desk::new();
+    let assets = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        desk.path("geometry/box.obj"),
+        assets.path().join("crate.obj"),
+    )
+    .unwrap();
+    std::fs::write(assets.path().join("readme.md"), "not a mesh").unwrap();
+    let folder = assets.path().display().to_string();
+    let server = Server::start(&desk.scene(), &["--assets", &folder]);
+    let state = server.wait_ready();
+    assert_eq!(state["assets"], json!(["crate.obj"]), "{state}");
+    let scene = arlux::scene::Scene::load(desk.scene()).unwrap();
+    let (x, y, _) = scene
+        .camera
+        .project(glam::DVec3::new(0.4, 0.0, 0.3))
+        .unwrap();
+    let r = server.post("/api/add", &json!({ "asset": "crate.obj", "x": x, "y": y }));
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    assert!(validator.is_valid(&r.json()), "{}", r.json());
+    let objects = r.json()["state"]["objects"].clone();
+    let added = objects.as_array().unwrap().last().unwrap().clone();
+    assert_eq!(
+        (added["name"].as_str(), added["enabled"].as_bool()),
+        (Some("crate"), Some(true)),
+        "{objects}"
+    );
+    let r = server.post(
+        "/api/object",
+        &json!({ "object": "crate", "yaw_deg": 30.0 }),
+    );
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    for asset in [
+        "readme.md",
+        "../scene.toml",
+        "/etc/passwd",
+        "geometry/box.obj",
+    ] {
+        let r = server.post("/api/add", &json!({ "asset": asset, "x": x, "y": y }));
+        assert_eq!(
+            r.status,
+            422,
+            "{asset}: {}",
+            String::from_utf8_lossy(&r.body)
+        );
+    }
+    drop(server);
+    let plain = Server::start(&desk.scene(), &[]);
+    assert_eq!(plain.wait_ready()["assets"], json!([]));
+    let r = plain.post("/api/add", &json!({ "asset": "crate.obj", "x": x, "y": y }));
+    assert_eq!(r.status, 422);
+    assert!(String::from_utf8_lossy(&r.body).contains("--assets"));
+}

@@ -644,3 +644,106 @@ async fn undo_redo_and_delete_from_the_keyboard_and_buttons() {
     .await;
     client.clone().close().await.unwrap();
 }
+
+/// A press and release at `at` (viewport pixels).
+async fn click_at(client: &Client, at: (f64, f64)) {
+    let mouse = MouseActions::new("mouse".into())
+        .then(PointerAction::MoveTo {
+            duration: None,
+            x: at.0.round(),
+            y: at.1.round(),
+        })
+        .then(PointerAction::Down {
+            button: MOUSE_BUTTON_LEFT,
+        })
+        .then(PointerAction::Up {
+            button: MOUSE_BUTTON_LEFT,
+        });
+    client.perform_actions(mouse).await.unwrap();
+}
+
+/// `--assets`: the page offers the folder's mesh, *add* and a click stand
+/// it on the floor there and select it; a virtual light's *place* and a
+/// click put it the height asked above the floor, switched on and ringed.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_object_is_added_from_the_assets_and_a_light_placed_by_clicks() {
+    let _one = ONE_BROWSER.lock().await;
+    let driver = driver();
+    let profile = tempfile::tempdir().unwrap();
+    let client = browser(&driver, profile.path()).await;
+    let desk = Desk::new();
+    let assets = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        desk.path("geometry/box.obj"),
+        assets.path().join("crate.obj"),
+    )
+    .unwrap();
+    let folder = assets.path().display().to_string();
+    let server = Server::start(&desk.scene(), &["--assets", &folder]);
+    open_page(&client, &server.url).await;
+    client.execute(CATCH_ERRORS, vec![]).await.unwrap();
+    let (left, top, _) = canvas_rect(&client).await;
+    let scene = arlux::scene::Scene::load(desk.scene()).unwrap();
+    let at = |p: DVec3| {
+        let (x, y, _) = scene.camera.project(p).unwrap();
+        (left + x, top + y)
+    };
+
+    // Add the crate where the floor is seen.
+    client
+        .find(Locator::Id("add"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    click_at(&client, at(DVec3::new(0.4, 0.0, 0.3))).await;
+    wait_until(&client, "!busy && state.objects.length === 2").await;
+    let state = server.get("/api/state").json();
+    assert_eq!(state["objects"][1]["name"], "crate", "{state}");
+    assert_eq!(state["objects"][1]["enabled"], true, "{state}");
+    let chosen = client
+        .execute("return document.getElementById('object').value;", vec![])
+        .await
+        .unwrap();
+    assert_eq!(chosen, json!("crate"), "the added object is selected");
+
+    // Place the bulb 1.2 m above the floor at another point.
+    let height = client
+        .find(Locator::Css("[data-light='bulb'] input.height"))
+        .await
+        .unwrap();
+    height.clear().await.unwrap();
+    height.send_keys("1.2").await.unwrap();
+    client
+        .find(Locator::Css("[data-light='bulb'] button.place-light"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    click_at(&client, at(DVec3::new(-0.3, 0.0, 0.5))).await;
+    wait_until(
+        &client,
+        "!busy && state.lights.some((l) => l.name === 'bulb' && l.scale > 0)",
+    )
+    .await;
+    let state = server.get("/api/state").json();
+    let bulb = (state["lights"].as_array().unwrap().iter())
+        .find(|l| l["name"] == "bulb")
+        .unwrap()
+        .clone();
+    let y = bulb["position"][1].as_f64().unwrap();
+    assert!((y - 1.2).abs() < 0.01, "the bulb is {y} m up: {bulb}");
+    wait_until(
+        &client,
+        "document.getElementById('outline').dataset.lights.split(',').includes('bulb')",
+    )
+    .await;
+    let errors = client
+        .execute("return window.__errors;", vec![])
+        .await
+        .unwrap();
+    assert_eq!(errors, json!([]), "the page threw");
+    client.close().await.unwrap();
+}

@@ -341,6 +341,13 @@ impl Scene {
     pub fn load_showing(file: impl AsRef<Path>, showing: Showing) -> Result<Scene> {
         let file = file.as_ref();
         let text = std::fs::read_to_string(file).map_err(|e| Error::io(file, &e))?;
+        Scene::from_text(file, text, showing)
+    }
+
+    /// The scene `text` describes, read as if it were `file`'s (paths are
+    /// relative to its folder): what a front end that adds to a scene's
+    /// text (`arlux serve --assets`) renders, as the saved file will read.
+    pub fn from_text(file: &Path, text: String, showing: Showing) -> Result<Scene> {
         let table: toml::Table = text.parse().map_err(|e: toml::de::Error| {
             let line = e.span().map(|s| text[..s.start].lines().count().max(1));
             let msg = format!("malformed TOML: {}", e.message());

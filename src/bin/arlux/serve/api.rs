@@ -48,6 +48,7 @@ pub(crate) fn router(shared: Arc<Shared>) -> Router {
         .route("/api/place", post(place))
         .route("/api/object", post(object))
         .route("/api/light", post(light))
+        .route("/api/add", post(add))
         .route("/api/undo", post(undo))
         .route("/api/redo", post(redo))
         .route("/api/save", post(save))
@@ -399,7 +400,7 @@ struct Place {
 
 async fn place(State(shared): State<Arc<Shared>>, request: Request) -> Result<Response, Refused> {
     let p: Place = body(request).await?;
-    let object = index(&shared.objects, &p.object, "object")?;
+    let object = index(&object_names(&shared), &p.object, "object")?;
     let stamp = stamp(p.version, p.client)?;
     Ok(edit(
         &shared,
@@ -429,7 +430,7 @@ struct ObjectChange {
 
 async fn object(State(shared): State<Arc<Shared>>, request: Request) -> Result<Response, Refused> {
     let c: ObjectChange = body(request).await?;
-    let object = index(&shared.objects, &c.object, "object")?;
+    let object = index(&object_names(&shared), &c.object, "object")?;
     let edit_of = match (c.yaw_deg, c.scale, c.enabled, c.nudge) {
         (Some(yaw_deg), None, None, None) => Edit::Turn { object, yaw_deg },
         (None, Some(scale), None, None) => Edit::Scale { object, scale },
@@ -485,6 +486,45 @@ async fn light(State(shared): State<Arc<Shared>>, request: Request) -> Result<Re
         }
     };
     Ok(edit(&shared, edit_of, false, stamp).await)
+}
+
+/// The objects' names now (objects added from `--assets` included).
+fn object_names(shared: &Shared) -> Vec<String> {
+    (shared.objects.read().unwrap_or_else(|e| e.into_inner())).clone()
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Add {
+    /// A file name `--assets` listed (never a path).
+    asset: String,
+    x: f64,
+    y: f64,
+    version: Option<u64>,
+    client: Option<String>,
+}
+
+async fn add(State(shared): State<Arc<Shared>>, request: Request) -> Result<Response, Refused> {
+    let a: Add = body(request).await?;
+    let names: Vec<String> = shared.assets.iter().map(|(n, _)| n.clone()).collect();
+    if names.is_empty() {
+        return Err(refused(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "asset",
+            "the server offers no assets (start it with --assets DIR)",
+        ));
+    }
+    let file = shared.assets[index(&names, &a.asset, "asset")?].1.clone();
+    let stamp = stamp(a.version, a.client)?;
+    let received = std::time::Instant::now();
+    Ok(ask(&shared, |reply| Job::Add {
+        file,
+        at: (a.x, a.y),
+        stamp,
+        received,
+        reply,
+    })
+    .await)
 }
 
 #[derive(Deserialize)]

@@ -43,6 +43,11 @@ pub struct Args {
     /// edit's first image takes none.
     #[command(flatten)]
     pub flags: crate::flags::RenderFlags,
+    /// A folder of meshes (.glb, .gltf, .obj, .ply; not its sub-folders)
+    /// the page offers to add to the scene: picked by file name, placed
+    /// by a click; a saved variant's file carries them.
+    #[arg(long, value_name = "DIR")]
+    pub assets: Option<PathBuf>,
     /// A name or address other machines reach this one by (repeatable):
     /// requests naming it in their Host header are served. Needed with
     /// `--bind 0.0.0.0` (or `::`), which names no address of its own.
@@ -67,8 +72,11 @@ pub(crate) struct Shared {
     /// Fixed at start: the photo as shot and the room's surface per pixel.
     pub fixed: std::sync::OnceLock<(arlux::image_io::Image, arlux::surface_ids::SurfaceIds)>,
     pub can_render: bool,
-    /// The scene's virtual objects' and lights' names, by index.
-    pub objects: Vec<String>,
+    /// The meshes `--assets` offers, by file name.
+    pub assets: Vec<(String, PathBuf)>,
+    /// The scene's virtual objects' names by index (objects added from
+    /// `--assets` join them) and its lights'.
+    pub objects: RwLock<Vec<String>>,
     pub lights: Vec<String>,
 }
 
@@ -95,6 +103,11 @@ pub fn run(args: &Args) -> Result<()> {
     options.resolve()?;
     options.samples = 0;
     let method = options.resolve()?;
+    let assets = match &args.assets {
+        Some(dir) => arlux::interactive::list_assets(dir)
+            .with_context(|| format!("--assets {}: cannot list the folder", dir.display()))?,
+        None => Vec::new(),
+    };
     if let Some(out) = &args.out {
         std::fs::create_dir_all(out)
             .with_context(|| format!("--out {}: cannot create the folder", out.display()))?;
@@ -143,7 +156,8 @@ pub fn run(args: &Args) -> Result<()> {
         limiter: governor::RateLimiter::direct(api::quota()),
         fixed: std::sync::OnceLock::new(),
         can_render: args.out.is_some(),
-        objects: scene.objects.iter().map(|o| o.name.clone()).collect(),
+        objects: RwLock::new(scene.objects.iter().map(|o| o.name.clone()).collect()),
+        assets,
         lights: scene.lights.iter().map(|l| l.name.clone()).collect(),
     });
     let host = match args.bind {
@@ -280,7 +294,7 @@ pub(crate) fn refusal_json(r: &Refusal) -> Value {
 }
 
 /// The state as the page shows it.
-pub(crate) fn state_json(it: &Interactive, last: Option<&Value>) -> Value {
+pub(crate) fn state_json(it: &Interactive, last: Option<&Value>, assets: &[String]) -> Value {
     let scene = it.scene();
     let objects: Vec<Value> = (0..scene.objects.len())
         .map(|k| {
@@ -321,6 +335,7 @@ pub(crate) fn state_json(it: &Interactive, last: Option<&Value>) -> Value {
         "last": last,
         "refined": refined_json(it),
         "history": { "undo": it.history().0, "redo": it.history().1 },
+        "assets": assets,
     })
 }
 

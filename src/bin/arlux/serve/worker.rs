@@ -35,6 +35,15 @@ pub(crate) enum Job {
         received: Instant,
         reply: oneshot::Sender<Reply>,
     },
+    /// An object added from `--assets` (the file, as the server listed it)
+    /// and stood where the image point sees a floor.
+    Add {
+        file: PathBuf,
+        at: (f64, f64),
+        stamp: Stamp,
+        received: Instant,
+        reply: oneshot::Sender<Reply>,
+    },
     Save {
         name: Option<String>,
         stamp: Stamp,
@@ -205,20 +214,27 @@ fn serve_job(cx: &Context, it: &mut Interactive, history: &mut History, job: Job
                 true => it.apply_drag(edit, &mut StageTimes::default()),
                 false => it.apply(edit, &mut StageTimes::default()),
             };
-            let reply_body = match applied {
-                Ok(outcome) => {
-                    // An edit that changes nothing keeps the version.
-                    if it.version() > version {
-                        history.record(it.version(), stamp.client.clone());
-                    }
-                    let server_ms = received.elapsed().as_secs_f64() * 1e3;
-                    let last = json!({ "path": outcome.path, "update_ms": outcome.millis });
-                    let state = publish(cx, it, Some(&last));
-                    (200, super::outcome_json(&outcome, server_ms, &state))
-                }
-                Err(r) => (422, super::refusal_json(&r)),
-            };
-            let _ = reply.send(reply_body);
+            let _ = reply.send(answer(cx, it, history, (version, stamp, received), applied));
+        }
+        Job::Add {
+            file,
+            at,
+            stamp,
+            received,
+            reply,
+        } => {
+            if history.stale(&stamp, it.version()) {
+                let _ = reply.send(stale(cx, it, &stamp));
+                return;
+            }
+            let version = it.version();
+            let added = it.add_object(&file, at, &mut StageTimes::default());
+            let applied = added.map(|(outcome, name)| {
+                let mut names = cx.shared.objects.write().unwrap_or_else(|e| e.into_inner());
+                names.push(name);
+                outcome
+            });
+            let _ = reply.send(answer(cx, it, history, (version, stamp, received), applied));
         }
         Job::Save { name, stamp, reply } => {
             if history.stale(&stamp, it.version()) {
@@ -291,9 +307,33 @@ fn render(cx: &Context, it: &Interactive) -> Reply {
     }
 }
 
+/// An edit's reply: the outcome and the state it published, or the refusal.
+fn answer(
+    cx: &Context,
+    it: &Interactive,
+    history: &mut History,
+    (version, stamp, received): (u64, Stamp, Instant),
+    applied: Result<arlux::interactive::Outcome, Refusal>,
+) -> Reply {
+    match applied {
+        Ok(outcome) => {
+            // An edit that changes nothing keeps the version.
+            if it.version() > version {
+                history.record(it.version(), stamp.client.clone());
+            }
+            let server_ms = received.elapsed().as_secs_f64() * 1e3;
+            let last = json!({ "path": outcome.path, "update_ms": outcome.millis });
+            let state = publish(cx, it, Some(&last));
+            (200, super::outcome_json(&outcome, server_ms, &state))
+        }
+        Err(r) => (422, super::refusal_json(&r)),
+    }
+}
+
 /// Makes the current state the one the handlers read; returns its JSON.
 fn publish(cx: &Context, it: &Interactive, last: Option<&Value>) -> Value {
-    let mut state = super::state_json(it, last);
+    let assets: Vec<String> = cx.shared.assets.iter().map(|(n, _)| n.clone()).collect();
+    let mut state = super::state_json(it, last, &assets);
     state["refined"]["target"] = json!(cx.refine_to);
     let published = Published {
         frame: it.frame(),

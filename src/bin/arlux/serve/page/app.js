@@ -11,7 +11,7 @@ let shown = -1;
 // This tab's id: an edit names it with the state version it was made on,
 // and the server refuses one made on a state another tab has changed.
 const client = Array.from(crypto.getRandomValues(new Uint8Array(8)), (b) => b.toString(16).padStart(2, "0")).join("");
-const stamped = ["/api/place", "/api/object", "/api/light", "/api/save", "/api/undo", "/api/redo"];
+const stamped = ["/api/place", "/api/object", "/api/light", "/api/add", "/api/save", "/api/undo", "/api/redo"];
 
 async function api(path, body) {
   const init = { headers: { "x-arlux-token": token } };
@@ -149,6 +149,7 @@ function drawLights() {
 }
 
 function fillControls() {
+  if ($("object").options.length !== state.objects.length) buildObjects();
   drawOutline();
   drawLights();
   const h = state.history || { undo: 0, redo: 0 };
@@ -169,13 +170,27 @@ function fillControls() {
   }
 }
 
-function buildControls() {
-  $("scene").textContent = state.scene;
+// The object menu, kept in step with the state's objects (an added one
+// joins it and is selected).
+function buildObjects() {
   const sel = $("object");
+  const had = sel.options.length;
+  const keep = sel.value;
   sel.replaceChildren(...state.objects.map((o) => new Option(o.name, o.name)));
-  // No objects: nothing to place, turn, scale or show.
+  if (had > 0 && state.objects.length > had) sel.selectedIndex = state.objects.length - 1;
+  else if (keep) sel.value = keep;
   const none = state.objects.length === 0;
   for (const id of ["object", "enabled", "yaw", "scale"]) $(id).disabled = none;
+}
+
+function buildControls() {
+  $("scene").textContent = state.scene;
+  buildObjects();
+  const assets = state.assets || [];
+  $("adding").hidden = assets.length === 0;
+  $("asset").replaceChildren(...assets.map((a) => new Option(a, a)));
+  // No objects: nothing to place, turn, scale or show.
+  const none = state.objects.length === 0;
   if (none) say("this scene has no [[virtual]] objects: only its lights can be changed");
   const lights = $("lights");
   lights.replaceChildren();
@@ -313,7 +328,20 @@ function pixelOf(ev) {
 let dragging = false;
 // A virtual light waiting for its place (its "place" button was pressed).
 let placingLight = null;
+// An asset waiting for its place (the "add" button was pressed).
+let adding = null;
+$("add").addEventListener("click", () => {
+  adding = $("asset").value;
+  say(`click the photo where ${adding} should stand`);
+});
 $("view").addEventListener("pointerdown", (ev) => {
+  if (state && adding) {
+    const p = pixelOf(ev);
+    const asset = adding;
+    adding = null;
+    submit(`add#${steps++}`, "/api/add", { asset, x: p.x, y: p.y });
+    return;
+  }
   if (state && placingLight) {
     const p = pixelOf(ev);
     const { name, height } = placingLight;
