@@ -322,49 +322,48 @@ fn requests_without_the_token_cannot_use_up_the_users_rate() {
     let desk = Desk::new();
     let server = std::sync::Arc::new(Server::start(&desk.scene(), &[]));
     server.wait_ready();
-    // Four threads sending requests without the token, as fast as they go.
-    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let floods: Vec<_> = (0..4)
+    // Eight threads sending requests without the token, as fast as they
+    // go, until 10,000 have been sent; the user edits meanwhile.
+    let sent = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let floods: Vec<_> = (0..8)
         .map(|_| {
-            let (s, stop) = (std::sync::Arc::clone(&server), std::sync::Arc::clone(&stop));
+            let (s, sent) = (std::sync::Arc::clone(&server), std::sync::Arc::clone(&sent));
             std::thread::spawn(move || {
-                let mut sent = 0usize;
                 let request = format!(
                     "POST /api/object HTTP/1.1\r\nHost: 127.0.0.1:{}\r\nContent-Type: application/json\r\nContent-Length: 30\r\n\r\n{{\"object\":\"box\",\"yaw_deg\":10}}",
                     s.port
                 );
-                while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                while sent.load(std::sync::atomic::Ordering::Relaxed) < 10_000 {
                     let line = raw(&s, request.as_bytes());
                     assert!(line.as_deref().is_some_and(|l| l.contains(" 401 ")), "{line:?}");
-                    sent += 1;
+                    sent.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 }
-                sent
             })
         })
         .collect();
     std::thread::sleep(Duration::from_millis(300));
-    let mut refused = 0;
-    for k in 0..40 {
+    let (mut edits, mut refused) = (0, 0);
+    while edits < 40 || sent.load(std::sync::atomic::Ordering::Relaxed) < 10_000 {
         let r = server.post(
             "/api/object",
-            &json!({ "object": "box", "yaw_deg": k as f64 }),
+            &json!({ "object": "box", "yaw_deg": (edits % 90) as f64 }),
         );
         if r.status == 429 {
             refused += 1;
         } else {
             assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
         }
+        edits += 1;
     }
-    stop.store(true, std::sync::atomic::Ordering::Relaxed);
-    let sent: usize = floods.into_iter().map(|t| t.join().unwrap()).sum();
-    println!("{sent} requests without the token meanwhile");
-    assert!(
-        sent > 400,
-        "the flood sent only {sent}: more than a second's quota is needed"
-    );
+    for t in floods {
+        t.join().unwrap();
+    }
+    let sent = sent.load(std::sync::atomic::Ordering::Relaxed);
+    println!("{sent} requests without the token during {edits} edits");
+    assert!(sent >= 10_000, "the flood sent only {sent}");
     assert_eq!(
         refused, 0,
-        "{refused} of 40 edits were refused for the rate"
+        "{refused} of {edits} edits were refused for the rate"
     );
     // A declared body beyond the limit, one byte of it sent and the
     // connection left open: refused at once, not awaited.
