@@ -32,6 +32,7 @@ mod near;
 mod near_pixel;
 mod relink;
 mod solve;
+mod still;
 mod transport;
 
 pub use change::{ObjectView, cosine_direction, solve_change};
@@ -42,6 +43,7 @@ pub use near::{NearField, NearView};
 pub use near_pixel::ChangeSampler;
 pub(crate) use solve::solve_from;
 pub use solve::{Solution, solve, solve_by_iteration};
+pub use still::StillSurfaces;
 pub use transport::{DEFAULT_LINK_EPSILON, Link, PairFacts, RoomLinkFacts, Transport};
 
 #[cfg(test)]

@@ -357,6 +357,10 @@ pub struct UpdateStats {
     pub pixels_retraced: u64,
     pub shaft_tests: u64,
     pub rays: u64,
+    /// Bundles of rays towards objects that stood still kept from the last
+    /// pose rather than traced again (what the room's patches and the
+    /// points near the objects see of them).
+    pub bundles_kept: u64,
     /// Blocks skipped by one shaft test, per light: (level, x, y).
     pub skipped_blocks: Vec<Vec<(u8, u32, u32)>>,
 }
@@ -643,6 +647,17 @@ impl Session {
             },
         );
         moved.map_err(|e| crate::error::Error::file(&scene.file, e.to_string()))?;
+        // What the last pose's rays towards the objects that stood still may give.
+        let unmoved = room::unmoved_surfaces(&self.prepared.scene, scene);
+        let last_rays = std::mem::take(&mut self.pose.changes.rays);
+        let still = match (&self.pose.changes.own, &objects) {
+            (Some(old), Some(new)) => Some(crate::radiosity::StillSurfaces::between(
+                (&self.pose.bounds, old),
+                (&bounds, new),
+                &unmoved,
+            )),
+            _ => None,
+        };
         // Only the objects move (checked above): the room's surfaces, and the
         // lights as rendered (a reconstructed one stays recovered), are kept.
         self.prepared.scene.objects.clone_from(&scene.objects);
@@ -667,20 +682,32 @@ impl Session {
         let objects_ref = objects.as_ref();
         let mut rays = PoseRays::default();
         let view = &mut rays.view;
+        let still = still.as_ref();
         let (solved, ((touched, pixel_rays, retraced), near)) = times.concurrently(
             "radiosity | pixels",
-            |times| solve_changes(&input, objects_ref, directions, view, times),
+            |times| {
+                if let (Some(o), Some(last), Some(still)) = (objects_ref, &last_rays.view, still) {
+                    *view = Some(times.time("objects seen from the room", || {
+                        changes::view_keeping(&input, o, (last, still))
+                    }));
+                }
+                solve_changes(&input, objects_ref, directions, view, times)
+            },
             |times| {
                 let out = pixels.run(&input, objects_ref, times);
+                let last = last_rays.near.as_ref().zip(still);
                 let near = objects_ref.map(|o| {
                     times.time("rays near the objects", || {
-                        changes::near_rays(&input, o, &seen)
+                        changes::near_rays(&input, o, &seen, last)
                     })
                 });
                 (out, near)
             },
         );
         rays.near = near;
+        stats.bundles_kept = (rays.view.iter().map(|v| v.kept))
+            .chain(rays.near.iter().map(|v| v.kept))
+            .sum();
         self.pose.changes = solved.with_patches(objects, rays);
         stats.rays += pixel_rays;
         stats.pixels_retraced = retraced;

@@ -139,3 +139,40 @@ fn an_image_only_session_updates_the_image_a_full_render_gives_and_drops_the_oth
             && session.composite.change.pixels.is_empty()
     );
 }
+
+/// The box slides past a second box that stands still: the rays towards
+/// the still one that nothing moved across are kept from the pose before,
+/// and every update still equals a full render of its pose, bit for bit.
+#[test]
+fn an_object_standing_still_keeps_its_rays_and_updates_equal_full_renders() {
+    let desk = common::Desk::new();
+    desk.edit(
+        "scene.toml",
+        "[[variant]]",
+        "[[virtual]]\nname = \"crate\"\nmesh = \"geometry/box.obj\"\nrgb = [0.3, 0.5, 0.8]\ntranslate = [-0.2, 0.0, 0.75]\nrotate_y_deg = 10.0\n\n[[variant]]",
+    );
+    let base = arlux::scene::Scene::load(desk.scene()).unwrap();
+    let settings = RenderSettings::default();
+    let first = base.with_motion_pose("box_slide", 0).unwrap();
+    assert!(first.objects.iter().all(|o| o.enabled), "both boxes shown");
+    let photo = first.load_photo().unwrap();
+    let mut session =
+        Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+    let poses = base.motion("box_slide").unwrap().translations.len();
+    for pose in 1..poses {
+        let scene = base.with_motion_pose("box_slide", pose).unwrap();
+        let stats = session.update(&scene, &mut StageTimes::default()).unwrap();
+        let full = render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap();
+        let d = differing(&session.composite.image, &full.composite.image);
+        let indirect = differing(&session.composite.indirect, &full.composite.indirect);
+        println!(
+            "pose {pose}: {} bundles kept; {d} pixels differ",
+            stats.bundles_kept
+        );
+        assert!(
+            stats.bundles_kept > 0,
+            "pose {pose}: nothing kept of the still box's rays"
+        );
+        assert_eq!((d, indirect), (0, 0), "pose {pose}: the image must match");
+    }
+}

@@ -11,6 +11,7 @@
 //! only, so a pose traces them once and the change is a sum over them for
 //! any radiosity; a patch that cannot see an object traces nothing.
 
+use super::still::StillSurfaces;
 use super::transport::*;
 use super::*;
 use crate::light::offset_origin;
@@ -36,7 +37,10 @@ const CONE_MAX: f64 = 1.2566;
 pub(super) struct Seen {
     /// Solid angle × cosine at the receiver, over the rays in its cone: the
     /// irradiance this ray stands for per unit radiance.
-    pub(super) weight: f64,
+    pub(super) weight: f32,
+    /// The ray's number in its bundle (what an update that keeps the
+    /// bundle's other rays re-traces it by).
+    pub(super) ray: u32,
     /// The object patch the ray met.
     pub(super) object: u32,
     /// The room patch behind it (`u32::MAX`: the ray leaves the room).
@@ -49,8 +53,15 @@ pub struct ObjectView {
     /// Per room patch that sees an object: (patch, range in `seen`).
     ranges: Vec<(u32, u32, u32)>,
     seen: Vec<Seen>,
+    /// Per room patch and target surface traced: (surface, range in
+    /// `seen`), patch `k`'s from `bundle_start[k]` (what an update keeps,
+    /// see [`StillSurfaces`]).
+    bundles: Vec<(u32, u32, u32)>,
+    bundle_start: Vec<u32>,
     /// Rays traced.
     pub rays: u64,
+    /// Bundles kept from the last pose rather than traced.
+    pub kept: u64,
 }
 
 /// A sphere around one virtual surface and the surface's id.
@@ -90,32 +101,84 @@ impl ObjectView {
         tracer: &Tracer,
         objects: &VirtualBounds,
     ) -> ObjectView {
+        ObjectView::trace_keeping(patches, room_count, tracer, objects, None)
+    }
+
+    /// [`ObjectView::trace`], keeping from `last` (the view of the pose
+    /// before) the bundles `still` says a fresh trace would give again.
+    pub fn trace_keeping(
+        patches: &Patches,
+        room_count: usize,
+        tracer: &Tracer,
+        objects: &VirtualBounds,
+        last: Option<(&ObjectView, &StillSurfaces)>,
+    ) -> ObjectView {
         let targets = targets(objects);
         if targets.is_empty() {
             return ObjectView::default();
         }
-        let per_patch: Vec<(Vec<Seen>, u64)> = (0..room_count)
+        // Per patch: its rays' hits, rays traced, bundles, bundles kept.
+        type PatchView = (Vec<Seen>, u64, Vec<(u32, u32, u32)>, u64);
+        let per_patch: Vec<PatchView> = (0..room_count)
             .into_par_iter()
             .map(|k| {
-                let mut seen = Vec::new();
-                let mut rays = 0;
+                let (mut seen, mut rays, mut bundles, mut kept_here) =
+                    (Vec::new(), 0, Vec::new(), 0);
+                let el = patches.patch(k);
+                let h = (el.shape.corners().iter())
+                    .map(|c| (*c - el.centre).length())
+                    .fold(0.0, f64::max);
                 for t in &targets {
-                    rays += view_of(patches, k, t, tracer, &mut seen);
+                    let a = seen.len() as u32;
+                    // The bundle the pose before traced towards a surface that stood still.
+                    let old = last.and_then(|(view, still)| {
+                        let range = still.is_still(t.surface).then(|| view.bundle(k, t.surface));
+                        Some((&view.seen[range.flatten()?], still))
+                    });
+                    match old {
+                        Some((old, still)) if still.keeps(el.centre, h, t) => {
+                            seen.extend(old.iter().map(|s| still.renumbered(t.surface, *s)));
+                            kept_here += 1;
+                        }
+                        _ => {
+                            if let Some(bundle) = view_rays(patches, k, t) {
+                                rays += trace_bundle(patches, &bundle, t, tracer, old, &mut seen);
+                                kept_here += old.is_some() as u64;
+                            }
+                        }
+                    }
+                    bundles.push((t.surface, a, seen.len() as u32));
                 }
-                (seen, rays)
+                (seen, rays, bundles, kept_here)
             })
             .collect();
-        let mut view = ObjectView::default();
-        for (k, (seen, rays)) in per_patch.into_iter().enumerate() {
+        let mut view = ObjectView {
+            bundle_start: Vec::with_capacity(room_count + 1),
+            ..ObjectView::default()
+        };
+        for (k, (seen, rays, bundles, kept)) in per_patch.into_iter().enumerate() {
             view.rays += rays;
+            view.kept += kept;
+            let a = view.seen.len() as u32;
+            view.bundle_start.push(view.bundles.len() as u32);
+            view.bundles
+                .extend(bundles.into_iter().map(|(s, x, y)| (s, x + a, y + a)));
             if seen.is_empty() {
                 continue;
             }
-            let a = view.seen.len() as u32;
             view.seen.extend(seen);
             view.ranges.push((k as u32, a, view.seen.len() as u32));
         }
+        view.bundle_start.push(view.bundles.len() as u32);
         view
+    }
+
+    /// Patch `k`'s bundle towards `surface`, as a range in `seen`.
+    fn bundle(&self, k: usize, surface: u32) -> Option<std::ops::Range<usize>> {
+        let (a, b) = (*self.bundle_start.get(k)?, *self.bundle_start.get(k + 1)?);
+        (self.bundles[a as usize..b as usize].iter())
+            .find(|(s, _, _)| *s == surface)
+            .map(|&(_, x, y)| x as usize..y as usize)
     }
 
     /// Room patches that see an object.
@@ -124,7 +187,8 @@ impl ObjectView {
     }
 
     pub fn memory_bytes(&self) -> usize {
-        self.ranges.len() * std::mem::size_of::<(u32, u32, u32)>()
+        (self.ranges.len() + self.bundles.len()) * std::mem::size_of::<(u32, u32, u32)>()
+            + self.bundle_start.len() * 4
             + self.seen.len() * std::mem::size_of::<Seen>()
     }
 
@@ -144,7 +208,7 @@ impl ObjectView {
                 .iter()
                 .map(|s| {
                     let behind = room.get(s.behind as usize).copied().unwrap_or(DVec3::ZERO);
-                    (radiosity[s.object as usize] - behind) * s.weight
+                    (radiosity[s.object as usize] - behind) * f64::from(s.weight)
                 })
                 .sum();
             out[k as usize] = sum / std::f64::consts::PI;
@@ -158,7 +222,7 @@ impl ObjectView {
     fn hide_from(&self, x: &[f64], out: &mut [f64]) {
         for &(k, a, b) in &self.ranges {
             let hidden: f64 = (self.seen[a as usize..b as usize].iter())
-                .filter_map(|s| Some(s.weight * x.get(s.behind as usize)?))
+                .filter_map(|s| Some(f64::from(s.weight) * x.get(s.behind as usize)?))
                 .sum();
             out[k as usize] -= hidden / std::f64::consts::PI;
         }
@@ -289,13 +353,11 @@ pub(super) fn rays_for(cone: Option<f64>, max: u32) -> u32 {
         .next_power_of_two()
 }
 
-/// Traces patch `k`'s rays towards target `t`, keeping in `seen` those
-/// that meet it first; returns the rays traced.
-fn view_of(patches: &Patches, k: usize, t: &Target, tracer: &Tracer, seen: &mut Vec<Seen>) -> u64 {
+/// Patch `k`'s bundle of rays towards target `t` and the side they leave
+/// from; None when `t` is behind it.
+fn view_rays(patches: &Patches, k: usize, t: &Target) -> Option<Bundle> {
     let el = patches.patch(k);
-    let Some(n) = receiving_side(el, t) else {
-        return 0;
-    };
+    let n = receiving_side(el, t)?;
     // One cone from the patch's centre for all its rays (a patch that close
     // gathers over its hemisphere instead): one axis keeps the
     // stratification of their directions.
@@ -305,29 +367,83 @@ fn view_of(patches: &Patches, k: usize, t: &Target, tracer: &Tracer, seen: &mut 
     let cone = cone_towards(el.centre, h, t);
     let count = rays_for(cone.1, MAX_RAYS);
     let seed = crate::util::rng::hash2(k as u64, t.surface as u64) as u32;
-    let rays: Vec<(DVec3, DVec3, f64)> = (0..count)
+    let rays = (0..count)
         .map(|i| {
             let [s, v, u1, u2] = sobol_burley::sample_4d(i, 0, seed).map(f64::from);
             let (d, w) = towards(n, cone, count, u1, u2);
             (point_on(el, s, v), d, w)
         })
         .collect();
-    trace_seen(patches, &rays, n, t, tracer, seen)
+    Some(Bundle { n, rays })
 }
 
-/// Traces `rays` (origin, direction, weight) from a receiver facing `n`,
+/// A receiver's rays towards one target: (origin, direction, weight) each,
+/// leaving from the side `n` faces.
+pub(super) struct Bundle {
+    pub(super) n: DVec3,
+    pub(super) rays: Vec<(DVec3, DVec3, f64)>,
+}
+
+/// Traces `bundle` towards target `t`, keeping in `seen` the rays that meet
+/// it first; returns the rays traced. With `last` (the bundle's hits the
+/// pose before, and what moved since), only the rays a surface that moved
+/// may have crossed are traced again and the others' hits kept: `seen`
+/// gets what a fresh trace gives.
+pub(super) fn trace_bundle(
+    patches: &Patches,
+    bundle: &Bundle,
+    t: &Target,
+    tracer: &Tracer,
+    last: Option<(&[Seen], &StillSurfaces)>,
+    seen: &mut Vec<Seen>,
+) -> u64 {
+    let indexed = |i: usize| {
+        let (x, d, w) = bundle.rays[i];
+        (i as u32, x, d, w)
+    };
+    let Some((old, still)) = last else {
+        let all: Vec<_> = (0..bundle.rays.len()).map(indexed).collect();
+        return trace_seen(patches, &all, bundle.n, t, tracer, seen);
+    };
+    let crossed: Vec<_> = (0..bundle.rays.len())
+        .filter(|&i| still.crosses(bundle.rays[i].0, bundle.rays[i].1, t))
+        .map(indexed)
+        .collect();
+    let mut fresh = Vec::new();
+    let traced = trace_seen(patches, &crossed, bundle.n, t, tracer, &mut fresh);
+    // Both in ray order: the kept hits of the rays not traced, and the new ones.
+    let retraced = |s: &Seen| crossed.binary_search_by_key(&s.ray, |r| r.0).is_ok();
+    let mut kept = old.iter().filter(|s| !retraced(s)).peekable();
+    let mut fresh = fresh.into_iter().peekable();
+    loop {
+        let take_kept = match (kept.peek(), fresh.peek()) {
+            (Some(a), Some(b)) => a.ray < b.ray,
+            (Some(_), None) => true,
+            (None, Some(_)) => false,
+            (None, None) => break,
+        };
+        let next = match take_kept {
+            true => kept.next().map(|s| still.renumbered(t.surface, *s)),
+            false => fresh.next(),
+        };
+        seen.extend(next);
+    }
+    traced
+}
+
+/// Traces `rays` (number, origin, direction, weight) from a receiver facing `n`,
 /// keeping in `seen` those that meet target `t` first, with the room patch
 /// each hides; returns the rays traced.
-pub(super) fn trace_seen(
+fn trace_seen(
     patches: &Patches,
-    rays: &[(DVec3, DVec3, f64)],
+    rays: &[(u32, DVec3, DVec3, f64)],
     n: DVec3,
     t: &Target,
     tracer: &Tracer,
     seen: &mut Vec<Seen>,
 ) -> u64 {
     let traced: Vec<TraceRay> = (rays.iter())
-        .map(|(x, d, _)| TraceRay::new(offset_origin(*x, n, *x + n).as_vec3(), d.as_vec3()))
+        .map(|(_, x, d, _)| TraceRay::new(offset_origin(*x, n, *x + n).as_vec3(), d.as_vec3()))
         .collect();
     let mut hits = vec![None; traced.len()];
     tracer.intersect_batch(&traced, Layer::All, &mut hits);
@@ -336,7 +452,7 @@ pub(super) fn trace_seen(
             hits[i]
                 .as_ref()
                 .is_some_and(|h| h.is_virtual && h.surface == t.surface)
-                && rays[i].1.dot(n) > 0.0
+                && rays[i].2.dot(n) > 0.0
         })
         .collect();
     let mut count = traced.len() as u64;
@@ -349,7 +465,7 @@ pub(super) fn trace_seen(
     count += behind_rays.len() as u64;
     for (&i, b) in met.iter().zip(&behind) {
         let h = hits[i].as_ref().expect("a ray that met the object");
-        let (o, d) = (traced[i].origin.as_dvec3(), rays[i].1);
+        let (o, d) = (traced[i].origin.as_dvec3(), rays[i].2);
         let Some(object) = patches.locate(h.surface, h.triangle, o + d * h.t as f64) else {
             continue;
         };
@@ -358,7 +474,8 @@ pub(super) fn trace_seen(
             .and_then(|b| patches.locate(b.surface, b.triangle, o + d * b.t as f64))
             .map_or(u32::MAX, |l| l.patch);
         seen.push(Seen {
-            weight: rays[i].2,
+            weight: rays[i].3 as f32,
+            ray: rays[i].0,
             object: object.patch,
             behind,
         });

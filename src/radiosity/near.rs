@@ -13,8 +13,11 @@
 //! tapered to nothing at twice an object's radius from it, where the
 //! patch means take over unchanged.
 
+use super::change::{
+    Bundle, cone_towards, rays_for, receiving_side, targets, towards, trace_bundle,
+};
 use super::change::{Seen, Target};
-use super::change::{cone_towards, rays_for, receiving_side, targets, towards, trace_seen};
+use super::still::StillSurfaces;
 use crate::objects::VirtualBounds;
 use crate::patches::Patches;
 use crate::patches::Shape;
@@ -39,6 +42,21 @@ struct Grid {
     cells: u32,
     /// Per point: its taper in \[0, 1\] and its range in `seen`.
     points: Vec<(f64, u32, u32)>,
+    /// Per point traced, per target: (surface, range in `seen`); point
+    /// `i`'s from `bundle_start[i]` (what an update keeps, see
+    /// [`StillSurfaces`]).
+    bundles: Vec<(u32, u32, u32)>,
+    bundle_start: Vec<u32>,
+}
+
+impl Grid {
+    /// Point `i`'s bundle towards `surface`, as a range in the view's `seen`.
+    fn bundle(&self, i: usize, surface: u32) -> Option<std::ops::Range<usize>> {
+        let (a, b) = (*self.bundle_start.get(i)?, *self.bundle_start.get(i + 1)?);
+        (self.bundles[a as usize..b as usize].iter())
+            .find(|(s, _, _)| *s == surface)
+            .map(|&(_, x, y)| x as usize..y as usize)
+    }
 }
 
 /// What the grid points of the room's patches near the objects see of them.
@@ -48,6 +66,8 @@ pub struct NearView {
     seen: Vec<Seen>,
     /// Rays traced.
     pub rays: u64,
+    /// Bundles kept from the last pose rather than traced.
+    pub kept: u64,
 }
 
 /// The change at the grid points, less the patch means' interpolation.
@@ -70,21 +90,50 @@ impl NearView {
         objects: &VirtualBounds,
         cell: f64,
     ) -> NearView {
+        NearView::trace_keeping(patches, wanted, tracer, (objects, cell), None)
+    }
+
+    /// [`NearView::trace`] (`objects` and `cell` as there), keeping from
+    /// `last` (the view of the pose before) the bundles `still` says a
+    /// fresh trace would give again.
+    pub fn trace_keeping(
+        patches: &Patches,
+        wanted: &[bool],
+        tracer: &Tracer,
+        (objects, cell): (&VirtualBounds, f64),
+        last: Option<(&NearView, &StillSurfaces)>,
+    ) -> NearView {
         let targets = targets(objects);
-        let grids: Vec<(Grid, Vec<Seen>, u64)> = (0..wanted.len())
+        let mut last_grid = vec![u32::MAX; wanted.len()];
+        for (g, grid) in last.iter().flat_map(|(v, _)| v.grids.iter().enumerate()) {
+            if let Some(slot) = last_grid.get_mut(grid.patch as usize) {
+                *slot = g as u32;
+            }
+        }
+        let grids: Vec<(Grid, Vec<Seen>, (u64, u64))> = (0..wanted.len())
             .into_par_iter()
             .filter(|&k| wanted[k])
-            .filter_map(|k| grid_of(patches, k, &targets, tracer, cell))
+            .filter_map(|k| {
+                let kept = last.and_then(|(view, still)| {
+                    let grid = view.grids.get(last_grid[k] as usize)?;
+                    Some(Kept { view, grid, still })
+                });
+                grid_of(patches, k, &targets, tracer, cell, kept)
+            })
             .collect();
         let mut view = NearView::default();
-        for (mut grid, seen, rays) in grids {
+        for (mut grid, seen, (rays, kept)) in grids {
             let base = view.seen.len() as u32;
             for p in &mut grid.points {
                 (p.1, p.2) = (p.1 + base, p.2 + base);
             }
+            for b in &mut grid.bundles {
+                (b.1, b.2) = (b.1 + base, b.2 + base);
+            }
             view.seen.extend(seen);
             view.grids.push(grid);
             view.rays += rays;
+            view.kept += kept;
         }
         view
     }
@@ -92,7 +141,11 @@ impl NearView {
     pub fn memory_bytes(&self) -> usize {
         self.grids
             .iter()
-            .map(|g| g.points.len() * std::mem::size_of::<(f64, u32, u32)>())
+            .map(|g| {
+                g.points.len() * std::mem::size_of::<(f64, u32, u32)>()
+                    + g.bundles.len() * std::mem::size_of::<(u32, u32, u32)>()
+                    + g.bundle_start.len() * 4
+            })
             .sum::<usize>()
             + self.seen.len() * std::mem::size_of::<Seen>()
     }
@@ -128,7 +181,7 @@ impl NearView {
                             .map(|s| {
                                 let behind = room.get(s.behind as usize).copied();
                                 (radiosity[s.object as usize] - behind.unwrap_or(DVec3::ZERO))
-                                    * s.weight
+                                    * f64::from(s.weight)
                             })
                             .sum::<DVec3>()
                             / std::f64::consts::PI;
@@ -221,15 +274,25 @@ pub(super) fn taper(x: DVec3, targets: &[Target]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// The last pose's grid on a patch, what a new trace of it may keep.
+#[derive(Clone, Copy)]
+struct Kept<'a> {
+    view: &'a NearView,
+    grid: &'a Grid,
+    still: &'a StillSurfaces,
+}
+
 /// Patch `k`'s grid, its rays' hits and the rays traced; None where no
-/// target is near enough or the patch is no larger than a cell.
+/// target is near enough or the patch is no larger than a cell. Bundles
+/// `kept` says are unchanged are copied rather than traced.
 fn grid_of(
     patches: &Patches,
     k: usize,
     targets: &[Target],
     tracer: &Tracer,
     cell: f64,
-) -> Option<(Grid, Vec<Seen>, u64)> {
+    kept: Option<Kept>,
+) -> Option<(Grid, Vec<Seen>, (u64, u64))> {
     let el = patches.patch(k);
     let h = (el.shape.corners().iter())
         .map(|c| (*c - el.centre).length())
@@ -246,61 +309,73 @@ fn grid_of(
     if cells < 2 {
         return None;
     }
-    let mut seen = Vec::new();
-    let mut rays = 0;
+    // The last grid on this patch, when it has the same points.
+    let kept = kept.filter(|kept| kept.grid.cells == cells);
+    let (mut seen, mut bundles, mut bundle_start) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut rays, mut kept_here) = (0, 0);
     let points = (0..(cells + 1) * (cells + 1))
         .map(|i| {
             let x = shape_point(&el.shape, grid_params(i, cells, &el.shape));
             let w = taper(x, targets);
             let a = seen.len() as u32;
+            bundle_start.push(bundles.len() as u32);
             if w > 0.0 {
-                rays += point_view(patches, k, i, x, targets, tracer, &mut seen);
+                for t in targets {
+                    let b = seen.len() as u32;
+                    // The bundle the pose before traced towards a surface that stood still.
+                    let old = kept.and_then(|kept| {
+                        let range = (kept.still.is_still(t.surface))
+                            .then(|| kept.grid.bundle(i as usize, t.surface));
+                        Some((&kept.view.seen[range.flatten()?], kept.still))
+                    });
+                    match old {
+                        Some((old, still)) if still.keeps(x, 0.0, t) => {
+                            seen.extend(old.iter().map(|s| still.renumbered(t.surface, *s)));
+                            kept_here += 1;
+                        }
+                        _ => {
+                            if let Some(bundle) = point_rays(patches, (k, i), x, t) {
+                                rays += trace_bundle(patches, &bundle, t, tracer, old, &mut seen);
+                                kept_here += old.is_some() as u64;
+                            }
+                        }
+                    }
+                    bundles.push((t.surface, b, seen.len() as u32));
+                }
             }
             (w, a, seen.len() as u32)
         })
         .collect();
+    bundle_start.push(bundles.len() as u32);
     Some((
         Grid {
             patch: k as u32,
             cells,
             points,
+            bundles,
+            bundle_start,
         },
         seen,
-        rays,
+        (rays, kept_here),
     ))
 }
 
-/// Traces from point `x` (grid point `i` of room patch `k`) towards each
-/// target in front of the patch, keeping in `seen` the rays that meet it.
-fn point_view(
-    patches: &Patches,
-    k: usize,
-    i: u32,
-    x: DVec3,
-    targets: &[Target],
-    tracer: &Tracer,
-    seen: &mut Vec<Seen>,
-) -> u64 {
-    let el = patches.patch(k);
-    let mut traced = 0;
-    for t in targets {
-        let Some(n) = receiving_side(el, t) else {
-            continue;
-        };
-        let cone = cone_towards(x, 0.0, t);
-        let count = rays_for(cone.1, MAX_POINT_RAYS);
-        let seed = crate::util::rng::hash2(
-            crate::util::rng::hash2(k as u64, i as u64),
-            t.surface as u64,
-        ) as u32;
-        let rays: Vec<(DVec3, DVec3, f64)> = (0..count)
-            .map(|r| {
-                let [u1, u2, _, _] = sobol_burley::sample_4d(r, 0, seed).map(f64::from);
-                let (d, w) = towards(n, cone, count, u1, u2);
-                (x, d, w)
-            })
-            .collect();
-        traced += trace_seen(patches, &rays, n, t, tracer, seen);
-    }
-    traced
+/// The bundle of rays from point `x` (grid point `i` of room patch `k`)
+/// towards target `t`; None when `t` is behind the patch.
+fn point_rays(patches: &Patches, (k, i): (usize, u32), x: DVec3, t: &Target) -> Option<Bundle> {
+    let n = receiving_side(patches.patch(k), t)?;
+    let cone = cone_towards(x, 0.0, t);
+    let count = rays_for(cone.1, MAX_POINT_RAYS);
+    let seed = crate::util::rng::hash2(
+        crate::util::rng::hash2(k as u64, i as u64),
+        t.surface as u64,
+    ) as u32;
+    let rays = (0..count)
+        .map(|r| {
+            let [u1, u2, _, _] = sobol_burley::sample_4d(r, 0, seed).map(f64::from);
+            let (d, w) = towards(n, cone, count, u1, u2);
+            (x, d, w)
+        })
+        .collect();
+    Some(Bundle { n, rays })
 }

@@ -134,8 +134,8 @@ pub(super) fn near_field(
     pda: &crate::pda::PixelDataArray,
     kept: &mut Option<crate::radiosity::NearView>,
 ) -> crate::radiosity::NearField {
-    let view =
-        kept.get_or_insert_with(|| near_rays(input, objects, &seen_patches(input.model, pda)));
+    let view = kept
+        .get_or_insert_with(|| near_rays(input, objects, &seen_patches(input.model, pda), None));
     view.field(
         objects,
         &source.radiosity,
@@ -161,9 +161,35 @@ pub(super) fn near_rays(
     input: &ChangeInput,
     objects: &Patches,
     shown: &[bool],
+    last: Option<(
+        &crate::radiosity::NearView,
+        &crate::radiosity::StillSurfaces,
+    )>,
 ) -> crate::radiosity::NearView {
     let cell = input.settings.virtual_patch_size;
-    crate::radiosity::NearView::trace(objects, shown, input.tracer, input.bounds, cell)
+    let bounds = (input.bounds, cell);
+    crate::radiosity::NearView::trace_keeping(objects, shown, input.tracer, bounds, last)
+}
+
+/// What the room's patches see of the objects, keeping the last pose's
+/// bundles towards the objects that stood still where nothing moved
+/// between (see [`crate::radiosity::StillSurfaces`]).
+pub(super) fn view_keeping(
+    input: &ChangeInput,
+    objects: &Patches,
+    last: (
+        &crate::radiosity::ObjectView,
+        &crate::radiosity::StillSurfaces,
+    ),
+) -> crate::radiosity::ObjectView {
+    let room_count = input.model.patches.patch_count();
+    crate::radiosity::ObjectView::trace_keeping(
+        objects,
+        room_count,
+        input.tracer,
+        input.bounds,
+        Some(last),
+    )
 }
 
 impl Solved {

@@ -89,3 +89,19 @@ pub(super) fn interreflection_scale(model: &Model) -> f64 {
     let mean = if area > 0.0 { sum / area } else { 0.0 };
     ((1.0 - mean) / 0.5).clamp(0.25, 1.0)
 }
+
+/// The virtual surface ids of the objects shown at the same pose in `old`
+/// and `new` (an update's objects that stood still).
+pub(super) fn unmoved_surfaces(old: &Scene, new: &Scene) -> Vec<u32> {
+    let mut id = new.surfaces.len() as u32;
+    let mut out = Vec::new();
+    for (a, b) in old.objects.iter().zip(&new.objects) {
+        let n = b.surfaces.len() as u32;
+        let same = a.name == b.name && a.surfaces.len() == b.surfaces.len();
+        if same && a.enabled && b.enabled && a.pose == b.pose {
+            out.extend(id..id + n);
+        }
+        id += n;
+    }
+    out
+}

@@ -1,0 +1,161 @@
+//! What an update keeps of the last pose's rays towards the objects: a
+//! receiver's bundle of rays towards a surface that did not move (its
+//! object neither moved nor was shown or hidden) meets that surface as
+//! before unless a surface that moved was, or is, in the way. Every ray
+//! of such a bundle that met the surface ran, from a point of the
+//! receiver's sphere to a point of the surface's, inside the capsule of the
+//! larger radius around the segment between their centres; a moved
+//! surface whose sphere (where it was, or where it is) clears that capsule
+//! cannot have changed any of them. The bundles kept are the ones a fresh
+//! trace would give (the same rays, seeded alike, meeting the same
+//! triangles), so an update's image stays a full render's, bit for bit.
+
+use glam::DVec3;
+
+use super::change::{Seen, Target, targets};
+use crate::objects::VirtualBounds;
+use crate::patches::Patches;
+
+/// Which surfaces' bundles an update may keep, and what moved.
+#[derive(Debug, Clone, Default)]
+pub struct StillSurfaces {
+    /// By surface id: None, or how far its patches' numbers moved (the
+    /// objects before it in the list may have more or fewer patches now).
+    shift: Vec<Option<i64>>,
+    /// The spheres of the surfaces that moved, where they were and where they are.
+    movers: Vec<(DVec3, f64)>,
+}
+
+/// Beyond a receiver's own reach, what a ray's origin may be lifted off it.
+const ORIGIN_SLACK: f64 = 1e-3;
+
+impl StillSurfaces {
+    /// Between the objects' bounds and patches of the last pose (`old`)
+    /// and this one's, with `unmoved` the surfaces whose objects stood
+    /// still (shown in both): a surface is still when its box is where it
+    /// was and its patches are the same elements as before, in one run.
+    pub fn between(
+        old: (&VirtualBounds, &Patches),
+        new: (&VirtualBounds, &Patches),
+        unmoved: &[u32],
+    ) -> StillSurfaces {
+        let (old_targets, new_targets) = (targets(old.0), targets(new.0));
+        let (old_runs, new_runs) = (patch_runs(old.1), patch_runs(new.1));
+        let find = |ts: &[Target], s: u32| ts.iter().find(|t| t.surface == s).copied();
+        let mut out = StillSurfaces::default();
+        for &s in unmoved {
+            let (Some(a), Some(b)) = (find(&old_targets, s), find(&new_targets, s)) else {
+                continue;
+            };
+            let (Some(&(p, n)), Some(&(q, m))) = (old_runs.get(&s), new_runs.get(&s)) else {
+                continue;
+            };
+            let same_patches = n == m
+                && (0..n).all(|i| {
+                    let (x, y) = (old.1.patch(p + i), new.1.patch(q + i));
+                    x.shape == y.shape && x.surface == y.surface
+                });
+            if a.lo != b.lo || a.hi != b.hi || !same_patches {
+                continue;
+            }
+            if out.shift.len() <= s as usize {
+                out.shift.resize(s as usize + 1, None);
+            }
+            out.shift[s as usize] = Some(q as i64 - p as i64);
+        }
+        for t in old_targets.iter().chain(&new_targets) {
+            if !out.is_still(t.surface) {
+                out.movers.push((t.centre, t.radius));
+            }
+        }
+        out
+    }
+
+    /// `seen`, a hit on still surface `surface` the pose before, as this pose numbers it.
+    pub(super) fn renumbered(&self, surface: u32, mut seen: Seen) -> Seen {
+        let shift = self.shift[surface as usize].expect("a still surface");
+        seen.object = (seen.object as i64 + shift) as u32;
+        seen
+    }
+
+    pub(super) fn is_still(&self, surface: u32) -> bool {
+        self.shift
+            .get(surface as usize)
+            .is_some_and(|s| s.is_some())
+    }
+
+    /// Whether the bundle from a receiver within `reach` of `from` towards
+    /// target `t` is as it was.
+    pub(super) fn keeps(&self, from: DVec3, reach: f64, t: &Target) -> bool {
+        if !self.is_still(t.surface) {
+            return false;
+        }
+        let radius = (reach + ORIGIN_SLACK).max(t.radius);
+        self.movers
+            .iter()
+            .all(|&(c, r)| distance_to_segment(c, from, t.centre) > r + radius)
+    }
+}
+
+impl StillSurfaces {
+    /// Whether a surface that moved comes, where it was or where it is,
+    /// near the ray from `origin` along `d` as far as target `t`'s far side.
+    pub(super) fn crosses(&self, origin: DVec3, d: DVec3, t: &Target) -> bool {
+        let length = d.length();
+        if length == 0.0 {
+            return false;
+        }
+        let reach = (t.centre - origin).length() + t.radius;
+        let end = origin + d * (reach / length);
+        (self.movers.iter()).any(|&(c, r)| distance_to_segment(c, origin, end) <= r + ORIGIN_SLACK)
+    }
+}
+
+/// Per virtual surface, its patches' first number and count, where they
+/// are one run (a surface meshed as any other is).
+fn patch_runs(patches: &Patches) -> std::collections::HashMap<u32, (usize, usize)> {
+    let mut runs: std::collections::HashMap<u32, (usize, usize)> = Default::default();
+    let mut broken = Vec::new();
+    for k in 0..patches.patch_count() {
+        let s = patches.patch(k).surface;
+        if !patches.is_virtual_surface(s) {
+            continue;
+        }
+        let run = runs.entry(s).or_insert((k, 0));
+        if run.0 + run.1 != k {
+            broken.push(s);
+        }
+        run.1 += 1;
+    }
+    for s in broken {
+        runs.remove(&s);
+    }
+    runs
+}
+
+/// The distance from `p` to the segment from `a` to `b`.
+fn distance_to_segment(p: DVec3, a: DVec3, b: DVec3) -> f64 {
+    let d = b - a;
+    let s = match d.length_squared() {
+        l if l > 0.0 => ((p - a).dot(d) / l).clamp(0.0, 1.0),
+        _ => 0.0,
+    };
+    (a + d * s - p).length()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_distance_to_a_segment_is_to_its_nearest_point() {
+        let (a, b) = (DVec3::ZERO, DVec3::new(2.0, 0.0, 0.0));
+        assert_eq!(distance_to_segment(DVec3::new(1.0, 3.0, 0.0), a, b), 3.0);
+        assert_eq!(distance_to_segment(DVec3::new(-3.0, 4.0, 0.0), a, b), 5.0);
+        assert_eq!(distance_to_segment(DVec3::new(5.0, 0.0, 4.0), a, b), 5.0);
+        assert_eq!(
+            distance_to_segment(DVec3::new(1.0, 1.0, 0.0), a, a),
+            2f64.sqrt()
+        );
+    }
+}
