@@ -8,7 +8,7 @@
 
 mod common;
 use common::Desk;
-use common::serve::{Reply, Server};
+use common::serve::{Reply, Server, crate_folder, light_in};
 
 use std::io::{Read as _, Write as _};
 use std::time::Duration;
@@ -495,13 +495,7 @@ fn an_edit_made_on_a_state_another_page_changed_is_refused_with_the_new_state() 
     let body = refused.json();
     assert_eq!(body["error"]["field"], "version");
     assert_eq!(body["state"]["version"].as_u64(), Some(v0 + 1));
-    let spot = |state: &Value| {
-        (state["lights"].as_array().unwrap().iter())
-            .find(|l| l["name"] == "spot")
-            .unwrap()["scale"]
-            .as_f64()
-            .unwrap()
-    };
+    let spot = |state: &Value| light_in(state, "spot")["scale"].as_f64().unwrap();
     assert_eq!(spot(&body["state"]), 1.5, "the refusal carries a's state");
     assert_eq!(
         spot(&server.get("/api/state").json()),
@@ -686,10 +680,7 @@ fn a_virtual_light_is_placed_through_the_api() {
     assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
     let state = r.json()["state"].clone();
     assert!(validator.is_valid(&r.json()), "{}", r.json());
-    let bulb = (state["lights"].as_array().unwrap().iter())
-        .find(|l| l["name"] == "bulb")
-        .unwrap()
-        .clone();
+    let bulb = light_in(&state, "bulb");
     assert_eq!(bulb["scale"], 1.0, "{bulb}");
     let p: Vec<f64> = (bulb["position"].as_array().unwrap().iter())
         .map(|v| v.as_f64().unwrap())
@@ -737,14 +728,8 @@ fn a_virtual_light_is_placed_through_the_api() {
 fn objects_are_added_from_the_asset_folder_by_name() {
     let validator = validator();
     let desk = Desk::new();
-    let assets = tempfile::tempdir().unwrap();
-    std::fs::copy(
-        desk.path("geometry/box.obj"),
-        assets.path().join("crate.obj"),
-    )
-    .unwrap();
+    let (assets, folder) = crate_folder(&desk.path("geometry/box.obj"));
     std::fs::write(assets.path().join("readme.md"), "not a mesh").unwrap();
-    let folder = assets.path().display().to_string();
     let server = Server::start(&desk.scene(), &["--assets", &folder]);
     let state = server.wait_ready();
     assert_eq!(state["assets"], json!(["crate.obj"]), "{state}");

@@ -6,7 +6,7 @@
 
 mod common;
 use common::Desk;
-use common::serve::Server;
+use common::serve::{Server, crate_folder, light_in};
 
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -156,15 +156,7 @@ async fn canvas_rect(client: &Client) -> (f64, f64, f64) {
 
 /// A mouse press at `from`, 30 moves of 20 ms to `to` and the release (viewport pixels).
 async fn drag(client: &Client, from: (f64, f64), to: (f64, f64)) {
-    let mut mouse = MouseActions::new("mouse".into())
-        .then(PointerAction::MoveTo {
-            duration: None,
-            x: from.0.round(),
-            y: from.1.round(),
-        })
-        .then(PointerAction::Down {
-            button: MOUSE_BUTTON_LEFT,
-        });
+    let mut mouse = pressed_at(from);
     let steps = 30;
     for k in 1..=steps {
         let f = k as f64 / steps as f64;
@@ -180,15 +172,14 @@ async fn drag(client: &Client, from: (f64, f64), to: (f64, f64)) {
     client.perform_actions(mouse).await.unwrap();
 }
 
+/// Clicks the element `what` finds.
+async fn click(client: &Client, what: Locator<'_>) {
+    client.find(what).await.unwrap().click().await.unwrap();
+}
+
 /// Clicks Save and waits for it: the scene file and variant the page names.
 async fn save_in_page(client: &Client) -> (serde_json::Value, serde_json::Value) {
-    client
-        .find(Locator::Id("save"))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
+    click(client, Locator::Id("save")).await;
     wait_until(client, "document.getElementById('saved').dataset.file").await;
     let mut named = Vec::new();
     for key in ["file", "variant"] {
@@ -389,10 +380,7 @@ async fn the_page_refines_and_hides_the_wipe() {
     )
     .await;
     let state = server.get("/api/state").json();
-    let spot = (state["lights"].as_array().unwrap().iter())
-        .find(|l| l["name"] == "spot")
-        .unwrap()
-        .clone();
+    let spot = light_in(&state, "spot");
     assert_eq!(spot["scale"], 3.0, "{state}");
     let edits = state["version"].as_u64().unwrap() - before;
     assert!(edits <= 2, "{edits} edits for five moves of one slider");
@@ -433,13 +421,7 @@ async fn a_scene_without_objects_is_served_with_its_object_controls_off() {
         .unwrap();
     assert_eq!(off, json!(true));
     // A click on the photo and a turn of the (disabled) slider do nothing.
-    client
-        .find(Locator::Id("view"))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
+    click(&client, Locator::Id("view")).await;
     client
         .execute(
             "document.getElementById('yaw').dispatchEvent(new Event('change'));",
@@ -570,13 +552,7 @@ async fn undo_redo_and_delete_from_the_keyboard_and_buttons() {
         1.0,
         "Ctrl+Z took the change back"
     );
-    client
-        .find(Locator::Id("redo"))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
+    click(client, Locator::Id("redo")).await;
     wait_until(client, "!busy && document.getElementById('redo').disabled").await;
     assert_eq!(
         spot(&server.get("/api/state").json()),
@@ -645,9 +621,9 @@ async fn undo_redo_and_delete_from_the_keyboard_and_buttons() {
     client.clone().close().await.unwrap();
 }
 
-/// A press and release at `at` (viewport pixels).
-async fn click_at(client: &Client, at: (f64, f64)) {
-    let mouse = MouseActions::new("mouse".into())
+/// The mouse moved to `at` and pressed there (viewport pixels).
+fn pressed_at(at: (f64, f64)) -> MouseActions {
+    MouseActions::new("mouse".into())
         .then(PointerAction::MoveTo {
             duration: None,
             x: at.0.round(),
@@ -656,9 +632,13 @@ async fn click_at(client: &Client, at: (f64, f64)) {
         .then(PointerAction::Down {
             button: MOUSE_BUTTON_LEFT,
         })
-        .then(PointerAction::Up {
-            button: MOUSE_BUTTON_LEFT,
-        });
+}
+
+/// A press and release at `at` (viewport pixels).
+async fn click_at(client: &Client, at: (f64, f64)) {
+    let mouse = pressed_at(at).then(PointerAction::Up {
+        button: MOUSE_BUTTON_LEFT,
+    });
     client.perform_actions(mouse).await.unwrap();
 }
 
@@ -672,13 +652,7 @@ async fn an_object_is_added_from_the_assets_and_a_light_placed_by_clicks() {
     let profile = tempfile::tempdir().unwrap();
     let client = browser(&driver, profile.path()).await;
     let desk = Desk::new();
-    let assets = tempfile::tempdir().unwrap();
-    std::fs::copy(
-        desk.path("geometry/box.obj"),
-        assets.path().join("crate.obj"),
-    )
-    .unwrap();
-    let folder = assets.path().display().to_string();
+    let (_assets, folder) = crate_folder(&desk.path("geometry/box.obj"));
     let server = Server::start(&desk.scene(), &["--assets", &folder]);
     open_page(&client, &server.url).await;
     client.execute(CATCH_ERRORS, vec![]).await.unwrap();
@@ -690,13 +664,7 @@ async fn an_object_is_added_from_the_assets_and_a_light_placed_by_clicks() {
     };
 
     // Add the crate where the floor is seen.
-    client
-        .find(Locator::Id("add"))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
+    click(&client, Locator::Id("add")).await;
     click_at(&client, at(DVec3::new(0.4, 0.0, 0.3))).await;
     wait_until(&client, "!busy && state.objects.length === 2").await;
     let state = server.get("/api/state").json();
@@ -715,13 +683,11 @@ async fn an_object_is_added_from_the_assets_and_a_light_placed_by_clicks() {
         .unwrap();
     height.clear().await.unwrap();
     height.send_keys("1.2").await.unwrap();
-    client
-        .find(Locator::Css("[data-light='bulb'] button.place-light"))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
+    click(
+        &client,
+        Locator::Css("[data-light='bulb'] button.place-light"),
+    )
+    .await;
     click_at(&client, at(DVec3::new(-0.3, 0.0, 0.5))).await;
     wait_until(
         &client,
@@ -729,10 +695,7 @@ async fn an_object_is_added_from_the_assets_and_a_light_placed_by_clicks() {
     )
     .await;
     let state = server.get("/api/state").json();
-    let bulb = (state["lights"].as_array().unwrap().iter())
-        .find(|l| l["name"] == "bulb")
-        .unwrap()
-        .clone();
+    let bulb = light_in(&state, "bulb");
     let y = bulb["position"][1].as_f64().unwrap();
     assert!((y - 1.2).abs() < 0.01, "the bulb is {y} m up: {bulb}");
     wait_until(

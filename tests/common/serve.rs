@@ -174,3 +174,19 @@ impl Drop for Server {
         let _ = self.child.wait();
     }
 }
+
+/// Light `name` in a session state's `lights`.
+pub fn light_in(state: &Value, name: &str) -> Value {
+    (state["lights"].as_array().expect("a state's lights").iter())
+        .find(|l| l["name"] == name)
+        .unwrap_or_else(|| panic!("no light '{name}' in {state}"))
+        .clone()
+}
+
+/// A folder for `--assets` holding the OBJ `mesh` as `crate.obj`; its path.
+pub fn crate_folder(mesh: &std::path::Path) -> (tempfile::TempDir, String) {
+    let assets = tempfile::tempdir().unwrap();
+    std::fs::copy(mesh, assets.path().join("crate.obj")).unwrap();
+    let folder = assets.path().display().to_string();
+    (assets, folder)
+}

@@ -205,16 +205,12 @@ fn serve_job(cx: &Context, it: &mut Interactive, history: &mut History, job: Job
             received,
             reply,
         } => {
-            if history.stale(&stamp, it.version()) {
-                let _ = reply.send(stale(cx, it, &stamp));
-                return;
-            }
-            let version = it.version();
-            let applied = match drag {
-                true => it.apply_drag(edit, &mut StageTimes::default()),
-                false => it.apply(edit, &mut StageTimes::default()),
-            };
-            let _ = reply.send(answer(cx, it, history, (version, stamp, received), applied));
+            let times = &mut StageTimes::default();
+            let made = edited(cx, it, history, (stamp, received), |it| match drag {
+                true => it.apply_drag(edit, times),
+                false => it.apply(edit, times),
+            });
+            let _ = reply.send(made);
         }
         Job::Add {
             file,
@@ -223,18 +219,13 @@ fn serve_job(cx: &Context, it: &mut Interactive, history: &mut History, job: Job
             received,
             reply,
         } => {
-            if history.stale(&stamp, it.version()) {
-                let _ = reply.send(stale(cx, it, &stamp));
-                return;
-            }
-            let version = it.version();
-            let added = it.add_object(&file, at, &mut StageTimes::default());
-            let applied = added.map(|(outcome, name)| {
+            let made = edited(cx, it, history, (stamp, received), |it| {
+                let (outcome, name) = it.add_object(&file, at, &mut StageTimes::default())?;
                 let mut names = cx.shared.objects.write().unwrap_or_else(|e| e.into_inner());
                 names.push(name);
-                outcome
+                Ok(outcome)
             });
-            let _ = reply.send(answer(cx, it, history, (version, stamp, received), applied));
+            let _ = reply.send(made);
         }
         Job::Save { name, stamp, reply } => {
             if history.stale(&stamp, it.version()) {
@@ -307,15 +298,20 @@ fn render(cx: &Context, it: &Interactive) -> Reply {
     }
 }
 
-/// An edit's reply: the outcome and the state it published, or the refusal.
-fn answer(
+/// Makes an edit (`make`) unless its stamp is stale; the reply: the
+/// outcome and the state it published, or the refusal.
+fn edited(
     cx: &Context,
-    it: &Interactive,
+    it: &mut Interactive,
     history: &mut History,
-    (version, stamp, received): (u64, Stamp, Instant),
-    applied: Result<arlux::interactive::Outcome, Refusal>,
+    (stamp, received): (Stamp, Instant),
+    make: impl FnOnce(&mut Interactive) -> Result<arlux::interactive::Outcome, Refusal>,
 ) -> Reply {
-    match applied {
+    if history.stale(&stamp, it.version()) {
+        return stale(cx, it, &stamp);
+    }
+    let version = it.version();
+    match make(it) {
         Ok(outcome) => {
             // An edit that changes nothing keeps the version.
             if it.version() > version {
