@@ -764,6 +764,7 @@ fn merge_sorted(a: &[u32], b: &[u32]) -> Vec<u32> {
 
 mod bands;
 mod changes;
+mod final_gather;
 mod light_scales;
 mod pixels;
 mod recompose;
@@ -776,6 +777,7 @@ pub use bands::{
 pub use light_scales::Relight;
 
 use changes::*;
+use final_gather::*;
 use pixels::*;
 use room::*;
 

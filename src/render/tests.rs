@@ -65,7 +65,7 @@ fn gather_points(patches: &crate::patches::Patches) -> Vec<(u32, glam::DVec3, u3
 
 #[test]
 fn a_finely_tessellated_ball_gathers_at_no_more_points_than_a_coarse_one() {
-    use super::changes::shared_gathers;
+    use super::final_gather::shared_gathers;
     use glam::DVec3;
     let within = 0.01;
     let mut counts = Vec::new();
@@ -94,7 +94,8 @@ fn a_finely_tessellated_ball_gathers_at_no_more_points_than_a_coarse_one() {
                 let (w, m, _) = points[j as usize];
                 let d = (patches.vertices[w as usize] - patches.vertices[*v as usize]).length();
                 assert!(
-                    d <= within && n.dot(m) >= super::changes::SHARE_ANGLE_DEG.to_radians().cos()
+                    d <= within
+                        && n.dot(m) >= super::final_gather::SHARE_ANGLE_DEG.to_radians().cos()
                 );
             }
             if !taken.is_empty() {
