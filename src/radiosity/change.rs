@@ -136,7 +136,15 @@ impl ObjectView {
                         Some((&view.seen[range.flatten()?], still))
                     });
                     match old {
-                        Some((old, still)) if still.keeps(el.centre, h, t) => {
+                        Some((old, still))
+                            if still.keeps(el.centre, h, t)
+                                || still.cone_clear(
+                                    el.centre,
+                                    h,
+                                    cone_towards(el.centre, h, t),
+                                    t,
+                                ) =>
+                        {
                             seen.extend(old.iter().map(|s| still.renumbered(t.surface, *s)));
                             kept_here += 1;
                         }

@@ -329,7 +329,10 @@ fn grid_of(
                         Some((&kept.view.seen[range.flatten()?], kept.still))
                     });
                     match old {
-                        Some((old, still)) if still.keeps(x, 0.0, t) => {
+                        Some((old, still))
+                            if still.keeps(x, 0.0, t)
+                                || still.cone_clear(x, 0.0, cone_towards(x, 0.0, t), t) =>
+                        {
                             seen.extend(old.iter().map(|s| still.renumbered(t.surface, *s)));
                             kept_here += 1;
                         }

@@ -98,6 +98,38 @@ impl StillSurfaces {
 }
 
 impl StillSurfaces {
+    /// Whether no surface that moved, where it was or where it is, comes
+    /// within the rays of a bundle from a receiver within `reach` of
+    /// `from` inside `cone` (its axis and the cosine of its half-angle;
+    /// None: the hemisphere) as far as target `t`'s far side.
+    pub(super) fn cone_clear(
+        &self,
+        from: DVec3,
+        reach: f64,
+        (axis, cone): (DVec3, Option<f64>),
+        t: &Target,
+    ) -> bool {
+        let far = (t.centre - from).length() + t.radius + reach;
+        self.movers.iter().all(|&(c, r)| {
+            let r = r + reach + ORIGIN_SLACK;
+            let v = c - from;
+            let d = v.length();
+            if d <= r {
+                return false;
+            }
+            if d - r > far {
+                return true;
+            }
+            let Some(cos_max) = cone else {
+                return false;
+            };
+            // The sphere lies outside the cone when the angle to its centre
+            // less its angular radius exceeds the cone's half-angle.
+            let phi = (v.dot(axis) / d).clamp(-1.0, 1.0).acos();
+            phi - (r / d).asin() > cos_max.clamp(-1.0, 1.0).acos()
+        })
+    }
+
     /// Whether a surface that moved comes, where it was or where it is,
     /// near the ray from `origin` along `d` as far as target `t`'s far side.
     pub(super) fn crosses(&self, origin: DVec3, d: DVec3, t: &Target) -> bool {
@@ -146,6 +178,36 @@ fn distance_to_segment(p: DVec3, a: DVec3, b: DVec3) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_moved_sphere_is_clear_of_a_cone_only_outside_it_or_beyond_the_target() {
+        let target = Target {
+            surface: 7,
+            centre: DVec3::new(0.0, 0.0, 2.0),
+            radius: 0.5,
+            lo: DVec3::splat(-0.5) + DVec3::new(0.0, 0.0, 2.0),
+            hi: DVec3::splat(0.5) + DVec3::new(0.0, 0.0, 2.0),
+        };
+        let moved = |c: DVec3, r: f64| StillSurfaces {
+            shift: vec![None; 8],
+            movers: vec![(c, r)],
+        };
+        let cone = (DVec3::Z, Some(0.25f64.asin().cos()));
+        let clear = |s: &StillSurfaces, cone| s.cone_clear(DVec3::ZERO, 0.0, cone, &target);
+        // On the axis, between the receiver and the target.
+        assert!(!clear(&moved(DVec3::new(0.0, 0.0, 1.0), 0.1), cone));
+        // Beside the cone (45° off its 14.5° half-angle), and behind the receiver.
+        assert!(clear(&moved(DVec3::new(1.0, 0.0, 1.0), 0.1), cone));
+        assert!(clear(&moved(DVec3::new(0.0, 0.0, -1.0), 0.1), cone));
+        // Just touching the cone's edge from outside: not clear.
+        assert!(!clear(&moved(DVec3::new(0.5, 0.0, 1.0), 0.3), cone));
+        // Beyond the target's far side, and anywhere near over a hemisphere.
+        assert!(clear(&moved(DVec3::new(0.0, 0.0, 3.0), 0.2), cone));
+        assert!(!clear(
+            &moved(DVec3::new(1.0, 0.0, 1.0), 0.1),
+            (DVec3::Z, None)
+        ));
+    }
 
     #[test]
     fn the_distance_to_a_segment_is_to_its_nearest_point() {
