@@ -95,9 +95,7 @@ impl StillSurfaces {
             .iter()
             .all(|&(c, r)| distance_to_segment(c, from, t.centre) > r + radius)
     }
-}
 
-impl StillSurfaces {
     /// Whether no surface that moved, where it was or where it is, comes
     /// within the rays of a bundle from a receiver within `reach` of
     /// `from` inside `cone` (its axis and the cosine of its half-angle;
