@@ -105,7 +105,10 @@ impl Interactive {
         match read(text_with(None)) {
             Ok(scene) => Ok(scene),
             // A mesh without materials takes a clay colour, as `rgb` would give it.
-            Err(e) if e.to_string().contains(".rgb: missing") => {
+            Err(e)
+                if matches!(&e.location, crate::error::Location::Key(k) if k.ends_with(".rgb"))
+                    && e.message.starts_with("missing") =>
+            {
                 read(text_with(Some(CLAY_RGB))).map_err(refused)
             }
             Err(e) => Err(refused(e)),
