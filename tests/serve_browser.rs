@@ -73,11 +73,16 @@ struct DeskPage {
 
 impl DeskPage {
     async fn open() -> DeskPage {
+        DeskPage::open_with(&[]).await
+    }
+
+    /// The desk served with `args` given to `arlux serve`.
+    async fn open_with(args: &[&str]) -> DeskPage {
         let driver = driver();
         let profile = tempfile::tempdir().unwrap();
         let client = browser(&driver, profile.path()).await;
         let desk = Desk::new();
-        let server = Server::start(&desk.scene(), &[]);
+        let server = Server::start(&desk.scene(), args);
         open_page(&client, &server.url).await;
         DeskPage {
             client,
@@ -648,15 +653,11 @@ async fn click_at(client: &Client, at: (f64, f64)) {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_object_is_added_from_the_assets_and_a_light_placed_by_clicks() {
     let _one = ONE_BROWSER.lock().await;
-    let driver = driver();
-    let profile = tempfile::tempdir().unwrap();
-    let client = browser(&driver, profile.path()).await;
-    let desk = Desk::new();
-    let (_assets, folder) = crate_folder(&desk.path("geometry/box.obj"));
-    let server = Server::start(&desk.scene(), &["--assets", &folder]);
-    open_page(&client, &server.url).await;
+    let (_assets, folder) = crate_folder(&common::scene_dir("desk").join("geometry/box.obj"));
+    let page = DeskPage::open_with(&["--assets", &folder]).await;
+    let (client, server, desk) = (&page.client, &page.server, &page.desk);
     client.execute(CATCH_ERRORS, vec![]).await.unwrap();
-    let (left, top, _) = canvas_rect(&client).await;
+    let (left, top, _) = canvas_rect(client).await;
     let scene = arlux::scene::Scene::load(desk.scene()).unwrap();
     let at = |p: DVec3| {
         let (x, y, _) = scene.camera.project(p).unwrap();
@@ -664,9 +665,9 @@ async fn an_object_is_added_from_the_assets_and_a_light_placed_by_clicks() {
     };
 
     // Add the crate where the floor is seen.
-    click(&client, Locator::Id("add")).await;
-    click_at(&client, at(DVec3::new(0.4, 0.0, 0.3))).await;
-    wait_until(&client, "!busy && state.objects.length === 2").await;
+    click(client, Locator::Id("add")).await;
+    click_at(client, at(DVec3::new(0.4, 0.0, 0.3))).await;
+    wait_until(client, "!busy && state.objects.length === 2").await;
     let state = server.get("/api/state").json();
     assert_eq!(state["objects"][1]["name"], "crate", "{state}");
     assert_eq!(state["objects"][1]["enabled"], true, "{state}");
@@ -684,13 +685,13 @@ async fn an_object_is_added_from_the_assets_and_a_light_placed_by_clicks() {
     height.clear().await.unwrap();
     height.send_keys("1.2").await.unwrap();
     click(
-        &client,
+        client,
         Locator::Css("[data-light='bulb'] button.place-light"),
     )
     .await;
-    click_at(&client, at(DVec3::new(-0.3, 0.0, 0.5))).await;
+    click_at(client, at(DVec3::new(-0.3, 0.0, 0.5))).await;
     wait_until(
-        &client,
+        client,
         "!busy && state.lights.some((l) => l.name === 'bulb' && l.scale > 0)",
     )
     .await;
@@ -699,7 +700,7 @@ async fn an_object_is_added_from_the_assets_and_a_light_placed_by_clicks() {
     let y = bulb["position"][1].as_f64().unwrap();
     assert!((y - 1.2).abs() < 0.01, "the bulb is {y} m up: {bulb}");
     wait_until(
-        &client,
+        client,
         "document.getElementById('outline').dataset.lights.split(',').includes('bulb')",
     )
     .await;
@@ -708,5 +709,5 @@ async fn an_object_is_added_from_the_assets_and_a_light_placed_by_clicks() {
         .await
         .unwrap();
     assert_eq!(errors, json!([]), "the page threw");
-    client.close().await.unwrap();
+    client.clone().close().await.unwrap();
 }
