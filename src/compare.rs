@@ -4,11 +4,15 @@
 
 use std::path::Path;
 
+use glam::Vec3;
 use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
 use crate::image_io::{Image, linear_to_srgb};
+
+mod bands;
+pub use bands::BandComparison;
 
 /// Error figures of `image` against `reference` over the compared pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -35,53 +39,70 @@ pub fn compare(image: &Image, reference: &Image, mask: Option<&[bool]>) -> Compa
         (image.width, image.height),
         (reference.width, reference.height)
     );
-    // Partial sums over fixed chunks, added in order: in parallel, and the
-    // same figures whatever the thread count.
-    const CHUNK: usize = 1 << 14;
-    let partial: Vec<[f64; 5]> = image
+    // Sums row by row, added in row order: in parallel, the same figures
+    // whatever the thread count, and the same as [`BandComparison`]'s,
+    // which is handed the rows a band at a time.
+    let w = (image.width as usize).max(1);
+    let rows: Vec<Sums> = image
         .pixels
-        .par_chunks(CHUNK)
-        .zip(reference.pixels.par_chunks(CHUNK))
+        .par_chunks(w)
+        .zip(reference.pixels.par_chunks(w))
         .enumerate()
-        .map(|(k, (a, b))| {
-            let mut s = [0.0f64; 5];
-            for (j, (a, b)) in a.iter().zip(b).enumerate() {
-                if mask.is_some_and(|m| !m[k * CHUNK + j]) {
-                    continue;
-                }
-                s[0] += 1.0;
-                for c in 0..3 {
-                    let (x, y) = (a[c] as f64, b[c] as f64);
-                    s[1] += (x - y) * (x - y);
-                    let (sx, sy) = (linear_to_srgb(a[c]) as f64, linear_to_srgb(b[c]) as f64);
-                    s[2] += (sx - sy) * (sx - sy);
-                    s[3] += x;
-                    s[4] += y;
-                }
-            }
-            s
-        })
+        .map(|(y, (a, b))| row_sums(a, b, mask.map(|m| &m[y * w..(y + 1) * w])))
         .collect();
-    let total = partial.iter().fold([0.0f64; 5], |mut t, s| {
-        for (t, s) in t.iter_mut().zip(s) {
+    let mut total = Sums::default();
+    rows.iter().for_each(|s| total.add(s));
+    total.comparison()
+}
+
+/// A comparison's sums: pixels, squared error linear and sRGB-encoded,
+/// and the two images' sums.
+#[derive(Debug, Clone, Copy, Default)]
+struct Sums([f64; 5]);
+
+impl Sums {
+    fn add(&mut self, other: &Sums) {
+        for (t, s) in self.0.iter_mut().zip(other.0) {
             *t += s;
         }
-        t
-    });
-    let [count, se, se_srgb, sum_a, sum_b] = total;
-    let n = count as usize;
-    let samples = (3 * n).max(1) as f64;
-    let rmse = (se / samples).sqrt();
-    let mean_reference = sum_b / samples;
-    let mse_srgb = se_srgb / samples;
-    Comparison {
-        pixels: n,
-        rmse,
-        relative_rmse: (mean_reference > 0.0).then(|| rmse / mean_reference),
-        psnr_srgb_db: (mse_srgb > 0.0).then(|| -10.0 * mse_srgb.log10()),
-        mean: sum_a / samples,
-        mean_reference,
     }
+
+    fn comparison(&self) -> Comparison {
+        let [count, se, se_srgb, sum_a, sum_b] = self.0;
+        let n = count as usize;
+        let samples = (3 * n).max(1) as f64;
+        let rmse = (se / samples).sqrt();
+        let mean_reference = sum_b / samples;
+        let mse_srgb = se_srgb / samples;
+        Comparison {
+            pixels: n,
+            rmse,
+            relative_rmse: (mean_reference > 0.0).then(|| rmse / mean_reference),
+            psnr_srgb_db: (mse_srgb > 0.0).then(|| -10.0 * mse_srgb.log10()),
+            mean: sum_a / samples,
+            mean_reference,
+        }
+    }
+}
+
+/// One row's [`Sums`] of `a` against `b` where `mask` is true.
+fn row_sums(a: &[Vec3], b: &[Vec3], mask: Option<&[bool]>) -> Sums {
+    let mut s = [0.0f64; 5];
+    for (j, (a, b)) in a.iter().zip(b).enumerate() {
+        if mask.is_some_and(|m| !m[j]) {
+            continue;
+        }
+        s[0] += 1.0;
+        for c in 0..3 {
+            let (x, y) = (a[c] as f64, b[c] as f64);
+            s[1] += (x - y) * (x - y);
+            let (sx, sy) = (linear_to_srgb(a[c]) as f64, linear_to_srgb(b[c]) as f64);
+            s[2] += (sx - sy) * (sx - sy);
+            s[3] += x;
+            s[4] += y;
+        }
+    }
+    Sums(s)
 }
 
 /// How much of a change a result gets right, over the pixels the change
@@ -119,22 +140,6 @@ fn box_rows<const N: usize>(
     at: impl Fn(usize, usize) -> [f64; N],
     mut each: impl FnMut(usize, &[[f64; N]]),
 ) {
-    let clamp = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
-    // Row y's sums over x − r..=x + r, for every x.
-    let horizontal = |y: usize| -> Vec<[f64; N]> {
-        let row: Vec<[f64; N]> = (0..width).map(|x| at(x, y)).collect();
-        (0..width)
-            .map(|x| {
-                let mut sum = [0.0; N];
-                for dx in -(r as isize)..=r as isize {
-                    let v = row[clamp(x as isize + dx, width)];
-                    (0..N).for_each(|n| sum[n] += v[n]);
-                }
-                sum
-            })
-            .collect()
-    };
-    let area = ((2 * r + 1) * (2 * r + 1)) as f64;
     let mut window: std::collections::VecDeque<(usize, Vec<[f64; N]>)> = Default::default();
     let mut means = vec![[0.0; N]; width];
     for y in 0..height {
@@ -143,18 +148,48 @@ fn box_rows<const N: usize>(
             window.pop_front();
         }
         for row in window.back().map_or(lo, |(last, _)| last + 1)..=hi {
-            window.push_back((row, horizontal(row)));
+            let values: Vec<[f64; N]> = (0..width).map(|x| at(x, row)).collect();
+            window.push_back((row, horizontal_sums(&values, r)));
         }
-        for (x, mean) in means.iter_mut().enumerate() {
-            let mut sum = [0.0; N];
-            for dy in -(r as isize)..=r as isize {
-                let row = clamp(y as isize + dy, height);
-                let (_, sums) = &window[row - lo];
-                (0..N).for_each(|n| sum[n] += sums[x][n]);
-            }
-            *mean = sum.map(|v| v / area);
-        }
+        let rows: Vec<&[[f64; N]]> = (window_rows(y, r, height))
+            .map(|row| window[row - lo].1.as_slice())
+            .collect();
+        vertical_means(&rows, &mut means);
         each(y, &means);
+    }
+}
+
+/// The rows of row `y`'s window of radius `r`, top to bottom, clamped.
+fn window_rows(y: usize, r: usize, height: usize) -> impl Iterator<Item = usize> {
+    (-(r as isize)..=r as isize)
+        .map(move |dy| (y as isize + dy).clamp(0, height as isize - 1) as usize)
+}
+
+/// Each value's sum over x − r..=x + r of its row (edges repeated).
+fn horizontal_sums<const N: usize>(row: &[[f64; N]], r: usize) -> Vec<[f64; N]> {
+    let width = row.len();
+    (0..width)
+        .map(|x| {
+            let mut sum = [0.0; N];
+            for dx in -(r as isize)..=r as isize {
+                let v = row[(x as isize + dx).clamp(0, width as isize - 1) as usize];
+                (0..N).for_each(|n| sum[n] += v[n]);
+            }
+            sum
+        })
+        .collect()
+}
+
+/// The window means at each x from its 2r+1 rows of horizontal sums (in
+/// order, top to bottom).
+fn vertical_means<const N: usize>(rows: &[&[[f64; N]]], means: &mut [[f64; N]]) {
+    let area = (rows.len() * rows.len()) as f64;
+    for (x, mean) in means.iter_mut().enumerate() {
+        let mut sum = [0.0; N];
+        for row in rows {
+            (0..N).for_each(|n| sum[n] += row[x][n]);
+        }
+        *mean = sum.map(|v| v / area);
     }
 }
 
@@ -162,34 +197,53 @@ fn box_rows<const N: usize>(
 /// `truth` (all three the same size).
 pub fn skill(result: &Image, truth: &Image, photo: &Image) -> Skill {
     let changed = changed_pixels(truth, photo);
-    let ours = compare(result, truth, Some(&changed));
-    let photo_error = compare(photo, truth, Some(&changed));
-    let (rmse_changed, rmse_photo_changed) = if ours.pixels == 0 {
-        (0.0, 0.0)
-    } else {
-        (ours.rmse, photo_error.rmse)
-    };
-    Skill {
-        changed_pixels: ours.pixels,
-        rmse_changed,
-        rmse_photo_changed,
-        skill: (rmse_photo_changed > 0.0).then(|| 1.0 - rmse_changed / rmse_photo_changed),
+    Skill::of(
+        compare(result, truth, Some(&changed)),
+        compare(photo, truth, Some(&changed)),
+    )
+}
+
+impl Skill {
+    /// From the result's and the photo's comparisons over the changed pixels.
+    fn of(ours: Comparison, photo_error: Comparison) -> Skill {
+        let (rmse_changed, rmse_photo_changed) = if ours.pixels == 0 {
+            (0.0, 0.0)
+        } else {
+            (ours.rmse, photo_error.rmse)
+        };
+        Skill {
+            changed_pixels: ours.pixels,
+            rmse_changed,
+            rmse_photo_changed,
+            skill: (rmse_photo_changed > 0.0).then(|| 1.0 - rmse_changed / rmse_photo_changed),
+        }
     }
+}
+
+/// The window radius of [`Skill::changed_pixels`]' means (5 × 5).
+const CHANGE_RADIUS: usize = 2;
+
+/// What a pixel's change window averages: |truth − photo| and the photo,
+/// each the mean of its channels.
+fn change_values(truth: Vec3, photo: Vec3) -> [f64; 2] {
+    let mean = |p: Vec3| (p.x as f64 + p.y as f64 + p.z as f64) / 3.0;
+    [mean((truth - photo).abs()), mean(photo)]
+}
+
+/// Whether a pixel whose window means are `means` is changed.
+fn is_changed([diff, level]: [f64; 2]) -> bool {
+    diff > SKILL_RELATIVE * level + SKILL_FLOOR
 }
 
 /// The pixels a change touches ([`Skill::changed_pixels`]), from the
 /// truth and the photo alone.
 pub fn changed_pixels(truth: &Image, photo: &Image) -> Vec<bool> {
     let (w, h) = (truth.width as usize, truth.height as usize);
-    let mean = |p: glam::Vec3| (p.x as f64 + p.y as f64 + p.z as f64) / 3.0;
-    let at = |x: usize, y: usize| {
-        let (t, p) = (truth.pixels[y * w + x], photo.pixels[y * w + x]);
-        [mean((t - p).abs()), mean(p)]
-    };
+    let at = |x: usize, y: usize| change_values(truth.pixels[y * w + x], photo.pixels[y * w + x]);
     let mut changed = vec![false; w * h];
-    box_rows(w, h, 2, at, |y, means| {
-        for (c, [diff, level]) in changed[y * w..(y + 1) * w].iter_mut().zip(means) {
-            *c = *diff > SKILL_RELATIVE * level + SKILL_FLOOR;
+    box_rows(w, h, CHANGE_RADIUS, at, |y, means| {
+        for (c, m) in changed[y * w..(y + 1) * w].iter_mut().zip(means) {
+            *c = is_changed(*m);
         }
     });
     changed

@@ -14,8 +14,10 @@ use glam::Vec3;
 use crate::error::{Error, Result};
 
 mod frames;
+mod rows;
 mod stream;
 pub use frames::{CropWindow, ExrMeta, MergedFrame, PixelRect, merge_tiles, write_exr_with};
+pub use rows::RowReader;
 pub use stream::ExrStream;
 
 /// A linear RGB image, row-major from the top-left pixel.
@@ -222,6 +224,11 @@ pub(crate) const MAX_EXR_SAMPLES: u64 = 1 << 30;
 fn check_exr_size(path: &Path, bytes: &[u8]) -> Result<()> {
     let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
         .map_err(|e| Error::file(path, format!("malformed EXR: {e}")))?;
+    check_exr_headers(path, &meta)
+}
+
+/// Refuses headers whose layers hold more than [`MAX_EXR_SAMPLES`].
+fn check_exr_headers(path: &Path, meta: &exr::meta::MetaData) -> Result<()> {
     let mut samples: u64 = 0;
     for header in &meta.headers {
         let size = header.layer_size;
@@ -310,31 +317,17 @@ pub fn read_exr_channel(path: &Path, name: &str) -> Result<(u32, u32, Vec<f32>)>
 /// the top level or in the first layer that has all three), or a lone Y as grey.
 fn read_exr_rgb(path: &Path) -> Result<Image> {
     let c = read_exr_channels(path)?;
-    let find = |name: &str| c.channels.iter().find(|(n, _)| n == name).map(|(_, v)| v);
-    let mut prefixes: Vec<String> = vec![String::new()];
-    for (n, _) in &c.channels {
-        if let Some(p) = n.strip_suffix("R").filter(|p| p.ends_with('.')) {
-            prefixes.push(p.to_string());
+    let names: Vec<&str> = c.channels.iter().map(|(n, _)| n.as_str()).collect();
+    let plane = |i: usize| &c.channels[i].1;
+    let pixels: Vec<Vec3> = match rgb_channels(&names) {
+        Some(RgbChannels::Rgb([r, g, b])) => {
+            let (r, g, b) = (plane(r), plane(g), plane(b));
+            (0..c.width * c.height)
+                .map(|i| Vec3::new(r[i], g[i], b[i]))
+                .collect()
         }
-    }
-    let mut planes = None;
-    for p in &prefixes {
-        if let (Some(r), Some(g), Some(b)) = (
-            find(&format!("{p}R")),
-            find(&format!("{p}G")),
-            find(&format!("{p}B")),
-        ) {
-            planes = Some([r, g, b]);
-            break;
-        }
-    }
-    let pixels: Vec<Vec3> = match (planes, find("Y")) {
-        (Some([r, g, b]), _) => (0..c.width * c.height)
-            .map(|i| Vec3::new(r[i], g[i], b[i]))
-            .collect(),
-        (None, Some(y)) => y.iter().map(|&v| Vec3::splat(v)).collect(),
-        (None, None) => {
-            let names: Vec<&str> = c.channels.iter().map(|(n, _)| n.as_str()).collect();
+        Some(RgbChannels::Grey(y)) => plane(y).iter().map(|&v| Vec3::splat(v)).collect(),
+        None => {
             return Err(Error::file(
                 path,
                 format!("no R, G, B channels (channels: {})", names.join(", ")),
@@ -346,6 +339,34 @@ fn read_exr_rgb(path: &Path) -> Result<Image> {
         height: c.height as u32,
         pixels,
     })
+}
+
+/// Which of an EXR's channels (full names, in the file's order) make its
+/// RGB image: R, G, B at the top level, else in the first layer that has
+/// all three, else a lone Y as grey.
+enum RgbChannels {
+    Rgb([usize; 3]),
+    Grey(usize),
+}
+
+fn rgb_channels(names: &[&str]) -> Option<RgbChannels> {
+    let find = |name: &str| names.iter().position(|n| *n == name);
+    let mut prefixes: Vec<&str> = vec![""];
+    for n in names {
+        if let Some(p) = n.strip_suffix("R").filter(|p| p.ends_with('.')) {
+            prefixes.push(p);
+        }
+    }
+    for p in prefixes {
+        if let (Some(r), Some(g), Some(b)) = (
+            find(&format!("{p}R")),
+            find(&format!("{p}G")),
+            find(&format!("{p}B")),
+        ) {
+            return Some(RgbChannels::Rgb([r, g, b]));
+        }
+    }
+    find("Y").map(RgbChannels::Grey)
 }
 
 /// One named part of an EXR file to write.

@@ -89,3 +89,49 @@ fn a_bad_memory_budget_is_refused_naming_the_flag() {
         assert!(!out.exists());
     }
 }
+
+#[test]
+fn a_tiles_figures_are_those_of_its_own_pixels_against_the_reference() {
+    use arlux::compare::{compare, skill};
+    use arlux::image_io::{PixelRect, read_image};
+    let dir = tempfile::tempdir().unwrap();
+    let folder = common::scene_dir("desk");
+    let scene = folder.join("scene.toml");
+    // Across the box and its shadow, in bands of a few rows.
+    let extra = ["--memory", "64M", "--crop", "0.3", "0.8", "0.45", "0.85"];
+    let report = render(
+        scene.to_str().unwrap(),
+        "box_floor_a",
+        dir.path(),
+        "tile",
+        &extra,
+    );
+    let at = |k: &str| report["crop"][k].as_u64().unwrap() as u32;
+    let rect = PixelRect {
+        x0: at("x0"),
+        x1: at("x1"),
+        y0: at("y0"),
+        y1: at("y1"),
+    };
+    let image = read_image(&dir.path().join("tile.exr")).unwrap();
+    let truth = read_image(&folder.join("truth/box_floor_a.exr"))
+        .unwrap()
+        .crop(rect);
+    let photo = read_image(&folder.join("photo.exr")).unwrap().crop(rect);
+    let image = if (image.width, image.height) == (rect.width(), rect.height()) {
+        image
+    } else {
+        image.crop(rect)
+    };
+    let expect = (compare(&image, &truth, None), skill(&image, &truth, &photo));
+    assert!(expect.1.changed_pixels > 1000, "{:?}", expect.1);
+    // Both sides through JSON text: serde_json's parser may round a float's
+    // last bit differently from the value it printed.
+    let parsed = |text: String| serde_json::from_str::<serde_json::Value>(&text).unwrap();
+    let comparison = parsed(serde_json::to_string(&expect.0).unwrap());
+    assert_eq!(report["comparison"], comparison);
+    assert_eq!(
+        report["skill"],
+        parsed(serde_json::to_string(&expect.1).unwrap())
+    );
+}

@@ -158,8 +158,6 @@ pub struct FrameFiles {
     pub png: Option<(PathBuf, f32)>,
     /// Each layer's own file.
     pub aov: Vec<(FrameLayer, PathBuf)>,
-    /// Keep the image (of the window) for a comparison.
-    pub keep_image: bool,
     /// Write the layers beside the image (a motion writes its images only).
     pub layers: bool,
 }
@@ -169,7 +167,6 @@ pub struct FrameWriter {
     window: PixelRect,
     streams: Vec<(ExrStream, Vec<Channel>)>,
     png: Option<(PathBuf, f32, Vec<u8>)>,
-    kept: Option<Image>,
 }
 
 impl FrameWriter {
@@ -194,11 +191,6 @@ impl FrameWriter {
             window,
             streams,
             png: (files.png.clone()).map(|(p, ev)| (p, ev, Vec::with_capacity(3 * pixels))),
-            kept: files.keep_image.then(|| Image {
-                width: window.width(),
-                height: 0,
-                pixels: Vec::with_capacity(pixels),
-            }),
         })
     }
 
@@ -224,7 +216,7 @@ impl FrameWriter {
         for (stream, channels) in &mut self.streams {
             stream.push(y1 - y0, planes(c, photo, rect, channels))?;
         }
-        if self.png.is_none() && self.kept.is_none() {
+        if self.png.is_none() {
             return Ok(());
         }
         let image = planes(c, photo, rect, &rgb("", FrameLayer::Image));
@@ -237,15 +229,41 @@ impl FrameWriter {
                     .map(|v| (linear_to_srgb(v * gain) * 255.0).round() as u8)
             }));
         }
-        if let Some(kept) = &mut self.kept {
-            kept.pixels.extend((0..rect.pixel_count()).map(rgb_at));
-            kept.height += y1 - y0;
+        Ok(())
+    }
+
+    /// The image's pixels of [`FrameWriter::band`]'s rows (the window's
+    /// part), handed to `each` 16 rows at a time: what a comparison reads
+    /// band by band, never a band's worth at once.
+    pub fn image_rows<E>(
+        &self,
+        c: &Composite,
+        rows: (u32, u32),
+        photo: &Image,
+        mut each: impl FnMut(&[Vec3]) -> std::result::Result<(), E>,
+    ) -> std::result::Result<(), E> {
+        let y0 = rows.0.max(self.window.y0).max(c.first_row);
+        let y1 = (rows.1.min(self.window.y1)).min(c.first_row + c.image.height);
+        let channels = rgb("", FrameLayer::Image);
+        for start in (y0..y1).step_by(16) {
+            let rect = PixelRect {
+                y0: start,
+                y1: (start + 16).min(y1),
+                ..self.window
+            };
+            let [r, g, b] = &planes(c, photo, rect, &channels)[..] else {
+                unreachable!("three channels asked for");
+            };
+            let pixels: Vec<Vec3> = (0..rect.pixel_count())
+                .map(|k| Vec3::new(r[k], g[k], b[k]))
+                .collect();
+            each(&pixels)?;
         }
         Ok(())
     }
 
-    /// Ends every file; returns the image kept (the window's), if asked for.
-    pub fn finish(self) -> Result<Option<Image>> {
+    /// Ends every file.
+    pub fn finish(self) -> Result<()> {
         for (stream, _) in self.streams {
             stream.finish()?;
         }
@@ -253,6 +271,6 @@ impl FrameWriter {
             let (w, h) = (self.window.width(), self.window.height());
             crate::image_io::write_png_rgb8(&path, w, h, bytes)?;
         }
-        Ok(self.kept)
+        Ok(())
     }
 }

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use serde_json::json;
 
-use arlux::compare::{Comparison, Skill, compare, skill};
+use arlux::compare::{BandComparison, Comparison, Skill};
 use arlux::composite::Composite;
 use arlux::image_io::{self, ExrMeta, PixelRect};
 use arlux::model::StageTimes;
@@ -111,12 +111,29 @@ pub fn run(args: &Args) -> Result<()> {
     };
     let (w, h) = (scene.camera.width, scene.camera.height);
     let rows = arlux::render::band_rows(w, h, budget);
-    let (out, kept) = crate::outputs::Batch::run(|batch| {
-        let files = frame_files(args, batch, reference.is_some())?;
+    // The reference is compared band by band as the bands are written (a
+    // 24 MP frame and its truth are never held whole), on the window's pixels.
+    let window_photo = match window {
+        Some(r) if reference.is_some() => std::borrow::Cow::Owned(photo.crop(r)),
+        _ => std::borrow::Cow::Borrowed(&photo),
+    };
+    let mut against = match &reference {
+        Some(r) => Some(Against::open(&scene, r, window, &window_photo)?),
+        None => None,
+    };
+    let out = crate::outputs::Batch::run(|batch| {
+        let files = frame_files(args, batch)?;
         let mut writer = FrameWriter::start(&files, w, h, &meta)?;
+        let mut written = |writer: &mut FrameWriter, band: &Composite, rows| -> arlux::Result<()> {
+            writer.band(band, rows, &photo)?;
+            match &mut against {
+                Some(a) => writer.image_rows(band, rows, &photo, |piece| a.push(piece)),
+                None => Ok(()),
+            }
+        };
         let out = match &method {
             Method::Pda(settings) => {
-                let mut sink = |band: &Composite, rows| writer.band(band, rows, &photo);
+                let mut sink = |band: &Composite, rows| written(&mut writer, band, rows);
                 arlux::render::render_bands(&scene, &photo, settings, rows, &mut times, &mut sink)?
             }
             Method::Texture(settings) => {
@@ -126,7 +143,7 @@ pub fn run(args: &Args) -> Result<()> {
                     out.composite.copied = out.composite.unchanged_in(r, &photo);
                 }
                 let rows = (0, h);
-                times.time("write bands", || writer.band(&out.composite, rows, &photo))?;
+                times.time("write bands", || written(&mut writer, &out.composite, rows))?;
                 if let (Some(dir), Some((_, unoccluded, _))) = (&args.aov, &out.texture) {
                     let layer = [image_io::ExrLayer::Rgb("", unoccluded)];
                     let path = batch.stage(&dir.join("unoccluded_texture.exr"));
@@ -139,28 +156,10 @@ pub fn run(args: &Args) -> Result<()> {
         for w in &out.warnings {
             warn(&scene, w)?;
         }
-        let kept = times.time("write", || writer.finish())?;
-        Ok((out, kept))
+        times.time("write", || writer.finish())?;
+        Ok(out)
     })?;
-    let error = times.time("compare", || -> Result<Option<(Comparison, Skill)>> {
-        let (Some(r), Some(image)) = (&reference, &kept) else {
-            return Ok(None);
-        };
-        let truth = scene.fit_size(image_io::read_image(r)?, "variant.reference", r)?;
-        let frame = PixelRect::full(w, h);
-        let rect = window.unwrap_or(frame);
-        // The whole frame is measured against the photo held (a 24 MP copy
-        // is 285 MB); a tile on its own pixels.
-        let (truth, photo) = match window {
-            None => (truth, std::borrow::Cow::Borrowed(&photo)),
-            Some(r) => (truth.crop(r), std::borrow::Cow::Owned(photo.crop(r))),
-        };
-        debug_assert_eq!((image.width, image.height), (rect.width(), rect.height()));
-        Ok(Some((
-            compare(image, &truth, None),
-            skill(image, &truth, &photo),
-        )))
-    })?;
+    let error = times.time("compare", || against.map(Against::finish));
     keep(&times);
     if let (Some(limit), Some(r)) = (args.time, &out.residual) {
         let took = times.total().as_secs_f64();
@@ -187,12 +186,67 @@ pub fn run(args: &Args) -> Result<()> {
     print_report(&report, args.json)
 }
 
+/// A variant's reference compared with the render band by band.
+struct Against<'a> {
+    truth: image_io::RowReader,
+    /// The window's rows and columns of the truth's rows.
+    window: PixelRect,
+    bands: BandComparison<'a>,
+}
+
+impl<'a> Against<'a> {
+    /// Opens the reference `file` of a render of `window` (the frame when
+    /// none) whose photo's part is `photo`. A reference of another size
+    /// than the camera's is read whole and fitted to it.
+    fn open(
+        scene: &arlux::scene::Scene,
+        file: &std::path::Path,
+        window: Option<PixelRect>,
+        photo: &'a image_io::Image,
+    ) -> Result<Against<'a>> {
+        let (w, h) = (scene.camera.width, scene.camera.height);
+        let mut truth = image_io::RowReader::open(file)?;
+        if (truth.width, truth.height) != (w, h) {
+            let whole = image_io::read_image(file)?;
+            truth = image_io::RowReader::from_image(scene.fit_size(
+                whole,
+                "variant.reference",
+                file,
+            )?);
+        }
+        let window = window.unwrap_or(PixelRect::full(w, h));
+        // The rows above a tile are read and left.
+        truth.rows(window.y0)?;
+        Ok(Against {
+            truth,
+            window,
+            bands: BandComparison::new(photo),
+        })
+    }
+
+    /// The window's next image rows, against as many of the truth's.
+    fn push(&mut self, image: &[glam::Vec3]) -> arlux::Result<()> {
+        let w = (self.window.width() as usize).max(1);
+        let full = self.truth.rows((image.len() / w) as u32)?;
+        let (x0, x1) = (self.window.x0 as usize, self.window.x1 as usize);
+        if x1 - x0 == self.truth.width as usize {
+            self.bands.push(image, &full);
+        } else {
+            let truth: Vec<glam::Vec3> = (full.chunks(self.truth.width as usize))
+                .flat_map(|row| row[x0..x1].iter().copied())
+                .collect();
+            self.bands.push(image, &truth);
+        }
+        Ok(())
+    }
+
+    fn finish(self) -> (Comparison, Skill) {
+        self.bands.finish()
+    }
+}
+
 /// Where each output of `args` goes for now (staged in `batch`).
-fn frame_files(
-    args: &Args,
-    batch: &mut crate::outputs::Batch,
-    keep_image: bool,
-) -> Result<FrameFiles> {
+fn frame_files(args: &Args, batch: &mut crate::outputs::Batch) -> Result<FrameFiles> {
     let mut aov = Vec::new();
     if let Some(dir) = &args.aov {
         batch
@@ -210,7 +264,6 @@ fn frame_files(
         exr: batch.stage(&args.output),
         png: args.png.as_ref().map(|p| (batch.stage(p), args.exposure)),
         aov,
-        keep_image,
         layers: true,
     })
 }
