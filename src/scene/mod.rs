@@ -600,7 +600,30 @@ impl Scene {
     /// checks it fits the camera ([`Scene::fit_size`]): what a command does
     /// before any work, so that a bad reference stops it before the render.
     pub fn check_reference(&self, key: &str, file: &Path) -> Result<()> {
-        self.read_reference(key, file).map(drop)
+        self.reference_rows(key, file).map(drop)
+    }
+
+    /// The reference photograph `file` (given at `key`) at the camera's
+    /// size, to be read a few rows at a time: an EXR of the camera's size
+    /// is read from its file as rows are asked for (all of it decoded once
+    /// now, to refuse a damaged one, but not held); any other is read whole
+    /// now, as [`Scene::read_reference`].
+    pub fn reference_rows(&self, key: &str, file: &Path) -> Result<image_io::RowReader> {
+        if !file.is_file() {
+            return self
+                .read_reference(key, file)
+                .map(image_io::RowReader::from_image);
+        }
+        let mut rows = image_io::RowReader::open(file)?;
+        if (rows.width, rows.height) == (self.camera.width, self.camera.height) {
+            // Every block decoded once now, none kept: a cut or damaged
+            // file, or a NaN, is refused before any work.
+            while !rows.rows(64)?.is_empty() {}
+            return image_io::RowReader::open(file);
+        }
+        // Rare (a reference of the photo's size, the camera scaled): read again, whole.
+        self.read_reference(key, file)
+            .map(image_io::RowReader::from_image)
     }
 
     /// The reference photograph `file` (given at `key`) at the camera's

@@ -98,11 +98,14 @@ pub fn run(args: &Args) -> Result<()> {
     let reference = variant
         .and_then(|v| base.variant(v).ok())
         .and_then(|v| v.reference.clone());
-    if let (Some(v), Some(r)) = (variant, &reference) {
-        times.time("check inputs", || {
-            base.check_reference(&format!("variant '{v}'.reference"), r)
-        })?;
-    }
+    // The reference's header now (a bad one refused before any work), its
+    // rows as the bands are written.
+    let truth = match (variant, &reference) {
+        (Some(v), Some(r)) => Some(times.time("check inputs", || {
+            base.reference_rows(&format!("variant '{v}'.reference"), r)
+        })?),
+        _ => None,
+    };
     let window = options.crop_pixels(scene.camera.width, scene.camera.height)?;
     let photo = times.time("read photo", || read_photo(&scene))?;
     let meta = ExrMeta {
@@ -117,8 +120,8 @@ pub fn run(args: &Args) -> Result<()> {
         Some(r) if reference.is_some() => std::borrow::Cow::Owned(photo.crop(r)),
         _ => std::borrow::Cow::Borrowed(&photo),
     };
-    let mut against = match &reference {
-        Some(r) => Some(Against::open(&scene, r, window, &window_photo)?),
+    let mut against = match truth {
+        Some(truth) => Some(Against::open(truth, &scene, window, &window_photo)?),
         None => None,
     };
     let out = crate::outputs::Batch::run(|batch| {
@@ -195,25 +198,15 @@ struct Against<'a> {
 }
 
 impl<'a> Against<'a> {
-    /// Opens the reference `file` of a render of `window` (the frame when
-    /// none) whose photo's part is `photo`. A reference of another size
-    /// than the camera's is read whole and fitted to it.
+    /// The reference's rows `truth` (at the camera's size) against a
+    /// render of `window` (the frame when none) whose photo's part is `photo`.
     fn open(
+        mut truth: image_io::RowReader,
         scene: &arlux::scene::Scene,
-        file: &std::path::Path,
         window: Option<PixelRect>,
         photo: &'a image_io::Image,
     ) -> Result<Against<'a>> {
         let (w, h) = (scene.camera.width, scene.camera.height);
-        let mut truth = image_io::RowReader::open(file)?;
-        if (truth.width, truth.height) != (w, h) {
-            let whole = image_io::read_image(file)?;
-            truth = image_io::RowReader::from_image(scene.fit_size(
-                whole,
-                "variant.reference",
-                file,
-            )?);
-        }
         let window = window.unwrap_or(PixelRect::full(w, h));
         // The rows above a tile are read and left.
         truth.rows(window.y0)?;
