@@ -80,13 +80,26 @@ fn main() {
         write_asset(&geometry, name, &spec);
     }
     let (a, b, c) = ([0.3, 0.0, -0.3], [-0.3, 0.0, 0.5], [-0.9, 0.75, -1.3]);
+    // `cargo bench --bench assets -- methods` (or `-- instances`): one part.
+    let only = std::env::args().skip(1).find(|a| !a.starts_with('-'));
+    if only.as_deref() != Some("methods") {
+        instances(dir.path(), a, b, c);
+    }
+    if only.as_deref() != Some("instances") {
+        methods(dir.path(), &geometry, a);
+    }
+}
+
+/// One object beside three from one file, and beside others disabled or hidden.
+fn instances(dir: &Path, a: [f64; 3], b: [f64; 3], c: [f64; 3]) {
+    let spec = AssetSpec::heavy_prop();
     let prop = object("prop", "prop", a, true);
     let cases: Vec<(&str, PathBuf, Option<&str>)> = vec![
-        ("one object", desk_with(dir.path(), "one", &prop, ""), None),
+        ("one object", desk_with(dir, "one", &prop, ""), None),
         (
             "three from one file",
             desk_with(
-                dir.path(),
+                dir,
                 "three",
                 &[
                     prop.clone(),
@@ -101,7 +114,7 @@ fn main() {
         (
             "one, two others disabled",
             desk_with(
-                dir.path(),
+                dir,
                 "disabled",
                 &[
                     prop.clone(),
@@ -116,7 +129,7 @@ fn main() {
         (
             "one, a variant hiding two others",
             desk_with(
-                dir.path(),
+                dir,
                 "hidden",
                 &[
                     prop.clone(),
@@ -150,7 +163,6 @@ fn main() {
             peak / p0
         );
     }
-    methods(dir.path(), &geometry, a);
 }
 
 /// The texture path beside the pixel path, one object of each size.

@@ -317,7 +317,8 @@ impl ClusterLinks {
     }
 }
 
-/// What room element `p` gathers from cluster `node` of `with.objects`:
+/// What element `p` (the room's, or an object's gathering from the
+/// objects) gathers from cluster `node` of `with.objects`:
 /// one [`ClusterLink`] where the cluster is far enough that the factor's
 /// spread over the pair, F × (((d + r) / (d − r))² − 1) with r the two
 /// radii, is within ε (F bounded by the cluster's area / 2πd²: no view
@@ -361,7 +362,10 @@ pub(super) fn refine_cluster(
     }
     match c.kind {
         ClusterKind::Leaf(s, e) => {
-            for &root in &tree.roots[s as usize..e as usize] {
+            // An object's element gathering from the objects: never from
+            // its own root (a flat element sends itself nothing).
+            let own = with.patches.elements[p as usize].root;
+            for &root in (tree.roots[s as usize..e as usize].iter()).filter(|&&r| r != own) {
                 refine(with, p, root, room_roots, out);
             }
         }

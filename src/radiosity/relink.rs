@@ -71,20 +71,21 @@ impl Transport {
         // large ones. Not per (object root, root) pair: a task and its
         // result per pair held a 4,000-triangle object's 16 M pairs at 1.1 GB
         // for 22 MB of links. Objects that gather from the room are linked
-        // element by element; objects that only send reach each room root
-        // through their clusters.
+        // with it element by element and with each other through their
+        // clusters; the objects reach each room root through their clusters.
         enum Task {
             Room(usize),
             Object(u32),
             Cluster(u32),
         }
-        let object_tasks: Vec<Task> = if objects_receive {
+        let mut object_tasks: Vec<Task> = if objects_receive {
             object_roots.iter().map(|&v| Task::Object(v)).collect()
-        } else if clusters.nodes.is_empty() {
-            Vec::new()
         } else {
-            room_roots.iter().map(|&r| Task::Cluster(r)).collect()
+            Vec::new()
         };
+        if !clusters.nodes.is_empty() {
+            object_tasks.extend(room_roots.iter().map(|&r| Task::Cluster(r)));
+        }
         let tasks: Vec<Task> = (0..room_links.len())
             .filter(|&i| near[i])
             .map(Task::Room)
@@ -109,14 +110,15 @@ impl Transport {
                         relink_room_link(&with, room_links, i, facts, &room_roots, &mut out)
                     }
                     Task::Object(v) => {
-                        for &r in all_roots.iter().filter(|&&r| r != v) {
-                            if objects_receive {
-                                refine(&with, v, r, &room_roots, &mut out);
-                            }
-                            if !is_virtual(&r) {
-                                refine(&with, r, v, &room_roots, &mut out);
-                            }
+                        // From the room element by element; from the
+                        // objects through their clusters, as the room gets
+                        // their light: element by element only near v, so
+                        // the links grow as N log N with the objects'
+                        // triangles, not N².
+                        for &r in &room_roots {
+                            refine(&with, v, r, &room_roots, &mut out);
                         }
+                        refine_cluster(&with, v, 0, &room_roots, &mut out, &mut to_clusters);
                     }
                     Task::Cluster(r) => {
                         refine_cluster(&with, r, 0, &room_roots, &mut out, &mut to_clusters)
