@@ -167,8 +167,10 @@ fn instances(dir: &Path, a: [f64; 3], b: [f64; 3], c: [f64; 3]) {
 
 /// The texture path beside the pixel path, one object of each size.
 fn methods(dir: &Path, geometry: &Path, at: [f64; 3]) {
-    println!("| triangles | pixel path s / MB | texture path s / MB | texture / pixel |");
-    println!("| --- | --- | --- | --- |");
+    println!(
+        "| triangles | pixel path s / MB | texture path s / MB | texture / pixel | texture links |"
+    );
+    println!("| --- | --- | --- | --- | --- |");
     for triangles in [8_000, 30_000] {
         let name = format!("t{triangles}");
         let spec = AssetSpec {
@@ -179,16 +181,20 @@ fn methods(dir: &Path, geometry: &Path, at: [f64; 3]) {
         let scene = desk_with(dir, &name, &object("prop", &name, at, true), "");
         let run = |method| {
             let r = render(&scene, None, method);
+            let estimate = &r["texture"]["object_links_estimate"];
             (
                 r["seconds"].as_f64().unwrap(),
                 r["peak_memory_bytes"].as_f64().unwrap_or(f64::NAN) / 1e6,
+                (r["links"].as_f64(), estimate["links"].as_f64()),
             )
         };
-        let ((ps, pm), (ts, tm)) = (run("pda"), run("texture"));
+        let ((ps, pm, _), (ts, tm, (links, estimate))) = (run("pda"), run("texture"));
         println!(
-            "| {triangles} | {ps:.2} / {pm:.0} | {ts:.2} / {tm:.0} | time {:.1}×, peak {:.2}× |",
+            "| {triangles} | {ps:.2} / {pm:.0} | {ts:.2} / {tm:.0} | time {:.1}×, peak {:.2}× | {:.2} M, estimated {:.2} M |",
             ts / ps,
-            tm / pm
+            tm / pm,
+            links.unwrap_or(f64::NAN) / 1e6,
+            estimate.unwrap_or(f64::NAN) / 1e6,
         );
     }
 }

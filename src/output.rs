@@ -55,4 +55,7 @@ pub struct TextureStats {
     pub texels: usize,
     pub texture_bytes: usize,
     pub patch_size: f64,
+    /// What linking the objects was expected to make and take, measured on
+    /// a sample of their triangles before it started (with a memory budget).
+    pub object_links_estimate: Option<crate::radiosity::ObjectLinkEstimate>,
 }

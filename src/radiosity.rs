@@ -31,6 +31,7 @@ mod form_factor;
 mod near;
 mod near_pixel;
 mod relink;
+pub use relink::ObjectLinkEstimate;
 mod solve;
 mod still;
 mod transport;

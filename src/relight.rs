@@ -74,6 +74,10 @@ pub struct TextureSettings {
     /// Keep the room's links in `.arlux-cache/` (see
     /// [`crate::model::ModelSettings::cache_links`]).
     pub cache_links: bool,
+    /// The memory the preprocess may hold, bytes: linking the objects is
+    /// refused before it starts when its estimate (measured on a sample of
+    /// the objects' triangles) would pass it. None: not checked.
+    pub memory: Option<u64>,
 }
 
 impl Default for TextureSettings {
@@ -89,6 +93,7 @@ impl Default for TextureSettings {
             light_level: 4,
             link_epsilon: DEFAULT_LINK_EPSILON,
             cache_links: false,
+            memory: None,
         }
     }
 }
@@ -200,8 +205,14 @@ impl TexturePath {
         stats.texels = textures.iter().map(|t| t.texels.len()).sum();
         stats.texture_bytes = stats.texels * std::mem::size_of::<Vec3>();
 
-        let (patches, direct, transport) =
-            setup.with_objects(patches, model.direct, model.transport, &marks, times);
+        let (patches, direct, transport) = setup.with_objects(
+            patches,
+            model.direct,
+            model.transport,
+            &marks,
+            times,
+            &mut stats,
+        )?;
         stats.links = transport.link_count();
         let rest_started = std::time::Instant::now();
         let visibility = vertex_visibility(&direct, &patches);

@@ -96,6 +96,12 @@ pub struct RenderOptions {
     pub samples: u32,
     /// Seconds the render may take: as many rounds as fit.
     pub time: Option<f64>,
+    /// The memory a render may hold, bytes (`--memory`): the pixel path's
+    /// bands are cut to fit it; the texture path refuses, before linking
+    /// its objects, links that would not fit. None: not bounded. Not in the
+    /// files' settings: the image is the same whatever the budget.
+    #[serde(skip)]
+    pub memory: Option<u64>,
 }
 
 impl Default for RenderOptions {
@@ -119,6 +125,7 @@ impl Default for RenderOptions {
             cache: true,
             samples: 0,
             time: None,
+            memory: None,
         }
     }
 }
@@ -255,6 +262,7 @@ impl RenderOptions {
                 .unwrap_or(t.reference_colour_threshold),
             min_leaf_pixels: self.min_leaf_pixels.unwrap_or(t.min_leaf_pixels),
             cache_links: self.cache,
+            memory: self.memory,
             ..t
         })
     }

@@ -356,3 +356,72 @@ fn a_motion_starts_from_a_variant_and_hides() {
         "{err}"
     );
 }
+
+/// The texture path measures what linking a prop's triangles makes on a
+/// sample of them before it starts; where that would pass `--memory` it
+/// refuses before linking, naming the flag and the budget that would fit,
+/// and that budget renders.
+#[test]
+fn the_texture_path_refuses_links_that_would_not_fit_and_says_what_would() {
+    let desk = Desk::new();
+    let spec = AssetSpec {
+        triangles: 3_000,
+        ..prop()
+    };
+    write_asset(&desk.path("geometry"), "prop", &spec);
+    place(&desk, "prop", &[[0.3, 0.0, -0.3]]);
+    let out = desk.path("t.exr");
+    let run = |memory: &str| {
+        common::arlux(&[
+            "render",
+            &desk.scene(),
+            "--method",
+            "texture",
+            "--json",
+            "-o",
+            out.to_str().unwrap(),
+            "--memory",
+            memory,
+        ])
+    };
+    let refused = run("120M");
+    let message = String::from_utf8_lossy(&refused.stderr).to_string();
+    assert_eq!(refused.status.code(), Some(2), "{message}");
+    assert!(
+        message.contains("120 MB --memory allows")
+            && message.contains("--method pda")
+            && message.contains("triangles"),
+        "{message}"
+    );
+    assert!(!out.exists(), "a refused render wrote its image");
+    let fits = message
+        .split("give --memory ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .map(|t| t.trim_end_matches(','))
+        .expect("a budget that fits")
+        .to_string();
+    let ok = run(&fits);
+    assert!(
+        ok.status.success(),
+        "--memory {fits}: {}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&ok.stdout).unwrap();
+    let estimate = &report["texture"]["object_links_estimate"];
+    let (expected, made) = (
+        estimate["links"].as_f64().unwrap(),
+        report["links"].as_f64().unwrap(),
+    );
+    // The links made also hold the room's own (a few hundred thousand).
+    assert!(
+        expected <= made * 1.05 && expected >= 0.5 * made,
+        "{expected} against {made}"
+    );
+    let peak = report["peak_memory_bytes"].as_f64().unwrap();
+    let budget: f64 = fits.trim_end_matches('M').parse::<f64>().unwrap() * 1e6;
+    assert!(
+        peak <= budget,
+        "peak {peak} over the budget {budget} it was given"
+    );
+}

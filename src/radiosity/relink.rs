@@ -109,17 +109,7 @@ impl Transport {
                     Task::Room(i) => {
                         relink_room_link(&with, room_links, i, facts, &room_roots, &mut out)
                     }
-                    Task::Object(v) => {
-                        // From the room element by element; from the
-                        // objects through their clusters, as the room gets
-                        // their light: element by element only near v, so
-                        // the links grow as N log N with the objects'
-                        // triangles, not N².
-                        for &r in &room_roots {
-                            refine(&with, v, r, &room_roots, &mut out);
-                        }
-                        refine_cluster(&with, v, 0, &room_roots, &mut out, &mut to_clusters);
-                    }
+                    Task::Object(v) => (out, to_clusters) = link_object_root(&with, v, &room_roots),
                     Task::Cluster(r) => {
                         refine_cluster(&with, r, 0, &room_roots, &mut out, &mut to_clusters)
                     }
@@ -145,6 +135,86 @@ impl Transport {
         }
         transport
     }
+}
+
+/// What linking every object root with the room and the other objects
+/// would make, measured on a sample of the roots: the texture path's cost,
+/// known before it is paid ([`Transport::estimate_object_links`]).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ObjectLinkEstimate {
+    /// The objects' roots, and how many of them were linked to measure.
+    pub roots: usize,
+    pub sampled: usize,
+    /// Links (element and cluster) expected for all the roots.
+    pub links: f64,
+    /// Seconds expected for all the roots, at this machine's thread count.
+    pub seconds: f64,
+}
+
+impl Transport {
+    /// Links `sample` of the objects' roots, evenly spread over them (as
+    /// [`Transport::with_objects`] with `objects_receive` links each), and
+    /// scales what they made and took to all of them. `None` for a
+    /// transport without hierarchical links or a scene without objects.
+    pub fn estimate_object_links(
+        &self,
+        patches: &Patches,
+        tracer: &Tracer,
+        epsilon: f64,
+        sample: usize,
+    ) -> Option<ObjectLinkEstimate> {
+        let Transport::Hierarchical { .. } = self else {
+            return None;
+        };
+        let object_roots: Vec<u32> = (patches.roots.iter().copied())
+            .filter(|r| patches.is_virtual_element(*r))
+            .collect();
+        if object_roots.is_empty() || sample == 0 {
+            return None;
+        }
+        let room_roots: Vec<u32> = (patches.roots.iter().copied())
+            .filter(|r| !patches.is_virtual_element(*r))
+            .collect();
+        let clusters = RootClusters::build(patches, &object_roots);
+        let with = Refiner {
+            patches,
+            tracer,
+            layer: Layer::All,
+            epsilon,
+            split_above_epsilon: false,
+            objects: Some(&clusters),
+        };
+        let n = object_roots.len();
+        let step = n.div_ceil(sample.min(n));
+        let picked: Vec<u32> = object_roots.iter().step_by(step).copied().collect();
+        let started = std::time::Instant::now();
+        let links: usize = picked
+            .par_iter()
+            .map(|&v| {
+                let (out, to_clusters) = link_object_root(&with, v, &room_roots);
+                out.len() + to_clusters.len()
+            })
+            .sum();
+        let scale = n as f64 / picked.len() as f64;
+        Some(ObjectLinkEstimate {
+            roots: n,
+            sampled: picked.len(),
+            links: links as f64 * scale,
+            seconds: started.elapsed().as_secs_f64() * scale,
+        })
+    }
+}
+
+/// Object root `v`'s links: from the room element by element, from the
+/// objects through their clusters (element by element only near v), so
+/// that the links grow as N log N with the objects' triangles, not N².
+fn link_object_root(with: &Refiner, v: u32, room_roots: &[u32]) -> (Vec<Link>, Vec<ClusterLink>) {
+    let (mut out, mut to_clusters) = (Vec::new(), Vec::new());
+    for &r in room_roots {
+        refine(with, v, r, room_roots, &mut out);
+    }
+    refine_cluster(with, v, 0, room_roots, &mut out, &mut to_clusters);
+    (out, to_clusters)
 }
 
 /// Which of the room's `links` the objects (`clusters`) may shadow: the

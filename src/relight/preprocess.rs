@@ -4,6 +4,17 @@
 //! ([`Unshadow`], [`References`]), and what each pixel keeps.
 
 use super::*;
+use crate::error::Error;
+use crate::radiosity::ObjectLinkEstimate;
+
+/// Object roots linked to estimate what linking all of them makes.
+const PILOT_ROOTS: usize = 64;
+
+/// Bytes a link of the objects' takes at the preprocess's peak: the link
+/// (12) in its task's vector, the whole list and its sorted copy, with the
+/// vectors' spare capacity; measured (`cargo bench --bench assets --
+/// methods`, the report's `object_links_estimate` against its peak).
+const BYTES_PER_OBJECT_LINK: f64 = 48.0;
 
 /// What the preprocess derives from its inputs before any work.
 pub(super) struct Setup<'a> {
@@ -98,6 +109,9 @@ impl<'a> Setup<'a> {
 
     /// The mesh with the inserted objects, the direct light through them
     /// and the links with them (the room's as given when there is none).
+    /// With a memory budget, the links are first estimated from a sample of
+    /// the objects' triangles, and refused before they are made when they
+    /// would not fit.
     pub(super) fn with_objects(
         &self,
         patches: Patches,
@@ -105,21 +119,56 @@ impl<'a> Setup<'a> {
         transport: Transport,
         marks: &SplitMarks,
         times: &mut StageTimes,
-    ) -> (Patches, Vec<Vec<LightTerm>>, Transport) {
+        stats: &mut TextureStats,
+    ) -> Result<(Patches, Vec<Vec<LightTerm>>, Transport)> {
         if !self.has_objects {
-            return (patches, direct, transport);
+            return Ok((patches, direct, transport));
         }
         let (tracer, settings) = (self.tracer, self.settings);
         let all = times.time("virtual mesh", || {
             Patches::of_scene_refined(self.scene, true, self.patch_size, self.virtual_size, marks)
         });
+        if let Some(budget) = settings.memory {
+            let estimate = times.time("object links estimate", || {
+                transport.estimate_object_links(&all, tracer, settings.link_epsilon, PILOT_ROOTS)
+            });
+            stats.object_links_estimate = estimate;
+            if let Some(e) = estimate {
+                self.check_link_memory(&e, budget)?;
+            }
+        }
         let direct = times.time("direct light with objects", || {
             leaf_light(&all, &self.lights, tracer, Layer::All, settings.light_level)
         });
         let transport = times.time("form factors with objects", || {
             transport.with_objects(&all, tracer, settings.link_epsilon, true)
         });
-        (all, direct, transport)
+        Ok((all, direct, transport))
+    }
+
+    /// Refuses links that, held on top of what the process holds now,
+    /// would pass `budget` bytes: the message gives the estimate and the
+    /// `--memory` that would fit.
+    fn check_link_memory(&self, e: &ObjectLinkEstimate, budget: u64) -> Result<()> {
+        let now = crate::util::resident_bytes().unwrap_or(0);
+        let need = now + (e.links * BYTES_PER_OBJECT_LINK) as u64;
+        if need <= budget {
+            return Ok(());
+        }
+        let mb = |b: u64| b.div_ceil(1_000_000);
+        Err(Error::file(
+            &self.scene.file,
+            format!(
+                "--method texture would hold about {} MB linking the objects' {} triangles ({:.1} M links, about {:.0} s, measured on {} of them), more than the {} MB --memory allows: give --memory {}M, or render on the pixel path (--method pda), whose objects cost by their triangles, not their links",
+                mb(need),
+                e.roots,
+                e.links / 1e6,
+                e.seconds,
+                e.sampled,
+                mb(budget),
+                mb(need).div_ceil(100) * 100,
+            ),
+        ))
     }
 
     /// The photo's illumination model on the refined mesh (links at the

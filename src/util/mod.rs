@@ -20,3 +20,11 @@ pub type FastMap<K, V> = std::collections::HashMap<K, V, foldhash::fast::FixedSt
 pub fn fast_map<K, V>() -> FastMap<K, V> {
     FastMap::with_hasher(foldhash::fast::FixedState::default())
 }
+
+/// This process's resident memory now (Linux: `VmRSS` in `/proc/self/status`), bytes.
+pub fn resident_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}

@@ -45,7 +45,8 @@ pub struct Args {
     /// The memory a render may hold, as bytes with a suffix (`4G`, `800M`):
     /// the pixel path renders and writes the image in bands of rows that
     /// fit (default: half the memory available, at most 1.5G); the texture
-    /// path composites the whole frame.
+    /// path composites the whole frame, and refuses before linking its
+    /// objects when their links (estimated from a sample) would not fit.
     #[arg(long)]
     pub memory: Option<String>,
     #[command(flatten)]
@@ -76,17 +77,20 @@ impl Args {
 }
 
 pub fn run(args: &Args) -> Result<()> {
-    let options = args.options();
-    let method = options.resolve()?;
-    if !(args.exposure.is_finite() && args.exposure.abs() <= 64.0) {
-        anyhow::bail!("--exposure {}: give stops within ±64", args.exposure);
-    }
     let budget = match &args.memory {
         Some(m) => {
             arlux::render::parse_memory(m).map_err(|e| anyhow::anyhow!("--memory {m}: {e}"))?
         }
         None => arlux::render::default_memory(),
     };
+    let options = RenderOptions {
+        memory: Some(budget),
+        ..args.options()
+    };
+    let method = options.resolve()?;
+    if !(args.exposure.is_finite() && args.exposure.abs() <= 64.0) {
+        anyhow::bail!("--exposure {}: give stops within ±64", args.exposure);
+    }
     let mut times = StageTimes::default();
     let variant = args.variant.as_deref();
     let showing = variant.map_or(arlux::scene::Showing::Base, arlux::scene::Showing::Variant);
@@ -327,6 +331,8 @@ struct TextureReport {
     texels: usize,
     texture_bytes: usize,
     light_change_seconds: f64,
+    /// Linking the objects as estimated before it started (null: no objects).
+    object_links_estimate: Option<arlux::radiosity::ObjectLinkEstimate>,
 }
 
 impl<'a> RenderReport<'a> {
@@ -382,6 +388,7 @@ impl<'a> RenderReport<'a> {
                 texels: s.texels,
                 texture_bytes: s.texture_bytes,
                 light_change_seconds: change.as_secs_f64(),
+                object_links_estimate: s.object_links_estimate,
             }),
             samples: out.residual,
             comparison: error.map(|e| e.0),
