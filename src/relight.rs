@@ -349,6 +349,9 @@ impl TexturePath {
                     &solution.indirect_irradiance,
                 )
             });
+            times.time("objects' outlines", || {
+                self.antialias_edges(&mut out, &scene.camera, tracer)
+            });
         }
         out
     }
@@ -485,6 +488,7 @@ pub fn render_texture(
 }
 
 mod display;
+mod edges;
 mod objects;
 mod preprocess;
 mod refine;
