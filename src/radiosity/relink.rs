@@ -145,7 +145,8 @@ pub struct ObjectLinkEstimate {
     /// The objects' roots, and how many of them were linked to measure.
     pub roots: usize,
     pub sampled: usize,
-    /// Links (element and cluster) expected for all the roots.
+    /// Links (element and cluster) expected for all the roots, with the
+    /// room's own (copied into the transport made).
     pub links: f64,
     /// Seconds expected for all the roots, at this machine's thread count.
     pub seconds: f64,
@@ -199,19 +200,31 @@ impl Transport {
         Some(ObjectLinkEstimate {
             roots: n,
             sampled: picked.len(),
-            links: links as f64 * scale,
+            // The room's links are copied into the new transport too.
+            links: links as f64 * scale + self.link_count() as f64,
             seconds: started.elapsed().as_secs_f64() * scale,
         })
     }
 }
+
+/// The area of an object patch at the default virtual patch size (0.1 m).
+const OBJECT_PATCH_AREA: f64 = 0.01;
 
 /// Object root `v`'s links: from the room element by element, from the
 /// objects through their clusters (element by element only near v), so
 /// that the links grow as N log N with the objects' triangles, not N².
 fn link_object_root(with: &Refiner, v: u32, room_roots: &[u32]) -> (Vec<Link>, Vec<ClusterLink>) {
     let (mut out, mut to_clusters) = (Vec::new(), Vec::new());
+    // A triangle smaller than an object patch carries its share of the
+    // patch's light: ε grows as its area shrinks (up to 64×), so that the
+    // error of the light it gathers, weighted by its area, stays a patch's.
+    let area = with.patches.elements[v as usize].area;
+    let coarse = Refiner {
+        epsilon: with.epsilon * (OBJECT_PATCH_AREA / area.max(1e-12)).clamp(1.0, 64.0),
+        ..*with
+    };
     for &r in room_roots {
-        refine(with, v, r, room_roots, &mut out);
+        refine(&coarse, v, r, room_roots, &mut out);
     }
     refine_cluster(with, v, 0, room_roots, &mut out, &mut to_clusters);
     (out, to_clusters)
