@@ -10,6 +10,7 @@ use arlux::compare::compare;
 use arlux::image_io::{Image, read_image};
 use arlux::light::LightSource;
 use arlux::model::StageTimes;
+use arlux::output::RenderOutput;
 use arlux::relight::{TexturePath, TextureSettings, render_texture};
 use arlux::render::{RenderSettings, render};
 use arlux::scene::Scene;
@@ -59,22 +60,28 @@ fn nothing_changed_reprojects_the_photo() {
     assert_eq!(out.ratio_fallbacks, 0);
 }
 
+/// `scene` rendered by the texture path and by the pixel path, at their defaults.
+fn both_methods(scene: &Scene, photo: &Image) -> (RenderOutput, RenderOutput) {
+    let mut times = StageTimes::default();
+    let texture = render_texture(scene, photo, &TextureSettings::default(), &mut times).unwrap();
+    let pda = render(
+        scene,
+        photo,
+        &RenderSettings::default(),
+        &mut StageTimes::default(),
+    )
+    .unwrap();
+    (texture, pda)
+}
+
 /// RMSE of both methods on one light variant.
 fn both(base: &Scene, variant: &str) -> (f64, f64, f64, Image, Image, Image) {
     let scene = base.with_variant(variant).unwrap();
     let photo = scene.load_photo().unwrap();
     let truth = read_image(base.variant(variant).unwrap().reference.as_ref().unwrap()).unwrap();
-    let mut times = StageTimes::default();
-    let texture = render_texture(&scene, &photo, &TextureSettings::default(), &mut times).unwrap();
+    let (texture, pda) = both_methods(&scene, &photo);
     let (_, _, change) = texture.texture.as_ref().unwrap();
     let change = change.as_secs_f64();
-    let pda = render(
-        &scene,
-        &photo,
-        &RenderSettings::default(),
-        &mut StageTimes::default(),
-    )
-    .unwrap();
     common::assert_layers_sound(&format!("{variant}, texture"), &texture.composite);
     common::assert_layers_sound(&format!("{variant}, pda"), &pda.composite);
     let (t, p) = (
@@ -171,15 +178,7 @@ fn shadows_of_a_switched_off_lamp_disappear() {
         });
         a / b
     };
-    let mut times = StageTimes::default();
-    let texture = render_texture(&scene, &photo, &TextureSettings::default(), &mut times).unwrap();
-    let pda = render(
-        &scene,
-        &photo,
-        &RenderSettings::default(),
-        &mut StageTimes::default(),
-    )
-    .unwrap();
+    let (texture, pda) = both_methods(&scene, &photo);
     let (rt, rp, rd, rtruth) = (
         ratio(&texture.composite.image),
         ratio(&photo),
@@ -416,15 +415,7 @@ fn object_outlines_are_mixed_by_coverage_as_on_the_pixel_path() {
     let base = desk();
     let scene = base.with_variant("box_floor_a").unwrap();
     let photo = scene.load_photo().unwrap();
-    let mut times = StageTimes::default();
-    let texture = render_texture(&scene, &photo, &TextureSettings::default(), &mut times).unwrap();
-    let pda = render(
-        &scene,
-        &photo,
-        &RenderSettings::default(),
-        &mut StageTimes::default(),
-    )
-    .unwrap();
+    let (texture, pda) = both_methods(&scene, &photo);
     let (t, p) = (&texture.composite.alpha, &pda.composite.alpha);
     let edge: Vec<usize> = (0..p.len())
         .filter(|&i| p[i] > 0.05 && p[i] < 0.95)

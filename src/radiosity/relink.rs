@@ -91,14 +91,7 @@ impl Transport {
             .map(Task::Room)
             .chain(object_tasks)
             .collect();
-        let with = Refiner {
-            patches,
-            tracer,
-            layer: Layer::All,
-            epsilon,
-            split_above_epsilon: false,
-            objects: Some(&clusters),
-        };
+        let with = object_refiner(patches, tracer, epsilon, &clusters);
         let made: Vec<(Vec<Link>, Vec<ClusterLink>)> = tasks
             .par_iter()
             .with_max_len(4)
@@ -177,14 +170,7 @@ impl Transport {
             .filter(|r| !patches.is_virtual_element(*r))
             .collect();
         let clusters = RootClusters::build(patches, &object_roots);
-        let with = Refiner {
-            patches,
-            tracer,
-            layer: Layer::All,
-            epsilon,
-            split_above_epsilon: false,
-            objects: Some(&clusters),
-        };
+        let with = object_refiner(patches, tracer, epsilon, &clusters);
         let n = object_roots.len();
         let step = n.div_ceil(sample.min(n));
         let picked: Vec<u32> = object_roots.iter().step_by(step).copied().collect();
@@ -204,6 +190,24 @@ impl Transport {
             links: links as f64 * scale + self.link_count() as f64,
             seconds: started.elapsed().as_secs_f64() * scale,
         })
+    }
+}
+
+/// How the objects' links are refined: through everything, the objects'
+/// clusters among the occluders, a pair traced before it is split.
+fn object_refiner<'a>(
+    patches: &'a Patches,
+    tracer: &'a Tracer,
+    epsilon: f64,
+    clusters: &'a RootClusters,
+) -> Refiner<'a> {
+    Refiner {
+        patches,
+        tracer,
+        layer: Layer::All,
+        epsilon,
+        split_above_epsilon: false,
+        objects: Some(clusters),
     }
 }
 
