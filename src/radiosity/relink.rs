@@ -220,11 +220,11 @@ const OBJECT_PATCH_AREA: f64 = 0.01;
 fn link_object_root(with: &Refiner, v: u32, room_roots: &[u32]) -> (Vec<Link>, Vec<ClusterLink>) {
     let (mut out, mut to_clusters) = (Vec::new(), Vec::new());
     // A triangle smaller than an object patch carries its share of the
-    // patch's light: ε grows as its area shrinks (up to 64×), so that the
+    // patch's light: ε grows as its area shrinks (up to 256×), so that the
     // error of the light it gathers, weighted by its area, stays a patch's.
     let area = with.patches.elements[v as usize].area;
     let coarse = Refiner {
-        epsilon: with.epsilon * (OBJECT_PATCH_AREA / area.max(1e-12)).clamp(1.0, 64.0),
+        epsilon: with.epsilon * (OBJECT_PATCH_AREA / area.max(1e-12)).clamp(1.0, 256.0),
         ..*with
     };
     for &r in room_roots {
