@@ -18,6 +18,7 @@
 //! all lamp, elsewhere the light's model calibrated on those pixels.
 
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::composite::Composite;
@@ -152,10 +153,11 @@ impl LampPixels {
             .collect();
         candidates.sort_unstable();
         candidates.dedup();
-        let (mut pixels, mut samples) = (Vec::new(), Vec::new());
-        for index in candidates {
-            let start = samples.len() as u32;
+        // Each pixel's sub-rays on their own (in parallel), then laid out in
+        // pixel order: the same samples whatever the thread count.
+        let sample_pixel = |index: u32| -> Vec<LampSample> {
             let (col, row) = (index % camera.width, index / camera.width);
+            let mut out = Vec::new();
             for k in 0..n * n {
                 let x = col as f64 + ((k % n) as f64 + 0.5) / n as f64;
                 let y = row as f64 + ((k / n) as f64 + 0.5) / n as f64;
@@ -181,21 +183,30 @@ impl LampPixels {
                 } else {
                     DVec3::ZERO
                 };
-                samples.push(LampSample {
+                out.push(LampSample {
                     light: l as u16,
                     t: t as f32,
                     dir: ray.direction.as_vec3(),
                     emitted: emitted.as_vec3(),
                 });
             }
-            let count = samples.len() as u32 - start;
-            if count > 0 {
-                pixels.push(LampPixel {
-                    index,
-                    start,
-                    count,
-                });
+            out
+        };
+        let per_pixel: Vec<(u32, Vec<LampSample>)> = candidates
+            .par_iter()
+            .map(|&index| (index, sample_pixel(index)))
+            .collect();
+        let (mut pixels, mut samples) = (Vec::new(), Vec::new());
+        for (index, found) in per_pixel {
+            if found.is_empty() {
+                continue;
             }
+            pixels.push(LampPixel {
+                index,
+                start: samples.len() as u32,
+                count: found.len() as u32,
+            });
+            samples.extend(found);
         }
         if pixels.is_empty() {
             return None;
