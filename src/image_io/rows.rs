@@ -103,14 +103,12 @@ impl RowReader {
                 out
             }
         };
-        if let Some(i) = out.iter().position(|p| !p.is_finite()) {
-            let path = match &self.source {
-                Source::Exr(exr) => exr.path.clone(),
-                Source::Whole(_) => PathBuf::from("the reference"),
-            };
+        // A whole read refused its non-finite pixels already.
+        if let (Source::Exr(exr), Some(i)) = (&self.source, out.iter().position(|p| !p.is_finite()))
+        {
             let (x, y) = (i % w, self.next as usize + i / w);
             return Err(Error::file(
-                &path,
+                &exr.path,
                 format!("pixel x={x}, y={y} is NaN or infinite"),
             ));
         }

@@ -29,14 +29,14 @@ impl TexturePath {
             .filter_map(|i| {
                 let (x, y) = (i % w, i / w);
                 let centre = is_object(i);
-                let others: Vec<usize> = neighbours(x, y, w, h)
+                let (sum, count) = neighbours(x, y, w, h)
                     .filter(|&j| is_object(j) != centre)
-                    .collect();
-                if others.is_empty() {
+                    .fold((Vec3::ZERO, 0u32), |(s, c), j| (s + image[j], c + 1));
+                if count == 0 {
                     return None;
                 }
                 let coverage = coverage(camera, tracer, x as u32, y as u32);
-                let beside = others.iter().map(|&j| image[j]).sum::<Vec3>() / others.len() as f32;
+                let beside = sum / count as f32;
                 let (object, room) = if centre {
                     (image[i], beside)
                 } else {

@@ -12,9 +12,9 @@ const PILOT_ROOTS: usize = 64;
 
 /// Bytes a link of the objects' takes at the preprocess's peak: the link
 /// (12) in its task's vector, the whole list and its sorted copy, with the
-/// vectors' spare capacity; measured (`cargo bench --bench assets --
-/// methods`, the report's `object_links_estimate` against its peak).
-const BYTES_PER_OBJECT_LINK: f64 = 48.0;
+/// vectors' spare capacity. `cargo bench --bench assets -- methods`: 51 MB
+/// more peak per million links more from 8,000 to 30,000 triangles.
+const BYTES_PER_OBJECT_LINK: f64 = 56.0;
 
 /// What the preprocess derives from its inputs before any work.
 pub(super) struct Setup<'a> {
