@@ -316,24 +316,17 @@ impl Patches {
 
     /// [`Patches::of_scene_with`] (with the virtual objects) from the
     /// room's own mesh, `room` = `of_scene(scene, false, target_size)`:
-    /// its part is the same, so it is copied rather than meshed again (an
-    /// update meshes the moved objects alone).
+    /// its part is the same, so it is copied rather than meshed again, and
+    /// the objects' meshes `meshes` keeps are moved rather than meshed (an
+    /// update meshes no object it has meshed before).
     pub fn of_scene_from_room(
         room: &Patches,
         scene: &crate::scene::Scene,
         virtual_size: f64,
+        meshes: &mut ObjectMeshes,
     ) -> Patches {
         let mut p = room.clone();
-        let virt = scene.virtual_world_surfaces();
-        let inputs: Vec<SurfaceInput> = virt
-            .iter()
-            .map(|(id, t)| SurfaceInput {
-                surface: *id,
-                triangles: t,
-                is_virtual: true,
-            })
-            .collect();
-        p.append(&inputs, virtual_size);
+        p.append_objects(scene, virtual_size, meshes);
         p.face_open_surfaces_towards(scene.camera.position);
         p
     }
@@ -375,11 +368,6 @@ impl Patches {
         virtual_size: f64,
         marks: &SplitMarks,
     ) -> Patches {
-        let virt = if with_virtual {
-            scene.virtual_world_surfaces()
-        } else {
-            Vec::new()
-        };
         let inputs: Vec<SurfaceInput> = scene
             .surfaces
             .iter()
@@ -392,16 +380,8 @@ impl Patches {
             .collect();
         let mut p = Patches::build(&[], target_size);
         p.append_marked(&inputs, target_size, marks);
-        if !virt.is_empty() {
-            let virt_inputs: Vec<SurfaceInput> = virt
-                .iter()
-                .map(|(id, t)| SurfaceInput {
-                    surface: *id,
-                    triangles: t,
-                    is_virtual: true,
-                })
-                .collect();
-            p.append(&virt_inputs, virtual_size);
+        if with_virtual {
+            p.append_objects(scene, virtual_size, &mut ObjectMeshes::new(false));
         }
         p
     }
@@ -752,7 +732,10 @@ impl Patches {
     }
 }
 
+mod objects;
 mod split;
+
+pub use objects::ObjectMeshes;
 
 pub use split::split;
 use split::*;

@@ -227,6 +227,8 @@ struct Prepared {
     model: Model,
     scales_without: Vec<f64>,
     indirect_without: Vec<DVec3>,
+    /// The objects' meshes in their own frames, kept for the next pose.
+    meshes: crate::patches::ObjectMeshes,
 }
 
 /// A session's current pose and light scales, and what updates keep of it.
@@ -428,11 +430,14 @@ impl Session {
         let room = room_solution(&model, &scales_with, &settings, times);
         let bounds = VirtualBounds::of(&scene.virtual_world_surfaces())
             .with_room(&model.patches.real_root_polygons(), &model.lights);
-        let objects = object_patches(scene, &model.patches, has_objects, &settings, times);
-        let mut gather_directions = GatherDirections {
-            kept: for_updates,
-            ..GatherDirections::default()
-        };
+        let mut meshes = crate::patches::ObjectMeshes::new(for_updates);
+        let objects = object_patches(
+            (scene, &model.patches, &mut meshes),
+            has_objects,
+            &settings,
+            times,
+        );
+        let mut gather_directions = GatherDirections::new(for_updates);
         let input = ChangeInput {
             scene,
             photo: &photo,
@@ -474,6 +479,7 @@ impl Session {
                 model,
                 scales_without,
                 indirect_without,
+                meshes,
             },
             pose: Pose::first(
                 scales_with,
@@ -629,10 +635,11 @@ impl Session {
         let sets = crate::scene_tracer::virtual_triangle_sets(scene, &virt);
         // The tracer's objects, their bounds and their mesh, side by side.
         let has_objects = sets.iter().any(|s| !s.triangles.is_empty());
-        let (tracer, model, settings) = (
+        let (tracer, model, settings, meshes) = (
             &mut self.prepared.tracer,
             &self.prepared.model,
             &self.prepared.settings,
+            &mut self.prepared.meshes,
         );
         let (moved, (bounds, objects)) = times.concurrently(
             "place objects",
@@ -642,7 +649,12 @@ impl Session {
                     .with_room(&model.patches.real_root_polygons(), &model.lights);
                 (
                     bounds,
-                    object_patches(scene, &model.patches, has_objects, settings, times),
+                    object_patches(
+                        (scene, &model.patches, meshes),
+                        has_objects,
+                        settings,
+                        times,
+                    ),
                 )
             },
         );

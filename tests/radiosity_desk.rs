@@ -15,7 +15,7 @@ use arlux::light::LightSource;
 fn photo_scales(lights: &[LightSource]) -> Vec<f64> {
     lights.iter().map(|l| l.photo_scale()).collect()
 }
-use arlux::patches::Patches;
+use arlux::patches::{ObjectMeshes, Patches};
 use arlux::radiosity::{DEFAULT_LINK_EPSILON, Transport, direct_irradiance, solve, total_direct};
 use arlux::scene::Scene;
 use arlux::trace::{Layer, TraceRay};
@@ -298,12 +298,19 @@ fn the_objects_mesh_from_the_rooms_is_the_whole_scenes_mesh() {
         let scene = base.with_variant(variant).unwrap();
         let room = Patches::of_scene(&scene, false, size);
         let whole = Patches::of_scene_with(&scene, true, size, 0.1);
-        let from_room = Patches::of_scene_from_room(&room, &scene, 0.1);
+        let from_room =
+            Patches::of_scene_from_room(&room, &scene, 0.1, &mut ObjectMeshes::new(false));
         assert!(
             whole.patch_count() > room.patch_count(),
             "{variant}: the object adds patches"
         );
         assert!(from_room == whole, "{variant}: the meshes differ");
+        // A session's kept meshes, made at another pose, give the same mesh.
+        let mut kept = ObjectMeshes::new(true);
+        let other = base.with_motion_pose("box_slide", 2).unwrap();
+        Patches::of_scene_from_room(&room, &other, 0.1, &mut kept);
+        let moved = Patches::of_scene_from_room(&room, &scene, 0.1, &mut kept);
+        assert!(moved == whole, "{variant}: the kept meshes moved differ");
     }
 }
 
@@ -322,6 +329,7 @@ fn a_moved_solid_keeps_its_mesh() {
                 &room,
                 &base.with_motion_pose("box_slide", pose).unwrap(),
                 0.1,
+                &mut ObjectMeshes::new(false),
             );
             (
                 p.patch_count() - room.patch_count(),
@@ -479,4 +487,59 @@ fn links_per_element_grow_slowly_as_the_room_is_meshed_finer() {
         fine < 1.3 * coarse,
         "links per element {coarse:.1} → {fine:.1} when meshed 4× finer"
     );
+}
+
+#[test]
+fn an_object_walking_and_turning_keeps_its_patches() {
+    // The objects are meshed in their own frame and moved: the stool (2k
+    // triangles) has the same patches at every pose of its walk, turned
+    // too, as rigid copies (meshed in the world, rounding moved a few).
+    let base = common::load("lounge", "scene.toml");
+    let room = Patches::of_scene(&base, false, 1.0);
+    let poses = base.motion("stool_walk").unwrap().translations.len();
+    let mut kept = ObjectMeshes::new(true);
+    let shapes: Vec<(usize, usize, f64)> = (0..poses)
+        .flat_map(|pose| [0.0f64, 37.0].map(move |deg| (pose, deg)))
+        .map(|(pose, deg)| {
+            let mut scene = base.with_motion_pose("stool_walk", pose).unwrap();
+            let stool = scene
+                .objects
+                .iter_mut()
+                .find(|o| o.name == "stool")
+                .unwrap();
+            stool.pose.rotation =
+                glam::DMat3::from_rotation_y(deg.to_radians()) * stool.pose.rotation;
+            let p = Patches::of_scene_from_room(&room, &scene, 0.1, &mut kept);
+            let fresh =
+                Patches::of_scene_from_room(&room, &scene, 0.1, &mut ObjectMeshes::new(false));
+            assert!(
+                p == fresh,
+                "pose {pose}, {deg}°: kept and fresh meshes differ"
+            );
+            // The distance between the first two vertices of each patch: a
+            // rigid move keeps it.
+            let spans: f64 = (room.patch_count()..p.patch_count())
+                .map(|k| {
+                    let ids = p.patch_vertices[k];
+                    (p.vertices[ids[0] as usize] - p.vertices[ids[1] as usize]).length()
+                })
+                .sum();
+            (
+                p.patch_count() - room.patch_count(),
+                p.vertices.len() - room.vertices.len(),
+                spans,
+            )
+        })
+        .collect();
+    for s in &shapes {
+        assert_eq!(
+            (s.0, s.1),
+            (shapes[0].0, shapes[0].1),
+            "patches, vertices: {shapes:?}"
+        );
+        assert!(
+            (s.2 - shapes[0].2).abs() < 1e-9 * shapes[0].2,
+            "edge lengths: {shapes:?}"
+        );
+    }
 }

@@ -48,6 +48,14 @@ pub(super) struct GatherDirections {
 }
 
 impl GatherDirections {
+    /// `kept`: keep each vertex's directions for the next pose.
+    pub(super) fn new(kept: bool) -> GatherDirections {
+        GatherDirections {
+            kept,
+            ..GatherDirections::default()
+        }
+    }
+
     pub(super) fn key(v: u32, n: DVec3, side: u32) -> (u32, [u64; 3], u32) {
         (v, n.to_array().map(f64::to_bits), side)
     }
@@ -87,17 +95,17 @@ impl GatherDirections {
     }
 }
 
-/// The room's patches and then the virtual objects' (None: no object).
+/// The room's patches and then the virtual objects' (None: no object),
+/// the objects' meshes taken from and kept in `meshes`.
 pub(super) fn object_patches(
-    scene: &Scene,
-    room: &Patches,
+    (scene, room, meshes): (&Scene, &Patches, &mut crate::patches::ObjectMeshes),
     has_objects: bool,
     settings: &RenderSettings,
     times: &mut StageTimes,
 ) -> Option<Patches> {
     has_objects.then(|| {
         times.time("virtual mesh", || {
-            Patches::of_scene_from_room(room, scene, settings.virtual_patch_size)
+            Patches::of_scene_from_room(room, scene, settings.virtual_patch_size, meshes)
         })
     })
 }

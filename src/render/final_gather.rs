@@ -51,32 +51,53 @@ pub(super) fn shared_gathers(
     if within <= 0.0 {
         return shares;
     }
+    use rayon::prelude::*;
     let cos_max = SHARE_ANGLE_DEG.to_radians().cos();
     let cell = |p: DVec3| (p / within).floor().as_i64vec3().to_array();
-    let mut gatherers: crate::util::FastMap<[i64; 3], Vec<u32>> = crate::util::fast_map();
-    for (i, &(v, n, side)) in vertices.iter().enumerate() {
+    // The weight vertex `i` gives gathering vertex `j` (None: too far or
+    // facing too differently to share).
+    let weight = |i: usize, j: u32| {
+        let ((v, n, side), (w, m, other_side)) = (vertices[i], vertices[j as usize]);
         let p = patches.vertices[v as usize];
-        let [cx, cy, cz] = cell(p);
-        let mut taken = Vec::new();
+        let (d, cos) = ((patches.vertices[w as usize] - p).length(), n.dot(m));
+        (other_side == side && d <= within && cos >= cos_max)
+            .then(|| 1.0 / (d / within + (1.0 - cos).max(0.0).sqrt()).max(1e-9))
+    };
+    // Which vertices gather, in order (serial: each choice reads the ones
+    // before). Each gathering vertex is listed in the 27 cells around its
+    // own, so a vertex finds every candidate within `within` in its own
+    // cell's list: one lookup per vertex (an 80k-triangle object has 160k
+    // vertices and under 2k gathers).
+    let mut near: crate::util::FastMap<[i64; 3], Vec<u32>> = crate::util::fast_map();
+    let cells: Vec<[i64; 3]> = vertices
+        .par_iter()
+        .map(|&(v, ..)| cell(patches.vertices[v as usize]))
+        .collect();
+    for (i, &[cx, cy, cz]) in cells.iter().enumerate() {
+        let candidates = near.get(&[cx, cy, cz]).into_iter().flatten();
+        if candidates.into_iter().any(|&j| weight(i, j).is_some()) {
+            continue;
+        }
         for key in (-1..=1).flat_map(|x| {
             (-1..=1).flat_map(move |y| (-1..=1).map(move |z| [cx + x, cy + y, cz + z]))
         }) {
-            for &j in gatherers.get(&key).into_iter().flatten() {
-                let (w, m, other_side) = vertices[j as usize];
-                let (d, cos) = ((patches.vertices[w as usize] - p).length(), n.dot(m));
-                if other_side == side && d <= within && cos >= cos_max {
-                    let weight = 1.0 / (d / within + (1.0 - cos).max(0.0).sqrt()).max(1e-9);
-                    taken.push((j, weight));
-                }
-            }
-        }
-        if taken.is_empty() {
-            gatherers.entry(cell(p)).or_default().push(i as u32);
-        } else {
-            taken.sort_by_key(|&(j, _)| j);
-            shares[i] = taken;
+            near.entry(key).or_default().push(i as u32);
         }
     }
+    // Then, side by side, what each other vertex takes: the gathering
+    // vertices before it within reach (those after it gathered knowing it
+    // did not), in order.
+    shares.par_iter_mut().enumerate().for_each(|(i, taken)| {
+        let list = near.get(&cells[i]).map_or(&[][..], |l| &l[..]);
+        if list.binary_search(&(i as u32)).is_ok() {
+            return;
+        }
+        taken.extend(
+            list.iter()
+                .take_while(|&&j| (j as usize) < i)
+                .filter_map(|&j| weight(i, j).map(|w| (j, w))),
+        );
+    });
     shares
 }
 
@@ -158,14 +179,20 @@ pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec
 /// strata per side.
 fn gather_vertices(g: &Gather) -> Vec<(u32, DVec3, u32)> {
     let patches = g.patches;
-    let mut normal_of: crate::util::FastMap<u32, DVec3> = crate::util::fast_map();
+    // By vertex from the first of the objects' (dense: an object has as
+    // many vertices as corners of its patches); the first patch's normal.
+    let first = g.real_vertices;
+    let mut normal_of: Vec<Option<DVec3>> =
+        vec![None; patches.vertices.len().saturating_sub(first)];
     for (k, ids) in patches.patch_vertices.iter().enumerate() {
-        let el = patches.patch(k);
         for &v in ids
             .iter()
-            .filter(|&&v| v != u32::MAX && v as usize >= g.real_vertices)
+            .filter(|&&v| v != u32::MAX && v as usize >= first)
         {
-            normal_of.entry(v).or_insert(el.normal);
+            let n = &mut normal_of[v as usize - first];
+            if n.is_none() {
+                *n = Some(patches.patch(k).normal);
+            }
         }
     }
     // A vertex on a face turned from the camera shows in no pixel: its
@@ -179,15 +206,15 @@ fn gather_vertices(g: &Gather) -> Vec<(u32, DVec3, u32)> {
     // and the directions (kept per vertex and normal) would never be found
     // again. The rounding turns the hemisphere by at most ~1e-5 rad.
     let steady = |n: DVec3| ((n * 65536.0).round() / 65536.0).normalize();
-    let mut vertices: Vec<(u32, DVec3, u32)> = normal_of
+    normal_of
         .into_iter()
+        .enumerate()
+        .filter_map(|(i, n)| Some(((i + first) as u32, n?)))
         .map(|(v, n)| {
             let faces_camera = n.dot(g.camera.position - patches.vertices[v as usize]) > 0.0;
             (v, steady(n), if faces_camera { side } else { hidden_side })
         })
-        .collect();
-    vertices.sort_by_key(|(v, ..)| *v);
-    vertices
+        .collect()
 }
 
 /// Whether a vertex's rays may skip the objects: a ray leaving a face that
