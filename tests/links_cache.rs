@@ -120,3 +120,68 @@ fn a_motion_s_first_pose_reads_the_room_s_links_from_the_cache() {
     assert!(warm.contains("links from the cache"), "{warm}");
     assert!(frames == cold_frames && frames == warm_frames);
 }
+
+#[test]
+fn the_rooms_automatic_patch_size_is_read_from_the_cache() {
+    // A white room refines its coarse mesh (the size found from a coarse
+    // model); a second render reads the size instead of building that
+    // model, and renders the same image bit for bit.
+    let dir = tempfile::tempdir().unwrap();
+    let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/whitebox");
+    std::fs::create_dir(dir.path().join("geometry")).unwrap();
+    for f in [
+        "scene.toml",
+        "photo.exr",
+        "geometry/room.obj",
+        "geometry/cube.obj",
+    ] {
+        std::fs::copy(src.join(f), dir.path().join(f)).unwrap();
+    }
+    std::os::unix::fs::symlink(src.join("truth"), dir.path().join("truth")).unwrap();
+    let scene = dir.path().join("scene.toml").display().to_string();
+    let render = |out: &str, extra: &[&str]| {
+        let out = dir.path().join(out);
+        let mut args = vec!["render", &scene, "--variant", "cube_close", "-o"];
+        let out_arg = out.display().to_string();
+        args.push(&out_arg);
+        args.push("--json");
+        args.extend_from_slice(extra);
+        let report = arlux_json(&args);
+        let meshes = report["stages"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|s| s["stage"] == "mesh")
+            .map_or(0, |s| s["runs"].as_u64().unwrap());
+        (meshes, std::fs::read(out).unwrap())
+    };
+    let sizes = || -> usize {
+        std::fs::read_dir(dir.path().join(".arlux-cache"))
+            .map(|d| {
+                d.filter(|e| {
+                    let name = e.as_ref().unwrap().file_name();
+                    name.to_string_lossy().starts_with("room-size-")
+                })
+                .count()
+            })
+            .unwrap_or(0)
+    };
+    let (uncached, image) = render("a.exr", &["--no-cache"]);
+    assert_eq!(
+        (uncached, sizes()),
+        (2, 0),
+        "coarse then fine, nothing kept"
+    );
+    let (cold, cold_image) = render("b.exr", &[]);
+    let (warm, warm_image) = render("c.exr", &[]);
+    assert_eq!((cold, warm, sizes()), (2, 1, 1), "the size read back");
+    assert!(image == cold_image && image == warm_image);
+    // Another photo is another entry.
+    let mut photo = arlux::image_io::read_image(&dir.path().join("photo.exr")).unwrap();
+    photo.pixels.iter_mut().for_each(|p| *p *= 1.25);
+    let layer = arlux::image_io::ExrLayer::Rgb("", &photo);
+    let (w, h) = (photo.width, photo.height);
+    arlux::image_io::write_exr(&dir.path().join("photo.exr"), w, h, &[layer]).unwrap();
+    let (other, _) = render("d.exr", &[]);
+    assert_eq!((other, sizes()), (2, 2));
+}

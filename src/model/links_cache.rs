@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use crate::patches::Patches;
 use crate::radiosity::Link;
 use crate::scene::Scene;
-use crate::util::cache::ContentHash;
+use crate::util::cache::{ContentHash, build_id};
 
 const FORMAT: &[u8; 8] = b"ARLXLNK1";
 
@@ -51,24 +51,6 @@ pub(super) fn entry(scene: &Scene, patches: &Patches, epsilon: f64) -> PathBuf {
         hash.feed(&c1.to_le_bytes());
     }
     hash.entry(scene.dir(), "links", "bin")
-}
-
-/// The running program: its version, size and time of build. Another
-/// build may refine differently, and links it did not make must never be
-/// read as this one's: where the program's file cannot be read, nothing is
-/// kept or read.
-fn build_id() -> Option<u64> {
-    let exe = std::env::current_exe().ok()?.metadata().ok()?;
-    let built = exe
-        .modified()
-        .ok()?
-        .duration_since(std::time::UNIX_EPOCH)
-        .ok()?;
-    let mut hash = ContentHash::default();
-    hash.feed(env!("CARGO_PKG_VERSION").as_bytes());
-    hash.feed(&exe.len().to_le_bytes());
-    hash.feed(&built.as_nanos().to_le_bytes());
-    Some(hash.value())
 }
 
 /// The links stored at `path`, if this build wrote it whole and every link
@@ -134,26 +116,6 @@ pub(super) fn write(path: &Path, links: &[Link]) {
         Ok(())
     });
     if written.is_ok() {
-        prune(dir);
-    }
-}
-
-/// Removes all but the [`KEPT`] most recently used link entries in `dir`.
-fn prune(dir: &Path) {
-    let Ok(listing) = std::fs::read_dir(dir) else {
-        return;
-    };
-    let mut entries: Vec<(std::time::SystemTime, PathBuf)> = listing
-        .flatten()
-        .filter(|e| {
-            let name = e.file_name();
-            let name = name.to_string_lossy();
-            name.starts_with("links-") && name.ends_with(".bin")
-        })
-        .filter_map(|e| Some((e.metadata().ok()?.modified().ok()?, e.path())))
-        .collect();
-    entries.sort_by_key(|e| std::cmp::Reverse(e.0));
-    for (_, old) in entries.into_iter().skip(KEPT) {
-        let _ = std::fs::remove_file(old);
+        crate::util::cache::prune(dir, "links", "bin", KEPT);
     }
 }

@@ -3,6 +3,8 @@
 
 use super::*;
 
+mod size_cache;
+
 /// The photo smoothed within its own grain, what a brightening multiplies
 /// (see [`crate::composite::grain`]).
 pub(super) fn photo_without_grain(photo: &Image, lamps: Option<&LampPixels>) -> Image {
@@ -44,7 +46,8 @@ pub(super) fn room_patch_size(scene: &Scene, patch_size: PatchSize) -> f64 {
 }
 
 /// The photo's model; with an automatic patch size and no light change,
-/// built again finer where the room's interreflection asks for it.
+/// built finer where the room's interreflection asks for it (the size
+/// found from a coarse model first, kept in the scene's cache).
 pub(super) fn photo_model(
     scene: &Scene,
     photo: &Image,
@@ -52,15 +55,34 @@ pub(super) fn photo_model(
     settings: &mut RenderSettings,
     times: &mut StageTimes,
 ) -> Result<Model> {
-    let mut model = Model::build(scene, photo, tracer, &settings.model, times)?;
-    if settings.patch_size == PatchSize::Auto && !lights_change(&scene.lights) {
-        let finer = settings.model.patch_size * interreflection_scale(&model);
-        if finer < 0.9 * settings.model.patch_size {
-            settings.model.patch_size = finer.max(fine_patch_size(scene));
-            model = Model::build(scene, photo, tracer, &settings.model, times)?;
-        }
+    if settings.patch_size != PatchSize::Auto || lights_change(&scene.lights) {
+        return Model::build(scene, photo, tracer, &settings.model, times);
     }
-    Ok(model)
+    let coarse = settings.model.patch_size;
+    let entry = (settings.model.cache_links)
+        .then(|| size_cache::entry(scene, photo, &settings.model))
+        .flatten();
+    let size = match entry.as_deref().and_then(size_cache::read) {
+        Some(size) => size,
+        None => {
+            let model = Model::build(scene, photo, tracer, &settings.model, times)?;
+            let finer = coarse * interreflection_scale(&model);
+            let size = if finer < 0.9 * coarse {
+                finer.max(fine_patch_size(scene))
+            } else {
+                coarse
+            };
+            if let Some(entry) = &entry {
+                size_cache::write(entry, size);
+            }
+            if size == coarse {
+                return Ok(model);
+            }
+            size
+        }
+    };
+    settings.model.patch_size = size;
+    Model::build(scene, photo, tracer, &settings.model, times)
 }
 
 /// Whether a scene's lights switch, scale or add a light.

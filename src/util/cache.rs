@@ -36,3 +36,42 @@ impl ContentHash {
             .join(format!("{kind}-{:016x}.{ext}", self.value()))
     }
 }
+
+/// The running program: its version, size and time of build. Another
+/// build may compute differently, and what it made must never be read as
+/// this one's: where the program's file cannot be read, nothing is kept or
+/// read.
+pub(crate) fn build_id() -> Option<u64> {
+    let exe = std::env::current_exe().ok()?.metadata().ok()?;
+    let built = exe
+        .modified()
+        .ok()?
+        .duration_since(std::time::UNIX_EPOCH)
+        .ok()?;
+    let mut hash = ContentHash::default();
+    hash.feed(env!("CARGO_PKG_VERSION").as_bytes());
+    hash.feed(&exe.len().to_le_bytes());
+    hash.feed(&built.as_nanos().to_le_bytes());
+    Some(hash.value())
+}
+
+/// Removes all but the `kept` most recently used `kind-*.ext` entries in `dir`.
+pub(crate) fn prune(dir: &Path, kind: &str, ext: &str, kept: usize) {
+    let Ok(listing) = std::fs::read_dir(dir) else {
+        return;
+    };
+    let (prefix, suffix) = (format!("{kind}-"), format!(".{ext}"));
+    let mut entries: Vec<(std::time::SystemTime, PathBuf)> = listing
+        .flatten()
+        .filter(|e| {
+            let name = e.file_name();
+            let name = name.to_string_lossy();
+            name.starts_with(&prefix) && name.ends_with(&suffix)
+        })
+        .filter_map(|e| Some((e.metadata().ok()?.modified().ok()?, e.path())))
+        .collect();
+    entries.sort_by_key(|e| std::cmp::Reverse(e.0));
+    for (_, old) in entries.into_iter().skip(kept) {
+        let _ = std::fs::remove_file(old);
+    }
+}
