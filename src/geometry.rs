@@ -80,6 +80,21 @@ pub fn normal(t: &Triangle) -> DVec3 {
     (b - a).cross(c - a).normalize_or_zero()
 }
 
+/// Barycentric weights of `x`, projected on the plane of a, b, c (outside
+/// the triangle some are negative; a degenerate triangle gives a's).
+pub(crate) fn barycentric(a: DVec3, b: DVec3, c: DVec3, x: DVec3) -> [f64; 3] {
+    let (e1, e2, p) = (b - a, c - a, x - a);
+    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let (p1, p2) = (p.dot(e1), p.dot(e2));
+    let det = d11 * d22 - d12 * d12;
+    if det.abs() <= 1e-300 {
+        return [1.0, 0.0, 0.0];
+    }
+    let u = (d22 * p1 - d12 * p2) / det;
+    let v = (d11 * p2 - d12 * p1) / det;
+    [1.0 - u - v, u, v]
+}
+
 /// Distance from `p` to the closest point of triangle `t` (Ericson,
 /// Real-Time Collision Detection §5.1.5), in f64.
 pub(crate) fn distance_to_triangle(p: DVec3, t: &Triangle) -> f64 {

@@ -368,17 +368,15 @@ fn towards_the_viewer(ng: DVec3, v: DVec3, n: DVec3) -> DVec3 {
     blend(hi)
 }
 
-/// Barycentric weights of `x` (in the plane of a, b, c) for a, b, c.
+/// Barycentric weights of `x` (in the plane of a, b, c) for a, b, c,
+/// clamped into the triangle.
 fn barycentrics(a: DVec3, b: DVec3, c: DVec3, x: DVec3) -> [f64; 3] {
-    let (e1, e2, p) = (b - a, c - a, x - a);
-    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
-    let (p1, p2) = (p.dot(e1), p.dot(e2));
-    let det = d11 * d22 - d12 * d12;
-    if det.abs() <= 1e-300 {
+    let [_, u, v] = crate::geometry::barycentric(a, b, c, x);
+    if u.is_nan() || v.is_nan() {
         return [1.0, 0.0, 0.0];
     }
-    let u = ((d22 * p1 - d12 * p2) / det).clamp(0.0, 1.0);
-    let v = ((d11 * p2 - d12 * p1) / det).clamp(0.0, 1.0 - u);
+    let u = u.clamp(0.0, 1.0);
+    let v = v.clamp(0.0, 1.0 - u);
     [1.0 - u - v, u, v]
 }
 

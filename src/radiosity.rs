@@ -30,6 +30,7 @@ mod direct;
 mod form_factor;
 mod near;
 mod near_pixel;
+mod object_albedo;
 mod relink;
 pub use relink::ObjectLinkEstimate;
 mod solve;
@@ -42,6 +43,7 @@ pub use direct::{direct_irradiance, direct_irradiance_with_objects, total_direct
 pub use form_factor::{PairShafts, element_form_factor, visibility};
 pub use near::{NearField, NearView};
 pub use near_pixel::ChangeSampler;
+pub use object_albedo::object_reflectances;
 pub(crate) use solve::solve_from;
 pub use solve::{Solution, solve, solve_by_iteration};
 pub use still::StillSurfaces;

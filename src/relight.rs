@@ -220,11 +220,12 @@ impl TexturePath {
             .iter()
             .map(|l| l.iter().map(|t| t.occluded).collect())
             .collect();
-        let virtual_rgb = scene.virtual_surface_rgb();
         let mut reflectance = rho_final;
-        reflectance.extend(
-            (real_patches..patches.patch_count()).map(|k| virtual_rgb[&patches.patch(k).surface]),
-        );
+        reflectance.extend(crate::radiosity::object_reflectances(
+            scene,
+            &patches,
+            real_patches,
+        ));
         let mut radiosity_final = final_solution.radiosity;
         radiosity_final.resize(patches.patch_count(), DVec3::ZERO);
         let mut h_final = final_solution.indirect_irradiance;

@@ -5,8 +5,6 @@
 //! out and listed: no change returns the photo; no virtual object builds no
 //! virtual geometry and reuses the room's light transport.
 
-use std::collections::HashMap;
-
 use glam::DVec3;
 
 use crate::composite::{Composite, CompositeInput, CompositeMode, RealPixels, composite_into};

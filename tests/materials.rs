@@ -181,3 +181,38 @@ fn the_objects_pixels_are_the_same_on_one_thread_and_on_three() {
         .collect();
     assert!(images[0] == images[1], "thread count changed the image");
 }
+
+#[test]
+fn a_textured_object_bounces_the_colours_of_its_texture() {
+    // The globe's oceans face the floor beside it: the light it bounces
+    // there is bluer than its texture's mean. Over the floor in its half
+    // shadow, our change against the truth's per channel: with one mean
+    // albedo per surface red took 0.75 of the truth's change and blue
+    // 1.05; with each patch's own albedo both lie within 8% of it.
+    let base = load("materials", "scene.toml");
+    let (out, truth, photo) = run(&base, "globe_floor");
+    let changed = arlux::compare::changed_pixels(&truth, &photo);
+    let (mut ours, mut theirs) = (glam::DVec3::ZERO, glam::DVec3::ZERO);
+    for (i, a) in out.composite.alpha.iter().enumerate() {
+        let (o, t, p) = (
+            out.composite.image.pixels[i].as_dvec3(),
+            truth.pixels[i].as_dvec3(),
+            photo.pixels[i].as_dvec3(),
+        );
+        let relative = (t - p).element_sum() / p.element_sum().max(1e-3);
+        if changed[i] && *a == 0.0 && relative > -0.5 && relative <= -0.05 {
+            ours += o - p;
+            theirs += t - p;
+        }
+    }
+    let ratio = ours / theirs;
+    println!("half shadow: our change / the truth's {ratio:.3}");
+    assert!(
+        ratio.cmpge(glam::DVec3::splat(0.85)).all() && ratio.cmple(glam::DVec3::splat(1.15)).all(),
+        "{ratio:.3}"
+    );
+    assert!(
+        (ratio.x / ratio.z - 1.0).abs() <= 0.08,
+        "red against blue: {ratio:.3}"
+    );
+}

@@ -201,3 +201,44 @@ pub fn hemispherical_albedo(lobes: &Lobes) -> DVec3 {
         .sum::<DVec3>()
         / k as f64
 }
+
+/// Cells per unit of metallic and of roughness in [`table_albedo`]'s table.
+const TABLE_STEPS: usize = 64;
+
+/// [`hemispherical_albedo`] from a table over metallic and roughness,
+/// interpolated bilinearly. The albedo is affine in the base colour (the
+/// Fresnel term and the diffuse part are), a + b·base per channel, so a
+/// cell holds a and b, each cell computed once, when first read (each is
+/// two quadratures of 9,216 samples). A textured object's patches read it,
+/// one material point each: an 80k-triangle asset took 40 s by quadrature.
+pub fn table_albedo(lobes: &Lobes) -> DVec3 {
+    use std::sync::OnceLock;
+    const S: usize = TABLE_STEPS;
+    static TABLE: OnceLock<Vec<OnceLock<(f64, f64)>>> = OnceLock::new();
+    let table = TABLE.get_or_init(|| (0..(S + 1) * (S + 1)).map(|_| OnceLock::new()).collect());
+    let cell = |i: usize, j: usize| {
+        *table[i * (S + 1) + j].get_or_init(|| {
+            let at = |base: f64| {
+                hemispherical_albedo(&Lobes {
+                    base: DVec3::splat(base),
+                    metallic: i as f64 / S as f64,
+                    roughness: j as f64 / S as f64,
+                })
+                .x
+            };
+            let a = at(0.0);
+            (a, at(1.0) - a)
+        })
+    };
+    let (m, r) = (
+        lobes.metallic.clamp(0.0, 1.0) * S as f64,
+        lobes.roughness.clamp(0.0, 1.0) * S as f64,
+    );
+    let (i, j) = ((m as usize).min(S - 1), (r as usize).min(S - 1));
+    let (fm, fr) = (m - i as f64, r - j as f64);
+    let mix = |p: (f64, f64), q: (f64, f64), t: f64| (p.0 + (q.0 - p.0) * t, p.1 + (q.1 - p.1) * t);
+    let lo = mix(cell(i, j), cell(i, j + 1), fr);
+    let hi = mix(cell(i + 1, j), cell(i + 1, j + 1), fr);
+    let (a, b) = mix(lo, hi, fm);
+    (DVec3::splat(a) + lobes.base.clamp(DVec3::ZERO, DVec3::ONE) * b).clamp(DVec3::ZERO, DVec3::ONE)
+}

@@ -304,13 +304,12 @@ pub(super) fn solve_changes(
         }));
     }
     let view = view.as_ref().expect("traced above");
-    let virtual_rgb: HashMap<u32, DVec3> = input.scene.virtual_surface_rgb();
-    let reflectance: Vec<DVec3> = (0..patches.patch_count())
-        .map(|k| match k < room_count {
-            true => model.estimate.reflectance[k],
-            false => virtual_rgb[&patches.patch(k).surface],
-        })
-        .collect();
+    let mut reflectance = model.estimate.reflectance[..room_count].to_vec();
+    reflectance.extend(crate::radiosity::object_reflectances(
+        input.scene,
+        patches,
+        room_count,
+    ));
     // Objects whose material glows light the room as lamps of their shape.
     let glowing = input.scene.virtual_surface_emission();
     let emission: Vec<DVec3> = (0..patches.patch_count())
