@@ -42,10 +42,12 @@ fn main() -> anyhow::Result<()> {
     session.prepare_updates(&mut StageTimes::default());
     session.image_only();
     let (mut stages, mut totals): (BTreeMap<String, Vec<f64>>, Vec<f64>) = Default::default();
+    let mut kept = Vec::new();
     for i in 0..updates {
         let mut times = StageTimes::default();
         let t0 = std::time::Instant::now();
-        session.update(if i % 2 == 0 { &p4 } else { &p3 }, &mut times)?;
+        let stats = session.update(if i % 2 == 0 { &p4 } else { &p3 }, &mut times)?;
+        kept.push((stats.bundles_kept, stats.gathers_kept));
         totals.push(t0.elapsed().as_secs_f64() * 1e3);
         let mut per: BTreeMap<String, f64> = BTreeMap::new();
         for (stage, d) in times.0 {
@@ -67,6 +69,9 @@ fn main() -> anyhow::Result<()> {
         "{updates} updates, medians: wall {:.2} ms",
         median(&mut totals)
     );
+    kept.sort();
+    let (bundles, gathers) = kept[kept.len() / 2];
+    println!("  kept of the last pose: {bundles} bundles, {gathers} vertices' gathers");
     for (stage, v) in stages.iter_mut() {
         println!("  {stage:<28} {:>6.2} ms", median(v));
     }

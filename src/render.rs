@@ -361,6 +361,9 @@ pub struct UpdateStats {
     /// pose rather than traced again (what the room's patches and the
     /// points near the objects see of them).
     pub bundles_kept: u64,
+    /// Vertices of objects that stood still whose final gather was summed
+    /// again over the kept rays rather than traced.
+    pub gathers_kept: usize,
     /// Blocks skipped by one shaft test, per light: (level, x, y).
     pub skipped_blocks: Vec<Vec<(u8, u32, u32)>>,
 }
@@ -701,7 +704,11 @@ impl Session {
                         changes::view_keeping(&input, o, (last, still))
                     }));
                 }
-                solve_changes(&input, objects_ref, directions, view, times)
+                // The gathers of vertices no mover comes near are summed again.
+                directions.since = still.cloned();
+                let solved = solve_changes(&input, objects_ref, directions, view, times);
+                directions.since = None;
+                solved
             },
             |times| {
                 let out = pixels.run(&input, objects_ref, times);
@@ -718,6 +725,7 @@ impl Session {
         stats.bundles_kept = (rays.view.iter().map(|v| v.kept))
             .chain(rays.near.iter().map(|v| v.kept))
             .sum();
+        stats.gathers_kept = self.pose.gather_directions.reused;
         self.pose.changes = solved.with_patches(objects, rays);
         stats.rays += pixel_rays;
         stats.pixels_retraced = retraced;

@@ -166,11 +166,11 @@ fn an_object_standing_still_keeps_its_rays_and_updates_equal_full_renders() {
         let d = differing(&session.composite.image, &full.composite.image);
         let indirect = differing(&session.composite.indirect, &full.composite.indirect);
         println!(
-            "pose {pose}: {} bundles kept; {d} pixels differ",
-            stats.bundles_kept
+            "pose {pose}: {} bundles, {} gathers kept; {d} pixels differ",
+            stats.bundles_kept, stats.gathers_kept
         );
         assert!(
-            stats.bundles_kept > 0,
+            stats.bundles_kept > 0 && stats.gathers_kept > 0,
             "pose {pose}: nothing kept of the still box's rays"
         );
         assert_eq!((d, indirect), (0, 0), "pose {pose}: the image must match");

@@ -24,6 +24,8 @@ pub struct StillSurfaces {
     shift: Vec<Option<i64>>,
     /// The spheres of the surfaces that moved, where they were and where they are.
     movers: Vec<(DVec3, f64)>,
+    /// Their boxes, in the same order.
+    boxes: Vec<(DVec3, DVec3)>,
 }
 
 /// Beyond a receiver's own reach, what a ray's origin may be lifted off it.
@@ -66,6 +68,7 @@ impl StillSurfaces {
         for t in old_targets.iter().chain(&new_targets) {
             if !out.is_still(t.surface) {
                 out.movers.push((t.centre, t.radius));
+                out.boxes.push((t.lo, t.hi));
             }
         }
         out
@@ -76,6 +79,22 @@ impl StillSurfaces {
         let shift = self.shift[surface as usize].expect("a still surface");
         seen.object = (seen.object as i64 + shift) as u32;
         seen
+    }
+
+    /// Whether no surface that moved, where it was or where it is, comes
+    /// near the segment from `a` to `b` (its sphere first, then its box).
+    pub fn clear_of_movers(&self, a: DVec3, b: DVec3) -> bool {
+        let slack = DVec3::splat(ORIGIN_SLACK);
+        (self.movers.iter().zip(&self.boxes)).all(|(&(c, r), &(lo, hi))| {
+            distance_to_segment(c, a, b) > r + ORIGIN_SLACK
+                || !crate::geometry::segment_meets_box(a, b, lo - slack, hi + slack)
+        })
+    }
+
+    /// How far still surface `surface`'s patch numbers moved (None: it
+    /// moved, or was shown or hidden).
+    pub fn patch_shift(&self, surface: u32) -> Option<i64> {
+        self.shift.get(surface as usize).copied().flatten()
     }
 
     pub(super) fn is_still(&self, surface: u32) -> bool {
@@ -189,6 +208,7 @@ mod tests {
         let moved = |c: DVec3, r: f64| StillSurfaces {
             shift: vec![None; 8],
             movers: vec![(c, r)],
+            boxes: vec![(c - DVec3::splat(r), c + DVec3::splat(r))],
         };
         let cone = (DVec3::Z, Some(0.25f64.asin().cos()));
         let clear = |s: &StillSurfaces, cone| s.cone_clear(DVec3::ZERO, 0.0, cone, &target);

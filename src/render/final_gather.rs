@@ -145,22 +145,49 @@ pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec
     if directions.kept {
         directions.keep(&gathering);
     }
-    let directions = &*directions;
-    let own: Vec<Option<Gathered>> = vertices
+    let keeping = directions.kept;
+    let kept = &*directions;
+    let own: Vec<Option<(Gathered, Option<Traced>, bool)>> = vertices
         .par_iter()
         .zip(&shares)
         .enumerate()
         .map(|(i, (&(v, n, side), taken))| {
             taken.is_empty().then(|| {
-                let layer = if clear_of_object(g.patches.vertices[v as usize], n) {
+                let p = g.patches.vertices[v as usize];
+                let layer = if clear_of_object(p, n) {
                     Layer::Real
                 } else {
                     Layer::All
                 };
-                Gathered {
+                let dirs = kept.of(v, n, side);
+                // Faces are one-sided here (solids face out, open surfaces face the camera).
+                let origin = crate::light::offset_origin(p, n, p + n);
+                let again = (kept.since.as_ref())
+                    .zip(kept.traced.get(&GatherDirections::key(v, n, side)))
+                    .and_then(|(since, old)| old.kept(origin, layer, &dirs, since));
+                let reused = again.is_some();
+                let traced = again.unwrap_or_else(|| trace_at(g, origin, &dirs, layer));
+                let gathered = Gathered {
                     objects_of: i,
-                    ..gather_at(g, v, n, &directions.of(v, n, side), layer)
+                    ..sum_at(g, v, &traced)
+                };
+                (gathered, keeping.then_some(traced), reused)
+            })
+        })
+        .collect();
+    directions.traced.clear();
+    directions.reused = own.iter().flatten().filter(|o| o.2).count();
+    let own: Vec<Option<Gathered>> = own
+        .into_iter()
+        .zip(&vertices)
+        .map(|(o, &(v, n, side))| {
+            o.map(|(gathered, traced, _)| {
+                if let Some(t) = traced {
+                    directions
+                        .traced
+                        .insert(GatherDirections::key(v, n, side), t);
                 }
+                gathered
             })
         })
         .collect();
@@ -256,14 +283,76 @@ pub(super) struct Gathered {
     pub(super) rays: usize,
 }
 
-/// The irradiance gathered at vertex `v` (normal `n`) along `dirs` through `layer`.
-fn gather_at(g: &Gather, v: u32, n: DVec3, dirs: &[DVec3], layer: Layer) -> Gathered {
-    use crate::light::offset_origin;
+/// A gathering vertex's rays as traced: where each landed, and the
+/// photo's radiance at the real points the camera sees, in order (a
+/// session keeps them for the next pose).
+#[derive(Debug, Clone)]
+pub(super) struct Traced {
+    origin: DVec3,
+    layer: Layer,
+    landed: Vec<Option<Landed>>,
+    /// Pixels of the photo, single precision as it holds them.
+    seen: Vec<Option<glam::Vec3>>,
+}
+
+/// Where a gather ray landed: the point (single precision: kept for the
+/// test against the objects that move, which allows a millimetre), its
+/// patch, and the object surface it lies on (`u32::MAX`: the room).
+#[derive(Debug, Clone, Copy)]
+struct Landed {
+    at: glam::Vec3,
+    patch: u32,
+    object: u32,
+}
+
+impl Landed {
+    fn on_object(&self) -> bool {
+        self.object != u32::MAX
+    }
+}
+
+/// How far a ray that met nothing is checked against the objects that moved.
+const FAR: f64 = 1e4;
+
+impl Traced {
+    /// These rays at this pose, when they are as they were: the vertex is
+    /// where it was, traces the same layer, and no object that moved
+    /// (`since`) comes near a ray that sees the objects; the patches met on
+    /// still objects renumbered as this pose numbers them. The photo's
+    /// radiances are read through the room alone: they stand.
+    fn kept(
+        &self,
+        origin: DVec3,
+        layer: Layer,
+        dirs: &[DVec3],
+        since: &crate::radiosity::StillSurfaces,
+    ) -> Option<Traced> {
+        // The directions are the vertex's own (its number, normal and
+        // strata, the key it was kept under).
+        if self.origin != origin || self.layer != layer || self.landed.len() != dirs.len() {
+            return None;
+        }
+        if layer == Layer::Real {
+            return Some(self.clone());
+        }
+        let mut out = self.clone();
+        for (l, d) in out.landed.iter_mut().zip(dirs) {
+            let end = l.map_or(origin + *d * FAR, |l| l.at.as_dvec3());
+            if !since.clear_of_movers(origin, end) {
+                return None;
+            }
+            if let Some(l) = l.as_mut().filter(|l| l.on_object()) {
+                let shift = since.patch_shift(l.object)?;
+                l.patch = u32::try_from(l.patch as i64 + shift).ok()?;
+            }
+        }
+        Some(out)
+    }
+}
+
+/// Traces the rays along `dirs` from `origin` through `layer`.
+fn trace_at(g: &Gather, origin: DVec3, dirs: &[DVec3], layer: Layer) -> Traced {
     use crate::trace::TraceRay;
-    let pi = std::f64::consts::PI;
-    let p = g.patches.vertices[v as usize];
-    // Faces are one-sided here (solids face out, open surfaces face the camera).
-    let origin = offset_origin(p, n, p + n);
     let traced: Vec<TraceRay> = dirs
         .iter()
         .map(|d| TraceRay::new(origin.as_vec3(), d.as_vec3()))
@@ -271,35 +360,61 @@ fn gather_at(g: &Gather, v: u32, n: DVec3, dirs: &[DVec3], layer: Layer) -> Gath
     let mut hits = vec![None; traced.len()];
     g.tracer.intersect_batch(&traced, layer, &mut hits);
     // Where each ray lands and on which patch; the real points' photo radiance in one batch.
-    let landed: Vec<Option<(DVec3, usize, bool)>> = dirs
+    let points: Vec<Option<(DVec3, Landed)>> = dirs
         .iter()
         .zip(&hits)
         .map(|(d, hit)| {
             let hit = hit.as_ref()?;
             let y = origin + *d * hit.t as f64;
             let at = g.patches.locate(hit.surface, hit.triangle, y)?;
-            Some((y, at.patch as usize, hit.is_virtual))
+            let object = if hit.is_virtual {
+                hit.surface
+            } else {
+                u32::MAX
+            };
+            let landed = Landed {
+                at: y.as_vec3(),
+                patch: at.patch,
+                object,
+            };
+            Some((y, landed))
         })
         .collect();
-    let real_points: Vec<DVec3> = landed
+    let real_points: Vec<DVec3> = points
         .iter()
         .flatten()
-        .filter(|l| !l.2)
-        .map(|l| l.0)
+        .filter(|(_, l)| !l.on_object())
+        .map(|(y, _)| *y)
         .collect();
-    let mut seen =
-        crate::gather::photo_radiances(g.camera, g.tracer, g.photo, &real_points).into_iter();
+    let seen = crate::gather::photo_radiances(g.camera, g.tracer, g.photo, &real_points)
+        .into_iter()
+        .map(|r| r.map(|r| r.as_vec3()))
+        .collect();
+    let landed = points.into_iter().map(|p| p.map(|(_, l)| l)).collect();
+    Traced {
+        origin,
+        layer,
+        landed,
+        seen,
+    }
+}
+
+/// The irradiance vertex `v`'s rays `traced` gather from the radiosity.
+fn sum_at(g: &Gather, v: u32, traced: &Traced) -> Gathered {
+    let pi = std::f64::consts::PI;
+    let mut seen = traced.seen.iter();
     let (mut sum, mut objects) = (DVec3::ZERO, DVec3::ZERO);
     let mut objects_met = Vec::new();
-    for &(_, k, is_virtual) in landed.iter().flatten() {
+    for l in traced.landed.iter().flatten() {
+        let k = l.patch as usize;
         let model = g.radiosity_with[k] / pi;
-        if is_virtual {
+        if l.on_object() {
             objects += model;
             objects_met.push(k as u32);
             continue;
         }
         // Seen by the camera? Then the photo knows its radiance.
-        sum += match seen.next().flatten() {
+        sum += match seen.next().copied().flatten().map(|r| r.as_dvec3()) {
             Some(radiance) => {
                 let ratio = (g.radiosity_with[k] / g.radiosity_without[k].max(DVec3::splat(1e-12)))
                     .min(DVec3::splat(4.0));
@@ -308,13 +423,14 @@ fn gather_at(g: &Gather, v: u32, n: DVec3, dirs: &[DVec3], layer: Layer) -> Gath
             None => model,
         };
     }
-    let per_ray = pi / dirs.len() as f64;
+    let rays = traced.landed.len();
+    let per_ray = pi / rays as f64;
     Gathered {
         vertex: v as usize,
         irradiance: (sum + objects) * per_ray,
         from_room: sum * per_ray,
         objects_met,
         objects_of: usize::MAX,
-        rays: dirs.len(),
+        rays,
     }
 }
