@@ -361,8 +361,7 @@ pub struct UpdateStats {
     /// pose rather than traced again (what the room's patches and the
     /// points near the objects see of them).
     pub bundles_kept: u64,
-    /// Vertices of objects that stood still whose final gather was summed
-    /// again over the kept rays rather than traced.
+    /// Still objects' vertices whose gather was summed again over kept rays.
     pub gathers_kept: usize,
     /// Blocks skipped by one shaft test, per light: (level, x, y).
     pub skipped_blocks: Vec<Vec<(u8, u32, u32)>>,
@@ -696,6 +695,7 @@ impl Session {
         let mut rays = PoseRays::default();
         let view = &mut rays.view;
         let still = still.as_ref();
+        directions.since = still.cloned(); // gathers no mover comes near: summed again
         let (solved, ((touched, pixel_rays, retraced), near)) = times.concurrently(
             "radiosity | pixels",
             |times| {
@@ -704,11 +704,7 @@ impl Session {
                         changes::view_keeping(&input, o, (last, still))
                     }));
                 }
-                // The gathers of vertices no mover comes near are summed again.
-                directions.since = still.cloned();
-                let solved = solve_changes(&input, objects_ref, directions, view, times);
-                directions.since = None;
-                solved
+                solve_changes(&input, objects_ref, directions, view, times)
             },
             |times| {
                 let out = pixels.run(&input, objects_ref, times);
@@ -725,7 +721,8 @@ impl Session {
         stats.bundles_kept = (rays.view.iter().map(|v| v.kept))
             .chain(rays.near.iter().map(|v| v.kept))
             .sum();
-        stats.gathers_kept = self.pose.gather_directions.reused;
+        (stats.gathers_kept, self.pose.gather_directions.since) =
+            (self.pose.gather_directions.reused, None);
         self.pose.changes = solved.with_patches(objects, rays);
         stats.rays += pixel_rays;
         stats.pixels_retraced = retraced;
