@@ -15,6 +15,15 @@ pub mod texture;
 pub use brdf::Lobes;
 pub use texture::Texture;
 
+/// The lobes of a base colour, metallic and roughness, each clamped to [0, 1].
+fn lobes_of(base: Vec4, metallic: f32, roughness: f32) -> Lobes {
+    Lobes {
+        base: base.truncate().as_dvec3().clamp(DVec3::ZERO, DVec3::ONE),
+        metallic: metallic.clamp(0.0, 1.0) as f64,
+        roughness: roughness.clamp(0.0, 1.0) as f64,
+    }
+}
+
 /// A glTF 2.0 metallic-roughness material (factors times textures).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Material {
@@ -58,18 +67,8 @@ impl Material {
     /// The material at texture coordinate `uv`, over a pixel footprint
     /// `footprint` wide in texture coordinates (selects the mip level).
     pub fn at(&self, uv: Vec2, footprint: f32) -> PointMaterial {
-        // Texels across the footprint: texture coordinates span √(W·H) texels on average.
         let texels = |t: &Texture| footprint * ((t.size().0 as f32) * (t.size().1 as f32)).sqrt();
-        let base = match &self.base_texture {
-            Some(t) => self.base_colour * t.sample(uv, texels(t)),
-            None => self.base_colour,
-        };
-        let (mut metallic, mut roughness) = (self.metallic, self.roughness);
-        if let Some(t) = &self.metallic_roughness_texture {
-            let s = t.sample(uv, texels(t));
-            roughness *= s.y;
-            metallic *= s.z;
-        }
+        let (base, metallic, roughness) = self.factors_at(uv, footprint);
         let emissive = match &self.emissive_texture {
             Some(t) => self.emissive * t.sample(uv, texels(t)).truncate(),
             None => self.emissive,
@@ -84,15 +83,36 @@ impl Material {
             n.normalize_or(Vec3::Z)
         });
         PointMaterial {
-            lobes: Lobes {
-                base: base.truncate().as_dvec3().clamp(DVec3::ZERO, DVec3::ONE),
-                metallic: metallic.clamp(0.0, 1.0) as f64,
-                roughness: roughness.clamp(0.0, 1.0) as f64,
-            },
+            lobes: lobes_of(base, metallic, roughness),
             emissive: emissive.as_dvec3().max(DVec3::ZERO),
             opaque: self.alpha_cutoff.is_none_or(|c| base.w >= c),
             tangent_normal: normal,
         }
+    }
+
+    /// The lobes alone at `uv` over `footprint` (as [`Material::at`], the
+    /// normal and emission textures left unread).
+    pub fn lobes_at(&self, uv: Vec2, footprint: f32) -> Lobes {
+        let (base, metallic, roughness) = self.factors_at(uv, footprint);
+        lobes_of(base, metallic, roughness)
+    }
+
+    /// Base colour (with alpha), metallic and roughness at `uv` over
+    /// `footprint` wide in texture coordinates, factors times textures.
+    fn factors_at(&self, uv: Vec2, footprint: f32) -> (Vec4, f32, f32) {
+        // Texels across the footprint: texture coordinates span √(W·H) texels on average.
+        let texels = |t: &Texture| footprint * ((t.size().0 as f32) * (t.size().1 as f32)).sqrt();
+        let base = match &self.base_texture {
+            Some(t) => self.base_colour * t.sample(uv, texels(t)),
+            None => self.base_colour,
+        };
+        let (mut metallic, mut roughness) = (self.metallic, self.roughness);
+        if let Some(t) = &self.metallic_roughness_texture {
+            let s = t.sample(uv, texels(t));
+            roughness *= s.y;
+            metallic *= s.z;
+        }
+        (base, metallic, roughness)
     }
 
     /// The mean colour and albedo a diffuse exchange of light sees: the base

@@ -271,6 +271,9 @@ pub struct Patches {
     /// Root element of each triangle, by surface id and triangle (dense:
     /// a lookup per ray hit, where a hashed pair cost as much as the descent).
     root_of_triangle: Vec<Vec<u32>>,
+    /// Per patch, a textured object's albedo there (None: the surface's
+    /// own reflectance; see [`ObjectMeshes`]).
+    pub(crate) albedo: Vec<Option<DVec3>>,
 }
 
 impl Patches {
@@ -396,6 +399,7 @@ impl Patches {
             patch_vertices: Vec::new(),
             surface_is_virtual: crate::util::fast_map(),
             root_of_triangle: Vec::new(),
+            albedo: Vec::new(),
         };
         p.append(inputs, target_size);
         p
@@ -555,6 +559,7 @@ impl Patches {
         if (size <= target && !marked()) || depth >= 40 {
             let patch = self.patches.len() as u32;
             self.patches.push(e);
+            self.albedo.push(None);
             self.elements[e as usize].patch = Some(patch);
             let mut ids = [u32::MAX; 4];
             // Vertices are shared within a plane only: a solid's edge joins
@@ -732,6 +737,7 @@ impl Patches {
     }
 }
 
+mod albedo;
 mod objects;
 mod split;
 

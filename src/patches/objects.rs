@@ -8,11 +8,14 @@
 //! world, rounding in the weld and the pairing moved a few patches), and
 //! objects made from one mesh at one scale are meshed once.
 
+use std::sync::Arc;
+
 use glam::DVec3;
 
 use super::{Element, Patches, Shape, SurfaceInput};
 use crate::geometry::Triangle;
-use crate::scene::{Pose, Scene};
+use crate::materials::SurfaceMaterial;
+use crate::scene::{ObjectSurface, Pose, Scene};
 
 /// Objects' meshes in their own frames, kept between poses by a session
 /// (`keep`), else only for the objects of one scene (instances of one
@@ -29,6 +32,8 @@ struct Meshed {
     triangles: Vec<Triangle>,
     scale: f64,
     size: f64,
+    /// The textured material its patches' albedo was read from.
+    material: Option<SurfaceMaterial>,
     /// Surface 0 of this mesh, its coordinates scaled, not turned or moved.
     block: Patches,
     used: bool,
@@ -44,10 +49,23 @@ impl ObjectMeshes {
     }
 
     /// The index of the mesh of `triangles` at `scale` with leaves no
-    /// larger than `size`, meshed now if it is not kept.
-    fn mesh(&mut self, triangles: &[Triangle], scale: f64, size: f64) -> usize {
+    /// larger than `size`, each patch's albedo read from `material` when
+    /// it is textured, meshed now if it is not kept.
+    fn mesh(&mut self, surface: &ObjectSurface, scale: f64, size: f64) -> usize {
+        let triangles = surface.triangles.as_slice();
+        let material = super::albedo::textured(surface).cloned();
+        let same = |a: &Option<SurfaceMaterial>, b: &Option<SurfaceMaterial>| match (a, b) {
+            (Some(a), Some(b)) => {
+                Arc::ptr_eq(&a.material, &b.material) && Arc::ptr_eq(&a.attributes, &b.attributes)
+            }
+            (None, None) => true,
+            _ => false,
+        };
         let found = self.meshed.iter().position(|m| {
-            m.scale == scale && m.size == size && m.triangles.as_slice() == triangles
+            m.scale == scale
+                && m.size == size
+                && same(&m.material, &material)
+                && m.triangles.as_slice() == triangles
         });
         let k = found.unwrap_or_else(|| {
             let scaled: Vec<Triangle> = triangles
@@ -59,11 +77,16 @@ impl ObjectMeshes {
                 triangles: &scaled,
                 is_virtual: true,
             };
+            let mut block = Patches::build(&[input], size);
+            if let Some(m) = &material {
+                block.albedo = super::albedo::block_albedo(&block, &scaled, m);
+            }
             self.meshed.push(Meshed {
                 triangles: triangles.to_vec(),
                 scale,
                 size,
-                block: Patches::build(&[input], size),
+                material,
+                block,
                 used: false,
             });
             self.meshed.len() - 1
@@ -82,7 +105,7 @@ impl Patches {
         for o in &scene.objects {
             for s in &o.surfaces {
                 if o.enabled {
-                    let k = meshes.mesh(&s.triangles, o.pose.scale, size);
+                    let k = meshes.mesh(s, o.pose.scale, size);
                     self.place(&meshes.meshed[k].block, id, &o.pose);
                 }
                 id += 1;
@@ -143,6 +166,7 @@ impl Patches {
         self.patches.extend(block.patches.iter().map(|&e| e + e0));
         let vertices: Vec<DVec3> = block.vertices.par_iter().map(|&v| at(v)).collect();
         self.vertices.extend(vertices);
+        self.albedo.extend_from_slice(&block.albedo);
         self.patch_vertices.extend(
             block
                 .patch_vertices

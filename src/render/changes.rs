@@ -315,11 +315,9 @@ pub(super) fn solve_changes(
     }
     let view = view.as_ref().expect("traced above");
     let mut reflectance = model.estimate.reflectance[..room_count].to_vec();
-    reflectance.extend(crate::radiosity::object_reflectances(
-        input.scene,
-        patches,
-        room_count,
-    ));
+    reflectance.extend(times.time("objects' albedo", || {
+        crate::radiosity::object_reflectances(input.scene, patches, room_count)
+    }));
     // Objects whose material glows light the room as lamps of their shape.
     let glowing = input.scene.virtual_surface_emission();
     let emission: Vec<DVec3> = (0..patches.patch_count())
