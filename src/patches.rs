@@ -273,7 +273,7 @@ pub struct Patches {
     root_of_triangle: Vec<Vec<u32>>,
     /// Per patch, a textured object's albedo there (None: the surface's
     /// own reflectance; see [`ObjectMeshes`]).
-    pub(crate) albedo: Vec<Option<DVec3>>,
+    pub(crate) albedo: Vec<Option<glam::Vec3>>,
 }
 
 impl Patches {

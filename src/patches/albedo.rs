@@ -32,7 +32,7 @@ pub(crate) fn block_albedo(
     block: &Patches,
     triangles: &[Triangle],
     material: &SurfaceMaterial,
-) -> Vec<Option<DVec3>> {
+) -> Vec<Option<glam::Vec3>> {
     use rayon::prelude::*;
     let mut of_root: crate::util::FastMap<u32, [u32; 2]> = crate::util::fast_map();
     for t in 0..triangles.len() as u32 {
@@ -45,7 +45,8 @@ pub(crate) fn block_albedo(
         .map(|k| {
             let el = block.patch(k);
             let pair = of_root.get(&el.root)?;
-            patch_albedo(el.centre, el.area, pair, triangles, material)
+            // Single precision, as the texture it comes from.
+            patch_albedo(el.centre, el.area, pair, triangles, material).map(|a| a.as_vec3())
         })
         .collect()
 }

@@ -13,8 +13,13 @@ pub fn object_reflectances(scene: &Scene, patches: &Patches, from: usize) -> Vec
     (from..patches.patch_count())
         .map(|k| {
             let surface = patches.patch(k).surface;
-            (patches.albedo.get(k).copied().flatten())
-                .unwrap_or_else(|| rgb.get(&surface).copied().unwrap_or(DVec3::ZERO))
+            (patches
+                .albedo
+                .get(k)
+                .copied()
+                .flatten()
+                .map(|a| a.as_dvec3()))
+            .unwrap_or_else(|| rgb.get(&surface).copied().unwrap_or(DVec3::ZERO))
         })
         .collect()
 }

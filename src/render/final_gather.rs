@@ -69,11 +69,9 @@ pub(super) fn shared_gathers(
     // cell's list: one lookup per vertex (an 80k-triangle object has 160k
     // vertices and under 2k gathers).
     let mut near: crate::util::FastMap<[i64; 3], Vec<u32>> = crate::util::fast_map();
-    let cells: Vec<[i64; 3]> = vertices
-        .par_iter()
-        .map(|&(v, ..)| cell(patches.vertices[v as usize]))
-        .collect();
-    for (i, &[cx, cy, cz]) in cells.iter().enumerate() {
+    let cell_of = |i: usize| cell(patches.vertices[vertices[i].0 as usize]);
+    for i in 0..vertices.len() {
+        let [cx, cy, cz] = cell_of(i);
         let candidates = near.get(&[cx, cy, cz]).into_iter().flatten();
         if candidates.into_iter().any(|&j| weight(i, j).is_some()) {
             continue;
@@ -88,7 +86,7 @@ pub(super) fn shared_gathers(
     // vertices before it within reach (those after it gathered knowing it
     // did not), in order.
     shares.par_iter_mut().enumerate().for_each(|(i, taken)| {
-        let list = near.get(&cells[i]).map_or(&[][..], |l| &l[..]);
+        let list = near.get(&cell_of(i)).map_or(&[][..], |l| &l[..]);
         if list.binary_search(&(i as u32)).is_ok() {
             return;
         }
@@ -147,50 +145,49 @@ pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec
     }
     let keeping = directions.kept;
     let kept = &*directions;
-    let own: Vec<Option<(Gathered, Option<Traced>, bool)>> = vertices
+    let reused = std::sync::atomic::AtomicUsize::new(0);
+    // The gathers, and beside them (kept by a session) their rays: one
+    // pointer per vertex where no session keeps them.
+    let (own, traced): (Vec<Option<Gathered>>, Vec<Option<Box<Traced>>>) = vertices
         .par_iter()
         .zip(&shares)
         .enumerate()
         .map(|(i, (&(v, n, side), taken))| {
-            taken.is_empty().then(|| {
-                let p = g.patches.vertices[v as usize];
-                let layer = if clear_of_object(p, n) {
-                    Layer::Real
-                } else {
-                    Layer::All
-                };
-                let dirs = kept.of(v, n, side);
-                // Faces are one-sided here (solids face out, open surfaces face the camera).
-                let origin = crate::light::offset_origin(p, n, p + n);
-                let again = (kept.since.as_ref())
-                    .zip(kept.traced.get(&GatherDirections::key(v, n, side)))
-                    .and_then(|(since, old)| old.kept(origin, layer, &dirs, since));
-                let reused = again.is_some();
-                let traced = again.unwrap_or_else(|| trace_at(g, origin, &dirs, layer));
-                let gathered = Gathered {
-                    objects_of: i,
-                    ..sum_at(g, v, &traced)
-                };
-                (gathered, keeping.then_some(traced), reused)
-            })
+            if !taken.is_empty() {
+                return (None, None);
+            }
+            let p = g.patches.vertices[v as usize];
+            let layer = if clear_of_object(p, n) {
+                Layer::Real
+            } else {
+                Layer::All
+            };
+            let dirs = kept.of(v, n, side);
+            // Faces are one-sided here (solids face out, open surfaces face the camera).
+            let origin = crate::light::offset_origin(p, n, p + n);
+            let again = (kept.since.as_ref())
+                .zip(kept.traced.get(&GatherDirections::key(v, n, side)))
+                .and_then(|(since, old)| old.kept(origin, layer, &dirs, since));
+            if again.is_some() {
+                reused.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            }
+            let traced = again.unwrap_or_else(|| trace_at(g, origin, &dirs, layer));
+            let gathered = Gathered {
+                objects_of: i,
+                ..sum_at(g, v, &traced)
+            };
+            (Some(gathered), keeping.then(|| Box::new(traced)))
         })
-        .collect();
+        .unzip();
+    directions.reused = reused.into_inner();
     directions.traced.clear();
-    directions.reused = own.iter().flatten().filter(|o| o.2).count();
-    let own: Vec<Option<Gathered>> = own
-        .into_iter()
-        .zip(&vertices)
-        .map(|(o, &(v, n, side))| {
-            o.map(|(gathered, traced, _)| {
-                if let Some(t) = traced {
-                    directions
-                        .traced
-                        .insert(GatherDirections::key(v, n, side), t);
-                }
-                gathered
-            })
-        })
-        .collect();
+    for (t, &(v, n, side)) in traced.into_iter().zip(&vertices) {
+        if let Some(t) = t {
+            directions
+                .traced
+                .insert(GatherDirections::key(v, n, side), *t);
+        }
+    }
     let from_others: Vec<Option<Gathered>> = vertices
         .iter()
         .zip(&shares)
