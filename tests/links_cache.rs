@@ -126,18 +126,14 @@ fn the_rooms_automatic_patch_size_is_read_from_the_cache() {
     // A white room refines its coarse mesh (the size found from a coarse
     // model); a second render reads the size instead of building that
     // model, and renders the same image bit for bit.
-    let dir = tempfile::tempdir().unwrap();
     let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/whitebox");
-    std::fs::create_dir(dir.path().join("geometry")).unwrap();
-    for f in [
+    let files = [
         "scene.toml",
         "photo.exr",
         "geometry/room.obj",
         "geometry/cube.obj",
-    ] {
-        std::fs::copy(src.join(f), dir.path().join(f)).unwrap();
-    }
-    std::os::unix::fs::symlink(src.join("truth"), dir.path().join("truth")).unwrap();
+    ];
+    let dir = common::writable_copy(&src, &files);
     let scene = dir.path().join("scene.toml").display().to_string();
     let render = |out: &str, extra: &[&str]| {
         let out = dir.path().join(out);

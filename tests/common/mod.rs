@@ -41,22 +41,30 @@ pub struct Desk {
     pub dir: tempfile::TempDir,
 }
 
+/// A writable copy of `files` of the scene folder `src` (its `geometry`
+/// folder made) in a temporary folder, the truths linked.
+pub fn writable_copy(src: &Path, files: &[&str]) -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("geometry")).unwrap();
+    for f in files {
+        std::fs::copy(src.join(f), dir.path().join(f)).unwrap();
+    }
+    std::os::unix::fs::symlink(src.join("truth"), dir.path().join("truth")).unwrap();
+    dir
+}
+
 impl Desk {
     pub fn new() -> Desk {
-        let dir = tempfile::tempdir().unwrap();
-        std::fs::create_dir(dir.path().join("geometry")).unwrap();
-        for f in [
+        let files = [
             "scene.toml",
             "photo.exr",
             "geometry/room.obj",
             "geometry/furniture.obj",
             "geometry/box.obj",
-        ] {
-            std::fs::copy(Path::new(DESK).join(f), dir.path().join(f)).unwrap();
+        ];
+        Desk {
+            dir: writable_copy(Path::new(DESK), &files),
         }
-        std::os::unix::fs::symlink(Path::new(DESK).join("truth"), dir.path().join("truth"))
-            .unwrap();
-        Desk { dir }
     }
 
     pub fn path(&self, rel: &str) -> PathBuf {
