@@ -45,6 +45,16 @@ impl Lobes {
         self.base * ((1.0 - self.metallic) * (1.0 - (0.04 + 0.96 * fw)))
     }
 
+    /// The diffuse colour averaged over light arriving from the whole
+    /// hemisphere (cosine-weighted) for a view at n·v = `n_dot_v`: what
+    /// the diffuse part reflects of uniform (indirect) light. The coat lets
+    /// through 1 − F(v·h) for each light direction's half vector, not
+    /// 1 − F(n·v): at a grazing view most half vectors still lie near the
+    /// view, so the diffuse part does not vanish at a silhouette.
+    pub fn diffuse_mean(&self, n_dot_v: f64) -> DVec3 {
+        self.base * ((1.0 - self.metallic) * coat_transmission(n_dot_v))
+    }
+
     /// The BRDF f(v, l), split into its diffuse and specular parts.
     pub fn eval(&self, n: DVec3, v: DVec3, l: DVec3) -> (DVec3, DVec3) {
         let (nv, nl) = (n.dot(v), n.dot(l));
@@ -241,4 +251,41 @@ pub fn table_albedo(lobes: &Lobes) -> DVec3 {
     let hi = mix(cell(i + 1, j), cell(i + 1, j + 1), fr);
     let (a, b) = mix(lo, hi, fm);
     (DVec3::splat(a) + lobes.base.clamp(DVec3::ZERO, DVec3::ONE) * b).clamp(DVec3::ZERO, DVec3::ONE)
+}
+
+/// Views per unit of n·v in [`coat_transmission`]'s table.
+const COAT_STEPS: usize = 64;
+
+/// The cosine-weighted mean over light directions of 1 − F(v·h) for a
+/// dielectric coat (F₀ = 0.04), at n·v = `mu`: a table over n·v, filled
+/// once by a 48 × 48 stratified quadrature per entry, read linearly.
+fn coat_transmission(mu: f64) -> f64 {
+    use std::sync::OnceLock;
+    static TABLE: OnceLock<Vec<f64>> = OnceLock::new();
+    let table = TABLE.get_or_init(|| {
+        (0..=COAT_STEPS)
+            .map(|i| {
+                let mu = (i as f64 / COAT_STEPS as f64).max(1e-4);
+                let v = DVec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+                let side = 48;
+                let mut sum = 0.0;
+                for a in 0..side {
+                    for b in 0..side {
+                        let (u1, u2) = (
+                            (a as f64 + 0.5) / side as f64,
+                            (b as f64 + 0.5) / side as f64,
+                        );
+                        let (r, phi) = (u1.sqrt(), std::f64::consts::TAU * u2);
+                        let l = DVec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).sqrt());
+                        let vh = v.dot((v + l).normalize()).abs();
+                        sum += 1.0 - (0.04 + 0.96 * (1.0 - vh).clamp(0.0, 1.0).powi(5));
+                    }
+                }
+                sum / (side * side) as f64
+            })
+            .collect()
+    });
+    let x = mu.clamp(0.0, 1.0) * COAT_STEPS as f64;
+    let i = (x as usize).min(COAT_STEPS - 1);
+    table[i] + (table[i + 1] - table[i]) * (x - i as f64)
 }

@@ -248,3 +248,39 @@ fn the_albedo_table_matches_the_quadrature() {
     }
     assert!(worst <= 0.005, "largest relative difference {worst}");
 }
+
+#[test]
+fn the_diffuse_part_under_uniform_light_does_not_vanish_at_grazing_views() {
+    // The mean over cosine-distributed light of 1 − F(v·h), against a
+    // fine quadrature: it stays near 0.9 at grazing views, where
+    // 1 − F(n·v) goes to 0 (which darkened every glossy silhouette).
+    let white = Lobes {
+        base: DVec3::ONE,
+        metallic: 0.0,
+        roughness: 0.5,
+    };
+    for mu in [0.02, 0.1, 0.33, 0.7, 1.0] {
+        let v = DVec3::new((1.0f64 - mu * mu).sqrt(), 0.0, mu);
+        let side = 400;
+        let mut sum = 0.0;
+        for a in 0..side {
+            for b in 0..side {
+                let (u1, u2) = (
+                    (a as f64 + 0.5) / side as f64,
+                    (b as f64 + 0.5) / side as f64,
+                );
+                let (r, phi) = (u1.sqrt(), std::f64::consts::TAU * u2);
+                let l = DVec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).sqrt());
+                sum += white.diffuse(v.dot((v + l).normalize())).x;
+            }
+        }
+        let exact = sum / (side * side) as f64;
+        let table = white.diffuse_mean(mu).x;
+        assert!(
+            (table - exact).abs() <= 0.002 * exact,
+            "n·v {mu}: {table} against {exact}"
+        );
+        assert!(table > 0.8, "n·v {mu}: {table}");
+    }
+    assert!(white.diffuse(0.02).x < 0.2, "1 − F(n·v) at a grazing view");
+}

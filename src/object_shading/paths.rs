@@ -102,7 +102,7 @@ impl ObjectShading<'_> {
             // One-sided (glTF): a shading normal turned from the viewer reflects nothing.
             return p.emissive;
         }
-        let mut out = p.emissive + p.lobes.diffuse(n_dot_v) * h / std::f64::consts::PI;
+        let mut out = p.emissive + p.lobes.diffuse_mean(n_dot_v) * h / std::f64::consts::PI;
         out += self.direct(p, rects, s);
         out + self.reflected(p, rects, s)
     }
