@@ -264,28 +264,31 @@ fn coat_transmission(mu: f64) -> f64 {
     static TABLE: OnceLock<Vec<f64>> = OnceLock::new();
     let table = TABLE.get_or_init(|| {
         (0..=COAT_STEPS)
-            .map(|i| {
-                let mu = (i as f64 / COAT_STEPS as f64).max(1e-4);
-                let v = DVec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
-                let side = 48;
-                let mut sum = 0.0;
-                for a in 0..side {
-                    for b in 0..side {
-                        let (u1, u2) = (
-                            (a as f64 + 0.5) / side as f64,
-                            (b as f64 + 0.5) / side as f64,
-                        );
-                        let (r, phi) = (u1.sqrt(), std::f64::consts::TAU * u2);
-                        let l = DVec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).sqrt());
-                        let vh = v.dot((v + l).normalize()).abs();
-                        sum += 1.0 - (0.04 + 0.96 * (1.0 - vh).clamp(0.0, 1.0).powi(5));
-                    }
-                }
-                sum / (side * side) as f64
-            })
+            .map(|i| coat_quadrature(i as f64 / COAT_STEPS as f64, 48))
             .collect()
     });
     let x = mu.clamp(0.0, 1.0) * COAT_STEPS as f64;
     let i = (x as usize).min(COAT_STEPS - 1);
     table[i] + (table[i + 1] - table[i]) * (x - i as f64)
+}
+
+/// The mean over cosine-distributed light directions of 1 − F(v·h) (F₀ =
+/// 0.04) at n·v = `mu`, by a `side` × `side` stratified quadrature.
+pub(crate) fn coat_quadrature(mu: f64, side: usize) -> f64 {
+    let mu = mu.max(1e-4);
+    let v = DVec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+    let mut sum = 0.0;
+    for a in 0..side {
+        for b in 0..side {
+            let (u1, u2) = (
+                (a as f64 + 0.5) / side as f64,
+                (b as f64 + 0.5) / side as f64,
+            );
+            let (r, phi) = (u1.sqrt(), std::f64::consts::TAU * u2);
+            let l = DVec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).sqrt());
+            let vh = v.dot((v + l).normalize()).abs();
+            sum += 1.0 - (0.04 + 0.96 * (1.0 - vh).clamp(0.0, 1.0).powi(5));
+        }
+    }
+    sum / (side * side) as f64
 }
