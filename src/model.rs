@@ -42,7 +42,8 @@ pub struct ModelSettings {
     pub estimate: EstimateSettings,
     /// Keep the room's hierarchical links in `.arlux-cache/` next to the
     /// scene and read them from there when the room's surfaces, their mesh
-    /// and ε are the same, and this build wrote them.
+    /// and ε are the same, and this build wrote them (and so the room's
+    /// automatic patch size, when everything it was found from is the same).
     pub cache_links: bool,
 }
 

@@ -332,16 +332,18 @@ impl Traced {
         if layer == Layer::Real {
             return Some(self.clone());
         }
-        let mut out = self.clone();
-        for (l, d) in out.landed.iter_mut().zip(dirs) {
+        // Checked before anything is copied: most vertices near a mover fail.
+        let clear = (self.landed.iter().zip(dirs)).all(|(l, d)| {
             let end = l.map_or(origin + *d * FAR, |l| l.at.as_dvec3());
-            if !since.clear_of_movers(origin, end) {
-                return None;
-            }
-            if let Some(l) = l.as_mut().filter(|l| l.on_object()) {
-                let shift = since.patch_shift(l.object)?;
-                l.patch = u32::try_from(l.patch as i64 + shift).ok()?;
-            }
+            since.clear_of_movers(origin, end)
+        });
+        if !clear {
+            return None;
+        }
+        let mut out = self.clone();
+        for l in out.landed.iter_mut().flatten().filter(|l| l.on_object()) {
+            let shift = since.patch_shift(l.object)?;
+            l.patch = u32::try_from(l.patch as i64 + shift).ok()?;
         }
         Some(out)
     }

@@ -51,8 +51,9 @@ pub struct RenderFlags {
     /// n×n sub-pixels where real and virtual surfaces meet.
     #[arg(long, default_value_t = RenderOptions::default().supersample)]
     pub supersample: u32,
-    /// Refine the room's links again rather than read them from
-    /// `.arlux-cache/` next to the scene (nor keep them there).
+    /// Refine the room's links and find its automatic patch size again
+    /// rather than read them from `.arlux-cache/` next to the scene (nor
+    /// keep them there).
     #[arg(long)]
     pub no_cache: bool,
     /// Rounds of per-pixel samples over the radiosity solution, where the
