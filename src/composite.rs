@@ -220,22 +220,23 @@ impl CompositeInput<'_> {
         }
     }
 
-    /// A virtual point's shade; `share`: the fraction of its pixel it stands for.
-    /// An object's point: its indirect irradiance `gathered` at the pixel
-    /// when given, else interpolated from the vertices.
+    /// A virtual point's shade; `share`: the fraction of its pixel it
+    /// stands for; what the rounds found there (none: interpolated from
+    /// the vertices, the material sampled here).
     fn shade_virtual(
         &self,
         p: &SurfacePoint,
         terms: &[LightTerm],
         share: f64,
-        gathered: Option<DVec3>,
+        rounds: Rounds,
     ) -> Shade {
+        let gathered = rounds.irradiance;
         let e_w = self.irradiance(terms, self.scales_with, true);
         let h_w = gathered.unwrap_or_else(|| self.interpolate(self.indirect_with, &p.location));
         let rho = self.reflectance[p.location.patch as usize];
-        let value = self
-            .objects
-            .and_then(|o| o.radiance_with(p, share, gathered))
+        let value = rounds
+            .radiance
+            .or_else(|| (self.objects).and_then(|o| o.radiance_with(p, share, gathered)))
             .unwrap_or_else(|| rho * (e_w + h_w) / std::f64::consts::PI);
         Shade {
             value,
@@ -246,6 +247,15 @@ impl CompositeInput<'_> {
             clamped: false,
         }
     }
+}
+
+/// What the residual's rounds found at an object's point.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Rounds {
+    /// Its indirect irradiance gathered at the pixel.
+    pub irradiance: Option<DVec3>,
+    /// Its material's radiance sampled over the pixel.
+    pub radiance: Option<DVec3>,
 }
 
 /// One pixel's layers for [`Composite::fill`].

@@ -42,7 +42,9 @@ use crate::trace::{Layer, TraceRay, Tracer};
 use crate::util::rng::{hash2, unit_random};
 
 mod paths;
+mod rounds;
 pub(crate) use paths::Reading;
+pub(crate) use rounds::{Footprint, Split};
 
 /// A virtual surface with a material, placed in the world.
 #[derive(Debug, Clone)]
@@ -96,6 +98,11 @@ impl ObjectMaterials {
 
     pub fn is_empty(&self) -> bool {
         self.surfaces.is_empty()
+    }
+
+    /// Whether surface `surface` has a material.
+    pub fn has(&self, surface: u32) -> bool {
+        self.surfaces.contains_key(&surface)
     }
 }
 
@@ -171,6 +178,9 @@ struct Sample {
     j: u32,
     n: u32,
     seed: u64,
+    /// A sample of the residual's rounds ([`rounds`]): its numbers come
+    /// from the pixel's Sobol sequence rather than from `j` of `n`.
+    sobol: Option<rounds::Sobol>,
 }
 
 impl ObjectShading<'_> {
@@ -224,7 +234,17 @@ impl ObjectShading<'_> {
                 }
             });
             let point = sub.as_ref().unwrap_or(&centre);
-            sum += self.one_sample(point, &rects, Sample { j, n, seed }, h);
+            sum += self.one_sample(
+                point,
+                &rects,
+                Sample {
+                    j,
+                    n,
+                    seed,
+                    sobol: None,
+                },
+                h,
+            );
         }
         Some((sum / n as f64).max(DVec3::ZERO))
     }

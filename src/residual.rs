@@ -67,6 +67,9 @@ pub struct PixelResidual {
     /// Per virtual sample of the pixel data (plain object pixels), the
     /// indirect irradiance gathered there (None: not gathered).
     pub object_irradiance: Vec<Option<DVec3>>,
+    /// Per virtual sample, the radiance of its material sampled over its
+    /// pixel (None: clay, or not sampled).
+    pub object_radiance: Vec<Option<DVec3>>,
     /// Per real point of the pixel data, the correction to its
     /// interpolated indirect irradiance (None: the near grid's, or none).
     pub room_correction: Vec<Option<Vec3>>,
@@ -81,6 +84,9 @@ pub struct PixelResidual {
     /// Per outline pixel, the objects' indirect irradiance gathered at its
     /// first sub-pixel on an object (None: none is).
     pub edge_irradiance: Vec<Option<DVec3>>,
+    /// Per outline pixel, the mean radiance of the objects' part of it,
+    /// their materials sampled over the pixel (None: clay, or not sampled).
+    pub edge_radiance: Vec<Option<DVec3>>,
     /// Per pixel held (as the pixel data's per-pixel arrays), the estimated
     /// standard deviation of its radiance (0 where nothing was sampled).
     pub noise: Vec<f32>,
@@ -272,10 +278,12 @@ pub fn estimate(input: &ResidualInput) -> Option<PixelResidual> {
     }
     let mut out = PixelResidual {
         object_irradiance: vec![None; input.pda.virtual_samples.points.len()],
+        object_radiance: vec![None; input.pda.virtual_samples.points.len()],
         room_correction: vec![None; input.pda.real.points.len()],
         shadow: Vec::new(),
         edge_shares: vec![None; input.pda.edges.len()],
         edge_irradiance: vec![None; input.pda.edges.len()],
+        edge_radiance: vec![None; input.pda.edges.len()],
         noise: vec![0.0; input.pda.real_index.len()],
         stats: ResidualStats {
             rounds,
@@ -290,10 +298,21 @@ pub fn estimate(input: &ResidualInput) -> Option<PixelResidual> {
     let first = input.pda.first_pixel();
     let (mut squares, mut values) = (0.0, 0.0);
     for t in &objects {
-        let (h, noise, value) = objects::result(input, t);
+        let objects::Found {
+            irradiance: h,
+            radiance,
+            noise,
+            value,
+        } = objects::result(input, t);
         match t.source {
-            objects::Source::Plain(k) => out.object_irradiance[k as usize] = Some(h),
-            objects::Source::Edge(e, _) => out.edge_irradiance[e as usize] = Some(h),
+            objects::Source::Plain(k) => {
+                out.object_irradiance[k as usize] = Some(h);
+                out.object_radiance[k as usize] = radiance;
+            }
+            objects::Source::Edge(e, _) => {
+                out.edge_irradiance[e as usize] = Some(h);
+                out.edge_radiance[e as usize] = radiance;
+            }
         }
         out.noise[t.pixel as usize - first] = noise as f32;
         (squares, values) = (squares + noise * noise, values + value);

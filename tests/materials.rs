@@ -129,44 +129,49 @@ fn an_update_of_a_chrome_ball_equals_a_full_render_of_its_pose() {
 fn a_tile_through_the_objects_shades_them_as_the_whole_frame_does() {
     // A reflected point's change is traced, never read from a pixel a tile
     // may not hold: the objects' pixels of a tile whose edge cuts the
-    // chrome ball equal the whole frame's bit for bit.
+    // chrome ball equal the whole frame's bit for bit, without rounds and
+    // with the materials sampled over their pixels in rounds.
     let base = load("materials", "scene.toml");
     let scene = base.with_variant("trio").unwrap();
-    let (whole, photo) = common::render_default(&scene);
-    let mut settings = RenderSettings::default();
-    let window = arlux::image_io::CropWindow {
-        x0: 0.69,
-        x1: 1.0,
-        y0: 0.0,
-        y1: 1.0,
-    };
-    settings.pda.crop = Some(window);
-    let tile = render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap();
-    let w = scene.camera.width as usize;
-    let x0 = window
-        .pixels(scene.camera.width, scene.camera.height)
-        .unwrap()
-        .x0 as usize;
-    let (mut compared, mut differing) = (0, 0);
-    for (i, (a, b)) in whole
-        .composite
-        .object
-        .pixels
-        .iter()
-        .zip(&tile.composite.object.pixels)
-        .enumerate()
-    {
-        if i % w >= x0 && whole.composite.alpha[i] > 0.0 {
-            compared += 1;
-            differing +=
-                (a.to_array().map(f32::to_bits) != b.to_array().map(f32::to_bits)) as usize;
+    let photo = scene.load_photo().unwrap();
+    for samples in [0, 2] {
+        let mut settings = RenderSettings::default();
+        settings.residual.samples = samples;
+        let whole = render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap();
+        let window = arlux::image_io::CropWindow {
+            x0: 0.69,
+            x1: 1.0,
+            y0: 0.0,
+            y1: 1.0,
+        };
+        settings.pda.crop = Some(window);
+        let tile = render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap();
+        let w = scene.camera.width as usize;
+        let x0 = window
+            .pixels(scene.camera.width, scene.camera.height)
+            .unwrap()
+            .x0 as usize;
+        let (mut compared, mut differing) = (0, 0);
+        for (i, (a, b)) in whole
+            .composite
+            .object
+            .pixels
+            .iter()
+            .zip(&tile.composite.object.pixels)
+            .enumerate()
+        {
+            if i % w >= x0 && whole.composite.alpha[i] > 0.0 {
+                compared += 1;
+                differing +=
+                    (a.to_array().map(f32::to_bits) != b.to_array().map(f32::to_bits)) as usize;
+            }
         }
+        assert!(compared > 100, "the tile holds {compared} object pixels");
+        assert_eq!(
+            differing, 0,
+            "{samples} rounds: {differing} of {compared} object pixels differ"
+        );
     }
-    assert!(compared > 100, "the tile holds {compared} object pixels");
-    assert_eq!(
-        differing, 0,
-        "{differing} of {compared} object pixels differ"
-    );
 }
 
 #[test]
@@ -175,11 +180,57 @@ fn the_objects_pixels_are_the_same_on_one_thread_and_on_three() {
         .with_variant("trio")
         .unwrap();
     let photo = scene.load_photo().unwrap();
-    let images: Vec<Image> = [1, 3]
-        .iter()
-        .map(|&t| common::image_on_threads(&scene, &photo, &RenderSettings::default(), t))
-        .collect();
-    assert!(images[0] == images[1], "thread count changed the image");
+    for samples in [0, 2] {
+        let mut settings = RenderSettings::default();
+        settings.residual.samples = samples;
+        let images: Vec<Image> = [1, 3]
+            .iter()
+            .map(|&t| common::image_on_threads(&scene, &photo, &settings, t))
+            .collect();
+        assert!(
+            images[0] == images[1],
+            "{samples} rounds: thread count changed the image"
+        );
+    }
+}
+
+#[test]
+fn rounds_sample_a_metals_lamp_highlights_over_the_pixel() {
+    // The chrome ball on the table mirrors the lamps: a highlight's edge
+    // crosses pixels, which the default's few samples per pixel average
+    // coarsely. Rounds add samples of the pixel's points and the lobe's
+    // directions from one Sobol sequence. Measured: skill 0.912 -> 0.974,
+    // the objects' RMSE 0.046 -> 0.010.
+    let base = load("materials", "scene.toml");
+    let scene = base.with_variant("chrome_table").unwrap();
+    let photo = scene.load_photo().unwrap();
+    let truth = read_image(
+        base.variant("chrome_table")
+            .unwrap()
+            .reference
+            .as_ref()
+            .unwrap(),
+    )
+    .unwrap();
+    let mut last: Option<(f64, f64)> = None;
+    for samples in [0, 16] {
+        let mut settings = RenderSettings::default();
+        settings.residual.samples = samples;
+        let out = render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap();
+        common::assert_layers_sound("chrome_table", &out.composite);
+        let object: Vec<bool> = out.composite.alpha.iter().map(|a| *a > 0.5).collect();
+        let rmse = compare(&out.composite.image, &truth, Some(&object)).rmse;
+        let s = skill(&out.composite.image, &truth, &photo).skill.unwrap();
+        println!("{samples} rounds: skill {s:.4}, objects' RMSE {rmse:.4}");
+        if let Some((s0, rmse0)) = last {
+            assert!(s >= 0.965 && s >= s0 + 0.05, "skill {s:.4} after {s0:.4}");
+            assert!(
+                rmse <= 0.5 * rmse0,
+                "objects' RMSE {rmse:.4} after {rmse0:.4}"
+            );
+        }
+        last = Some((s, rmse));
+    }
 }
 
 #[test]

@@ -96,6 +96,9 @@ impl<'a> Shader<'a> {
         let refined = rounds.is_some();
         // The objects' indirect light gathered at the pixel by the rounds.
         let gathered = rounds.and_then(|(r, k)| r.edge_irradiance.get(k).copied().flatten());
+        // And the mean of the objects' part, their materials sampled over
+        // the pixel: each object sub-pixel takes it.
+        let sampled = rounds.and_then(|(r, k)| r.edge_radiance.get(k).copied().flatten());
         for k in e.start..e.start + e.count {
             let p = &pda.edge_samples.points[k as usize];
             let terms = match pda.real_at(i) {
@@ -106,7 +109,15 @@ impl<'a> Shader<'a> {
             };
             let s = if p.is_virtual {
                 let share = 1.0 / (pda.supersample * pda.supersample) as f64;
-                input.shade_virtual(p, terms, share, gathered)
+                input.shade_virtual(
+                    p,
+                    terms,
+                    share,
+                    Rounds {
+                        irradiance: gathered,
+                        radiance: sampled,
+                    },
+                )
             } else {
                 let direct = input.irradiance(terms, input.scales_with, true);
                 // Rounds ran: the photo where the sub-pixel is.
@@ -188,11 +199,16 @@ impl<'a> Shader<'a> {
         }
         if pda.virtual_at(i) != u32::MAX {
             let k = pda.virtual_at(i) as usize;
+            let residual = self.input.residual;
             let s = self.input.shade_virtual(
                 &pda.virtual_samples.points[k],
                 &pda.virtual_samples.terms[k * lights..(k + 1) * lights],
                 1.0,
-                (self.input.residual).and_then(|r| r.object_irradiance.get(k).copied().flatten()),
+                Rounds {
+                    irradiance: residual
+                        .and_then(|r| r.object_irradiance.get(k).copied().flatten()),
+                    radiance: residual.and_then(|r| r.object_radiance.get(k).copied().flatten()),
+                },
             );
             let object = s.value;
             return (s, 1.0, object);

@@ -97,14 +97,25 @@ impl ObjectShading<'_> {
     /// part's indirect light from `h`, the irradiance the radiosity stage
     /// gathered there (the same for every sample of a pixel).
     pub(super) fn one_sample(&self, p: &Point, rects: &[Rect], s: Sample, h: DVec3) -> DVec3 {
+        let split = self.split_sample(p, rects, s);
+        split.own + split.diffuse * h / std::f64::consts::PI
+    }
+
+    /// [`ObjectShading::one_sample`] before the diffuse part's indirect
+    /// irradiance is known.
+    pub(super) fn split_sample(&self, p: &Point, rects: &[Rect], s: Sample) -> Split {
         let n_dot_v = p.n.dot(p.v);
         if n_dot_v <= 0.0 {
             // One-sided (glTF): a shading normal turned from the viewer reflects nothing.
-            return p.emissive;
+            return Split {
+                own: p.emissive,
+                diffuse: DVec3::ZERO,
+            };
         }
-        let mut out = p.emissive + p.lobes.diffuse_mean(n_dot_v) * h / std::f64::consts::PI;
-        out += self.direct(p, rects, s);
-        out + self.reflected(p, rects, s)
+        Split {
+            own: p.emissive + self.direct(p, rects, s) + self.reflected(p, rects, s),
+            diffuse: p.lobes.diffuse_mean(n_dot_v),
+        }
     }
 
     /// Direct light through the BRDF: point lights by a shadow ray, rect
@@ -118,6 +129,9 @@ impl ObjectShading<'_> {
                 continue;
             }
             let y = match &light.grid {
+                Some(_) if s.sobol.is_some() => {
+                    light.point_at(s.sobol.map(|q| q.light(l)).unwrap_or_default())
+                }
                 // The pixel's n samples take one point from each of n cells.
                 Some(grid) => {
                     let level = (s.n as f64).log2().floor() as usize;
@@ -164,12 +178,18 @@ impl ObjectShading<'_> {
     /// One ray drawn from the specular lobe: what it meets of the room,
     /// the lamps (weighted against their area samples) and the objects.
     fn reflected(&self, p: &Point, rects: &[Rect], s: Sample) -> DVec3 {
-        let mut state = hash2(s.seed, 0x5EC);
-        let (jx, jy) = (unit_random(&mut state), unit_random(&mut state));
-        let side = (s.n as f64).sqrt().ceil() as u32;
-        // Stratified on a side × side grid, shifted per pixel (Cranley-Patterson).
-        let u1 = (((s.j % side) as f64 + jx) / side as f64).fract();
-        let u2 = (((s.j / side) as f64 + jy) / side as f64).fract();
+        let (u1, u2) = match s.sobol {
+            Some(q) => (q.lobe[0], q.lobe[1]),
+            None => {
+                let mut state = hash2(s.seed, 0x5EC);
+                let (jx, jy) = (unit_random(&mut state), unit_random(&mut state));
+                let side = (s.n as f64).sqrt().ceil() as u32;
+                // Stratified on a side × side grid, shifted per pixel (Cranley-Patterson).
+                let u1 = (((s.j % side) as f64 + jx) / side as f64).fract();
+                let u2 = (((s.j / side) as f64 + jy) / side as f64).fract();
+                (u1, u2)
+            }
+        };
         let Some((d, pdf_b, weight)) = p.lobes.sample_specular(p.n, p.v, u1, u2) else {
             return DVec3::ZERO;
         };
@@ -187,8 +207,15 @@ impl ObjectShading<'_> {
             let le = self.emitted(rect.light, d, rect.area, rect.normal);
             return (fd + fs) * p.n.dot(d) * le / (rect.pdf(d, t) + pdf_b);
         }
+        // A round's sample is one of many a pixel averages: one shadow ray
+        // per rect light where it lands, as the gathers take.
+        let level = match s.sobol {
+            Some(_) => 0,
+            None => ROOM_LEVEL,
+        };
+        let seed = hash2(s.seed, s.j as u64);
         match hit {
-            Some(h) => weight * self.arriving(&h, o, d, hash2(s.seed, s.j as u64)),
+            Some(h) => weight * self.arriving_at(&h, o, d, Reading::with_objects(seed, level)),
             None => DVec3::ZERO,
         }
     }

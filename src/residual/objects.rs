@@ -1,14 +1,20 @@
 //! The objects' own pixels: their indirect irradiance gathered at the
-//! pixel's point by cosine-distributed rays.
+//! pixel's point by cosine-distributed rays, and where the object has a
+//! material, its radiance sampled over the pixel (the object shading's
+//! `footprint_sample`).
 
 use super::*;
 use crate::light::offset_origin;
-use crate::object_shading::Reading;
+use crate::object_shading::{Footprint, Reading};
 use crate::trace::{Layer, TraceRay};
 use crate::util::rng::hash2;
 
 /// Gather rays per object pixel and round.
 pub(super) const ROUND_RAYS: u32 = 16;
+
+/// Samples of a material's radiance per plain object pixel and round: at
+/// 4 rounds 32, more than the 4-24 a pixel draws without rounds.
+pub(super) const ROUND_FOOTPRINT: u32 = 8;
 
 /// Shadow rays per rect light at a point a gather ray meets: one (2^0),
 /// since a pixel averages many rays.
@@ -29,6 +35,9 @@ pub(super) struct Task {
     pub(super) pixel: u32,
     pub(super) source: Source,
     sums: Sums,
+    /// The material's samples over the pixel (plain pixels whose surface
+    /// has one): their own light, and the sum of their diffuse factors.
+    radiance: Option<(Sums, DVec3)>,
 }
 
 impl Task {
@@ -62,6 +71,9 @@ pub(super) fn tasks(input: &ResidualInput) -> Vec<Task> {
                 pixel: e.pixel,
                 source: Source::Edge(k as u32, sub),
                 sums: Sums::default(),
+                radiance: (input.shading.materials)
+                    .has(pda.edge_samples.points[sub as usize].surface)
+                    .then_some((Sums::default(), DVec3::ZERO)),
             })
         })
         .collect();
@@ -78,6 +90,9 @@ pub(super) fn tasks(input: &ResidualInput) -> Vec<Task> {
             pixel,
             source: Source::Plain(k),
             sums: Sums::default(),
+            radiance: (input.shading.materials)
+                .has(pda.virtual_samples.points[k as usize].surface)
+                .then_some((Sums::default(), DVec3::ZERO)),
         });
     }
     out
@@ -112,18 +127,83 @@ pub(super) fn sample(input: &ResidualInput, t: &mut Task, round: u32) -> u64 {
         // Cosine-distributed rays: irradiance = π × mean radiance.
         t.sums.add(l * std::f64::consts::PI);
     }
+    rays + sample_radiance(input, t, round)
+}
+
+/// Round `round` of a material's samples over task `t`'s pixel; returns
+/// the rays traced.
+fn sample_radiance(input: &ResidualInput, t: &mut Task, round: u32) -> u64 {
+    let p = *t.point(input.pda);
+    // A plain pixel is the object's throughout; an outline's other part is
+    // the room's or nothing's, which the edges' rounds measure.
+    let centre = matches!(t.source, Source::Plain(_)).then_some(&p);
+    let Some((own, diffuse)) = &mut t.radiance else {
+        return 0;
+    };
+    let width = input.pda.width;
+    let corner = ((t.pixel % width) as f64, (t.pixel / width) as f64);
+    let key = hash2(t.pixel as u64, 0xF007_9817) as u32;
+    let mut rays = 0;
+    for j in 0..ROUND_FOOTPRINT {
+        let index = round * ROUND_FOOTPRINT + j;
+        let (found, n) = input.shading.footprint_sample(centre, corner, index, key);
+        rays += n;
+        match found {
+            Footprint::Shaded(split) => {
+                own.add(split.own);
+                *diffuse += split.diffuse;
+            }
+            Footprint::Elsewhere => {}
+            Footprint::Unsampled => {
+                t.radiance = None;
+                return rays;
+            }
+        }
+    }
     rays
 }
 
-/// Task `t`'s gathered irradiance, its pixel's estimated noise (radiance)
-/// and value (luminance of its diffuse radiance).
-pub(super) fn result(input: &ResidualInput, t: &Task) -> (DVec3, f64, f64) {
+/// Task `t`'s radiance from its samples, given its gathered irradiance `h`,
+/// and that radiance's estimated noise (None: not sampled).
+fn radiance(t: &Task, h: DVec3, h_deviation: f64) -> Option<(DVec3, f64)> {
+    let (own, diffuse) = t.radiance.as_ref().filter(|(own, _)| own.rays > 0)?;
+    let n = own.rays as f64;
+    let factor = *diffuse / (n * std::f64::consts::PI);
+    let value = (own.mean() + factor * h).max(DVec3::ZERO);
+    Some((
+        value,
+        own.deviation().hypot(luminance(factor) * h_deviation),
+    ))
+}
+
+/// What a task's rounds found.
+pub(super) struct Found {
+    /// The gathered indirect irradiance.
+    pub(super) irradiance: DVec3,
+    /// The material's radiance sampled over the pixel (None: not sampled).
+    pub(super) radiance: Option<DVec3>,
+    /// The pixel's estimated noise (radiance).
+    pub(super) noise: f64,
+    /// The luminance of its radiance (diffuse, where not sampled).
+    pub(super) value: f64,
+}
+
+/// Task `t`'s findings.
+pub(super) fn result(input: &ResidualInput, t: &Task) -> Found {
     let pda = input.pda;
     let p = t.point(pda);
     let rho = (input.shading.reflectance.get(p.location.patch as usize))
         .copied()
         .unwrap_or(DVec3::ZERO);
     let h = t.sums.mean().max(DVec3::ZERO);
+    if let Some((value, noise)) = radiance(t, h, t.sums.deviation()) {
+        return Found {
+            irradiance: h,
+            radiance: Some(value),
+            noise,
+            value: luminance(value),
+        };
+    }
     let terms = t.terms(pda);
     let shading = input.shading;
     let mut e = DVec3::ZERO;
@@ -133,6 +213,10 @@ pub(super) fn result(input: &ResidualInput, t: &Task) -> (DVec3, f64, f64) {
         }
     }
     let pi = std::f64::consts::PI;
-    let noise = luminance(rho) / pi * t.sums.deviation();
-    (h, noise, luminance(rho * (e + h)) / pi)
+    Found {
+        irradiance: h,
+        radiance: None,
+        noise: luminance(rho) / pi * t.sums.deviation(),
+        value: luminance(rho * (e + h)) / pi,
+    }
 }
