@@ -147,7 +147,11 @@ impl ObjectShading<'_> {
             let to = y - p.x;
             let dist2 = to.length_squared();
             let d = to / dist2.sqrt();
-            let (fd, fs) = p.lobes.eval(p.n, p.v, d);
+            let (fd, mut fs) = p.lobes.eval(p.n, p.v, d);
+            let lamps = s.sobol.is_none_or(|q| q.lamps);
+            if !lamps {
+                fs = DVec3::ZERO;
+            }
             if fd + fs == DVec3::ZERO {
                 continue;
             }
@@ -157,7 +161,10 @@ impl ObjectShading<'_> {
                     if pdf_l <= 0.0 {
                         continue;
                     }
-                    let pdf_b = p.lobes.specular_pdf(p.n, p.v, d);
+                    let pdf_b = match lamps {
+                        true => p.lobes.specular_pdf(p.n, p.v, d),
+                        false => 0.0,
+                    };
                     self.emitted(l, d, rect.area, rect.normal) / (pdf_l + pdf_b)
                 }
                 None => light.intensity(-d) * (scale / dist2),
@@ -203,6 +210,9 @@ impl ObjectShading<'_> {
             .filter(|(_, t)| *t < t_geo)
             .min_by(|a, b| a.1.total_cmp(&b.1));
         if let Some((rect, t)) = lamp {
+            if s.sobol.is_some_and(|q| !q.lamps) {
+                return DVec3::ZERO;
+            }
             let (fd, fs) = p.lobes.eval(p.n, p.v, d);
             let le = self.emitted(rect.light, d, rect.area, rect.normal);
             return (fd + fs) * p.n.dot(d) * le / (rect.pdf(d, t) + pdf_b);

@@ -13,6 +13,7 @@
 //! the image is the same whatever the thread count and order.
 
 use super::*;
+use crate::trace::Hit;
 
 /// A sample's light towards the camera, split so that the irradiance the
 /// rounds gather at the pixel can be applied once they end.
@@ -31,6 +32,8 @@ pub(super) struct Sobol {
     key: u32,
     /// The specular lobe's two numbers.
     pub(super) lobe: [f64; 2],
+    /// Whether the lobe reflects the lamps (else only their diffuse light).
+    pub(super) lamps: bool,
 }
 
 impl Sobol {
@@ -89,6 +92,7 @@ impl ObjectShading<'_> {
             index,
             key,
             lobe: [u1, u2],
+            lamps: true,
         };
         let sample = Sample {
             j: index,
@@ -103,4 +107,69 @@ impl ObjectShading<'_> {
         let split = self.split_sample(&point, &rects, sample);
         (Footprint::Shaded(split), rays)
     }
+}
+
+impl ObjectShading<'_> {
+    /// The radiance leaving the object surface `hit` towards the origin `o`
+    /// of the ray along unit `d` that met it, when the surface has a
+    /// material (None: clay, or cut away): one sample of its lights and
+    /// lobe, keyed by `seed`, and the diffuse part's indirect irradiance
+    /// interpolated from its vertices; and the rays that took. A glossy
+    /// object seen at a grazing angle mirrors the room, and a metal the
+    /// lamps (the light it focuses onto the floor), which its diffuse
+    /// radiosity alone leaves out.
+    pub(crate) fn leaving(
+        &self,
+        hit: &Hit,
+        (o, d): (DVec3, DVec3),
+        seed: u64,
+        round: u32,
+    ) -> Option<(DVec3, u64)> {
+        let s = self.materials.surfaces.get(&hit.surface)?;
+        let x = o + d * hit.t as f64;
+        // A ray from the room stands for a part of a cone, not a pixel:
+        // the texture read at a footprint of a hundredth of its length.
+        let mut point = self.point(s, hit.triangle, x, d, 0.01 * hit.t as f64)?;
+        point.lobes.roughness = point.lobes.roughness.max(regularized(round));
+        let key = seed as u32;
+        let [u1, u2, _, _] = sobol_burley::sample_4d(0, 0, key);
+        let sample = Sample {
+            j: 0,
+            n: 1,
+            seed,
+            sobol: Some(Sobol {
+                index: 0,
+                key,
+                lobe: [u1 as f64, u2 as f64],
+                lamps: true,
+            }),
+        };
+        let split = self.split_sample(&point, &self.rects(), sample);
+        let h = self
+            .patches
+            .locate(hit.surface, hit.triangle, x)
+            .map_or(DVec3::ZERO, |at| {
+                self.patches.interpolate(self.indirect_with, &at)
+            });
+        let rays = 2 + 2 * self.lights.len() as u64;
+        Some((split.own + split.diffuse * h / std::f64::consts::PI, rays))
+    }
+}
+
+/// The least roughness an object's lobe takes, in round `round`, where a
+/// ray from the room meets it: 0.7 in round 0, falling as (round + 1)^-¼
+/// (0.35 by round 15, 0.25 by round 63, 0.12 by round 1023). A metal's
+/// narrow lobe reflects a lamp into a small part of the object, which few
+/// of a room point's rays find, each carrying the lamp's radiance: at 4
+/// rounds those rare, bright rays made `chrome_floor` and `trio` worse
+/// than without rounds (0.958 -> 0.954, 0.963 -> 0.957). Widening the lobe
+/// spreads the lamp's reflection over more of the object and more rays,
+/// at a lower radiance; as rounds grow the lobe returns to the material's
+/// own, so the estimate converges to the unwidened one (path-space
+/// regularisation, Kaplanyan & Dachsbacher 2013). Measured on
+/// `chrome_floor`, `vase_floor` and `trio` at 4, 16 and 64 rounds, 0.5 to
+/// 1.0 in round 0 gave skills within 0.01 of each other; 0.7 was best at
+/// 4 rounds.
+fn regularized(round: u32) -> f64 {
+    0.7 * ((round + 1) as f64).powf(-0.25)
 }

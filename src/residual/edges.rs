@@ -126,7 +126,9 @@ fn near_change(input: &ResidualInput, h: &Hit, y: DVec3, key: (u64, u32)) -> (DV
         return (DVec3::ZERO, 0);
     }
     let mut sums = Sums::default();
-    let rays = sampler.sample(at.patch, y, key, &room::reader(input), &mut |v| sums.add(v));
+    let rays = sampler.sample(at.patch, y, key, &room::reader(input, key.1), &mut |v| {
+        sums.add(v)
+    });
     let coarse: DVec3 = (at.weights.iter())
         .filter(|(_, w)| *w != 0.0)
         .map(|&(v, w)| input.coarse.get(v as usize).copied().unwrap_or(DVec3::ZERO) * w)

@@ -60,17 +60,28 @@ pub(super) fn sample(input: &ResidualInput, t: &mut Task, round: u32) -> u64 {
         p.location.patch,
         x,
         (seed, round),
-        &reader(input),
+        &reader(input, round),
         &mut |v| sums.add(v),
     )
 }
 
 /// How the sampler reads what its rays meet: an object's radiance with
 /// the objects there, a real surface's without them.
-pub(super) fn reader(input: &ResidualInput) -> impl Fn(&Hit, DVec3, DVec3, u64) -> (DVec3, u64) {
+pub(super) fn reader(
+    input: &ResidualInput,
+    round: u32,
+) -> impl Fn(&Hit, DVec3, DVec3, u64) -> (DVec3, u64) {
     let shading = input.shading;
     let lights = shading.lights.len() as u64;
     move |h: &Hit, o: DVec3, d: DVec3, seed: u64| {
+        // An object with a material: its radiance towards the point.
+        if let Some(out) = h
+            .is_virtual
+            .then(|| shading.leaving(h, (o, d), seed, round))
+            .flatten()
+        {
+            return out;
+        }
         let reading = Reading {
             seed,
             level: HIT_LEVEL,
