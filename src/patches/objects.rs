@@ -102,14 +102,30 @@ impl Patches {
     /// than `size` metres.
     pub(crate) fn append_objects(&mut self, scene: &Scene, size: f64, meshes: &mut ObjectMeshes) {
         let mut id = scene.surfaces.len() as u32;
+        let mut placed = Vec::new();
         for o in &scene.objects {
             for s in &o.surfaces {
                 if o.enabled {
-                    let k = meshes.mesh(s, o.pose.scale, size);
-                    self.place(&meshes.meshed[k].block, id, &o.pose);
+                    placed.push((meshes.mesh(s, o.pose.scale, size), id, &o.pose));
                 }
                 id += 1;
             }
+        }
+        // Room for them all at once: grown object by object, each
+        // reallocation held the old and the new arrays (three 80k-triangle
+        // objects' elements alone are 70 MB).
+        let blocks = || placed.iter().map(|&(k, ..)| &meshes.meshed[k].block);
+        self.elements
+            .reserve(blocks().map(|b| b.elements.len()).sum());
+        self.vertices
+            .reserve(blocks().map(|b| b.vertices.len()).sum());
+        self.patches
+            .reserve(blocks().map(|b| b.patches.len()).sum());
+        self.patch_vertices
+            .reserve(blocks().map(|b| b.patch_vertices.len()).sum());
+        self.albedo.reserve(blocks().map(|b| b.albedo.len()).sum());
+        for &(k, id, pose) in &placed {
+            self.place(&meshes.meshed[k].block, id, pose);
         }
         if meshes.keep {
             // What the scene no longer shows is dropped.
@@ -139,10 +155,8 @@ impl Patches {
                 v: r * v,
             },
         };
-        let elements: Vec<Element> = block
-            .elements
-            .par_iter()
-            .map(|el| {
+        self.elements
+            .par_extend(block.elements.par_iter().map(|el| {
                 let shape = moved(el.shape);
                 Element {
                     shape,
@@ -159,13 +173,10 @@ impl Patches {
                     patch: el.patch.map(|p| p + p0),
                     region: el.region,
                 }
-            })
-            .collect();
-        self.elements.extend(elements);
+            }));
         self.roots.extend(block.roots.iter().map(|&e| e + e0));
         self.patches.extend(block.patches.iter().map(|&e| e + e0));
-        let vertices: Vec<DVec3> = block.vertices.par_iter().map(|&v| at(v)).collect();
-        self.vertices.extend(vertices);
+        (self.vertices).par_extend(block.vertices.par_iter().map(|&v| at(v)));
         self.albedo.extend_from_slice(&block.albedo);
         self.patch_vertices.extend(
             block

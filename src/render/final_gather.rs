@@ -102,8 +102,11 @@ pub(super) fn shared_gathers(
 /// A vertex's light from the gathers it shares (see [`shared_gathers`]):
 /// the weighted mean, and the nearest one's rays for the bounces between
 /// objects.
-fn shared_light(vertex: u32, taken: &[(u32, f64)], gathered: &[Option<Gathered>]) -> Gathered {
-    let of = |j: u32| gathered[j as usize].as_ref().expect("a gathering vertex");
+fn shared_light<'a>(
+    vertex: u32,
+    taken: &[(u32, f64)],
+    of: &impl Fn(u32) -> &'a Gathered,
+) -> Gathered {
     let total: f64 = taken.iter().map(|t| t.1).sum();
     let mean = |f: &dyn Fn(&Gathered) -> DVec3| -> DVec3 {
         taken.iter().map(|&(j, w)| f(of(j)) * w).sum::<DVec3>() / total
@@ -133,29 +136,26 @@ pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec
     use rayon::prelude::*;
     let vertices = gather_vertices(g);
     let shares = shared_gathers(g.patches, &vertices, g.share_within);
-    let gathering: Vec<(u32, DVec3, u32)> = vertices
-        .iter()
-        .zip(&shares)
-        .filter(|(_, s)| s.is_empty())
-        .map(|(v, _)| *v)
+    // The gathering vertices, by their place in `vertices` (ascending).
+    let gathering: Vec<usize> = (0..vertices.len())
+        .filter(|&i| shares[i].is_empty())
         .collect();
     let clear_of_object = object_clearance(g.patches, gathering.len());
     if directions.kept {
-        directions.keep(&gathering);
+        let own: Vec<(u32, DVec3, u32)> = gathering.iter().map(|&i| vertices[i]).collect();
+        directions.keep(&own);
     }
     let keeping = directions.kept;
     let kept = &*directions;
     let reused = std::sync::atomic::AtomicUsize::new(0);
     // The gathers, and beside them (kept by a session) their rays: one
-    // pointer per vertex where no session keeps them.
-    let (own, traced): (Vec<Option<Gathered>>, Vec<Option<Box<Traced>>>) = vertices
+    // pointer per gathering vertex where no session keeps them. Held for
+    // the gathering vertices alone: an 80k-triangle object has 160k
+    // vertices and under 2k gathers.
+    let (own, traced): (Vec<Gathered>, Vec<Option<Box<Traced>>>) = gathering
         .par_iter()
-        .zip(&shares)
-        .enumerate()
-        .map(|(i, (&(v, n, side), taken))| {
-            if !taken.is_empty() {
-                return (None, None);
-            }
+        .map(|&i| {
+            let (v, n, side) = vertices[i];
             let p = g.patches.vertices[v as usize];
             let layer = if clear_of_object(p, n) {
                 Layer::Real
@@ -176,27 +176,40 @@ pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec
                 objects_of: i,
                 ..sum_at(g, v, &traced)
             };
-            (Some(gathered), keeping.then(|| Box::new(traced)))
+            (gathered, keeping.then(|| Box::new(traced)))
         })
         .unzip();
     directions.reused = reused.into_inner();
     directions.traced.clear();
-    for (t, &(v, n, side)) in traced.into_iter().zip(&vertices) {
+    for (t, &i) in traced.into_iter().zip(&gathering) {
         if let Some(t) = t {
+            let (v, n, side) = vertices[i];
             directions
                 .traced
                 .insert(GatherDirections::key(v, n, side), *t);
         }
     }
-    let from_others: Vec<Option<Gathered>> = vertices
-        .iter()
-        .zip(&shares)
-        .map(|(&(v, ..), taken)| (!taken.is_empty()).then(|| shared_light(v, taken, &own)))
+    // Every vertex's light, allocated once at its size: a gathering
+    // vertex's own (its rays moved in after), the others' shared.
+    let of = |j: u32| -> &Gathered {
+        let k = gathering
+            .binary_search(&(j as usize))
+            .expect("a gathering vertex");
+        &own[k]
+    };
+    let mut out: Vec<Gathered> = (vertices.par_iter().zip(&shares))
+        .map(|(&(v, ..), taken)| match taken.is_empty() {
+            true => Gathered {
+                vertex: v as usize,
+                ..Gathered::default()
+            },
+            false => shared_light(v, taken, &of),
+        })
         .collect();
-    own.into_iter()
-        .zip(from_others)
-        .flat_map(|(a, b)| a.or(b))
-        .collect()
+    for (g, &i) in own.into_iter().zip(&gathering) {
+        out[i] = g;
+    }
+    out
 }
 
 /// Each virtual vertex with the normal of the plane it lies in and its
@@ -255,17 +268,23 @@ fn object_clearance(patches: &Patches, vertices: usize) -> impl Fn(DVec3, DVec3)
     let one_object = object_roots
         .windows(2)
         .all(|w| w[0].surface == w[1].surface);
-    let corners: Vec<DVec3> = object_roots
-        .iter()
-        .flat_map(|e| e.shape.corners().to_vec())
-        .collect();
-    let test = one_object && vertices * corners.len() <= CLEAR_TEST_LIMIT;
+    let count: usize = object_roots.iter().map(|e| e.shape.corners().len()).sum();
+    let test = one_object && vertices * count <= CLEAR_TEST_LIMIT;
+    // The corners only where they are tested (an 80k-triangle object's
+    // would hold 6 MB for nothing).
+    let corners: Vec<DVec3> = match test {
+        true => (object_roots.iter())
+            .flat_map(|e| e.shape.corners().to_vec())
+            .collect(),
+        false => Vec::new(),
+    };
     move |p: DVec3, n: DVec3| test && crate::gather::clear_of_solid(&corners, p, n)
 }
 
 /// What a virtual vertex gathered: the irradiance from the room (and,
 /// at first, from the objects as the first solve left them), and the
 /// object patches its rays met, for the bounces between objects.
+#[derive(Debug, Default)]
 pub(super) struct Gathered {
     pub(super) vertex: usize,
     pub(super) irradiance: DVec3,
