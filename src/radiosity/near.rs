@@ -34,6 +34,10 @@ const MAX_POINT_RAYS: u32 = 256;
 /// Most grid cells along a patch's side.
 const MAX_CELLS: u32 = 32;
 
+/// A grid's cell, at least this fraction of the patch's distance from
+/// the nearest object's sphere (the objects' patch size nearer).
+const DISTANCE_CELL: f64 = 0.5;
+
 /// A room patch's grid of points.
 #[derive(Debug, Clone, PartialEq)]
 struct Grid {
@@ -297,7 +301,9 @@ fn grid_of(
     let h = (el.shape.corners().iter())
         .map(|c| (*c - el.centre).length())
         .fold(0.0, f64::max);
-    let near = |t: &Target| (t.centre - el.centre).length() - h - t.radius < 2.0 * t.radius;
+    // How far the patch's nearest point may be from each target's sphere.
+    let gap = |t: &Target| ((t.centre - el.centre).length() - h - t.radius).max(0.0);
+    let near = |t: &Target| gap(t) < 2.0 * t.radius;
     if !targets.iter().any(near) {
         return None;
     }
@@ -305,6 +311,10 @@ fn grid_of(
         Shape::Quad { u, v, .. } => u.length().max(v.length()),
         Shape::Tri([a, b, c]) => (b - a).length().max((c - a).length()),
     };
+    // The change varies over distances like the patch's from the object:
+    // farther patches take coarser cells.
+    let from = (targets.iter().filter(|t| near(t)).map(gap)).fold(f64::INFINITY, f64::min);
+    let cell = cell.max(DISTANCE_CELL * from);
     let cells = ((side / cell).ceil() as u32).min(MAX_CELLS);
     if cells < 2 {
         return None;
