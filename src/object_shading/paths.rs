@@ -9,8 +9,12 @@ use crate::trace::Hit;
 use crate::util::rng::unit_random;
 
 /// Rays through the room per reflected point when its change is measured:
-/// the rect lights' shadow rays at grid level 2.
-const ROOM_LEVEL: usize = 2;
+/// the rect lights' shadow rays at grid level 0, one each. A pixel
+/// averages 4 or more samples (the rounds' many more), each with its own
+/// reflected point: four rays each (level 2) gave the same skill on every
+/// `materials` variant (within 0.0005) and cost a 2 m glossy table's
+/// update 14% more in the composite, in a room of four lights.
+const ROOM_LEVEL: usize = 0;
 
 /// A rect light's emitting rectangle, for rays that may meet it.
 pub(super) struct Rect {
@@ -217,15 +221,8 @@ impl ObjectShading<'_> {
             let le = self.emitted(rect.light, d, rect.area, rect.normal);
             return (fd + fs) * p.n.dot(d) * le / (rect.pdf(d, t) + pdf_b);
         }
-        // A round's sample is one of many a pixel averages: one shadow ray
-        // per rect light where it lands, as the gathers take.
-        let level = match s.sobol {
-            Some(_) => 0,
-            None => ROOM_LEVEL,
-        };
-        let seed = hash2(s.seed, s.j as u64);
         match hit {
-            Some(h) => weight * self.arriving_at(&h, o, d, Reading::with_objects(seed, level)),
+            Some(h) => weight * self.arriving(&h, o, d, hash2(s.seed, s.j as u64)),
             None => DVec3::ZERO,
         }
     }
