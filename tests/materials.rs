@@ -97,11 +97,8 @@ fn the_chrome_ball_reflects_the_room_where_the_truth_does() {
 #[test]
 fn an_update_of_a_chrome_ball_equals_a_full_render_of_its_pose() {
     let base = load("materials", "scene.toml");
-    let settings = RenderSettings::default();
     let first = base.with_variant("chrome_floor").unwrap();
     let photo = first.load_photo().unwrap();
-    let mut session =
-        Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
     let mut moved = first.clone();
     let chrome = moved
         .objects
@@ -109,20 +106,31 @@ fn an_update_of_a_chrome_ball_equals_a_full_render_of_its_pose() {
         .position(|o| o.name == "chrome")
         .unwrap();
     moved.objects[chrome].pose.translate += glam::DVec3::new(-0.2, 0.0, 0.15);
-    session.update(&moved, &mut StageTimes::default()).unwrap();
-    let full = render(&moved, &photo, &settings, &mut StageTimes::default()).unwrap();
-    let differing = session
-        .composite
-        .image
-        .pixels
-        .iter()
-        .zip(&full.composite.image.pixels)
-        .filter(|(a, b)| a.to_array().map(f32::to_bits) != b.to_array().map(f32::to_bits))
-        .count();
-    assert_eq!(differing, 0, "the update differs from a full render");
-    // And the ball moved: its pixels are not where they were.
-    let before = render(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
-    assert_ne!(before.composite.alpha, full.composite.alpha);
+    // Without rounds, and with the material and the floor near the ball
+    // sampled in rounds.
+    for samples in [0, 2] {
+        let mut settings = RenderSettings::default();
+        settings.residual.samples = samples;
+        let mut session =
+            Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+        session.update(&moved, &mut StageTimes::default()).unwrap();
+        let full = render(&moved, &photo, &settings, &mut StageTimes::default()).unwrap();
+        let differing = session
+            .composite
+            .image
+            .pixels
+            .iter()
+            .zip(&full.composite.image.pixels)
+            .filter(|(a, b)| a.to_array().map(f32::to_bits) != b.to_array().map(f32::to_bits))
+            .count();
+        assert_eq!(
+            differing, 0,
+            "{samples} rounds: the update differs from a full render"
+        );
+        // And the ball moved: its pixels are not where they were.
+        let before = render(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+        assert_ne!(before.composite.alpha, full.composite.alpha);
+    }
 }
 
 #[test]
