@@ -39,7 +39,7 @@ use crate::patches::Patches;
 use crate::pda::SurfacePoint;
 use crate::scene::Scene;
 use crate::trace::{Layer, TraceRay, Tracer};
-use crate::util::rng::{hash2, unit_random};
+use crate::util::rng::hash2;
 
 mod paths;
 mod rounds;
@@ -172,15 +172,13 @@ enum Seen {
     Clay,
 }
 
-/// Sample `j` of `n` a pixel draws, and the pixel's seed.
+/// Sample `j` a pixel draws: the pixel's seed and the sample's point of
+/// its Sobol sequence.
 #[derive(Clone, Copy)]
 struct Sample {
     j: u32,
-    n: u32,
     seed: u64,
-    /// A sample of the residual's rounds ([`rounds`]): its numbers come
-    /// from the pixel's Sobol sequence rather than from `j` of `n`.
-    sobol: Option<rounds::Sobol>,
+    sobol: rounds::Sobol,
 }
 
 impl ObjectShading<'_> {
@@ -218,13 +216,15 @@ impl ObjectShading<'_> {
         let h =
             h.unwrap_or_else(|| paths::interpolate(self.indirect_with, &p.location, self.patches));
         let side = (n as f64).sqrt().ceil() as u32;
-        let mut state = hash2(seed, 0xA11A5);
+        let key = hash2(seed, 0xA11A5) as u32;
         let mut sum = DVec3::ZERO;
         for j in 0..n {
-            let (jx, jy) = (unit_random(&mut state), unit_random(&mut state));
+            // The point of the pixel and the lobe's direction as four
+            // dimensions of one Owen-scrambled Sobol point: each stratified,
+            // and independent of the other (on one shared grid, a pixel's
+            // left part took the lobe's low directions only).
+            let [dx, dy, u1, u2] = sobol_burley::sample_4d(j, 0, key).map(f64::from);
             let sub = at.and_then(|(px, py, _)| {
-                let dx = ((j % side) as f64 + jx) / side as f64;
-                let dy = ((j / side) as f64 + jy) / side as f64;
                 let ray = self
                     .camera
                     .ray(px + (2.0 * dx - 1.0) * half, py + (2.0 * dy - 1.0) * half);
@@ -234,17 +234,8 @@ impl ObjectShading<'_> {
                 }
             });
             let point = sub.as_ref().unwrap_or(&centre);
-            sum += self.one_sample(
-                point,
-                &rects,
-                Sample {
-                    j,
-                    n,
-                    seed,
-                    sobol: None,
-                },
-                h,
-            );
+            let sobol = rounds::Sobol::new(j, key, [u1, u2]);
+            sum += self.one_sample(point, &rects, Sample { j, seed, sobol }, h);
         }
         Some((sum / n as f64).max(DVec3::ZERO))
     }

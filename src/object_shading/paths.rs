@@ -6,7 +6,6 @@ use glam::DVec3;
 use super::*;
 use crate::light::{Emitter, offset_origin, segment};
 use crate::trace::Hit;
-use crate::util::rng::unit_random;
 
 /// Rays through the room per reflected point when its change is measured:
 /// the rect lights' shadow rays at grid level 0, one each. A pixel
@@ -133,29 +132,13 @@ impl ObjectShading<'_> {
                 continue;
             }
             let y = match &light.grid {
-                Some(_) if s.sobol.is_some() => {
-                    light.point_at(s.sobol.map(|q| q.light(l)).unwrap_or_default())
-                }
-                // The pixel's n samples take one point from each of n cells.
-                Some(grid) => {
-                    let level = (s.n as f64).log2().floor() as usize;
-                    let cells = 1u32 << level.min(crate::light::MAX_GRID_LEVEL);
-                    let st = grid
-                        .samples(level, hash2(s.seed, l as u64))
-                        .nth((s.j % cells) as usize)
-                        .unwrap_or_default();
-                    light.point_at(st)
-                }
+                Some(_) => light.point_at(s.sobol.light(l)),
                 None => light.position,
             };
             let to = y - p.x;
             let dist2 = to.length_squared();
             let d = to / dist2.sqrt();
-            let (fd, mut fs) = p.lobes.eval(p.n, p.v, d);
-            let lamps = s.sobol.is_none_or(|q| q.lamps);
-            if !lamps {
-                fs = DVec3::ZERO;
-            }
+            let (fd, fs) = p.lobes.eval(p.n, p.v, d);
             if fd + fs == DVec3::ZERO {
                 continue;
             }
@@ -165,10 +148,7 @@ impl ObjectShading<'_> {
                     if pdf_l <= 0.0 {
                         continue;
                     }
-                    let pdf_b = match lamps {
-                        true => p.lobes.specular_pdf(p.n, p.v, d),
-                        false => 0.0,
-                    };
+                    let pdf_b = p.lobes.specular_pdf(p.n, p.v, d);
                     self.emitted(l, d, rect.area, rect.normal) / (pdf_l + pdf_b)
                 }
                 None => light.intensity(-d) * (scale / dist2),
@@ -189,18 +169,7 @@ impl ObjectShading<'_> {
     /// One ray drawn from the specular lobe: what it meets of the room,
     /// the lamps (weighted against their area samples) and the objects.
     fn reflected(&self, p: &Point, rects: &[Rect], s: Sample) -> DVec3 {
-        let (u1, u2) = match s.sobol {
-            Some(q) => (q.lobe[0], q.lobe[1]),
-            None => {
-                let mut state = hash2(s.seed, 0x5EC);
-                let (jx, jy) = (unit_random(&mut state), unit_random(&mut state));
-                let side = (s.n as f64).sqrt().ceil() as u32;
-                // Stratified on a side × side grid, shifted per pixel (Cranley-Patterson).
-                let u1 = (((s.j % side) as f64 + jx) / side as f64).fract();
-                let u2 = (((s.j / side) as f64 + jy) / side as f64).fract();
-                (u1, u2)
-            }
-        };
+        let [u1, u2] = s.sobol.lobe;
         let Some((d, pdf_b, weight)) = p.lobes.sample_specular(p.n, p.v, u1, u2) else {
             return DVec3::ZERO;
         };
@@ -214,9 +183,6 @@ impl ObjectShading<'_> {
             .filter(|(_, t)| *t < t_geo)
             .min_by(|a, b| a.1.total_cmp(&b.1));
         if let Some((rect, t)) = lamp {
-            if s.sobol.is_some_and(|q| !q.lamps) {
-                return DVec3::ZERO;
-            }
             let (fd, fs) = p.lobes.eval(p.n, p.v, d);
             let le = self.emitted(rect.light, d, rect.area, rect.normal);
             return (fd + fs) * p.n.dot(d) * le / (rect.pdf(d, t) + pdf_b);

@@ -10,7 +10,9 @@
 //! pixel's point and the lobe's direction are dimensions 0-3 of one point
 //! (stratified jointly), each light's point on its rectangle dimensions
 //! 4-5 under a seed of its own. Round `r` takes points `r·k..(r+1)·k`, so
-//! the image is the same whatever the thread count and order.
+//! the image is the same whatever the thread count and order. A pixel
+//! shaded without rounds ([`ObjectShading::radiance`]) draws its samples
+//! from the same kind of sequence.
 
 use super::*;
 use crate::trace::Hit;
@@ -32,11 +34,14 @@ pub(super) struct Sobol {
     key: u32,
     /// The specular lobe's two numbers.
     pub(super) lobe: [f64; 2],
-    /// Whether the lobe reflects the lamps (else only their diffuse light).
-    pub(super) lamps: bool,
 }
 
 impl Sobol {
+    /// Point `index` of the sequence keyed by `key`, its lobe's numbers given.
+    pub(super) fn new(index: u32, key: u32, lobe: [f64; 2]) -> Sobol {
+        Sobol { index, key, lobe }
+    }
+
     /// Light `l`'s point on its rectangle, in [0, 1)².
     pub(super) fn light(&self, l: usize) -> glam::DVec2 {
         let seed = self.key ^ (l as u32 + 1).wrapping_mul(0x9E37_79B9);
@@ -59,6 +64,17 @@ pub(crate) enum Footprint {
 }
 
 impl ObjectShading<'_> {
+    /// How many samples a whole pixel on `centre` draws without rounds (as
+    /// [`ObjectShading::radiance`] does): each round adds as many. None
+    /// where the camera sees no surface with a material there.
+    pub(crate) fn samples_per_pixel(&self, centre: &SurfacePoint) -> Option<u32> {
+        let to = centre.position.as_dvec3() - self.camera.position;
+        match self.seen(to.normalize_or_zero(), to.length() * 1.001 + 1e-4, 1.0)? {
+            Seen::Shaded(point) => Some(self.sample_count(&point.lobes, 1.0)),
+            _ => None,
+        }
+    }
+
     /// Sample `index` of the pixel whose top-left corner is `corner` (image
     /// coordinates), its sequence keyed by `key`. Where the sample's ray
     /// meets no surface with a material, `centre` (a plain pixel's point in
@@ -88,17 +104,10 @@ impl ObjectShading<'_> {
                 }
             }
         };
-        let sobol = Sobol {
-            index,
-            key,
-            lobe: [u1, u2],
-            lamps: true,
-        };
         let sample = Sample {
             j: index,
-            n: 1,
             seed: hash2(key as u64, index as u64),
-            sobol: Some(sobol),
+            sobol: Sobol::new(index, key, [u1, u2]),
         };
         let rects = self.rects();
         // The camera ray, a shadow ray per light, the lobe's ray and a
@@ -135,14 +144,8 @@ impl ObjectShading<'_> {
         let [u1, u2, _, _] = sobol_burley::sample_4d(0, 0, key);
         let sample = Sample {
             j: 0,
-            n: 1,
             seed,
-            sobol: Some(Sobol {
-                index: 0,
-                key,
-                lobe: [u1 as f64, u2 as f64],
-                lamps: true,
-            }),
+            sobol: Sobol::new(0, key, [u1 as f64, u2 as f64]),
         };
         let split = self.split_sample(&point, &self.rects(), sample);
         let h = self

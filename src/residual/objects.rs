@@ -12,9 +12,11 @@ use crate::util::rng::hash2;
 /// Gather rays per object pixel and round.
 pub(super) const ROUND_RAYS: u32 = 16;
 
-/// Samples of a material's radiance per plain object pixel and round: at
-/// 4 rounds 32, more than the 4-24 a pixel draws without rounds.
-pub(super) const ROUND_FOOTPRINT: u32 = 8;
+/// Most samples of a material's radiance per pixel and round: each round
+/// draws as many as a pixel does without rounds (4-24, by its lobes), so
+/// that 4 rounds draw more than an outline's 16 sub-pixels of 4 each.
+/// The Sobol sequences' indices stay below 2^16 over 1,024 rounds.
+const ROUND_FOOTPRINT_MAX: u32 = 64;
 
 /// Shadow rays per rect light at a point a gather ray meets: one (2^0),
 /// since a pixel averages many rays.
@@ -35,9 +37,10 @@ pub(super) struct Task {
     pub(super) pixel: u32,
     pub(super) source: Source,
     sums: Sums,
-    /// The material's samples over the pixel (plain pixels whose surface
-    /// has one): their own light, and the sum of their diffuse factors.
-    radiance: Option<(Sums, DVec3)>,
+    /// The material's samples over the pixel (pixels whose surface has
+    /// one): their own light, the sum of their diffuse factors, and how
+    /// many a round draws (0: not known yet).
+    radiance: Option<(Sums, DVec3, u32)>,
 }
 
 impl Task {
@@ -73,7 +76,7 @@ pub(super) fn tasks(input: &ResidualInput) -> Vec<Task> {
                 sums: Sums::default(),
                 radiance: (input.shading.materials)
                     .has(pda.edge_samples.points[sub as usize].surface)
-                    .then_some((Sums::default(), DVec3::ZERO)),
+                    .then_some((Sums::default(), DVec3::ZERO, 0)),
             })
         })
         .collect();
@@ -92,7 +95,7 @@ pub(super) fn tasks(input: &ResidualInput) -> Vec<Task> {
             sums: Sums::default(),
             radiance: (input.shading.materials)
                 .has(pda.virtual_samples.points[k as usize].surface)
-                .then_some((Sums::default(), DVec3::ZERO)),
+                .then_some((Sums::default(), DVec3::ZERO, 0)),
         });
     }
     out
@@ -137,15 +140,26 @@ fn sample_radiance(input: &ResidualInput, t: &mut Task, round: u32) -> u64 {
     // A plain pixel is the object's throughout; an outline's other part is
     // the room's or nothing's, which the edges' rounds measure.
     let centre = matches!(t.source, Source::Plain(_)).then_some(&p);
-    let Some((own, diffuse)) = &mut t.radiance else {
+    let Some((own, diffuse, per_round)) = &mut t.radiance else {
         return 0;
     };
+    let mut rays = 0;
+    if *per_round == 0 {
+        rays += 1;
+        match input.shading.samples_per_pixel(&p) {
+            Some(n) => *per_round = n.clamp(1, ROUND_FOOTPRINT_MAX),
+            None => {
+                t.radiance = None;
+                return rays;
+            }
+        }
+    }
     let width = input.pda.width;
     let corner = ((t.pixel % width) as f64, (t.pixel / width) as f64);
     let key = hash2(t.pixel as u64, 0xF007_9817) as u32;
-    let mut rays = 0;
-    for j in 0..ROUND_FOOTPRINT {
-        let index = round * ROUND_FOOTPRINT + j;
+    let per_round = *per_round;
+    for j in 0..per_round {
+        let index = round * per_round + j;
         let (found, n) = input.shading.footprint_sample(centre, corner, index, key);
         rays += n;
         match found {
@@ -166,7 +180,7 @@ fn sample_radiance(input: &ResidualInput, t: &mut Task, round: u32) -> u64 {
 /// Task `t`'s radiance from its samples, given its gathered irradiance `h`,
 /// and that radiance's estimated noise (None: not sampled).
 fn radiance(t: &Task, h: DVec3, h_deviation: f64) -> Option<(DVec3, f64)> {
-    let (own, diffuse) = t.radiance.as_ref().filter(|(own, _)| own.rays > 0)?;
+    let (own, diffuse, _) = t.radiance.as_ref().filter(|(own, ..)| own.rays > 0)?;
     let n = own.rays as f64;
     let factor = *diffuse / (n * std::f64::consts::PI);
     let value = (own.mean() + factor * h).max(DVec3::ZERO);
