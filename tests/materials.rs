@@ -23,6 +23,15 @@ const VARIANTS: [&str; 7] = [
     "chrome_bulb",
 ];
 
+/// A `materials` variant as posed, its photo and its truth.
+fn posed_with_truth(variant: &str) -> (Scene, Image, Image) {
+    let base = load("materials", "scene.toml");
+    let scene = base.with_variant(variant).unwrap();
+    let photo = scene.load_photo().unwrap();
+    let truth = read_image(base.variant(variant).unwrap().reference.as_ref().unwrap()).unwrap();
+    (scene, photo, truth)
+}
+
 fn run(base: &Scene, variant: &str) -> (RenderOutput, Image, Image) {
     let (out, photo) = common::render_default(&base.with_variant(variant).unwrap());
     let truth = read_image(base.variant(variant).unwrap().reference.as_ref().unwrap()).unwrap();
@@ -220,17 +229,7 @@ fn rounds_sample_a_metals_lamp_highlights_over_the_pixel() {
     // coarsely. Rounds add samples of the pixel's points and the lobe's
     // directions from one Sobol sequence. Measured: skill 0.948 -> 0.976,
     // the objects' RMSE 0.026 -> 0.010.
-    let base = load("materials", "scene.toml");
-    let scene = base.with_variant("chrome_table").unwrap();
-    let photo = scene.load_photo().unwrap();
-    let truth = read_image(
-        base.variant("chrome_table")
-            .unwrap()
-            .reference
-            .as_ref()
-            .unwrap(),
-    )
-    .unwrap();
+    let (scene, photo, truth) = posed_with_truth("chrome_table");
     let mut last: Option<(f64, f64)> = None;
     for samples in [0, 16] {
         let mut settings = RenderSettings::default();
@@ -295,17 +294,7 @@ fn a_chrome_balls_focused_reflection_reaches_the_floor_as_rounds_grow() {
     // only (0.021 there); the rounds' rays from the floor read the ball's
     // radiance towards them, lamps reflected through its lobe (widened in
     // early rounds, its own by the last): 0.029 at 16, 0.034 at 64.
-    let base = load("materials", "scene.toml");
-    let scene = base.with_variant("chrome_floor").unwrap();
-    let photo = scene.load_photo().unwrap();
-    let truth = read_image(
-        base.variant("chrome_floor")
-            .unwrap()
-            .reference
-            .as_ref()
-            .unwrap(),
-    )
-    .unwrap();
+    let (scene, photo, truth) = posed_with_truth("chrome_floor");
     let w = photo.width as usize;
     let mean = |img: &Image, i: usize| {
         let (a, b) = (img.pixels[i], photo.pixels[i]);
