@@ -232,7 +232,9 @@ impl CompositeInput<'_> {
     ) -> Shade {
         let gathered = rounds.irradiance;
         let e_w = self.irradiance(terms, self.scales_with, true);
-        let h_w = gathered.unwrap_or_else(|| self.interpolate(self.indirect_with, &p.location));
+        // Not negative (see `RealPixel::shade`).
+        let h_w = (gathered.unwrap_or_else(|| self.interpolate(self.indirect_with, &p.location)))
+            .max(DVec3::ZERO);
         let rho = self.reflectance[p.location.patch as usize];
         let value = rounds
             .radiance

@@ -213,8 +213,9 @@ impl ObjectShading<'_> {
         let half = 0.5 * share.sqrt();
         let at = self.camera.project(x);
         let rects = self.rects();
-        let h =
-            h.unwrap_or_else(|| paths::interpolate(self.indirect_with, &p.location, self.patches));
+        let h = (h
+            .unwrap_or_else(|| paths::interpolate(self.indirect_with, &p.location, self.patches)))
+        .max(DVec3::ZERO);
         let side = (n as f64).sqrt().ceil() as u32;
         let key = hash2(seed, 0xA11A5) as u32;
         let mut sum = DVec3::ZERO;

@@ -350,3 +350,36 @@ fn a_chrome_balls_focused_reflection_reaches_the_floor_as_rounds_grow() {
         gains[1]
     );
 }
+
+#[test]
+fn rounds_stay_finite_with_a_bulb_a_millimetre_from_the_floor_beside_the_chrome_ball() {
+    // The virtual bulb 1 mm above the floor, a few centimetres from the
+    // chrome ball: what the ball mirrors of it, and what the floor's rays
+    // read of the ball, span orders of magnitude within a pixel.
+    use arlux::scene::LightPosition;
+    let (mut scene, photo, _) = posed_with_truth("chrome_floor");
+    let bulb = scene.light_index("bulb").unwrap();
+    scene.lights[bulb].position = LightPosition::Known(glam::DVec3::new(0.95, 0.001, -0.7));
+    scene.lights[bulb].scale = 1.0;
+    scene.check_light_clearance().unwrap();
+    let mut settings = RenderSettings::default();
+    settings.residual.samples = 4;
+    let out = render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap();
+    // The indirect light interpolated over the floor's patches overshoots
+    // below 0 here (to -5.1 on 2,576 pixels): irradiance is read clamped
+    // at 0, so no layer is negative.
+    assert_eq!(out.residual.map(|r| r.rounds), Some(4));
+    common::assert_layers_sound("bulb by the ball", &out.composite);
+    // The bulb lights the ball: its pixels are brighter than without it.
+    let object = |c: &arlux::composite::Composite| -> f64 {
+        (c.object.pixels.iter()).map(|p| p.x as f64).sum::<f64>()
+    };
+    let dark = render(
+        &posed_with_truth("chrome_floor").0,
+        &photo,
+        &settings,
+        &mut StageTimes::default(),
+    )
+    .unwrap();
+    assert!(object(&out.composite) > object(&dark.composite));
+}

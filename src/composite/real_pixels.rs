@@ -232,6 +232,10 @@ impl RealPixel {
 
     /// The pixel's shade for indirect irradiance `h`, under direct irradiance `direct`.
     pub(super) fn shade(&self, h: DVec3, photo: DVec3, direct: DVec3) -> Shade {
+        // Irradiance is not negative: an interpolated change can overshoot
+        // where the light varies by orders of magnitude across a patch (a
+        // lamp a millimetre from the floor).
+        let h = h.max(DVec3::ZERO);
         let hf = h.as_vec3();
         if self.keep.holds(hf) {
             return Shade {
@@ -262,6 +266,8 @@ impl RealPixel {
 
     /// [`AffinePixel::value`] with the layers (the direct one left to the caller).
     pub(super) fn layers(&self, h: Vec3A, photo: &Vec3) -> PixelShade {
+        // Not negative, as in [`RealPixel::shade`].
+        let h = h.max(Vec3A::ZERO);
         let (value, copied, clamped) = self.affine.value(h, Some(&self.keep), photo);
         PixelShade {
             value,

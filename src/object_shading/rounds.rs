@@ -153,7 +153,8 @@ impl ObjectShading<'_> {
             .locate(hit.surface, hit.triangle, x)
             .map_or(DVec3::ZERO, |at| {
                 self.patches.interpolate(self.indirect_with, &at)
-            });
+            })
+            .max(DVec3::ZERO);
         let rays = 2 + 2 * self.lights.len() as u64;
         Some((split.own + split.diffuse * h / std::f64::consts::PI, rays))
     }
