@@ -3,6 +3,7 @@
 
 use glam::DVec3;
 
+use super::rounds::Split;
 use super::*;
 use crate::light::{Emitter, offset_origin, segment};
 use crate::trace::Hit;

@@ -27,6 +27,9 @@ pub(crate) struct Split {
     pub diffuse: DVec3,
 }
 
+/// The rect lights a sample may meet, listed once for many samples.
+pub(crate) struct Lamps(Vec<paths::Rect>);
+
 /// A round sample's point of the pixel's Sobol sequence.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Sobol {
@@ -64,6 +67,12 @@ pub(crate) enum Footprint {
 }
 
 impl ObjectShading<'_> {
+    /// The rect lights, for [`ObjectShading::footprint_sample`] and
+    /// [`ObjectShading::leaving`] (a list a sample would otherwise make).
+    pub(crate) fn lamps(&self) -> Lamps {
+        Lamps(self.rects())
+    }
+
     /// How many samples a whole pixel on `centre` draws without rounds (as
     /// [`ObjectShading::radiance`] does): each round adds as many. None
     /// where the camera sees no surface with a material there.
@@ -76,12 +85,14 @@ impl ObjectShading<'_> {
     }
 
     /// Sample `index` of the pixel whose top-left corner is `corner` (image
-    /// coordinates), its sequence keyed by `key`. Where the sample's ray
+    /// coordinates), its sequence keyed by `key`, `lamps` the rect lights.
+    /// Where the sample's ray
     /// meets no surface with a material, `centre` (a plain pixel's point in
     /// the pixel data) is shaded instead, if given. Returns what it met and
     /// the rays it traced.
     pub(crate) fn footprint_sample(
         &self,
+        lamps: &Lamps,
         centre: Option<&SurfacePoint>,
         corner: (f64, f64),
         index: u32,
@@ -109,11 +120,10 @@ impl ObjectShading<'_> {
             seed: hash2(key as u64, index as u64),
             sobol: Sobol::new(index, key, [u1, u2]),
         };
-        let rects = self.rects();
         // The camera ray, a shadow ray per light, the lobe's ray and a
         // shadow ray per light where it lands.
         let rays = 2 + 2 * self.lights.len() as u64;
-        let split = self.split_sample(&point, &rects, sample);
+        let split = self.split_sample(&point, &lamps.0, sample);
         (Footprint::Shaded(split), rays)
     }
 }
@@ -121,7 +131,7 @@ impl ObjectShading<'_> {
 impl ObjectShading<'_> {
     /// The radiance leaving the object surface `hit` towards the origin `o`
     /// of the ray along unit `d` that met it, when the surface has a
-    /// material (None: clay, or cut away): one sample of its lights and
+    /// material (None: clay, or cut away), `lamps` the rect lights: one sample of its lights and
     /// lobe, keyed by `seed`, and the diffuse part's indirect irradiance
     /// interpolated from its vertices; and the rays that took. A glossy
     /// object seen at a grazing angle mirrors the room, and a metal the
@@ -129,6 +139,7 @@ impl ObjectShading<'_> {
     /// radiosity alone leaves out.
     pub(crate) fn leaving(
         &self,
+        lamps: &Lamps,
         hit: &Hit,
         (o, d): (DVec3, DVec3),
         seed: u64,
@@ -147,7 +158,7 @@ impl ObjectShading<'_> {
             seed,
             sobol: Sobol::new(0, key, [u1 as f64, u2 as f64]),
         };
-        let split = self.split_sample(&point, &self.rects(), sample);
+        let split = self.split_sample(&point, &lamps.0, sample);
         let h = self
             .patches
             .locate(hit.surface, hit.triangle, x)

@@ -158,9 +158,10 @@ fn sample_radiance(input: &ResidualInput, t: &mut Task, round: u32) -> u64 {
     let corner = ((t.pixel % width) as f64, (t.pixel / width) as f64);
     let key = hash2(t.pixel as u64, 0xF007_9817) as u32;
     let per_round = *per_round;
+    let lamps = input.shading.lamps();
     for j in 0..per_round {
         let index = round * per_round + j;
-        let (found, n) = input.shading.footprint_sample(centre, corner, index, key);
+        let (found, n) = (input.shading).footprint_sample(&lamps, centre, corner, index, key);
         rays += n;
         match found {
             Footprint::Shaded(split) => {

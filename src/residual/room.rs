@@ -73,13 +73,11 @@ pub(super) fn reader(
 ) -> impl Fn(&Hit, DVec3, DVec3, u64) -> (DVec3, u64) {
     let shading = input.shading;
     let lights = shading.lights.len() as u64;
+    let lamps = shading.lamps();
     move |h: &Hit, o: DVec3, d: DVec3, seed: u64| {
         // An object with a material: its radiance towards the point.
-        if let Some(out) = h
-            .is_virtual
-            .then(|| shading.leaving(h, (o, d), seed, round))
-            .flatten()
-        {
+        let leaving = || shading.leaving(&lamps, h, (o, d), seed, round);
+        if let Some(out) = h.is_virtual.then(leaving).flatten() {
             return out;
         }
         let reading = Reading {
