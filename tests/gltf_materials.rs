@@ -259,3 +259,43 @@ fn the_emission_key_scales_or_turns_off_a_file_s_glow() {
         "{err}"
     );
 }
+
+#[test]
+fn objects_from_one_file_share_one_mesh_of_patches() {
+    // Three globes from one glb, one of them with a roughness of its own:
+    // the two alike are meshed once (a copy of the material per object
+    // had meshed each again: three 80k-triangle props, three meshings).
+    let src = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/materials");
+    let text = std::fs::read_to_string(format!("{src}/scene.toml"))
+        .unwrap()
+        .replace("\"geometry/", &format!("\"{src}/geometry/"))
+        .replace("\"truth/", &format!("\"{src}/truth/"))
+        .replace("\"photo.exr\"", &format!("\"{src}/photo.exr\""));
+    let globe = |name: &str, x: f64, extra: &str| {
+        format!(
+            "\n[[virtual]]\nname = \"{name}\"\nmesh = \"{src}/geometry/globe.glb\"\n\
+             translate = [{x}, 0.0, -0.3]\n{extra}\n"
+        )
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("scene.toml");
+    let extra = [
+        globe("a", -0.4, ""),
+        globe("b", 0.0, ""),
+        globe("c", 0.4, "roughness = 0.2"),
+    ]
+    .concat();
+    std::fs::write(&file, text + &extra).unwrap();
+    let scene = Scene::load(&file).unwrap();
+    let room = arlux::patches::Patches::of_scene(&scene, false, 0.5);
+    let mut meshes = arlux::patches::ObjectMeshes::new(true);
+    let p = arlux::patches::Patches::of_scene_from_room(&room, &scene, 0.1, &mut meshes);
+    assert_eq!(
+        meshes.mesh_count(),
+        2,
+        "a and b share one mesh, c has its own"
+    );
+    // Each globe still has its patches, moved to where it stands.
+    let per_globe = (p.patch_count() - room.patch_count()) / 3;
+    assert!(per_globe > 0 && p.patch_count() == room.patch_count() + 3 * per_globe);
+}

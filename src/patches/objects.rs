@@ -48,6 +48,12 @@ impl ObjectMeshes {
         }
     }
 
+    /// How many distinct meshes are held (objects from one file, at one
+    /// scale and with one material, share one).
+    pub fn mesh_count(&self) -> usize {
+        self.meshed.len()
+    }
+
     /// The index of the mesh of `triangles` at `scale` with leaves no
     /// larger than `size`, each patch's albedo read from `material` when
     /// it is textured, meshed now if it is not kept.

@@ -27,7 +27,20 @@ pub(super) fn surface_material(
     looks: Overrides,
     attributes: impl FnOnce() -> Arc<crate::materials::Attributes>,
 ) -> Result<Option<SurfaceMaterial>, String> {
+    let untouched = rgb.is_none()
+        && looks.metallic.is_none()
+        && looks.roughness.is_none()
+        && looks.emission.is_none_or(|e| e == 1.0);
     let mut material = match (&s.material, looks.metallic.or(looks.roughness)) {
+        // The file's own material, shared: objects made from one file then
+        // share one mesh of patches (`patches::ObjectMeshes` matches
+        // materials by pointer; a copy per object meshed each again).
+        (Some(m), _) if untouched => {
+            return Ok(Some(SurfaceMaterial {
+                material: Arc::clone(m),
+                attributes: attributes(),
+            }));
+        }
         (Some(m), _) => (**m).clone(),
         (None, Some(_)) => {
             let base = rgb
