@@ -545,12 +545,7 @@ pub fn polygon_form_factor(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
 
 /// [`polygon_form_factor`], with `two_sided` false counting only the part
 /// of the polygon on the side `n` points to.
-pub(crate) fn polygon_form_factor_sided(
-    x: DVec3,
-    n: DVec3,
-    polygon: &[DVec3],
-    two_sided: bool,
-) -> f64 {
+pub fn polygon_form_factor_sided(x: DVec3, n: DVec3, polygon: &[DVec3], two_sided: bool) -> f64 {
     debug_assert!(polygon.len() <= 6);
     let (mut above, mut below) = (false, false);
     for p in polygon {

@@ -58,4 +58,6 @@ pub struct TextureStats {
     /// What linking the objects was expected to make and take, measured on
     /// a sample of their triangles before it started (with a memory budget).
     pub object_links_estimate: Option<crate::radiosity::ObjectLinkEstimate>,
+    /// Groups of the objects' leaves that gathered their light by rays.
+    pub object_gather_groups: usize,
 }

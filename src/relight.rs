@@ -78,6 +78,9 @@ pub struct TextureSettings {
     /// refused before it starts when its estimate (measured on a sample of
     /// the objects' triangles) would pass it. None: not checked.
     pub memory: Option<u64>,
+    /// Rays each group of the objects' leaves gathers its light with (as
+    /// the pixel path's final gather, `RenderSettings::gather_rays`).
+    pub object_rays: u32,
 }
 
 impl Default for TextureSettings {
@@ -94,6 +97,7 @@ impl Default for TextureSettings {
             link_epsilon: DEFAULT_LINK_EPSILON,
             cache_links: false,
             memory: None,
+            object_rays: 576,
         }
     }
 }

@@ -210,9 +210,8 @@ fn re_linking_objects_with_kept_room_facts_gives_the_same_links() {
         scene.objects[0].pose.translate = at;
         let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
         let with = Patches::of_scene_with(&scene, true, 0.25, 0.1);
-        let fresh = transport.with_objects(&with, &tracer, DEFAULT_LINK_EPSILON, false);
-        let kept =
-            transport.with_objects_using(&with, &tracer, DEFAULT_LINK_EPSILON, false, Some(&facts));
+        let fresh = transport.with_objects(&with, &tracer, DEFAULT_LINK_EPSILON);
+        let kept = transport.with_objects_using(&with, &tracer, DEFAULT_LINK_EPSILON, Some(&facts));
         let Transport::Hierarchical { links, .. } = &fresh else {
             panic!("pose {pose}: not hierarchical")
         };
@@ -428,7 +427,7 @@ fn what_the_box_sends_the_room_through_its_clusters_agrees_with_the_full_matrix(
     let room = Patches::of_scene(&scene, false, 0.5);
     let with = Patches::of_scene_with(&scene, true, 0.5, 0.1);
     let room_transport = Transport::hierarchical(&room, &tracer, Layer::Real, epsilon);
-    let clustered = room_transport.with_objects(&with, &tracer, epsilon, false);
+    let clustered = room_transport.with_objects(&with, &tracer, epsilon);
     let full = Transport::full(&with, &tracer, Layer::All);
     let Transport::Hierarchical { clusters, .. } = &clustered else {
         panic!("not hierarchical")
@@ -542,4 +541,62 @@ fn an_object_walking_and_turning_keeps_its_patches() {
             "edge lengths: {shapes:?}"
         );
     }
+}
+
+/// The texture path's objects gather their light by rays in groups
+/// ([`arlux::radiosity::GatherRows`]): a leaf's row is the fraction of its
+/// rays meeting each element, so the light a side of the box gathers from
+/// the floor alone (radiosity 1 there, 0 elsewhere) is its form factor to
+/// the floor, and nothing reaches the box from its own faces (convex).
+#[test]
+fn objects_gathering_by_rays_see_the_room_s_form_factors() {
+    use arlux::radiosity::{GatherRows, GatherRowsSettings};
+    let scene = desk().with_variant("box_floor_a").unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
+    let room = Patches::of_scene(&scene, false, 0.5);
+    let with = Patches::of_scene_from_room(&room, &scene, 0.1, &mut ObjectMeshes::new(false));
+    let links = Transport::hierarchical(&room, &tracer, arlux::trace::Layer::Real, 0.02);
+    let settings = GatherRowsSettings {
+        rays: 4096,
+        within: 0.025,
+    };
+    let rows = GatherRows::trace(&with, &tracer, settings);
+    assert!(rows.group_count() > 0 && rows.rays == rows.group_count() as u64 * 4096);
+    let transport = links
+        .with_objects(&with, &tracer, 0.02)
+        .with_gather_rows(rows);
+    let (n, m) = (with.patch_count(), room.patch_count());
+    let element = |k: usize| &with.elements[with.patches[k] as usize];
+    let gather = |lit: &dyn Fn(usize) -> bool| {
+        let b: Vec<f64> = (0..n).map(|k| f64::from(u8::from(lit(k)))).collect();
+        let mut h = vec![0.0; n];
+        transport.gather(&with, &b, &mut h);
+        h
+    };
+    let from_floor = gather(&|k| k < m && element(k).centre.y < 0.01);
+    let from_itself = gather(&|k| k >= m);
+    let floor_polygons: Vec<Vec<DVec3>> = (room.roots.iter())
+        .map(|&r| &room.elements[r as usize])
+        .filter(|e| e.centre.y < 0.01 && e.normal.y > 0.9)
+        .map(|e| e.shape.corners().to_vec())
+        .collect();
+    let mut sides = 0;
+    for k in m..n {
+        assert_eq!(from_itself[k], 0.0, "patch {k} sees its own box");
+        let e = element(k);
+        if e.normal.y.abs() > 0.1 {
+            continue;
+        }
+        // A side of the box: its view of the floor, unoccluded.
+        let expected: f64 = (floor_polygons.iter())
+            .map(|p| arlux::light::polygon_form_factor_sided(e.centre, e.normal, p, false))
+            .sum();
+        assert!(
+            (from_floor[k] - expected).abs() < 0.02,
+            "patch {k}: {} against {expected}",
+            from_floor[k]
+        );
+        sides += 1;
+    }
+    assert!(sides > 8, "{sides} side patches checked");
 }

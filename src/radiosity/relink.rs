@@ -1,6 +1,6 @@
 //! Virtual objects added to a room's transport: the room's links they may
-//! shadow refined again, and the objects linked (element by element, or
-//! through their clusters).
+//! shadow refined again, and the room linked with what the objects send
+//! it (element by element, or through their clusters).
 
 use super::clusters::refine_cluster;
 use super::form_factor::ShaftTest;
@@ -16,21 +16,13 @@ impl Transport {
     /// `patches` holds the room's elements first, unchanged, then the
     /// objects'. Hierarchical links whose shaft cannot meet an object are
     /// kept; the others are refined again with the objects as occluders;
-    /// the objects' elements are linked with everything. A full matrix is
-    /// rebuilt.
-    ///
-    /// With `objects_receive` false the objects get no links of their own to
-    /// gather through (the caller supplies their light, e.g. by final
-    /// gathering from the photo); they still shadow the room and send it
-    /// light, through [`ClusterLinks`] where their clusters are far enough.
-    pub fn with_objects(
-        &self,
-        patches: &Patches,
-        tracer: &Tracer,
-        epsilon: f64,
-        objects_receive: bool,
-    ) -> Transport {
-        self.with_objects_using(patches, tracer, epsilon, objects_receive, None)
+    /// the objects send the room their light through [`ClusterLinks`]
+    /// (element by element where their clusters are too near). The objects
+    /// get no links of their own to gather through: the caller supplies
+    /// their light (the texture path's [`GatherRows`](super::GatherRows),
+    /// the pixel path's final gathering). A full matrix is rebuilt.
+    pub fn with_objects(&self, patches: &Patches, tracer: &Tracer, epsilon: f64) -> Transport {
+        self.with_objects_using(patches, tracer, epsilon, None)
     }
 
     /// [`Transport::with_objects`], keeping in `facts` (made for this
@@ -41,7 +33,6 @@ impl Transport {
         patches: &Patches,
         tracer: &Tracer,
         epsilon: f64,
-        objects_receive: bool,
         facts: Option<&RoomLinkFacts>,
     ) -> Transport {
         let Transport::Hierarchical {
@@ -50,65 +41,17 @@ impl Transport {
         else {
             return Transport::full(patches, tracer, Layer::All);
         };
-        let is_virtual = |r: &u32| patches.is_virtual_element(*r);
-        let object_roots: Vec<u32> = patches.roots.iter().copied().filter(is_virtual).collect();
-        let all_roots = &patches.roots;
-        let clusters = RootClusters::build(patches, &object_roots);
-        let near = near_objects(patches, room_links, &clusters, facts);
+        let plan = Plan::new(patches, room_links, facts);
         let mut links: Vec<Link> = room_links
             .iter()
-            .zip(&near)
+            .zip(&plan.near)
             .filter(|(_, n)| !**n)
             .map(|(l, _)| *l)
             .collect();
-        let room_roots: Vec<u32> = all_roots
-            .iter()
-            .copied()
-            .filter(|r| !is_virtual(r))
-            .collect();
-        // One task per room link the objects may shadow and per object
-        // root (with every other root), so that both cores share the few
-        // large ones. Not per (object root, root) pair: a task and its
-        // result per pair held a 4,000-triangle object's 16 M pairs at 1.1 GB
-        // for 22 MB of links. Objects that gather from the room are linked
-        // with it element by element and with each other through their
-        // clusters; the objects reach each room root through their clusters.
-        enum Task {
-            Room(usize),
-            Object(u32),
-            Cluster(u32),
-        }
-        let mut object_tasks: Vec<Task> = if objects_receive {
-            object_roots.iter().map(|&v| Task::Object(v)).collect()
-        } else {
-            Vec::new()
-        };
-        if !clusters.nodes.is_empty() {
-            object_tasks.extend(room_roots.iter().map(|&r| Task::Cluster(r)));
-        }
-        let tasks: Vec<Task> = (0..room_links.len())
-            .filter(|&i| near[i])
-            .map(Task::Room)
-            .chain(object_tasks)
-            .collect();
-        let with = object_refiner(patches, tracer, epsilon, &clusters);
-        let made: Vec<(Vec<Link>, Vec<ClusterLink>)> = tasks
-            .par_iter()
+        let with = object_refiner(patches, tracer, epsilon, &plan.clusters);
+        let made: Vec<(Vec<Link>, Vec<ClusterLink>)> = (plan.tasks.par_iter())
             .with_max_len(4)
-            .map(|task| {
-                let mut out = Vec::new();
-                let mut to_clusters = Vec::new();
-                match *task {
-                    Task::Room(i) => {
-                        relink_room_link(&with, room_links, i, facts, &room_roots, &mut out)
-                    }
-                    Task::Object(v) => (out, to_clusters) = link_object_root(&with, v, &room_roots),
-                    Task::Cluster(r) => {
-                        refine_cluster(&with, r, 0, &room_roots, &mut out, &mut to_clusters)
-                    }
-                }
-                (out, to_clusters)
-            })
+            .map(|task| plan.run(&with, room_links, *task, facts))
             .collect();
         let mut cluster_links = Vec::new();
         for (new, to_clusters) in made {
@@ -122,7 +65,7 @@ impl Transport {
             cluster_links.sort_by_key(|l| (l.receiver, l.node));
             *c = Some(Box::new(ClusterLinks::new(
                 patches,
-                clusters,
+                plan.clusters,
                 cluster_links,
             )));
         }
@@ -130,26 +73,93 @@ impl Transport {
     }
 }
 
-/// What linking every object root with the room and the other objects
-/// would make, measured on a sample of the roots: the texture path's cost,
-/// known before it is paid ([`Transport::estimate_object_links`]).
+/// What adding the objects to a room's links takes: one task per room
+/// link the objects may shadow and per room root (what it receives from
+/// the objects' clusters), so that both cores share the few large ones.
+struct Plan {
+    clusters: RootClusters,
+    /// Per room link, whether the objects may shadow it.
+    near: Vec<bool>,
+    room_roots: Vec<u32>,
+    tasks: Vec<Task>,
+}
+
+#[derive(Clone, Copy)]
+enum Task {
+    /// Room link `i`, refined again with the objects as occluders.
+    Room(usize),
+    /// What room root `r` receives from the objects' clusters.
+    Cluster(u32),
+}
+
+impl Plan {
+    fn new(patches: &Patches, room_links: &[Link], facts: Option<&RoomLinkFacts>) -> Plan {
+        let is_virtual = |r: &u32| patches.is_virtual_element(*r);
+        let object_roots: Vec<u32> = patches.roots.iter().copied().filter(is_virtual).collect();
+        let clusters = RootClusters::build(patches, &object_roots);
+        let near = near_objects(patches, room_links, &clusters, facts);
+        let room_roots: Vec<u32> = (patches.roots.iter().copied())
+            .filter(|r| !is_virtual(r))
+            .collect();
+        let cluster_tasks = match clusters.nodes.is_empty() {
+            true => Vec::new(),
+            false => room_roots.iter().map(|&r| Task::Cluster(r)).collect(),
+        };
+        let tasks = (0..room_links.len())
+            .filter(|&i| near[i])
+            .map(Task::Room)
+            .chain(cluster_tasks)
+            .collect();
+        Plan {
+            clusters,
+            near,
+            room_roots,
+            tasks,
+        }
+    }
+
+    fn run(
+        &self,
+        with: &Refiner,
+        room_links: &[Link],
+        task: Task,
+        facts: Option<&RoomLinkFacts>,
+    ) -> (Vec<Link>, Vec<ClusterLink>) {
+        let (mut out, mut to_clusters) = (Vec::new(), Vec::new());
+        match task {
+            Task::Room(i) => {
+                relink_room_link(with, room_links, i, facts, &self.room_roots, &mut out)
+            }
+            Task::Cluster(r) => {
+                refine_cluster(with, r, 0, &self.room_roots, &mut out, &mut to_clusters)
+            }
+        }
+        (out, to_clusters)
+    }
+}
+
+/// What adding the objects to a room's links would make, measured on a
+/// sample of the work: the texture path's cost, known before it is paid
+/// ([`Transport::estimate_object_links`]).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct ObjectLinkEstimate {
-    /// The objects' roots, and how many of them were linked to measure.
+    /// The objects' roots (their triangles, or parts of them).
     pub roots: usize,
+    /// The tasks (room links to refine again, room roots to link with the
+    /// objects' clusters) there are, and how many of them were run to measure.
+    pub tasks: usize,
     pub sampled: usize,
-    /// Links (element and cluster) expected for all the roots, with the
-    /// room's own (copied into the transport made).
+    /// Links (element and cluster) expected, with the room's own (copied
+    /// into the transport made).
     pub links: f64,
-    /// Seconds expected for all the roots, at this machine's thread count.
+    /// Seconds expected, at this machine's thread count.
     pub seconds: f64,
 }
 
 impl Transport {
-    /// Links `sample` of the objects' roots, evenly spread over them (as
-    /// [`Transport::with_objects`] with `objects_receive` links each), and
-    /// scales what they made and took to all of them. `None` for a
-    /// transport without hierarchical links or a scene without objects.
+    /// Runs `sample` of [`Transport::with_objects`]'s tasks, evenly spread
+    /// over them, and scales what they made and took to all of them. `None`
+    /// for a transport without hierarchical links or a scene without objects.
     pub fn estimate_object_links(
         &self,
         patches: &Patches,
@@ -157,38 +167,41 @@ impl Transport {
         epsilon: f64,
         sample: usize,
     ) -> Option<ObjectLinkEstimate> {
-        let Transport::Hierarchical { .. } = self else {
+        let Transport::Hierarchical {
+            links: room_links, ..
+        } = self
+        else {
             return None;
         };
-        let object_roots: Vec<u32> = (patches.roots.iter().copied())
-            .filter(|r| patches.is_virtual_element(*r))
-            .collect();
-        if object_roots.is_empty() || sample == 0 {
+        let roots = (patches.roots.iter())
+            .filter(|r| patches.is_virtual_element(**r))
+            .count();
+        if roots == 0 || sample == 0 {
             return None;
         }
-        let room_roots: Vec<u32> = (patches.roots.iter().copied())
-            .filter(|r| !patches.is_virtual_element(*r))
-            .collect();
-        let clusters = RootClusters::build(patches, &object_roots);
-        let with = object_refiner(patches, tracer, epsilon, &clusters);
-        let n = object_roots.len();
-        let step = n.div_ceil(sample.min(n));
-        let picked: Vec<u32> = object_roots.iter().step_by(step).copied().collect();
         let started = std::time::Instant::now();
-        let links: usize = picked
-            .par_iter()
-            .map(|&v| {
-                let (out, to_clusters) = link_object_root(&with, v, &room_roots);
-                out.len() + to_clusters.len()
+        let plan = Plan::new(patches, room_links, None);
+        let n = plan.tasks.len();
+        let step = n.div_ceil(sample.min(n).max(1)).max(1);
+        let picked: Vec<Task> = plan.tasks.iter().step_by(step).copied().collect();
+        let with = object_refiner(patches, tracer, epsilon, &plan.clusters);
+        let sampling = std::time::Instant::now();
+        // A room link refined again replaces itself.
+        let made: f64 = (picked.par_iter())
+            .map(|&task| {
+                let (out, to_clusters) = plan.run(&with, room_links, task, None);
+                let replaced = matches!(task, Task::Room(_)) as usize;
+                (out.len() + to_clusters.len()) as f64 - replaced as f64
             })
             .sum();
-        let scale = n as f64 / picked.len() as f64;
+        let scale = n as f64 / picked.len().max(1) as f64;
+        let planning = sampling.duration_since(started).as_secs_f64();
         Some(ObjectLinkEstimate {
-            roots: n,
+            roots,
+            tasks: n,
             sampled: picked.len(),
-            // The room's links are copied into the new transport too.
-            links: links as f64 * scale + self.link_count() as f64,
-            seconds: started.elapsed().as_secs_f64() * scale,
+            links: made * scale + room_links.len() as f64,
+            seconds: planning + sampling.elapsed().as_secs_f64() * scale,
         })
     }
 }
@@ -209,29 +222,6 @@ fn object_refiner<'a>(
         split_above_epsilon: false,
         objects: Some(clusters),
     }
-}
-
-/// The area of an object patch at the default virtual patch size (0.1 m).
-const OBJECT_PATCH_AREA: f64 = 0.01;
-
-/// Object root `v`'s links: from the room element by element, from the
-/// objects through their clusters (element by element only near v), so
-/// that the links grow as N log N with the objects' triangles, not N².
-fn link_object_root(with: &Refiner, v: u32, room_roots: &[u32]) -> (Vec<Link>, Vec<ClusterLink>) {
-    let (mut out, mut to_clusters) = (Vec::new(), Vec::new());
-    // A triangle smaller than an object patch carries its share of the
-    // patch's light: ε grows as its area shrinks (up to 256×), so that the
-    // error of the light it gathers, weighted by its area, stays a patch's.
-    let area = with.patches.elements[v as usize].area;
-    let coarse = Refiner {
-        epsilon: with.epsilon * (OBJECT_PATCH_AREA / area.max(1e-12)).clamp(1.0, 256.0),
-        ..*with
-    };
-    for &r in room_roots {
-        refine(&coarse, v, r, room_roots, &mut out);
-    }
-    refine_cluster(with, v, 0, room_roots, &mut out, &mut to_clusters);
-    (out, to_clusters)
 }
 
 /// Which of the room's `links` the objects (`clusters`) may shadow: the

@@ -13,7 +13,7 @@ use super::form_factor::{
     occluders_between_using, point_factor, room_blocked, straddles, unoccluded_form_factor,
     visibility, visibility_rays, visibility_with_room,
 };
-use super::{ClusterLinks, RootClusters};
+use super::{ClusterLinks, GatherRows, RootClusters};
 
 /// Default refinement threshold of hierarchical radiosity: on the desk at
 /// 0.5 m patches it keeps every patch within 0.4% of the full matrix with
@@ -61,6 +61,9 @@ pub enum Transport {
         links: Vec<Link>,
         ranges: Vec<(u32, u32, u32)>,
         clusters: Option<Box<ClusterLinks>>,
+        /// Rows shared by groups of the objects' leaves, gathered by rays
+        /// (the texture path's objects, [`GatherRows`]).
+        rows: Option<Box<GatherRows>>,
     },
 }
 
@@ -157,7 +160,17 @@ impl Transport {
             links,
             ranges,
             clusters: None,
+            rows: None,
         }
+    }
+
+    /// This transport with the objects' leaves gathering through `rows`
+    /// too (a hierarchical one; a full matrix holds every pair already).
+    pub fn with_gather_rows(mut self, new: GatherRows) -> Transport {
+        if let Transport::Hierarchical { rows, .. } = &mut self {
+            *rows = Some(Box::new(new));
+        }
+        self
     }
 
     /// Number of form factors stored (links, or the matrix's non-zeros).
@@ -167,8 +180,15 @@ impl Transport {
                 form_factors.iter().filter(|f| **f != 0.0).count()
             }
             Transport::Hierarchical {
-                links, clusters, ..
-            } => links.len() + clusters.as_ref().map_or(0, |c| c.links.len()),
+                links,
+                clusters,
+                rows,
+                ..
+            } => {
+                links.len()
+                    + clusters.as_ref().map_or(0, |c| c.links.len())
+                    + rows.as_ref().map_or(0, |r| r.entry_count())
+            }
         }
     }
 
@@ -179,10 +199,12 @@ impl Transport {
                 links,
                 ranges,
                 clusters,
+                rows,
             } => {
                 links.len() * std::mem::size_of::<Link>()
                     + ranges.len() * std::mem::size_of::<(u32, u32, u32)>()
                     + clusters.as_ref().map_or(0, |c| c.memory_bytes())
+                    + rows.as_ref().map_or(0, |r| r.memory_bytes())
             }
         }
     }
@@ -200,6 +222,7 @@ impl Transport {
                 links,
                 ranges,
                 clusters,
+                rows,
             } => {
                 let elements = &patches.elements;
                 // Pull: an element's radiosity is the area-weighted mean of its
@@ -232,6 +255,9 @@ impl Transport {
                 }
                 if let Some(c) = clusters {
                     c.gather_into(patches, &node_b, &mut node_h);
+                }
+                if let Some(r) = rows {
+                    r.gather_into(&node_b, &mut node_h);
                 }
                 // Push: what an element gathers reaches every point of its children.
                 for e in 0..elements.len() {

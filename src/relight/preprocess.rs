@@ -5,10 +5,11 @@
 
 use super::*;
 use crate::error::Error;
-use crate::radiosity::ObjectLinkEstimate;
+use crate::radiosity::{GatherRows, GatherRowsSettings, ObjectLinkEstimate};
 
-/// Object roots linked to estimate what linking all of them makes.
-const PILOT_ROOTS: usize = 64;
+/// Tasks of linking the objects (and groups of their leaves gathering)
+/// run to estimate what all of them make.
+const PILOT_TASKS: usize = 64;
 
 /// Bytes a link of the objects' takes at the preprocess's peak: the link
 /// (12) in its task's vector, the whole list and its sorted copy, with the
@@ -130,7 +131,13 @@ impl<'a> Setup<'a> {
         });
         if let Some(budget) = settings.memory {
             let estimate = times.time("object links estimate", || {
-                transport.estimate_object_links(&all, tracer, settings.link_epsilon, PILOT_ROOTS)
+                let rows = GatherRows::estimate(&all, tracer, self.gather_rows(), PILOT_TASKS);
+                (transport.estimate_object_links(&all, tracer, settings.link_epsilon, PILOT_TASKS))
+                    .map(|e| ObjectLinkEstimate {
+                        links: e.links + rows.0,
+                        seconds: e.seconds + rows.1,
+                        ..e
+                    })
             });
             stats.object_links_estimate = estimate;
             if let Some(e) = estimate {
@@ -141,9 +148,23 @@ impl<'a> Setup<'a> {
             leaf_light(&all, &self.lights, tracer, Layer::All, settings.light_level)
         });
         let transport = times.time("form factors with objects", || {
-            transport.with_objects(&all, tracer, settings.link_epsilon, true)
+            transport.with_objects(&all, tracer, settings.link_epsilon)
         });
-        Ok((all, direct, transport))
+        let rows = times.time("objects' gather rays", || {
+            GatherRows::trace(&all, tracer, self.gather_rows())
+        });
+        stats.object_gather_groups = rows.group_count();
+        Ok((all, direct, transport.with_gather_rows(rows)))
+    }
+
+    /// How the objects' leaves gather their light: in groups within a
+    /// quarter of the objects' patch size, as the pixel path's vertices
+    /// share their final gathers.
+    fn gather_rows(&self) -> GatherRowsSettings {
+        GatherRowsSettings {
+            rays: self.settings.object_rays,
+            within: self.virtual_size / 4.0,
+        }
     }
 
     /// Refuses links that, held on top of what the process holds now,
@@ -159,12 +180,13 @@ impl<'a> Setup<'a> {
         Err(Error::file(
             &self.scene.file,
             format!(
-                "--method texture would hold about {} MB linking the objects' {} triangles ({:.1} M links, about {:.0} s, measured on {} of them), more than the {} MB --memory allows: give --memory {}M, or render on the pixel path (--method pda), whose objects cost by their triangles, not their links",
+                "--method texture would hold about {} MB linking the room with the objects' {} triangles ({:.1} M links, about {:.0} s, measured on {} of its {} tasks), more than the {} MB --memory allows: give --memory {}M, or render on the pixel path (--method pda), which holds no links with the objects",
                 mb(need),
                 e.roots,
                 e.links / 1e6,
                 e.seconds,
                 e.sampled,
+                e.tasks,
                 mb(budget),
                 mb(need).div_ceil(100) * 100,
             ),
