@@ -333,6 +333,8 @@ struct TextureReport {
     light_change_seconds: f64,
     /// Linking the objects as estimated before it started (null: no objects).
     object_links_estimate: Option<arlux::radiosity::ObjectLinkEstimate>,
+    /// Groups of the objects' leaves that gathered their light by rays.
+    object_gather_groups: usize,
 }
 
 impl<'a> RenderReport<'a> {
@@ -389,6 +391,7 @@ impl<'a> RenderReport<'a> {
                 texture_bytes: s.texture_bytes,
                 light_change_seconds: change.as_secs_f64(),
                 object_links_estimate: s.object_links_estimate,
+                object_gather_groups: s.object_gather_groups,
             }),
             samples: out.residual,
             comparison: error.map(|e| e.0),
