@@ -9,7 +9,8 @@
 //!   by the variant, or not in the scene at all (what is not shown is not
 //!   read);
 //! - the texture path against the pixel path on one object of 8,000 and
-//!   30,000 triangles.
+//!   30,000 triangles, first in a fresh folder (each path makes its room's
+//!   links) and again (the links read from the scene's cache).
 //!
 //! `cargo bench --bench assets` (about three minutes on 2 cores).
 
@@ -168,9 +169,9 @@ fn instances(dir: &Path, a: [f64; 3], b: [f64; 3], c: [f64; 3]) {
 /// The texture path beside the pixel path, one object of each size.
 fn methods(dir: &Path, geometry: &Path, at: [f64; 3]) {
     println!(
-        "| triangles | pixel path s / MB | texture path s / MB | texture / pixel | texture links |"
+        "| triangles | run | pixel path s / MB | texture path s / MB | texture / pixel | texture links |"
     );
-    println!("| --- | --- | --- | --- | --- |");
+    println!("| --- | --- | --- | --- | --- | --- |");
     for triangles in [8_000, 30_000] {
         let name = format!("t{triangles}");
         let spec = AssetSpec {
@@ -188,13 +189,17 @@ fn methods(dir: &Path, geometry: &Path, at: [f64; 3]) {
                 (r["links"].as_f64(), estimate["links"].as_f64()),
             )
         };
-        let ((ps, pm, _), (ts, tm, (links, estimate))) = (run("pda"), run("texture"));
-        println!(
-            "| {triangles} | {ps:.2} / {pm:.0} | {ts:.2} / {tm:.0} | time {:.1}×, peak {:.2}× | {:.2} M, estimated {:.2} M |",
-            ts / ps,
-            tm / pm,
-            links.unwrap_or(f64::NAN) / 1e6,
-            estimate.unwrap_or(f64::NAN) / 1e6,
-        );
+        // First in a fresh folder (each path makes its room's links), then
+        // again with the links each kept in the scene's `.arlux-cache/`.
+        for label in ["first", "again"] {
+            let ((ps, pm, _), (ts, tm, (links, estimate))) = (run("pda"), run("texture"));
+            println!(
+                "| {triangles} | {label} | {ps:.2} / {pm:.0} | {ts:.2} / {tm:.0} | time {:.1}×, peak {:.2}× | {:.2} M, estimated {:.2} M |",
+                ts / ps,
+                tm / pm,
+                links.unwrap_or(f64::NAN) / 1e6,
+                estimate.unwrap_or(f64::NAN) / 1e6,
+            );
+        }
     }
 }

@@ -200,6 +200,11 @@ impl ObjectView {
             + self.seen.len() * std::mem::size_of::<Seen>()
     }
 
+    /// Each room patch that sees an object, with what its rays met.
+    pub(super) fn receivers(&self) -> impl Iterator<Item = (u32, &[Seen])> {
+        (self.ranges.iter()).map(|&(k, a, b)| (k, &self.seen[a as usize..b as usize]))
+    }
+
     /// The change to each room patch's irradiance (`room_count` values):
     /// the objects' radiance (`radiosity`, per patch of the room and the
     /// objects, /π) where a patch sees them, less the room's radiance

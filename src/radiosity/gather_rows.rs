@@ -14,7 +14,7 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::change::cosine_direction;
+use super::change::{ObjectView, cosine_direction};
 use crate::patches::{Patches, Shape};
 use crate::trace::{Layer, TraceRay, Tracer};
 
@@ -103,6 +103,49 @@ impl GatherRows {
                 .push([m, out.members.len() as u32, e, out.entries.len() as u32]);
         }
         out
+    }
+
+    /// Rows for the room's leaves (the first `room_count` patches) from
+    /// what they see of the objects ([`ObjectView`]): each ray that meets
+    /// an object reads its radiosity, less that of the room element it
+    /// hides, so the room's own links carry on unchanged (George, Sillion
+    /// & Greenberg 1990, as the pixel path's change does).
+    pub fn of_view(patches: &Patches, view: &ObjectView) -> GatherRows {
+        let mut out = GatherRows {
+            rays: view.rays,
+            ..GatherRows::default()
+        };
+        let element = |k: u32| patches.patches.get(k as usize).copied();
+        for (k, seen) in view.receivers() {
+            let Some(receiver) = element(k) else {
+                continue;
+            };
+            let mut row: Vec<(u32, f64)> = Vec::with_capacity(2 * seen.len());
+            for s in seen {
+                let w = f64::from(s.weight) / std::f64::consts::PI;
+                row.extend(element(s.object).map(|e| (e, w)));
+                row.extend(element(s.behind).map(|e| (e, -w)));
+            }
+            row.sort_unstable_by_key(|r| r.0);
+            let (m, e) = (out.members.len() as u32, out.entries.len() as u32);
+            out.members.push(receiver);
+            for chunk in row.chunk_by(|a, b| a.0 == b.0) {
+                let w: f64 = chunk.iter().map(|r| r.1).sum();
+                out.entries.push((chunk[0].0, w as f32));
+            }
+            out.groups.push([m, m + 1, e, out.entries.len() as u32]);
+        }
+        out
+    }
+
+    /// These rows followed by `other`'s.
+    pub fn append(&mut self, other: GatherRows) {
+        let (m, e) = (self.members.len() as u32, self.entries.len() as u32);
+        self.groups
+            .extend((other.groups.iter()).map(|&[a, b, c, d]| [a + m, b + m, c + e, d + e]));
+        self.members.extend(other.members);
+        self.entries.extend(other.entries);
+        self.rays += other.rays;
     }
 
     /// What [`GatherRows::trace`] would hold and take, measured on

@@ -138,72 +138,20 @@ impl Plan {
     }
 }
 
-/// What adding the objects to a room's links would make, measured on a
-/// sample of the work: the texture path's cost, known before it is paid
-/// ([`Transport::estimate_object_links`]).
+/// What the texture path's transport with the objects would hold, measured
+/// on a sample of the work before it is done.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct ObjectLinkEstimate {
     /// The objects' roots (their triangles, or parts of them).
     pub roots: usize,
-    /// The tasks (room links to refine again, room roots to link with the
-    /// objects' clusters) there are, and how many of them were run to measure.
-    pub tasks: usize,
+    /// The groups of the objects' leaves that gather by rays, and how many
+    /// of them gathered to measure.
+    pub groups: usize,
     pub sampled: usize,
-    /// Links (element and cluster) expected, with the room's own (copied
-    /// into the transport made).
+    /// Links and rows' weights expected, the room's own included.
     pub links: f64,
     /// Seconds expected, at this machine's thread count.
     pub seconds: f64,
-}
-
-impl Transport {
-    /// Runs `sample` of [`Transport::with_objects`]'s tasks, evenly spread
-    /// over them, and scales what they made and took to all of them. `None`
-    /// for a transport without hierarchical links or a scene without objects.
-    pub fn estimate_object_links(
-        &self,
-        patches: &Patches,
-        tracer: &Tracer,
-        epsilon: f64,
-        sample: usize,
-    ) -> Option<ObjectLinkEstimate> {
-        let Transport::Hierarchical {
-            links: room_links, ..
-        } = self
-        else {
-            return None;
-        };
-        let roots = (patches.roots.iter())
-            .filter(|r| patches.is_virtual_element(**r))
-            .count();
-        if roots == 0 || sample == 0 {
-            return None;
-        }
-        let started = std::time::Instant::now();
-        let plan = Plan::new(patches, room_links, None);
-        let n = plan.tasks.len();
-        let step = n.div_ceil(sample.min(n).max(1)).max(1);
-        let picked: Vec<Task> = plan.tasks.iter().step_by(step).copied().collect();
-        let with = object_refiner(patches, tracer, epsilon, &plan.clusters);
-        let sampling = std::time::Instant::now();
-        // A room link refined again replaces itself.
-        let made: f64 = (picked.par_iter())
-            .map(|&task| {
-                let (out, to_clusters) = plan.run(&with, room_links, task, None);
-                let replaced = matches!(task, Task::Room(_)) as usize;
-                (out.len() + to_clusters.len()) as f64 - replaced as f64
-            })
-            .sum();
-        let scale = n as f64 / picked.len().max(1) as f64;
-        let planning = sampling.duration_since(started).as_secs_f64();
-        Some(ObjectLinkEstimate {
-            roots,
-            tasks: n,
-            sampled: picked.len(),
-            links: made * scale + room_links.len() as f64,
-            seconds: planning + sampling.elapsed().as_secs_f64() * scale,
-        })
-    }
 }
 
 /// How the objects' links are refined: through everything, the objects'

@@ -5,7 +5,7 @@
 
 use super::*;
 use crate::error::Error;
-use crate::radiosity::{GatherRows, GatherRowsSettings, ObjectLinkEstimate};
+use crate::radiosity::{GatherRows, GatherRowsSettings, ObjectLinkEstimate, ObjectView};
 
 /// Tasks of linking the objects (and groups of their leaves gathering)
 /// run to estimate what all of them make.
@@ -109,9 +109,11 @@ impl<'a> Setup<'a> {
     }
 
     /// The mesh with the inserted objects, the direct light through them
-    /// and the links with them (the room's as given when there is none).
-    /// With a memory budget, the links are first estimated from a sample of
-    /// the objects' triangles, and refused before they are made when they
+    /// and the transport with them: the room's links as given, and rows
+    /// of weights gathered by rays for the room's leaves that see the
+    /// objects and for the objects' leaves ([`GatherRows`]). With a memory
+    /// budget, what the objects' rows will hold is first measured on a
+    /// sample of their groups, and refused before they are made when it
     /// would not fit.
     pub(super) fn with_objects(
         &self,
@@ -129,31 +131,28 @@ impl<'a> Setup<'a> {
         let all = times.time("virtual mesh", || {
             Patches::of_scene_refined(self.scene, true, self.patch_size, self.virtual_size, marks)
         });
-        if let Some(budget) = settings.memory {
-            let estimate = times.time("object links estimate", || {
-                let rows = GatherRows::estimate(&all, tracer, self.gather_rows(), PILOT_TASKS);
-                (transport.estimate_object_links(&all, tracer, settings.link_epsilon, PILOT_TASKS))
-                    .map(|e| ObjectLinkEstimate {
-                        links: e.links + rows.0,
-                        seconds: e.seconds + rows.1,
-                        ..e
-                    })
-            });
-            stats.object_links_estimate = estimate;
-            if let Some(e) = estimate {
-                self.check_link_memory(&e, budget)?;
-            }
-        }
         let direct = times.time("direct light with objects", || {
             leaf_light(&all, &self.lights, tracer, Layer::All, settings.light_level)
         });
-        let transport = times.time("form factors with objects", || {
-            transport.with_objects(&all, tracer, settings.link_epsilon)
+        // What the room sees of the objects in place of what they hide: its
+        // own links are kept as they are.
+        let mut rows = times.time("objects seen from the room", || {
+            let bounds = crate::objects::VirtualBounds::of(&self.scene.virtual_world_surfaces());
+            let view = ObjectView::trace(&all, patches.patch_count(), tracer, &bounds);
+            GatherRows::of_view(&all, &view)
         });
-        let rows = times.time("objects' gather rays", || {
+        if let Some(budget) = settings.memory {
+            let estimate = times.time("object links estimate", || {
+                self.estimate_rows(&all, &transport, &rows)
+            });
+            stats.object_links_estimate = Some(estimate);
+            self.check_link_memory(&estimate, budget)?;
+        }
+        let objects = times.time("objects' gather rays", || {
             GatherRows::trace(&all, tracer, self.gather_rows())
         });
-        stats.object_gather_groups = rows.group_count();
+        stats.object_gather_groups = objects.group_count();
+        rows.append(objects);
         Ok((all, direct, transport.with_gather_rows(rows)))
     }
 
@@ -164,6 +163,29 @@ impl<'a> Setup<'a> {
         GatherRowsSettings {
             rays: self.settings.object_rays,
             within: self.virtual_size / 4.0,
+        }
+    }
+
+    /// What the transport will hold with the objects: the room's links,
+    /// the room's rows (`room`, made) and the objects' groups' rows,
+    /// measured on [`PILOT_TASKS`] of the groups.
+    fn estimate_rows(
+        &self,
+        all: &Patches,
+        transport: &Transport,
+        room: &GatherRows,
+    ) -> ObjectLinkEstimate {
+        let settings = self.gather_rows();
+        let groups = GatherRows::groups_of(all, settings.within).len();
+        let (entries, seconds) = GatherRows::estimate(all, self.tracer, settings, PILOT_TASKS);
+        ObjectLinkEstimate {
+            roots: (all.roots.iter())
+                .filter(|r| all.is_virtual_element(**r))
+                .count(),
+            groups,
+            sampled: PILOT_TASKS.min(groups),
+            links: (transport.link_count() + room.entry_count()) as f64 + entries,
+            seconds,
         }
     }
 
@@ -180,13 +202,13 @@ impl<'a> Setup<'a> {
         Err(Error::file(
             &self.scene.file,
             format!(
-                "--method texture would hold about {} MB linking the room with the objects' {} triangles ({:.1} M links, about {:.0} s, measured on {} of its {} tasks), more than the {} MB --memory allows: give --memory {}M, or render on the pixel path (--method pda), which holds no links with the objects",
+                "--method texture would hold about {} MB with the objects' {} triangles ({:.1} M links and weights, about {:.0} s, measured on {} of their {} groups), more than the {} MB --memory allows: give --memory {}M, or render on the pixel path (--method pda), which holds no links with the objects",
                 mb(need),
                 e.roots,
                 e.links / 1e6,
                 e.seconds,
                 e.sampled,
-                e.tasks,
+                e.groups,
                 mb(budget),
                 mb(need).div_ceil(100) * 100,
             ),
