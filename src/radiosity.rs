@@ -18,39 +18,34 @@
 //! at ρ = 0.99, where GMRES needs a handful.
 //!
 //! Its parts: `transport` (the matrix or the links, refined by the oracle),
-//! `form_factor` (factors and visibility), `clusters` (objects' triangles
-//! gathered into clusters for links to the room), `relink` (links to the
-//! objects only, after a move), `gather_rows` (the objects' light
-//! gathered by rays, on the texture path), `direct` (the lights' irradiance), `solve`
-//! (GMRES), `change` and `near` / `near_pixel` (what the room sees of the
-//! objects, per patch, per near-grid cell and per pixel).
+//! `form_factor` (factors and visibility), `gather_rows` (rows of weights
+//! gathered by rays: the objects in the texture path's transport),
+//! `direct` (the lights' irradiance), `solve` (GMRES), `change` and
+//! `near` / `near_pixel` (what the room sees of the objects, per patch,
+//! per near-grid cell and per pixel).
 
 mod change;
-mod clusters;
 mod direct;
 mod form_factor;
 mod gather_rows;
 mod near;
 mod near_pixel;
 mod object_albedo;
-mod relink;
-pub use relink::ObjectLinkEstimate;
 mod solve;
 mod still;
 mod transport;
 
 pub use change::{ObjectView, cosine_direction, solve_change};
-pub use clusters::{Cluster, ClusterKind, ClusterLink, ClusterLinks, RootClusters};
 pub use direct::{direct_irradiance, direct_irradiance_with_objects, total_direct};
 pub use form_factor::{PairShafts, element_form_factor, visibility};
-pub use gather_rows::{GatherRows, GatherRowsSettings};
+pub use gather_rows::{GatherRows, GatherRowsSettings, ObjectLinkEstimate};
 pub use near::{NearField, NearView};
 pub use near_pixel::ChangeSampler;
 pub use object_albedo::object_reflectances;
 pub(crate) use solve::solve_from;
 pub use solve::{Solution, solve, solve_by_iteration};
 pub use still::StillSurfaces;
-pub use transport::{DEFAULT_LINK_EPSILON, Link, PairFacts, RoomLinkFacts, Transport};
+pub use transport::{DEFAULT_LINK_EPSILON, Link, Transport};
 
 #[cfg(test)]
 mod tests;

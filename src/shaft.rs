@@ -214,16 +214,6 @@ impl Shaft {
             .any(|(n, d)| points.iter().all(|p| n.dot(*p) - d >= -self.tolerance))
     }
 
-    /// [`Shaft::excludes`] of the box [lo, hi]'s eight corners, tested at
-    /// the one corner deepest on each plane's inner side (the same answer,
-    /// an eighth of the products: clusters of objects are tested as boxes
-    /// at every pair an update re-links).
-    pub(crate) fn excludes_box(&self, lo: DVec3, hi: DVec3) -> bool {
-        self.planes
-            .iter()
-            .any(|(n, d)| n.dot(DVec3::select(n.cmpge(DVec3::ZERO), lo, hi)) - d >= -self.tolerance)
-    }
-
     pub(crate) fn plane_count(&self) -> usize {
         self.planes.len()
     }

@@ -184,48 +184,6 @@ fn direct_light_with_objects_reuses_the_room_only_where_it_is_the_same() {
 }
 
 #[test]
-fn re_linking_objects_with_kept_room_facts_gives_the_same_links() {
-    // What re-linking learns about the room's links at one pose of the box,
-    // kept for the next, must give the links plain refinement gives.
-    let base = desk();
-    let room_scene = base.with_variant("panel_off").unwrap();
-    let tracer = arlux::scene_tracer::build_tracer(&room_scene).unwrap();
-    // Patches fine enough that links above the leaves are split around the box.
-    let room = Patches::of_scene(&room_scene, false, 0.25);
-    let transport = Transport::hierarchical(&room, &tracer, Layer::Real, DEFAULT_LINK_EPSILON);
-    let facts = arlux::radiosity::RoomLinkFacts::new(&transport);
-    // Along the slide, back, and under the table (whose legs and top stand
-    // between the box and much of the room).
-    let under_table = DVec3::new(-0.35, 0.0, -1.4);
-    let slide = base.motion("box_slide").unwrap().translations.clone();
-    for (pose, at) in [
-        (3, slide[3]),
-        (4, slide[4]),
-        (3, slide[3]),
-        (8, under_table),
-        (5, slide[5]),
-        (8, under_table),
-    ] {
-        let mut scene = base.with_motion_pose("box_slide", 0).unwrap();
-        scene.objects[0].pose.translate = at;
-        let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
-        let with = Patches::of_scene_with(&scene, true, 0.25, 0.1);
-        let fresh = transport.with_objects(&with, &tracer, DEFAULT_LINK_EPSILON);
-        let kept = transport.with_objects_using(&with, &tracer, DEFAULT_LINK_EPSILON, Some(&facts));
-        let Transport::Hierarchical { links, .. } = &fresh else {
-            panic!("pose {pose}: not hierarchical")
-        };
-        let from_box = links
-            .iter()
-            .filter(|l| l.source as usize >= room.elements.len())
-            .count();
-        println!("pose {pose}: {from_box} links from the box");
-        assert!(from_box > 0, "pose {pose}: no link from the box");
-        assert!(fresh == kept, "pose {pose}: kept facts changed the links");
-    }
-}
-
-#[test]
 fn what_each_patch_gathers_agrees_with_tracing_its_hemisphere() {
     // An independent estimate of the transport: from 6×6 points of each
     // patch, 32×32 cosine-distributed rays, each taking the radiosity of the
@@ -415,53 +373,6 @@ fn gathering_rays_from_a_solids_faces_meet_through_the_room_alone_what_they_meet
 }
 
 #[test]
-fn what_the_box_sends_the_room_through_its_clusters_agrees_with_the_full_matrix() {
-    // Radiosity on the box only (brighter on top, none below): what each
-    // room patch gathers is the box's light, which the clustered transport
-    // sends through cluster links far away and element links near it (a
-    // coarse ε, so that the small box has some of each).
-    let epsilon = 0.02;
-    let base = desk();
-    let scene = base.with_variant("box_floor_a").unwrap();
-    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
-    let room = Patches::of_scene(&scene, false, 0.5);
-    let with = Patches::of_scene_with(&scene, true, 0.5, 0.1);
-    let room_transport = Transport::hierarchical(&room, &tracer, Layer::Real, epsilon);
-    let clustered = room_transport.with_objects(&with, &tracer, epsilon);
-    let full = Transport::full(&with, &tracer, Layer::All);
-    let Transport::Hierarchical { clusters, .. } = &clustered else {
-        panic!("not hierarchical")
-    };
-    let cluster_links = clusters.as_ref().map_or(0, |c| c.links.len());
-    let n = with.patch_count();
-    let real = room.patch_count();
-    let b: Vec<DVec3> = (0..n)
-        .map(|k| {
-            let up = with.patch(k).normal.y;
-            DVec3::splat(if k >= real { 1.0 + up } else { 0.0 })
-        })
-        .collect();
-    let (h_full, h_clustered) = (full.gather_rgb(&with, &b), clustered.gather_rgb(&with, &b));
-    let area = |k: usize| with.patch(k).area;
-    let total = |h: &[DVec3]| (0..real).map(|k| h[k].x * area(k)).sum::<f64>();
-    let (t_full, t_clustered) = (total(&h_full), total(&h_clustered));
-    let peak = (0..real).map(|k| h_full[k].x).fold(0.0, f64::max);
-    let worst = (0..real)
-        .map(|k| (h_full[k].x - h_clustered[k].x).abs())
-        .fold(0.0, f64::max);
-    println!(
-        "box light on the room: {cluster_links} cluster links; total {t_clustered:.5} against {t_full:.5} (full matrix); worst patch off by {:.2}% of the brightest",
-        100.0 * worst / peak
-    );
-    assert!(cluster_links > 0, "no cluster link");
-    assert!(
-        (t_clustered / t_full - 1.0).abs() < 0.03,
-        "total {t_clustered} against {t_full}"
-    );
-    assert!(worst < 0.05 * peak, "a patch off by {worst} (peak {peak})");
-}
-
-#[test]
 fn links_per_element_grow_slowly_as_the_room_is_meshed_finer() {
     // Hierarchical radiosity links each receiver to the sources at the
     // level its oracle asks for, not to every patch: meshed 4× finer, the
@@ -562,9 +473,7 @@ fn objects_gathering_by_rays_see_the_room_s_form_factors() {
     };
     let rows = GatherRows::trace(&with, &tracer, settings);
     assert!(rows.group_count() > 0 && rows.rays == rows.group_count() as u64 * 4096);
-    let transport = links
-        .with_objects(&with, &tracer, 0.02)
-        .with_gather_rows(rows);
+    let transport = links.with_gather_rows(rows);
     let (n, m) = (with.patch_count(), room.patch_count());
     let element = |k: usize| &with.elements[with.patches[k] as usize];
     let gather = |lit: &dyn Fn(usize) -> bool| {

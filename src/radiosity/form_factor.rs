@@ -111,18 +111,10 @@ pub(crate) fn unoccluded_form_factor(p: &Element, q: &Element) -> f64 {
 /// needed: Haines & Wallace's shaft between the two elements' boxes (cheap,
 /// and holding the exact hull, so what it excludes the hull excludes too),
 /// then the hull. Most pairs' roots never pass the box test and need neither.
-/// A room's pair keeps them across updates ([`RoomLinkFacts`]).
 #[derive(Debug, Default)]
 pub struct PairShafts {
     pub(super) coarse: std::sync::OnceLock<Shaft>,
     pub(super) hull: std::sync::OnceLock<Shaft>,
-}
-
-/// What [`ShaftTest`] tests: a root's corners, or a box (a cluster).
-#[derive(Clone, Copy)]
-enum Held<'a> {
-    Corners(&'a [DVec3]),
-    Box(DVec3, DVec3),
 }
 
 /// Tests root elements against the shaft between two elements.
@@ -209,15 +201,7 @@ impl<'a> ShaftTest<'a> {
         if !in_layer || coplanar(root, self.p) || coplanar(root, self.q) {
             return false;
         }
-        self.may_hold(Held::Corners(&root.shape.corners()))
-    }
-
-    /// Whether a root inside the box [lo, hi] may block light between p and
-    /// q: [`ShaftTest::may_block`]'s tests that hold for a box's contents
-    /// when they hold for its corners (the shafts and planes are convex).
-    /// Clusters hold virtual roots only.
-    pub(super) fn may_block_box(&self, lo: DVec3, hi: DVec3) -> bool {
-        self.layer != Layer::Real && !self.outside_box(lo, hi) && self.may_hold(Held::Box(lo, hi))
+        self.may_hold(&root.shape.corners())
     }
 
     /// Whether the box [lo, hi] lies outside the pair's box (boxes that
@@ -226,24 +210,16 @@ impl<'a> ShaftTest<'a> {
         (lo - self.slack).cmpge(self.hi).any() || (hi + self.slack).cmple(self.lo).any()
     }
 
-    /// Whether the convex hull of `held` may meet a segment carrying
+    /// Whether the convex hull of `corners` may meet a segment carrying
     /// light between p and q: behind neither's plane, and excluded by
     /// neither the box shaft nor the hull.
-    fn may_hold(&self, held: Held) -> bool {
-        let behind = |&(o, n): &(DVec3, DVec3)| match held {
-            Held::Corners(corners) => corners.iter().all(|c| (*c - o).dot(n) <= self.plane_slack),
-            // The corner farthest in front of the plane decides for the box.
-            Held::Box(lo, hi) => {
-                (DVec3::select(n.cmpge(DVec3::ZERO), hi, lo) - o).dot(n) <= self.plane_slack
-            }
-        };
+    fn may_hold(&self, corners: &[DVec3]) -> bool {
+        let behind =
+            |&(o, n): &(DVec3, DVec3)| corners.iter().all(|c| (*c - o).dot(n) <= self.plane_slack);
         if self.planes.iter().flatten().any(behind) {
             return false;
         }
-        let excludes = |shaft: &Shaft| match held {
-            Held::Corners(corners) => shaft.excludes(corners),
-            Held::Box(lo, hi) => shaft.excludes_box(lo, hi),
-        };
+        let excludes = |shaft: &Shaft| shaft.excludes(corners);
         let (p, q) = (self.p, self.q);
         if excludes(
             self.shafts
@@ -337,41 +313,6 @@ pub(super) fn visibility_rays(p: &Element, q: &Element) -> Vec<TraceRay> {
             .map(move |&t| segment(offset_origin(x, p.normal, t), t))
     }));
     rays
-}
-
-/// Which of a pair's `rays` ([`visibility_rays`]) the room's geometry
-/// blocks, bit k for ray k (None: more rays than bits). Traced even where
-/// no room root may block the pair: [`visibility`] traces the room too
-/// once an object may, and its rays can meet what the shafts leave out (a
-/// neighbouring surface at their very start).
-pub(super) fn room_blocked(rays: &[TraceRay], tracer: &Tracer) -> Option<u64> {
-    if rays.len() > 64 {
-        return None;
-    }
-    let mut blocked = vec![false; rays.len()];
-    tracer.occluded_batch(rays, Layer::Real, &mut blocked);
-    Some(
-        blocked
-            .iter()
-            .enumerate()
-            .fold(0, |m, (k, b)| m | (*b as u64) << k),
-    )
-}
-
-/// [`visibility`] through all geometry of a pair's `rays`, `room` giving
-/// which the room blocks (see [`room_blocked`]): they are traced through the
-/// objects alone, as [`Layer::All`] traces them after the room (all of
-/// them, in the same packets: Embree may decide a grazing ray differently
-/// in a packet with fewer rays), so the same fraction results.
-pub(super) fn visibility_with_room(rays: &[TraceRay], tracer: &Tracer, room: u64) -> f64 {
-    let mut blocked = vec![false; rays.len()];
-    tracer.occluded_batch(rays, Layer::Virtual, &mut blocked);
-    blocked
-        .iter()
-        .enumerate()
-        .filter(|(k, b)| room >> k & 1 == 0 && !**b)
-        .count() as f64
-        / rays.len() as f64
 }
 
 /// The form factor from receiver element `p` to source element `q` (what

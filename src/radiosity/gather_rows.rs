@@ -22,7 +22,23 @@ use crate::trace::{Layer, TraceRay, Tracer};
 /// group (as [`crate::render`]'s vertices that share a gather).
 const SHARE_ANGLE_DEG: f64 = 5.0;
 
-/// Rows of weights, each shared by a group of object leaves.
+/// What the texture path's transport with the objects would hold, measured
+/// on a sample of the work before it is done.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ObjectLinkEstimate {
+    /// The objects' roots (their triangles, or parts of them).
+    pub roots: usize,
+    /// The groups of the objects' leaves that gather by rays, and how many
+    /// of them gathered to measure.
+    pub groups: usize,
+    pub sampled: usize,
+    /// Links and rows' weights expected, the room's own included.
+    pub links: f64,
+    /// Seconds expected, at this machine's thread count.
+    pub seconds: f64,
+}
+
+/// Rows of weights, each shared by a group of leaves.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct GatherRows {
     /// Per group: its members' range in `members`, its row's in `entries`.

@@ -6,14 +6,13 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::patches::{Element, Patches};
-use crate::trace::{Layer, TraceRay, Tracer};
+use crate::trace::{Layer, Tracer};
 
+use super::GatherRows;
 use super::form_factor::{
-    PairShafts, ShaftTest, coplanar, faces_away, may_be_occluded, occluders_between,
-    occluders_between_using, point_factor, room_blocked, straddles, unoccluded_form_factor,
-    visibility, visibility_rays, visibility_with_room,
+    PairShafts, coplanar, faces_away, may_be_occluded, occluders_between, occluders_between_using,
+    point_factor, straddles, unoccluded_form_factor, visibility,
 };
-use super::{ClusterLinks, GatherRows, RootClusters};
 
 /// Default refinement threshold of hierarchical radiosity: on the desk at
 /// 0.5 m patches it keeps every patch within 0.4% of the full matrix with
@@ -55,14 +54,11 @@ pub enum Transport {
     /// Row-major patch × patch form factors.
     Full { n: usize, form_factors: Vec<f32> },
     /// Links between elements of the hierarchy, sorted by receiver, and
-    /// each receiver's range of them; and the room's links to clusters of
-    /// the virtual objects, when the objects send through those.
+    /// each receiver's range of them; and rows of weights gathered by rays
+    /// (the texture path's objects, [`GatherRows`]).
     Hierarchical {
         links: Vec<Link>,
         ranges: Vec<(u32, u32, u32)>,
-        clusters: Option<Box<ClusterLinks>>,
-        /// Rows shared by groups of the objects' leaves, gathered by rays
-        /// (the texture path's objects, [`GatherRows`]).
         rows: Option<Box<GatherRows>>,
     },
 }
@@ -133,8 +129,6 @@ impl Transport {
                     tracer,
                     layer,
                     epsilon,
-                    split_above_epsilon: true,
-                    objects: None,
                 };
                 for &q in &patches.roots {
                     if p != q {
@@ -159,7 +153,6 @@ impl Transport {
         Transport::Hierarchical {
             links,
             ranges,
-            clusters: None,
             rows: None,
         }
     }
@@ -179,15 +172,8 @@ impl Transport {
             Transport::Full { form_factors, .. } => {
                 form_factors.iter().filter(|f| **f != 0.0).count()
             }
-            Transport::Hierarchical {
-                links,
-                clusters,
-                rows,
-                ..
-            } => {
-                links.len()
-                    + clusters.as_ref().map_or(0, |c| c.links.len())
-                    + rows.as_ref().map_or(0, |r| r.entry_count())
+            Transport::Hierarchical { links, rows, .. } => {
+                links.len() + rows.as_ref().map_or(0, |r| r.entry_count())
             }
         }
     }
@@ -198,12 +184,10 @@ impl Transport {
             Transport::Hierarchical {
                 links,
                 ranges,
-                clusters,
                 rows,
             } => {
                 links.len() * std::mem::size_of::<Link>()
                     + ranges.len() * std::mem::size_of::<(u32, u32, u32)>()
-                    + clusters.as_ref().map_or(0, |c| c.memory_bytes())
                     + rows.as_ref().map_or(0, |r| r.memory_bytes())
             }
         }
@@ -221,7 +205,6 @@ impl Transport {
             Transport::Hierarchical {
                 links,
                 ranges,
-                clusters,
                 rows,
             } => {
                 let elements = &patches.elements;
@@ -252,9 +235,6 @@ impl Transport {
                 let mut node_h = vec![0.0; elements.len()];
                 for (&(receiver, _, _), h) in ranges.iter().zip(gathered) {
                     node_h[receiver as usize] = h;
-                }
-                if let Some(c) = clusters {
-                    c.gather_into(patches, &node_b, &mut node_h);
                 }
                 if let Some(r) = rows {
                     r.gather_into(&node_b, &mut node_h);
@@ -344,146 +324,31 @@ pub(super) fn source_spread(p: &Element, q: &Element) -> f64 {
 /// epsilon (its radiosity would be averaged with the wrong weights); the
 /// larger of the two while they are partly hidden from each other.
 pub(super) fn refine(with: &Refiner, p: u32, q: u32, candidates: &[u32], out: &mut Vec<Link>) {
-    let clusters: &[u32] = if with.objects.is_some_and(|t| !t.nodes.is_empty()) {
-        &[0]
-    } else {
-        &[]
-    };
-    refine_from(with, p, q, candidates, clusters, None, out);
-}
-
-/// What [`refine`] works with: the elements, the geometry that may block
-/// them (`layer`), ε, the objects' clusters, and whether a partly hidden
-/// pair above ε is split at once (the room's links, built once per scene)
-/// or, like one below ε, traced first (the objects' links, rebuilt at
-/// every move, where each split costs the update its time).
-#[derive(Clone, Copy)]
-pub(super) struct Refiner<'a> {
-    pub(super) patches: &'a Patches,
-    pub(super) tracer: &'a Tracer,
-    pub(super) layer: Layer,
-    pub(super) epsilon: f64,
-    pub(super) split_above_epsilon: bool,
-    /// The objects' clusters: candidate occluders besides the given roots,
-    /// passed down as the few clusters a pair's shaft may meet.
-    pub(super) objects: Option<&'a RootClusters>,
-}
-
-/// What refinement learns about a pair of the room's elements before any
-/// object matters: its factors and the room's roots that may block it.
-/// Kept per room link, an update that re-refines a link its objects may
-/// shadow starts from these instead of computing them again.
-#[derive(Debug, Clone, PartialEq)]
-pub struct PairFacts {
-    pub(super) spread: f64,
-    pub(super) mean: f64,
-    pub(super) source_spread: f64,
-    pub(super) form_factor: f64,
-    pub(super) occluders: Vec<u32>,
-    /// Which of the pair's visibility rays the room blocks ([`room_blocked`]).
-    pub(super) room_blocked: Option<u64>,
-    /// The pair's visibility rays ([`visibility_rays`]), kept with what
-    /// the room does to them (an update traces them again through the objects).
-    pub(super) rays: Vec<TraceRay>,
-}
-
-impl PairFacts {
-    pub(super) fn of(
-        patches: &Patches,
-        tracer: &Tracer,
-        p: &Element,
-        q: &Element,
-        room_roots: &[u32],
-        shafts: &PairShafts,
-    ) -> PairFacts {
-        let (spread, mean) = factor_spread(p, q);
-        let occluders = occluders_between_using(patches, Layer::All, p, q, room_roots, shafts);
-        let rays = visibility_rays(p, q);
-        PairFacts {
-            spread,
-            mean,
-            source_spread: source_spread(p, q),
-            form_factor: unoccluded_form_factor(p, q),
-            room_blocked: room_blocked(&rays, tracer),
-            rays,
-            occluders,
-        }
-    }
-}
-
-/// [`PairFacts`] and [`PairShafts`] per link of a room's transport, found
-/// when first needed (every update asks each link whether the objects may
-/// shadow it: the shafts are room geometry, the same each time).
-#[derive(Debug, Default)]
-pub struct RoomLinkFacts {
-    pub(super) facts: Vec<std::sync::OnceLock<PairFacts>>,
-    pub(super) shafts: Vec<PairShafts>,
-}
-
-impl RoomLinkFacts {
-    pub fn new(transport: &Transport) -> RoomLinkFacts {
-        let n = transport.link_count();
-        RoomLinkFacts {
-            facts: (0..n).map(|_| std::sync::OnceLock::new()).collect(),
-            shafts: (0..n).map(|_| PairShafts::default()).collect(),
-        }
-    }
-}
-
-/// [`refine`], with the pair's room facts already known (`known`: the
-/// facts and the pair's kept shafts; `candidates` are then ignored) at
-/// this first level.
-pub(super) fn refine_from(
-    with: &Refiner,
-    p: u32,
-    q: u32,
-    candidates: &[u32],
-    clusters: &[u32],
-    known: Option<(&PairFacts, &PairShafts)>,
-    out: &mut Vec<Link>,
-) {
     let Refiner {
         patches,
         tracer,
         layer,
         epsilon,
-        split_above_epsilon,
-        objects,
     } = *with;
     let (ep, eq) = (&patches.elements[p as usize], &patches.elements[q as usize]);
     if coplanar(ep, eq) || faces_away(ep, eq) {
         return;
     }
-    let fresh = PairShafts::default();
-    let (occluders, shafts) = match known {
-        Some((facts, shafts)) => (facts.occluders.clone(), shafts),
-        None => (
-            occluders_between_using(patches, layer, ep, eq, candidates, &fresh),
-            &fresh,
-        ),
-    };
-    let object_occluders = match objects {
-        Some(tree) if !clusters.is_empty() => {
-            tree.frontier(&ShaftTest::new(patches, layer, ep, eq, shafts), clusters)
-        }
-        _ => Vec::new(),
-    };
-    let facts = known.map(|k| k.0);
+    let occluders =
+        occluders_between_using(patches, layer, ep, eq, candidates, &PairShafts::default());
     let (p_leaf, q_leaf) = (ep.children.is_none(), eq.children.is_none());
     // Two leaves split neither way: their factors' spread decides nothing.
     let (spread, mean) = if p_leaf && q_leaf {
         (0.0, 0.0)
     } else {
-        facts.map_or_else(|| factor_spread(ep, eq), |f| (f.spread, f.mean))
+        factor_spread(ep, eq)
     };
     let split_receiver = if (spread > epsilon || straddles(ep, eq)) && !p_leaf {
         Some(true)
-    } else if !q_leaf
-        && mean * facts.map_or_else(|| source_spread(ep, eq), |f| f.source_spread) > epsilon
-    {
+    } else if !q_leaf && mean * source_spread(ep, eq) > epsilon {
         Some(false)
     } else {
-        let f = facts.map_or_else(|| unoccluded_form_factor(ep, eq), |f| f.form_factor);
+        let f = unoccluded_form_factor(ep, eq);
         if f <= 0.0 {
             return;
         }
@@ -493,27 +358,21 @@ pub(super) fn refine_from(
         // refined where it is not (Hanrahan's BFV refinement, exact shafts).
         // A pair between ε's fraction and ε is traced first and split only
         // where its rays disagree: a conservative shaft holds many roots
-        // that block nothing. Above ε a room's pair is split at once, as
-        // its rays could all pass by a small occluder that matters at that
-        // size (see [`Refiner`]).
-        let occluded = !occluders.is_empty() || !object_occluders.is_empty();
+        // that block nothing. Above ε a pair is split at once, as its rays
+        // could all pass by a small occluder that matters at that size.
+        let occluded = !occluders.is_empty();
         let splits = occluded && f > epsilon * VISIBILITY_REFINE_FRACTION && !(p_leaf && q_leaf);
-        // A room pair's rays through the room were traced before: only the objects are left.
         // Where no object may block, the rays skip the objects: one could
         // meet them only from the part of the receiver behind a one-sided
         // source's plane, light the form factor already leaves out (lost
         // twice, were it counted here).
-        let traced = || match facts.and_then(|f| Some((f.room_blocked?, &f.rays))) {
-            Some((room, rays)) if layer == Layer::All => visibility_with_room(rays, tracer, room),
-            _ if layer == Layer::All
-                && object_occluders.is_empty()
-                && !occluders.iter().any(|&r| patches.is_virtual_element(r)) =>
-            {
+        let traced = || match layer {
+            Layer::All if !occluders.iter().any(|&r| patches.is_virtual_element(r)) => {
                 visibility(ep, eq, tracer, Layer::Real)
             }
             _ => visibility(ep, eq, tracer, layer),
         };
-        let visible = match (occluded, splits && split_above_epsilon && f > epsilon) {
+        let visible = match (occluded, splits && f > epsilon) {
             (false, _) => Some(1.0),
             (true, true) => None,
             (true, false) => Some(traced()),
@@ -537,12 +396,22 @@ pub(super) fn refine_from(
             .children
             .unwrap()
             .iter()
-            .for_each(|&c| refine_from(with, c, q, &occluders, &object_occluders, None, out)),
+            .for_each(|&c| refine(with, c, q, &occluders, out)),
         Some(false) => eq
             .children
             .unwrap()
             .iter()
-            .for_each(|&c| refine_from(with, p, c, &occluders, &object_occluders, None, out)),
+            .for_each(|&c| refine(with, p, c, &occluders, out)),
         None => {}
     }
+}
+
+/// What [`refine`] works with: the elements, the geometry that may block
+/// them (`layer`) and ε.
+#[derive(Clone, Copy)]
+pub(super) struct Refiner<'a> {
+    pub(super) patches: &'a Patches,
+    pub(super) tracer: &'a Tracer,
+    pub(super) layer: Layer,
+    pub(super) epsilon: f64,
 }
