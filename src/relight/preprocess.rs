@@ -7,14 +7,14 @@ use super::*;
 use crate::error::Error;
 use crate::radiosity::{GatherRows, GatherRowsSettings, ObjectLinkEstimate, ObjectView};
 
-/// Tasks of linking the objects (and groups of their leaves gathering)
-/// run to estimate what all of them make.
+/// Groups of the objects' leaves traced to estimate what all of them make.
 const PILOT_TASKS: usize = 64;
 
-/// Bytes a link of the objects' takes at the preprocess's peak: the link
-/// (12) in its task's vector, the whole list and its sorted copy, with the
-/// vectors' spare capacity. `cargo bench --bench assets -- methods`: 51 MB
-/// more peak per million links more from 8,000 to 30,000 triangles.
+/// Bytes counted per link and per row weight, the room's included: a
+/// bound, not a measure (a weight takes 8 bytes, a link 12 and the room's
+/// are held already). It kept the texture path's peak within the budget
+/// when objects were linked element by element, 51 MB more peak per
+/// million links.
 const BYTES_PER_OBJECT_LINK: f64 = 56.0;
 
 /// What the preprocess derives from its inputs before any work.
@@ -202,7 +202,7 @@ impl<'a> Setup<'a> {
         Err(Error::file(
             &self.scene.file,
             format!(
-                "--method texture would hold about {} MB with the objects' {} triangles ({:.1} M links and weights, about {:.0} s, measured on {} of their {} groups), more than the {} MB --memory allows: give --memory {}M, or render on the pixel path (--method pda), which holds no links with the objects",
+                "--method texture would hold about {} MB with the objects' {} triangles ({:.1} M links and weights, about {:.1} s, measured on {} of their {} groups), more than the {} MB --memory allows: give --memory {}M, or render on the pixel path (--method pda), which holds no links with the objects",
                 mb(need),
                 e.roots,
                 e.links / 1e6,
