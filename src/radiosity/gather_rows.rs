@@ -1,15 +1,18 @@
-//! The objects' incoming light on the texture path, gathered by rays: the
-//! objects' leaves, grouped where they lie close and face alike, each
-//! group tracing one set of cosine-distributed rays whose hits make a row
-//! of weights over the elements they meet. The row is linear in the
-//! radiosity it reads, as links are, so a light's change still costs one
-//! radiosity step (Loscos's relighting), while linking every object
-//! triangle with the room's elements (hierarchical refinement, 4.8 M links
-//! for a 30,000-triangle prop) cost 9.6 s of a 12 s render.
+//! The virtual objects in a transport as rows of weights gathered by rays,
+//! linear in the radiosity they read as links are, so a light's change on
+//! the texture path still costs one radiosity step (Loscos's relighting):
+//! - the objects' leaves, grouped where they lie close and face alike,
+//!   each group tracing one set of cosine-distributed rays whose first
+//!   hits make its row ([`GatherRows::trace`]; the pixel path's final
+//!   gathering shares vertices' gathers the same way);
+//! - the room's leaves that see the objects, each ray towards them reading
+//!   an object's radiosity less the room's behind it
+//!   ([`GatherRows::of_view`]), the room's own links kept.
 //!
-//! The pixel path's final gathering shares vertices' gathers the same way
-//! (`render::final_gather`): the light gathered follows an object's area
-//! and curvature, not its triangles.
+//! What they cost follows the objects' area and the room's leaves near
+//! them, not the objects' triangles: linking every object triangle with
+//! the room's elements (hierarchical refinement, 4.8 M links for a
+//! 30,000-triangle prop) took 9.6 s of a 12 s render.
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -43,7 +46,7 @@ pub struct ObjectLinkEstimate {
 pub struct GatherRows {
     /// Per group: its members' range in `members`, its row's in `entries`.
     groups: Vec<[u32; 4]>,
-    /// Receiving elements (the objects' leaves), group by group.
+    /// Receiving elements (leaves), group by group.
     members: Vec<u32>,
     /// (source element, weight): the fraction of the group's rays that
     /// met that element first.
@@ -53,7 +56,7 @@ pub struct GatherRows {
 }
 
 /// How the objects' leaves gather: `rays` per group, leaves within
-/// `within` metres (and [`SHARE_ANGLE_DEG`]) of a group's first sharing it.
+/// `within` metres (and 5°) of a group's first sharing it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GatherRowsSettings {
     pub rays: u32,
