@@ -509,3 +509,58 @@ fn objects_gathering_by_rays_see_the_room_s_form_factors() {
     }
     assert!(sides > 8, "{sides} side patches checked");
 }
+
+/// The room's rows ([`arlux::radiosity::GatherRows::of_view`]): a ray from
+/// a room patch that meets an object reads the object's radiosity less the
+/// room's behind it. With every patch at radiosity 1 a box as bright as the
+/// room changes only what a patch sees of it where the room behind it is
+/// open (the camera's side: nothing there to hide), and never darkens; a
+/// black box takes from a patch what it hides, between nothing and the
+/// box's share of its view.
+#[test]
+fn the_room_s_rows_change_nothing_where_the_objects_look_like_the_room() {
+    use arlux::radiosity::{GatherRows, ObjectView};
+    let scene = desk().with_variant("box_floor_a").unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
+    let room = Patches::of_scene(&scene, false, 0.5);
+    let with = Patches::of_scene_from_room(&room, &scene, 0.1, &mut ObjectMeshes::new(false));
+    let (n, m) = (with.patch_count(), room.patch_count());
+    let bounds = arlux::objects::VirtualBounds::of(&scene.virtual_world_surfaces());
+    let view = ObjectView::trace(&with, m, &tracer, &bounds);
+    let rows = GatherRows::of_view(&with, &view);
+    let seeing = rows.group_count();
+    assert!(seeing > m / 4, "{seeing} of {m} patches see the box");
+    let links = Transport::hierarchical(&room, &tracer, arlux::trace::Layer::Real, 0.02);
+    let with_rows = links.clone().with_gather_rows(rows);
+    let gather = |t: &Transport, lit: &dyn Fn(usize) -> bool| {
+        let b: Vec<f64> = (0..n).map(|k| f64::from(u8::from(lit(k)))).collect();
+        let mut h = vec![0.0; n];
+        t.gather(&with, &b, &mut h);
+        h
+    };
+    let (base, bright, black) = (
+        gather(&links, &|k| k < m),
+        gather(&with_rows, &|_| true),
+        gather(&with_rows, &|k| k < m),
+    );
+    let (mut unchanged, mut darkened) = (0, 0);
+    for k in 0..m {
+        let gained = bright[k] - base[k];
+        let lost = base[k] - black[k];
+        assert!(
+            gained > -1e-6,
+            "patch {k}: a box as bright as the room darkens it by {gained}"
+        );
+        assert!(
+            lost > -1e-6 && lost < 0.5,
+            "patch {k} loses {lost} to a black box"
+        );
+        unchanged += usize::from(gained.abs() < 1e-6);
+        darkened += usize::from(lost > 1e-4);
+    }
+    assert!(unchanged >= m - seeing / 2, "{unchanged} of {m} unchanged");
+    assert!(
+        darkened > 10,
+        "{darkened} patches lose light to a black box"
+    );
+}
