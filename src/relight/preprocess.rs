@@ -131,13 +131,14 @@ impl<'a> Setup<'a> {
         let all = times.time("virtual mesh", || {
             Patches::of_scene_refined(self.scene, true, self.patch_size, self.virtual_size, marks)
         });
+        let bounds = crate::objects::VirtualBounds::of(&self.scene.virtual_world_surfaces());
         let direct = times.time("direct light with objects", || {
-            leaf_light(&all, &self.lights, tracer, Layer::All, settings.light_level)
+            let (lights, level) = ((&self.lights[..], &direct[..]), settings.light_level);
+            leaf_light_with_objects(&all, lights, tracer, level, &bounds)
         });
         // What the room sees of the objects in place of what they hide: its
         // own links are kept as they are.
         let mut rows = times.time("objects seen from the room", || {
-            let bounds = crate::objects::VirtualBounds::of(&self.scene.virtual_world_surfaces());
             let view = ObjectView::trace(&all, patches.patch_count(), tracer, &bounds);
             GatherRows::of_view(&all, &view)
         });

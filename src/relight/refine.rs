@@ -75,6 +75,41 @@ pub(super) fn leaf_light(
         .collect()
 }
 
+/// [`leaf_light`] through the room and the objects, `room` holding the
+/// room's leaves' terms through the room alone (the first leaves): those
+/// are taken wherever the shaft from a leaf to the light leaves out every
+/// object (no ray can meet one there: the same rays, seeds and answers),
+/// and only the rest are traced.
+pub(super) fn leaf_light_with_objects(
+    patches: &Patches,
+    (lights, room): (&[LightSource], &[Vec<LightTerm>]),
+    tracer: &Tracer,
+    level: usize,
+    objects: &crate::objects::VirtualBounds,
+) -> Vec<Vec<LightTerm>> {
+    lights
+        .iter()
+        .zip(room)
+        .map(|(light, room)| {
+            let light_box = light.bounds();
+            (0..patches.patch_count())
+                .into_par_iter()
+                .map(|k| {
+                    let el = patches.patch(k);
+                    if let Some(term) = room.get(k) {
+                        let shaft = crate::shaft::Shaft::between_boxes(el.bounds, light_box);
+                        if objects.objects.iter().all(|o| o.outside(&shaft)) {
+                            return *term;
+                        }
+                    }
+                    let seed = element_seed(patches, el);
+                    element_light(&el.shape, el.normal, light, tracer, Layer::All, level, seed)
+                })
+                .collect()
+        })
+        .collect()
+}
+
 /// Light terms already computed, by (element identity, light, through the objects too).
 pub(super) type TermCache = HashMap<((u32, i64, i64, i64), usize, bool), LightTerm>;
 
