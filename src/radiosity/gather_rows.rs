@@ -101,6 +101,43 @@ impl GatherRows {
         groups
     }
 
+    /// Per patch of `patches`, the patch whose direct light it may take:
+    /// for a leaf of a surface `shared` names, its group's leaf nearest the
+    /// group's area-weighted centre ([`GatherRows::groups_of`]); itself for
+    /// every other patch. Leaves that close and facing alike see the lights
+    /// alike (the pixel path's face clusters, Willmott, Heckbert & Garland
+    /// 1999).
+    pub fn representatives(
+        patches: &Patches,
+        within: f64,
+        shared: impl Fn(u32) -> bool,
+    ) -> Vec<u32> {
+        let mut out: Vec<u32> = (0..patches.patch_count() as u32).collect();
+        let elements = &patches.elements;
+        let groups = GatherRows::groups_of(patches, within).into_iter();
+        for members in groups.filter(|m| shared(elements[m[0] as usize].surface)) {
+            let area: f64 = members.iter().map(|&e| elements[e as usize].area).sum();
+            let centre = (members.iter())
+                .map(|&e| elements[e as usize].centre * elements[e as usize].area)
+                .sum::<DVec3>()
+                / area.max(1e-300);
+            let nearest = (members.iter())
+                .min_by(|&&a, &&b| {
+                    let d = |e: u32| (elements[e as usize].centre - centre).length_squared();
+                    d(a).total_cmp(&d(b))
+                })
+                .and_then(|&e| elements[e as usize].patch);
+            if let Some(r) = nearest {
+                for &e in &members {
+                    if let Some(k) = elements[e as usize].patch {
+                        out[k as usize] = r;
+                    }
+                }
+            }
+        }
+        out
+    }
+
     /// Each group's row, from `settings.rays` rays leaving its leaves
     /// (a point by area, a cosine-distributed direction about the leaf's
     /// normal, one Owen-scrambled Sobol point per ray).

@@ -133,8 +133,20 @@ impl<'a> Setup<'a> {
         });
         let bounds = crate::objects::VirtualBounds::of(&self.scene.virtual_world_surfaces());
         let direct = times.time("direct light with objects", || {
-            let (lights, level) = ((&self.lights[..], &direct[..]), settings.light_level);
-            leaf_light_with_objects(&all, lights, tracer, level, &bounds)
+            // Objects with a material are shaded per pixel, lights sampled
+            // there: their leaves' direct light only feeds the radiosity, and
+            // close leaves facing alike share it. Clay shows its leaves' own.
+            let shaded = surfaces_with_material(self.scene);
+            let within = self.gather_rows().within;
+            let share = GatherRows::representatives(&all, within, |s| shaded.contains(&s));
+            let lights = (&self.lights[..], &direct[..]);
+            leaf_light_with_objects(
+                &all,
+                lights,
+                tracer,
+                (settings.light_level, &share),
+                &bounds,
+            )
         });
         // What the room sees of the objects in place of what they hide: its
         // own links are kept as they are.
@@ -674,4 +686,20 @@ pub(super) fn display_factors(
         .collect();
     let d_floor = 1e-3 * d.iter().sum::<f64>() / d.len().max(1) as f64;
     (display, d_floor)
+}
+
+/// The surface ids of the enabled objects' surfaces that have a material
+/// (shaded per pixel by their BRDF; the others are diffuse clay).
+fn surfaces_with_material(scene: &Scene) -> std::collections::HashSet<u32> {
+    let mut id = scene.surfaces.len() as u32;
+    let mut out = std::collections::HashSet::new();
+    for o in &scene.objects {
+        for s in &o.surfaces {
+            if o.enabled && s.material.is_some() {
+                out.insert(id);
+            }
+            id += 1;
+        }
+    }
+    out
 }

@@ -79,22 +79,31 @@ pub(super) fn leaf_light(
 /// room's leaves' terms through the room alone (the first leaves): those
 /// are taken wherever the shaft from a leaf to the light leaves out every
 /// object (no ray can meet one there: the same rays, seeds and answers),
-/// and only the rest are traced.
+/// and only the rest are traced. An object's leaf takes the terms of the
+/// leaf `share` names (its group's, see
+/// [`GatherRows::representatives`](crate::radiosity::GatherRows::representatives)).
 pub(super) fn leaf_light_with_objects(
     patches: &Patches,
     (lights, room): (&[LightSource], &[Vec<LightTerm>]),
     tracer: &Tracer,
-    level: usize,
+    (level, share): (usize, &[u32]),
     objects: &crate::objects::VirtualBounds,
 ) -> Vec<Vec<LightTerm>> {
+    let none = LightTerm {
+        occluded: DVec3::ZERO,
+        unoccluded: DVec3::ZERO,
+    };
     lights
         .iter()
         .zip(room)
         .map(|(light, room)| {
             let light_box = light.bounds();
-            (0..patches.patch_count())
+            let own: Vec<LightTerm> = (0..patches.patch_count())
                 .into_par_iter()
                 .map(|k| {
+                    if share[k] != k as u32 {
+                        return none;
+                    }
                     let el = patches.patch(k);
                     if let Some(term) = room.get(k) {
                         let shaft = crate::shaft::Shaft::between_boxes(el.bounds, light_box);
@@ -105,7 +114,8 @@ pub(super) fn leaf_light_with_objects(
                     let seed = element_seed(patches, el);
                     element_light(&el.shape, el.normal, light, tracer, Layer::All, level, seed)
                 })
-                .collect()
+                .collect();
+            share.iter().map(|&s| own[s as usize]).collect()
         })
         .collect()
 }
