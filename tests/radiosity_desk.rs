@@ -454,6 +454,16 @@ fn an_object_walking_and_turning_keeps_its_patches() {
     }
 }
 
+/// The desk at `box_floor_a`: its tracer, the room's patches at 0.5 m,
+/// and the room's with the box's at 0.1 m after them.
+fn desk_with_box() -> (Scene, arlux::trace::Tracer, Patches, Patches) {
+    let scene = desk().with_variant("box_floor_a").unwrap();
+    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
+    let room = Patches::of_scene(&scene, false, 0.5);
+    let with = Patches::of_scene_from_room(&room, &scene, 0.1, &mut ObjectMeshes::new(false));
+    (scene, tracer, room, with)
+}
+
 /// The texture path's objects gather their light by rays in groups
 /// ([`arlux::radiosity::GatherRows`]): a leaf's row is the fraction of its
 /// rays meeting each element, so the light a side of the box gathers from
@@ -462,10 +472,7 @@ fn an_object_walking_and_turning_keeps_its_patches() {
 #[test]
 fn objects_gathering_by_rays_see_the_room_s_form_factors() {
     use arlux::radiosity::{GatherRows, GatherRowsSettings};
-    let scene = desk().with_variant("box_floor_a").unwrap();
-    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
-    let room = Patches::of_scene(&scene, false, 0.5);
-    let with = Patches::of_scene_from_room(&room, &scene, 0.1, &mut ObjectMeshes::new(false));
+    let (_, tracer, room, with) = desk_with_box();
     let links = Transport::hierarchical(&room, &tracer, arlux::trace::Layer::Real, 0.02);
     let settings = GatherRowsSettings {
         rays: 4096,
@@ -520,10 +527,7 @@ fn objects_gathering_by_rays_see_the_room_s_form_factors() {
 #[test]
 fn the_room_s_rows_change_nothing_where_the_objects_look_like_the_room() {
     use arlux::radiosity::{GatherRows, ObjectView};
-    let scene = desk().with_variant("box_floor_a").unwrap();
-    let tracer = arlux::scene_tracer::build_tracer(&scene).unwrap();
-    let room = Patches::of_scene(&scene, false, 0.5);
-    let with = Patches::of_scene_from_room(&room, &scene, 0.1, &mut ObjectMeshes::new(false));
+    let (scene, tracer, room, with) = desk_with_box();
     let (n, m) = (with.patch_count(), room.patch_count());
     let bounds = arlux::objects::VirtualBounds::of(&scene.virtual_world_surfaces());
     let view = ObjectView::trace(&with, m, &tracer, &bounds);
