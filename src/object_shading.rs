@@ -44,7 +44,7 @@ use crate::util::rng::hash2;
 mod paths;
 mod rounds;
 pub(crate) use paths::Reading;
-pub(crate) use rounds::Footprint;
+pub(crate) use rounds::{Footprint, Lamps};
 
 /// A virtual surface with a material, placed in the world.
 #[derive(Debug, Clone)]

@@ -28,7 +28,7 @@ use std::time::Instant;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use crate::object_shading::ObjectShading;
+use crate::object_shading::{Lamps, ObjectShading};
 use crate::pda::PixelDataArray;
 use crate::radiosity::ChangeSampler;
 
@@ -252,19 +252,21 @@ pub fn estimate(input: &ResidualInput) -> Option<PixelResidual> {
         n => n.min(MAX_SAMPLES),
     };
     let (mut rounds, mut rays) = (0, 0u64);
+    // The rect lights a sample may meet, listed once for every pixel.
+    let lamps = input.shading.lamps();
     while rounds < most {
         let round = Instant::now();
         rays += (objects.par_iter_mut())
-            .map(|t| objects::sample(input, t, rounds))
+            .map(|t| objects::sample(input, t, (rounds, &lamps)))
             .sum::<u64>();
         rays += (room.par_iter_mut())
-            .map(|t| room::sample(input, t, rounds))
+            .map(|t| room::sample(input, t, (rounds, &lamps)))
             .sum::<u64>();
         rays += (shadows.par_iter_mut())
             .map(|t| shadows::sample(input, t, rounds))
             .sum::<u64>();
         rays += (edges.par_iter_mut())
-            .map(|t| edges::sample(input, t, rounds))
+            .map(|t| edges::sample(input, t, (rounds, &lamps)))
             .sum::<u64>();
         rounds += 1;
         if let Some(limit) = settings.time {

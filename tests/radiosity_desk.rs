@@ -478,7 +478,8 @@ fn objects_gathering_by_rays_see_the_room_s_form_factors() {
         rays: 4096,
         within: 0.025,
     };
-    let rows = GatherRows::trace(&with, &tracer, settings);
+    let groups = GatherRows::groups_of(&with, settings.within);
+    let rows = GatherRows::trace(&with, &tracer, &groups, settings.rays);
     assert!(rows.group_count() > 0 && rows.rays == rows.group_count() as u64 * 4096);
     let transport = links.with_gather_rows(rows);
     let (n, m) = (with.patch_count(), room.patch_count());

@@ -56,7 +56,8 @@ pub struct GatherRows {
 }
 
 /// How the objects' leaves gather: `rays` per group, leaves within
-/// `within` metres (and 5°) of a group's first sharing it.
+/// `within` metres (and 5°) of a group's first sharing it
+/// ([`GatherRows::groups_of`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GatherRowsSettings {
     pub rays: u32,
@@ -64,7 +65,10 @@ pub struct GatherRowsSettings {
 }
 
 impl GatherRows {
-    /// The groups of the virtual leaves of `patches` (no rays traced).
+    /// The groups of the virtual leaves of `patches` (elements, each
+    /// group's first its seed; no rays traced), made once for
+    /// [`GatherRows::trace`], [`GatherRows::estimate`] and
+    /// [`GatherRows::representatives`].
     pub fn groups_of(patches: &Patches, within: f64) -> Vec<Vec<u32>> {
         let cos_max = SHARE_ANGLE_DEG.to_radians().cos();
         let cell = |p: DVec3| (p / within.max(1e-9)).floor().as_i64vec3().to_array();
@@ -102,20 +106,22 @@ impl GatherRows {
     }
 
     /// Per patch of `patches`, the patch whose direct light it may take:
-    /// for a leaf of a surface `shared` names, its group's leaf nearest the
-    /// group's area-weighted centre ([`GatherRows::groups_of`]); itself for
-    /// every other patch. Leaves that close and facing alike see the lights
+    /// for a leaf of a surface `shared` names, its group's (of `groups`)
+    /// leaf nearest the group's area-weighted centre; itself for every
+    /// other patch. Leaves that close and facing alike see the lights
     /// alike (the pixel path's face clusters, Willmott, Heckbert & Garland
     /// 1999).
     pub fn representatives(
         patches: &Patches,
-        within: f64,
+        groups: &[Vec<u32>],
         shared: impl Fn(u32) -> bool,
     ) -> Vec<u32> {
         let mut out: Vec<u32> = (0..patches.patch_count() as u32).collect();
         let elements = &patches.elements;
-        let groups = GatherRows::groups_of(patches, within).into_iter();
-        for members in groups.filter(|m| shared(elements[m[0] as usize].surface)) {
+        for members in groups
+            .iter()
+            .filter(|m| shared(elements[m[0] as usize].surface))
+        {
             let area: f64 = members.iter().map(|&e| elements[e as usize].area).sum();
             let centre = (members.iter())
                 .map(|&e| elements[e as usize].centre * elements[e as usize].area)
@@ -128,7 +134,7 @@ impl GatherRows {
                 })
                 .and_then(|&e| elements[e as usize].patch);
             if let Some(r) = nearest {
-                for &e in &members {
+                for &e in members {
                     if let Some(k) = elements[e as usize].patch {
                         out[k as usize] = r;
                     }
@@ -138,17 +144,16 @@ impl GatherRows {
         out
     }
 
-    /// Each group's row, from `settings.rays` rays leaving its leaves
+    /// Each group's row (of `groups`), from `rays` rays leaving its leaves
     /// (a point by area, a cosine-distributed direction about the leaf's
     /// normal, one Owen-scrambled Sobol point per ray).
-    pub fn trace(patches: &Patches, tracer: &Tracer, settings: GatherRowsSettings) -> GatherRows {
-        let groups = GatherRows::groups_of(patches, settings.within);
+    pub fn trace(patches: &Patches, tracer: &Tracer, groups: &[Vec<u32>], rays: u32) -> GatherRows {
         let rows: Vec<Vec<(u32, f32)>> = groups
             .par_iter()
-            .map(|members| row(patches, tracer, members, settings.rays))
+            .map(|members| row(patches, tracer, members, rays))
             .collect();
         let mut out = GatherRows {
-            rays: groups.len() as u64 * u64::from(settings.rays),
+            rays: groups.len() as u64 * u64::from(rays),
             ..GatherRows::default()
         };
         for (members, row) in groups.iter().zip(rows) {
@@ -161,8 +166,8 @@ impl GatherRows {
         out
     }
 
-    /// Rows for the room's leaves (the first `room_count` patches) from
-    /// what they see of the objects ([`ObjectView`]): each ray that meets
+    /// Rows for the room's leaves from what they see of the objects
+    /// ([`ObjectView`], traced from them): each ray that meets
     /// an object reads its radiosity, less that of the room element it
     /// hides, so the room's own links carry on unchanged (George, Sillion
     /// & Greenberg 1990, as the pixel path's change does).
@@ -204,30 +209,27 @@ impl GatherRows {
         self.rays += other.rays;
     }
 
-    /// What [`GatherRows::trace`] would hold and take, measured on
-    /// `sample` of its groups, evenly spread: (weights, seconds).
+    /// What [`GatherRows::trace`] of `groups` would hold and take,
+    /// measured on `sample` of them, evenly spread: (weights, seconds).
     pub fn estimate(
         patches: &Patches,
         tracer: &Tracer,
-        settings: GatherRowsSettings,
+        (groups, rays): (&[Vec<u32>], u32),
         sample: usize,
     ) -> (f64, f64) {
-        let started = std::time::Instant::now();
-        let groups = GatherRows::groups_of(patches, settings.within);
         if groups.is_empty() {
             return (0.0, 0.0);
         }
         let step = groups.len().div_ceil(sample.clamp(1, groups.len()));
         let picked: Vec<&Vec<u32>> = groups.iter().step_by(step).collect();
-        let grouping = started.elapsed().as_secs_f64();
-        let tracing = std::time::Instant::now();
+        let started = std::time::Instant::now();
         let entries: usize = (picked.par_iter())
-            .map(|members| row(patches, tracer, members, settings.rays).len())
+            .map(|members| row(patches, tracer, members, rays).len())
             .sum();
         let scale = groups.len() as f64 / picked.len() as f64;
         (
             entries as f64 * scale,
-            grouping + tracing.elapsed().as_secs_f64() * scale,
+            started.elapsed().as_secs_f64() * scale,
         )
     }
 

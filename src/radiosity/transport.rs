@@ -157,8 +157,10 @@ impl Transport {
         }
     }
 
-    /// This transport with the objects' leaves gathering through `rows`
-    /// too (a hierarchical one; a full matrix holds every pair already).
+    /// This transport with `new`'s receivers also gathering through its
+    /// rows (objects added to a room's links, [`GatherRows`]). A full
+    /// matrix is returned as it is: it is made over every patch it gathers
+    /// for, objects included, and holds their every pair already.
     pub fn with_gather_rows(mut self, new: GatherRows) -> Transport {
         if let Transport::Hierarchical { rows, .. } = &mut self {
             *rows = Some(Box::new(new));

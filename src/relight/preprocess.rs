@@ -132,13 +132,14 @@ impl<'a> Setup<'a> {
             Patches::of_scene_refined(self.scene, true, self.patch_size, self.virtual_size, marks)
         });
         let bounds = crate::objects::VirtualBounds::of(&self.scene.virtual_world_surfaces());
+        let rows_settings = self.gather_rows();
+        let groups = GatherRows::groups_of(&all, rows_settings.within);
         let direct = times.time("direct light with objects", || {
             // Objects with a material are shaded per pixel, lights sampled
             // there: their leaves' direct light only feeds the radiosity, and
             // close leaves facing alike share it. Clay shows its leaves' own.
             let shaded = surfaces_with_material(self.scene);
-            let within = self.gather_rows().within;
-            let share = GatherRows::representatives(&all, within, |s| shaded.contains(&s));
+            let share = GatherRows::representatives(&all, &groups, |s| shaded.contains(&s));
             let lights = (&self.lights[..], &direct[..]);
             leaf_light_with_objects(
                 &all,
@@ -156,13 +157,13 @@ impl<'a> Setup<'a> {
         });
         if let Some(budget) = settings.memory {
             let estimate = times.time("object links estimate", || {
-                self.estimate_rows(&all, &transport, &rows)
+                self.estimate_rows(&all, (&transport, &rows), &groups)
             });
             stats.object_links_estimate = Some(estimate);
             self.check_link_memory(&estimate, budget)?;
         }
         let objects = times.time("objects' gather rays", || {
-            GatherRows::trace(&all, tracer, self.gather_rows())
+            GatherRows::trace(&all, tracer, &groups, rows_settings.rays)
         });
         stats.object_gather_groups = objects.group_count();
         rows.append(objects);
@@ -180,23 +181,23 @@ impl<'a> Setup<'a> {
     }
 
     /// What the transport will hold with the objects: the room's links,
-    /// the room's rows (`room`, made) and the objects' groups' rows,
-    /// measured on [`PILOT_TASKS`] of the groups.
+    /// the room's rows (`room`, made) and the rows of the objects' `groups`,
+    /// measured on [`PILOT_TASKS`] of them.
     fn estimate_rows(
         &self,
         all: &Patches,
-        transport: &Transport,
-        room: &GatherRows,
+        (transport, room): (&Transport, &GatherRows),
+        groups: &[Vec<u32>],
     ) -> ObjectLinkEstimate {
-        let settings = self.gather_rows();
-        let groups = GatherRows::groups_of(all, settings.within).len();
-        let (entries, seconds) = GatherRows::estimate(all, self.tracer, settings, PILOT_TASKS);
+        let rays = self.gather_rows().rays;
+        let (entries, seconds) =
+            GatherRows::estimate(all, self.tracer, (groups, rays), PILOT_TASKS);
         ObjectLinkEstimate {
             roots: (all.roots.iter())
                 .filter(|r| all.is_virtual_element(**r))
                 .count(),
-            groups,
-            sampled: PILOT_TASKS.min(groups),
+            groups: groups.len(),
+            sampled: PILOT_TASKS.min(groups.len()),
             links: (transport.link_count() + room.entry_count()) as f64 + entries,
             seconds,
         }

@@ -42,7 +42,7 @@ pub(super) fn tasks(input: &ResidualInput) -> Vec<Task> {
 }
 
 /// Round `round` of task `t`; returns the rays traced.
-pub(super) fn sample(input: &ResidualInput, t: &mut Task, round: u32) -> u64 {
+pub(super) fn sample(input: &ResidualInput, t: &mut Task, (round, lamps): (u32, &Lamps)) -> u64 {
     let shading = input.shading;
     let key = hash2(t.pixel as u64, 0xED6E_5A3B);
     let mut rays = 0;
@@ -59,7 +59,7 @@ pub(super) fn sample(input: &ResidualInput, t: &mut Task, round: u32) -> u64 {
             Some(h) => {
                 let y = ray.origin + ray.direction * h.t as f64;
                 let seed = hash2(key, index as u64);
-                let (extra, traced) = near_change(input, &h, y, (seed, round));
+                let (extra, traced) = near_change(input, &h, y, (seed, round), lamps);
                 let reading = Reading {
                     seed,
                     level: HIT_LEVEL,
@@ -114,7 +114,13 @@ pub(super) struct Shares {
 /// The objects' change to the indirect light at real point `y` (hit `h`)
 /// less what the patch means give, as the room's pixels near them take it
 /// ([`super::room`]), from one round of the sampler's rays; and the rays.
-fn near_change(input: &ResidualInput, h: &Hit, y: DVec3, key: (u64, u32)) -> (DVec3, u64) {
+fn near_change(
+    input: &ResidualInput,
+    h: &Hit,
+    y: DVec3,
+    key: (u64, u32),
+    lamps: &Lamps,
+) -> (DVec3, u64) {
     let Some(sampler) = input.room else {
         return (DVec3::ZERO, 0);
     };
@@ -126,9 +132,13 @@ fn near_change(input: &ResidualInput, h: &Hit, y: DVec3, key: (u64, u32)) -> (DV
         return (DVec3::ZERO, 0);
     }
     let mut sums = Sums::default();
-    let rays = sampler.sample(at.patch, y, key, &room::reader(input, key.1), &mut |v| {
-        sums.add(v)
-    });
+    let rays = sampler.sample(
+        at.patch,
+        y,
+        key,
+        &room::reader(input, key.1, lamps),
+        &mut |v| sums.add(v),
+    );
     let coarse: DVec3 = (at.weights.iter())
         .filter(|(_, w)| *w != 0.0)
         .map(|&(v, w)| input.coarse.get(v as usize).copied().unwrap_or(DVec3::ZERO) * w)

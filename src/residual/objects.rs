@@ -102,7 +102,7 @@ pub(super) fn tasks(input: &ResidualInput) -> Vec<Task> {
 }
 
 /// Round `round` of task `t`'s gather; returns the rays traced.
-pub(super) fn sample(input: &ResidualInput, t: &mut Task, round: u32) -> u64 {
+pub(super) fn sample(input: &ResidualInput, t: &mut Task, (round, lamps): (u32, &Lamps)) -> u64 {
     let shading = input.shading;
     let p = t.point(input.pda);
     let (x, n) = (p.position.as_dvec3(), p.normal.as_dvec3());
@@ -130,12 +130,12 @@ pub(super) fn sample(input: &ResidualInput, t: &mut Task, round: u32) -> u64 {
         // Cosine-distributed rays: irradiance = π × mean radiance.
         t.sums.add(l * std::f64::consts::PI);
     }
-    rays + sample_radiance(input, t, round)
+    rays + sample_radiance(input, t, round, lamps)
 }
 
 /// Round `round` of a material's samples over task `t`'s pixel; returns
 /// the rays traced.
-fn sample_radiance(input: &ResidualInput, t: &mut Task, round: u32) -> u64 {
+fn sample_radiance(input: &ResidualInput, t: &mut Task, round: u32, lamps: &Lamps) -> u64 {
     let p = *t.point(input.pda);
     // A plain pixel is the object's throughout; an outline's other part is
     // the room's or nothing's, which the edges' rounds measure.
@@ -158,10 +158,9 @@ fn sample_radiance(input: &ResidualInput, t: &mut Task, round: u32) -> u64 {
     let corner = ((t.pixel % width) as f64, (t.pixel / width) as f64);
     let key = hash2(t.pixel as u64, 0xF007_9817) as u32;
     let per_round = *per_round;
-    let lamps = input.shading.lamps();
     for j in 0..per_round {
         let index = round * per_round + j;
-        let (found, n) = (input.shading).footprint_sample(&lamps, centre, corner, index, key);
+        let (found, n) = (input.shading).footprint_sample(lamps, centre, corner, index, key);
         rays += n;
         match found {
             Footprint::Shaded(split) => {

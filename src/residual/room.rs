@@ -48,7 +48,7 @@ pub(super) fn tasks(input: &ResidualInput) -> Vec<Task> {
 }
 
 /// Round `round` of task `t`; returns the rays traced.
-pub(super) fn sample(input: &ResidualInput, t: &mut Task, round: u32) -> u64 {
+pub(super) fn sample(input: &ResidualInput, t: &mut Task, (round, lamps): (u32, &Lamps)) -> u64 {
     let Some(sampler) = input.room else {
         return 0;
     };
@@ -60,23 +60,23 @@ pub(super) fn sample(input: &ResidualInput, t: &mut Task, round: u32) -> u64 {
         p.location.patch,
         x,
         (seed, round),
-        &reader(input, round),
+        &reader(input, round, lamps),
         &mut |v| sums.add(v),
     )
 }
 
 /// How the sampler reads what its rays meet: an object's radiance with
 /// the objects there, a real surface's without them.
-pub(super) fn reader(
-    input: &ResidualInput,
+pub(super) fn reader<'a>(
+    input: &'a ResidualInput,
     round: u32,
-) -> impl Fn(&Hit, DVec3, DVec3, u64) -> (DVec3, u64) {
+    lamps: &'a Lamps,
+) -> impl Fn(&Hit, DVec3, DVec3, u64) -> (DVec3, u64) + 'a {
     let shading = input.shading;
     let lights = shading.lights.len() as u64;
-    let lamps = shading.lamps();
     move |h: &Hit, o: DVec3, d: DVec3, seed: u64| {
         // An object with a material: its radiance towards the point.
-        let leaving = || shading.leaving(&lamps, h, (o, d), seed, round);
+        let leaving = || shading.leaving(lamps, h, (o, d), seed, round);
         if let Some(out) = h.is_virtual.then(leaving).flatten() {
             return out;
         }
