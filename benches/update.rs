@@ -327,69 +327,8 @@ fn walk(c: &mut Criterion, scene: &Path, motion: &str, label: &str, cold: bool) 
 /// walking the stool's path, a 2 m wide round table moving a little, and
 /// the stool walking while that table stands still in the room.
 fn real_assets(c: &mut Criterion) {
-    use asset::{AssetSpec, write_asset};
     let dir = tempfile::tempdir().unwrap();
-    let lounge = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/lounge");
-    std::fs::create_dir(dir.path().join("geometry")).unwrap();
-    for f in ["room.obj", "furniture.obj", "stool.obj"] {
-        std::os::unix::fs::symlink(
-            lounge.join("geometry").join(f),
-            dir.path().join("geometry").join(f),
-        )
-        .unwrap();
-    }
-    std::os::unix::fs::symlink(lounge.join("photo.exr"), dir.path().join("photo.exr")).unwrap();
-    write_asset(
-        &dir.path().join("geometry"),
-        "prop",
-        &AssetSpec::heavy_prop(),
-    );
-    let wide = AssetSpec {
-        triangles: 20_000,
-        texture: 1024,
-        width: 2.0,
-        height: 0.45,
-        groove_deg: 0.0,
-        grooves: 1,
-    };
-    write_asset(&dir.path().join("geometry"), "wide", &wide);
-    let text = std::fs::read_to_string(lounge.join("scene.toml")).unwrap();
-    // The room, lights and the stool; no references (not measured here).
-    let cut = text.find("[[variant]]").unwrap_or(text.len());
-    let scene = format!(
-        "{}{}",
-        &text[..cut],
-        r#"
-[[virtual]]
-name = "prop"
-mesh = "geometry/prop.gltf"
-enabled = false
-
-[[virtual]]
-name = "wide"
-mesh = "geometry/wide.gltf"
-translate = [-0.6, 0.0, -0.9]
-
-[[motion]]
-name = "prop_walk"
-object = "prop"
-hide = ["stool", "wide"]
-translations = [[-2.0, 0.0, 1.5], [-1.26, 0.0, 1.36], [-0.52, 0.0, 1.22], [0.22, 0.0, 1.08], [0.96, 0.0, 0.94]]
-
-[[motion]]
-name = "wide_walk"
-object = "wide"
-hide = ["stool"]
-translations = [[-0.6, 0.0, -0.9], [-0.5, 0.0, -0.85], [-0.4, 0.0, -0.8], [-0.3, 0.0, -0.75]]
-
-[[motion]]
-name = "stool_walk"
-object = "stool"
-translations = [[-2.0, 0.0, 1.5], [-1.26, 0.0, 1.36], [-0.52, 0.0, 1.22], [0.22, 0.0, 1.08], [0.96, 0.0, 0.94]]
-"#
-    );
-    let file = dir.path().join("scene.toml");
-    std::fs::write(&file, scene).unwrap();
+    let file = asset::lounge_with_assets(dir.path());
     walk(c, &file, "prop_walk", "asset_80k_walk", false);
     walk(c, &file, "wide_walk", "asset_2m_walk", false);
     walk(c, &file, "stool_walk", "stool_walk_beside_2m_asset", false);

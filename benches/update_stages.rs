@@ -5,7 +5,12 @@
 //! timings move by ±15–30% between runs).
 //!
 //! `cargo bench --bench update_stages -- [UPDATES [SCENE MOTION A B]]` (a
-//! report, not criterion; `cargo test --benches` runs nothing).
+//! report, not criterion; `cargo test --benches` runs nothing). SCENE
+//! `assets` is the `update` bench's lounge with generated real-looking
+//! assets (motions `prop_walk`, `wide_walk`, `stool_walk`).
+
+#[path = "../tests/common/asset.rs"]
+mod asset;
 
 use std::collections::BTreeMap;
 
@@ -27,7 +32,12 @@ fn main() -> anyhow::Result<()> {
         [_, scene, motion, a, b] => (scene.as_str(), motion.as_str(), a.parse()?, b.parse()?),
         _ => (desk, "box_slide", 3, 4),
     };
-    let base = Scene::load(scene)?;
+    let assets = tempfile::tempdir()?;
+    let scene = match scene {
+        "assets" => asset::lounge_with_assets(assets.path()),
+        path => path.into(),
+    };
+    let base = Scene::load(&scene)?;
     let (p3, p4) = (
         base.with_motion_pose(motion, a)?,
         base.with_motion_pose(motion, b)?,

@@ -240,3 +240,68 @@ fn write_gltf(
     std::fs::write(&file, gltf).unwrap();
     file
 }
+
+/// Writes into `dir` the lounge (its room, lights and stool, linked from
+/// `scenes/lounge`, without references) with two generated assets — an
+/// 80k-triangle prop (disabled) and a 2 m wide round table of 20k
+/// triangles — and three motions: `prop_walk` (the prop alone along the
+/// stool's path), `wide_walk` (the table moving a little) and `stool_walk`
+/// (the stool beside the still table). Returns the scene file's path.
+pub fn lounge_with_assets(dir: &Path) -> PathBuf {
+    let lounge = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/lounge");
+    let geometry = dir.join("geometry");
+    std::fs::create_dir_all(&geometry).unwrap();
+    for f in ["room.obj", "furniture.obj", "stool.obj"] {
+        std::os::unix::fs::symlink(lounge.join("geometry").join(f), geometry.join(f)).unwrap();
+    }
+    std::os::unix::fs::symlink(lounge.join("photo.exr"), dir.join("photo.exr")).unwrap();
+    write_asset(&geometry, "prop", &AssetSpec::heavy_prop());
+    let wide = AssetSpec {
+        triangles: 20_000,
+        texture: 1024,
+        width: 2.0,
+        height: 0.45,
+        groove_deg: 0.0,
+        grooves: 1,
+    };
+    write_asset(&geometry, "wide", &wide);
+    let text = std::fs::read_to_string(lounge.join("scene.toml")).unwrap();
+    // The room, lights and the stool; no references (not measured here).
+    let cut = text.find("[[variant]]").unwrap_or(text.len());
+    let path = "[[-2.0, 0.0, 1.5], [-1.26, 0.0, 1.36], [-0.52, 0.0, 1.22], \
+                [0.22, 0.0, 1.08], [0.96, 0.0, 0.94]]";
+    let scene = format!(
+        r#"{room}
+[[virtual]]
+name = "prop"
+mesh = "geometry/prop.gltf"
+enabled = false
+
+[[virtual]]
+name = "wide"
+mesh = "geometry/wide.gltf"
+translate = [-0.6, 0.0, -0.9]
+
+[[motion]]
+name = "prop_walk"
+object = "prop"
+hide = ["stool", "wide"]
+translations = {path}
+
+[[motion]]
+name = "wide_walk"
+object = "wide"
+hide = ["stool"]
+translations = [[-0.6, 0.0, -0.9], [-0.5, 0.0, -0.85], [-0.4, 0.0, -0.8], [-0.3, 0.0, -0.75]]
+
+[[motion]]
+name = "stool_walk"
+object = "stool"
+translations = {path}
+"#,
+        room = &text[..cut],
+    );
+    let file = dir.join("scene.toml");
+    std::fs::write(&file, scene).unwrap();
+    file
+}
