@@ -72,10 +72,23 @@ pub struct CompositeInput<'a> {
     /// objects' pixels' gathered light and the room's per-pixel change,
     /// in place of the interpolated ones (None: none ran).
     pub residual: Option<&'a crate::residual::PixelResidual>,
-    /// Fill the direct, indirect and change layers too; without them the
-    /// composite holds them empty (a motion writes its images only, and
-    /// filling them is a tenth to a fifth of an update's composite).
-    pub layers: bool,
+    /// Which layers to fill beside the image and its alpha.
+    pub layers: Layers,
+}
+
+/// The layers a composite fills beside the image and its alpha: those left
+/// out are held empty. Filling them all is a tenth to a fifth of an
+/// update's composite (a sixth of a desk box's drag step).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Layers {
+    /// Direct, indirect, change and the objects' own light: what `render`
+    /// writes.
+    All,
+    /// The objects' own light alone: what the shadow-catcher factor
+    /// ([`Composite::shadow`]) needs, as a session in `serve` shows it.
+    Object,
+    /// None: what a motion writes.
+    None,
 }
 
 /// The augmented photo and its layers: rows `first_row..first_row +
@@ -301,6 +314,7 @@ impl Composite {
         let sum =
             |a: (usize, usize, usize), b: (usize, usize, usize)| (a.0 + b.0, a.1 + b.1, a.2 + b.2);
         let layers = self.direct.pixels.len() == self.image.pixels.len();
+        let object_held = self.object.pixels.len() == self.image.pixels.len();
         let rows = self
             .image
             .pixels
@@ -308,17 +322,29 @@ impl Composite {
             .zip(self.alpha.par_chunks_mut(w))
             .enumerate();
         let (copied, fallbacks, clamped) = if !layers {
-            rows.map(|(row, (image, alpha))| {
+            // The object layer alone may be held (see [`Layers::Object`]).
+            let objects = object_held.then(|| self.object.pixels.par_chunks_mut(w));
+            let row = |(row, (image, alpha)): (usize, (&mut [Vec3], &mut [f32])),
+                       mut object: Option<&mut [Vec3]>| {
                 let mut counts = (0, 0, 0);
                 for x in 0..image.len() {
                     let s = shade(first + row * w + x);
                     image[x] = s.value;
                     alpha[x] = s.alpha;
+                    if let Some(o) = object.as_deref_mut() {
+                        o[x] = s.object;
+                    }
                     count(&mut counts, &s, row, x);
                 }
                 counts
-            })
-            .reduce(|| (0, 0, 0), sum)
+            };
+            match objects {
+                Some(objects) => rows
+                    .zip(objects)
+                    .map(|(r, o)| row(r, Some(o)))
+                    .reduce(|| (0, 0, 0), sum),
+                None => rows.map(|r| row(r, None)).reduce(|| (0, 0, 0), sum),
+            }
         } else {
             rows.zip(self.direct.pixels.par_chunks_mut(w))
                 .zip(self.indirect.pixels.par_chunks_mut(w))
@@ -442,22 +468,24 @@ pub(crate) fn composite_into(input: &CompositeInput, out: &mut Composite) {
             ..Composite::empty()
         };
     }
-    let layer = || {
-        if input.layers {
-            Image::new(w, h)
-        } else {
-            Image::new(0, 0)
-        }
+    let all = input.layers == Layers::All;
+    let object = input.layers != Layers::None;
+    let layer = |kept: bool| match kept {
+        true => Image::new(w, h),
+        false => Image::new(0, 0),
     };
-    if (out.direct.pixels.len() == n) != input.layers {
-        (out.direct, out.indirect, out.change, out.object) = (layer(), layer(), layer(), layer());
+    if (out.direct.pixels.len() == n) != all {
+        (out.direct, out.indirect, out.change) = (layer(all), layer(all), layer(all));
+    }
+    if (out.object.pixels.len() == n) != object {
+        out.object = layer(object);
     }
     // Most pixels show a real point alone: their indirect light is
     // interpolated in single precision, which the layers keep anyway (in
     // double precision, through an iterator, it took a third of the time).
     let h_with = patch_corners(input.indirect_with, input.patch_vertices);
     match input.known {
-        Some(known) if !input.layers => shader.image_only(known, &h_with, out),
+        Some(known) if !all => shader.image_only(known, &h_with, out),
         _ => out.fill(input.photo, input.pda.own, |i| {
             shader.plain(i, &h_with).unwrap_or_else(|| shader.other(i))
         }),

@@ -15,9 +15,11 @@ use crate::error::{Error, Result};
 
 mod frames;
 mod rows;
+mod srgb8;
 mod stream;
 pub use frames::{CropWindow, ExrMeta, MergedFrame, PixelRect, merge_tiles, write_exr_with};
 pub use rows::RowReader;
+pub use srgb8::linear_to_srgb8;
 pub use stream::ExrStream;
 
 /// A linear RGB image, row-major from the top-left pixel.
@@ -389,10 +391,7 @@ pub fn write_png(path: &Path, img: &Image, exposure_ev: f32) -> Result<()> {
     let bytes: Vec<u8> = img
         .pixels
         .iter()
-        .flat_map(|p| {
-            p.to_array()
-                .map(|c| (linear_to_srgb(c * gain) * 255.0).round() as u8)
-        })
+        .flat_map(|p| p.to_array().map(|c| linear_to_srgb8(c * gain)))
         .collect();
     write_png_rgb8(path, img.width, img.height, bytes)
 }

@@ -269,6 +269,29 @@ impl Interactive {
         self.refined.1
     }
 
+    /// `write` given the state's composite with every layer (direct,
+    /// indirect, change and the objects'), composited again where the
+    /// session's updates keep fewer: the image as shown, its rounds
+    /// included. None while the state is the photo's.
+    pub fn with_every_layer<R>(
+        &mut self,
+        times: &mut StageTimes,
+        write: impl FnOnce(&crate::composite::Composite) -> R,
+    ) -> Option<R> {
+        use crate::composite::Layers;
+        let rounds = self.refined.0;
+        let Rendered::Frame(renderer) = &mut self.rendered else {
+            return None;
+        };
+        let c = renderer.composite();
+        if c.direct.pixels.len() != c.image.pixels.len() {
+            renderer.keep_layers(Layers::All);
+            renderer.refine(rounds, times);
+            renderer.keep_layers(Layers::Object);
+        }
+        Some(write(renderer.composite()))
+    }
+
     /// The render's composite (None while the state is the photo's).
     pub fn composite(&self) -> Option<&crate::composite::Composite> {
         match &self.rendered {
@@ -656,12 +679,12 @@ impl Interactive {
         times: &mut StageTimes,
     ) -> Result<RenderPath> {
         self.rendered = if scene.changes_the_photo() {
-            Rendered::Frame(Box::new(Renderer::start(
-                &scene,
-                &self.photo,
-                &self.method,
-                times,
-            )?))
+            let mut renderer = Renderer::start(&scene, &self.photo, &self.method, times)?;
+            // What the views show: the image, the objects' coverage and
+            // their own light (the shadow-catcher factor); every layer only
+            // when saved ([`Interactive::with_every_layer`]).
+            renderer.keep_layers(crate::composite::Layers::Object);
+            Rendered::Frame(Box::new(renderer))
         } else {
             Rendered::Photo
         };

@@ -292,8 +292,8 @@ struct Run {
     band: Option<(u32, u32)>,
     /// Pixels whose centre sees a real surface, over the bands so far.
     covered: usize,
-    /// Whether composites keep the direct, indirect and change layers (see [`Session::image_only`]).
-    layers: bool,
+    /// Which layers composites fill (see [`Session::keep_layers`]).
+    layers: crate::composite::Layers,
     /// When the render (or the update) began: a time budget counts from it.
     started: std::time::Instant,
     /// What the last composite's rounds of per-pixel samples did.
@@ -495,7 +495,7 @@ impl Session {
                 for_updates,
                 band,
                 covered: 0,
-                layers: true,
+                layers: crate::composite::Layers::All,
                 started,
                 residual_stats: None,
                 // The first band's share of the frame's rows.
@@ -546,7 +546,13 @@ impl Session {
     /// (the direct, indirect and change layers are left empty): what a
     /// motion writes, a tenth to a fifth less work in each update's composite.
     pub fn image_only(&mut self) {
-        self.run.layers = false;
+        self.keep_layers(crate::composite::Layers::None);
+    }
+
+    /// From the next composite on, which layers it fills beside the image
+    /// and alpha ([`crate::composite::Layers`]).
+    pub fn keep_layers(&mut self, layers: crate::composite::Layers) {
+        self.run.layers = layers;
     }
 
     /// Builds the pixel-block hierarchy updates traverse, and traverses it

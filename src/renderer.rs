@@ -138,8 +138,14 @@ impl Renderer {
     /// From the next update on, composites hold the image and alpha only
     /// (the pixel path; the texture path writes every layer).
     pub fn image_only(&mut self) {
+        self.keep_layers(crate::composite::Layers::None);
+    }
+
+    /// Which layers the pixel path's next composites fill
+    /// ([`Session::keep_layers`]; the texture path writes every layer).
+    pub fn keep_layers(&mut self, layers: crate::composite::Layers) {
         if let Renderer::Pixels(s) = self {
-            s.image_only();
+            s.keep_layers(layers);
         }
     }
 

@@ -7,7 +7,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::camera::Camera;
-use crate::image_io::{Image, linear_to_srgb};
+use crate::image_io::{Image, linear_to_srgb8};
 use crate::trace::{Hit, Layer, TraceRay, Tracer};
 
 /// The closest hits of the rays through the pixel centres of one image row,
@@ -83,9 +83,7 @@ impl SurfaceIds {
                 let px = if self.is_outline(x, y) {
                     colour.map(|c| c.max(40))
                 } else {
-                    (photo.get(x, y) * gain)
-                        .to_array()
-                        .map(|c| (linear_to_srgb(c) * 255.0).round() as u8)
+                    (photo.get(x, y) * gain).to_array().map(linear_to_srgb8)
                 };
                 out[right..right + 3].copy_from_slice(&px);
             }

@@ -147,6 +147,52 @@ fn what_the_session_shows_is_the_render_of_the_variant_it_saves() {
     assert_ne!(it.next_variant_name(), name);
 }
 
+/// After its first image a session composites the image, the objects'
+/// coverage and their own light alone (what its views show): the shadow
+/// view and the layers it saves still equal a full render's, bit for bit.
+#[test]
+fn the_shadow_view_and_saved_layers_of_an_updated_session_are_a_full_render_s() {
+    let desk = Desk::new();
+    let mut it = session(&desk);
+    let times = &mut StageTimes::default();
+    for k in 0..3 {
+        let p = pixel_of(&it, DVec3::new(-0.5 + 0.15 * k as f64, 0.0, 0.5));
+        let out = place(&mut it, p, times);
+        assert!(matches!(out.path, RenderPath::Update { .. }), "{out:?}");
+    }
+    let c = it.composite().unwrap();
+    assert!(c.direct.pixels.is_empty() && c.object.pixels.len() == c.image.pixels.len());
+    let name = it.next_variant_name();
+    let file = it.save_variant(&name).unwrap();
+    let saved = Scene::load(&file).unwrap().with_variant(&name).unwrap();
+    let (full, _) = common::render_default(&saved);
+    let photo = it.photo().clone();
+    let shadow = full.composite.shadow(&photo);
+    assert!(
+        shadow.pixels.iter().any(|s| s.x < 0.9),
+        "the box casts a shadow"
+    );
+    assert_eq!(bits(&it.frame().shadow), bits(&shadow));
+    let f = &full.composite;
+    it.with_every_layer(times, |c| {
+        for (name, a, b) in [
+            ("image", &c.image, &f.image),
+            ("direct", &c.direct, &f.direct),
+            ("indirect", &c.indirect, &f.indirect),
+            ("change", &c.change, &f.change),
+            ("object", &c.object, &f.object),
+        ] {
+            assert!(bits(a) == bits(b), "the {name} layer differs");
+        }
+        assert!(c.alpha == f.alpha);
+    })
+    .unwrap();
+    // The next move composites the views' layers alone again.
+    let p = pixel_of(&it, DVec3::new(0.1, 0.0, 0.5));
+    place(&mut it, p, times);
+    assert!(it.composite().unwrap().direct.pixels.is_empty());
+}
+
 #[test]
 fn bad_edits_are_refused_naming_the_field_and_change_nothing() {
     let desk = Desk::new();

@@ -258,7 +258,7 @@ impl<'a> Shader<'a> {
         };
         let h = interpolate_single(&h_with[r.patch()], r.affine.weights);
         let mut s = r.layers(extra.map_or(h, |e| h + e), &photo[i]);
-        if input.layers {
+        if input.layers == super::Layers::All {
             s.direct = input.irradiance(terms, input.scales_with, true).as_vec3();
         }
         Some(s)
@@ -285,7 +285,8 @@ impl<'a> Shader<'a> {
         }
     }
 
-    /// An update's image alone: a row at a time over plain slices, the
+    /// An update's image alone (and the objects' own light, where the
+    /// composite holds that layer): a row at a time over plain slices, the
     /// prepared real pixels shaded in place (what [`Shader::plain`] does,
     /// without a pixel's layers passed back).
     pub(super) fn image_only(
@@ -307,14 +308,27 @@ impl<'a> Shader<'a> {
             any_keep: may_keep.iter().any(|k| *k),
         };
         let w = (pda.width as usize).max(1);
+        // Rows of the object layer where it is held, else none (zip stops at the shorter).
+        let held = out.object.pixels.len() == out.image.pixels.len();
+        let objects: Vec<&mut [Vec3]> = match held {
+            true => out.object.pixels.chunks_mut(w).collect(),
+            false => Vec::new(),
+        };
+        let mut objects: Vec<Option<&mut [Vec3]>> = objects.into_iter().map(Some).collect();
+        objects.resize_with(out.image.pixels.len().div_ceil(w), || None);
         let rows = out
             .image
             .pixels
             .par_chunks_mut(w)
             .zip(out.alpha.par_chunks_mut(w))
+            .zip(objects.into_par_iter())
             .enumerate();
         let counts = rows
-            .map(|(local, (image, alpha))| {
+            .map(|(local, ((image, alpha), mut object))| {
+                // Plain pixels show no object: the layer is zero but where `other` shades.
+                if let Some(o) = object.as_deref_mut() {
+                    o.fill(Vec3::ZERO);
+                }
                 // The composite holds the rows the pixel data holds.
                 let row = local + pda.rows.0 as usize;
                 let at = local * w..local * w + image.len();
@@ -350,6 +364,9 @@ impl<'a> Shader<'a> {
                         let s = self.other(row * w + x);
                         image[x] = s.value;
                         alpha[x] = s.alpha;
+                        if let Some(o) = object.as_deref_mut() {
+                            o[x] = s.object;
+                        }
                         counts.add(s.copied, s.fallback, s.clamped);
                         continue;
                     }

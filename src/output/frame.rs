@@ -9,7 +9,7 @@ use glam::Vec3;
 
 use crate::composite::Composite;
 use crate::error::Result;
-use crate::image_io::{ExrMeta, ExrStream, Image, PixelRect, linear_to_srgb};
+use crate::image_io::{ExrMeta, ExrStream, Image, PixelRect, linear_to_srgb8};
 
 /// A layer of a frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -223,11 +223,10 @@ impl FrameWriter {
         let rgb_at = |k: usize| Vec3::new(image[0][k], image[1][k], image[2][k]);
         if let Some((_, ev, bytes)) = &mut self.png {
             let gain = ev.exp2();
-            bytes.extend((0..rect.pixel_count()).flat_map(|k| {
-                rgb_at(k)
-                    .to_array()
-                    .map(|v| (linear_to_srgb(v * gain) * 255.0).round() as u8)
-            }));
+            bytes.extend(
+                (0..rect.pixel_count())
+                    .flat_map(|k| rgb_at(k).to_array().map(|v| linear_to_srgb8(v * gain))),
+            );
         }
         Ok(())
     }

@@ -458,8 +458,16 @@ fn trace_seen(
     let traced: Vec<TraceRay> = (rays.iter())
         .map(|(_, x, d, _)| TraceRay::new(offset_origin(*x, n, *x + n).as_vec3(), d.as_vec3()))
         .collect();
+    // The room first, then the objects short of it (a [`Layer::All`]
+    // query in two halves): the room's hit is what a ray that meets the
+    // object hides, without tracing it again.
+    let mut behind = vec![None; traced.len()];
+    tracer.intersect_batch(&traced, Layer::Real, &mut behind);
+    let before: Vec<f32> = (traced.iter().zip(&behind))
+        .map(|(r, h)| h.map_or(r.tfar, |h| h.t))
+        .collect();
     let mut hits = vec![None; traced.len()];
-    tracer.intersect_batch(&traced, Layer::All, &mut hits);
+    tracer.intersect_virtual_before(&traced, &before, &mut hits);
     let met: Vec<usize> = (0..traced.len())
         .filter(|&i| {
             hits[i]
@@ -468,15 +476,9 @@ fn trace_seen(
                 && rays[i].2.dot(n) > 0.0
         })
         .collect();
-    let mut count = traced.len() as u64;
-    if met.is_empty() {
-        return count;
-    }
-    let behind_rays: Vec<TraceRay> = met.iter().map(|&i| traced[i]).collect();
-    let mut behind = vec![None; behind_rays.len()];
-    tracer.intersect_batch(&behind_rays, Layer::Real, &mut behind);
-    count += behind_rays.len() as u64;
-    for (&i, b) in met.iter().zip(&behind) {
+    let count = traced.len() as u64;
+    for &i in &met {
+        let b = &behind[i];
         let h = hits[i].as_ref().expect("a ray that met the object");
         let (o, d) = (traced[i].origin.as_dvec3(), rays[i].2);
         let Some(object) = patches.locate(h.surface, h.triangle, o + d * h.t as f64) else {

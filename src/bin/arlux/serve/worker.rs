@@ -260,7 +260,7 @@ fn serve_job(cx: &Context, it: &mut Interactive, history: &mut History, job: Job
 
 /// Writes the state's full EXR (every layer `arlux render` writes) into the
 /// `--out` folder, under a name no file there has.
-fn render(cx: &Context, it: &Interactive) -> Reply {
+fn render(cx: &Context, it: &mut Interactive) -> Reply {
     let Some(out) = &cx.out else {
         return (
             409,
@@ -278,15 +278,13 @@ fn render(cx: &Context, it: &Interactive) -> Reply {
         })
         .find(|p| !p.exists())
         .expect("some name is free");
-    let empty;
-    let composite = match it.composite() {
-        Some(c) => c,
-        None => {
-            empty = arlux::composite::Composite::unchanged(it.photo());
-            &empty
-        }
-    };
-    match crate::common::write_frame(&path, composite, it.photo(), &cx.meta) {
+    let photo = it.photo().clone();
+    let write =
+        |c: &arlux::composite::Composite| crate::common::write_frame(&path, c, &photo, &cx.meta);
+    let written = it
+        .with_every_layer(&mut StageTimes::default(), write)
+        .unwrap_or_else(|| write(&arlux::composite::Composite::unchanged(&photo)));
+    match written {
         Ok(()) => (
             200,
             json!({ "file": path.file_name().map(|n| n.to_string_lossy().into_owned()) }),
