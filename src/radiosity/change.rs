@@ -458,28 +458,32 @@ fn trace_seen(
     let traced: Vec<TraceRay> = (rays.iter())
         .map(|(_, x, d, _)| TraceRay::new(offset_origin(*x, n, *x + n).as_vec3(), d.as_vec3()))
         .collect();
-    // The room first, then the objects short of it (a [`Layer::All`]
-    // query in two halves): the room's hit is what a ray that meets the
-    // object hides, without tracing it again.
-    let mut behind = vec![None; traced.len()];
-    tracer.intersect_batch(&traced, Layer::Real, &mut behind);
-    let before: Vec<f32> = (traced.iter().zip(&behind))
-        .map(|(r, h)| h.map_or(r.tfar, |h| h.t))
-        .collect();
+    // The objects first (their own small BVH): only a ray whose first
+    // object is the target is traced through the room, whose first hit
+    // says both whether the room hides the object (nearer) and what the
+    // object hides (farther). The same as one query of both layers and a
+    // second of the room, without tracing the room for rays that miss.
     let mut hits = vec![None; traced.len()];
-    tracer.intersect_virtual_before(&traced, &before, &mut hits);
-    let met: Vec<usize> = (0..traced.len())
+    tracer.intersect_batch(&traced, Layer::Virtual, &mut hits);
+    let aimed: Vec<usize> = (0..traced.len())
         .filter(|&i| {
-            hits[i]
-                .as_ref()
-                .is_some_and(|h| h.is_virtual && h.surface == t.surface)
-                && rays[i].2.dot(n) > 0.0
+            hits[i].as_ref().is_some_and(|h| h.surface == t.surface) && rays[i].2.dot(n) > 0.0
         })
         .collect();
-    let count = traced.len() as u64;
-    for &i in &met {
-        let b = &behind[i];
+    let count = (traced.len() + aimed.len()) as u64;
+    if aimed.is_empty() {
+        return count;
+    }
+    let room_rays: Vec<TraceRay> = aimed.iter().map(|&i| traced[i]).collect();
+    let mut room = vec![None; room_rays.len()];
+    tracer.intersect_batch(&room_rays, Layer::Real, &mut room);
+    for (&i, b) in aimed.iter().zip(&room) {
         let h = hits[i].as_ref().expect("a ray that met the object");
+        // A room surface nearer than the object hides it (at the same
+        // distance the object is taken, as a query of both layers does).
+        if b.as_ref().is_some_and(|b| b.t < h.t) {
+            continue;
+        }
         let (o, d) = (traced[i].origin.as_dvec3(), rays[i].2);
         let Some(object) = patches.locate(h.surface, h.triangle, o + d * h.t as f64) else {
             continue;

@@ -81,30 +81,50 @@ impl<'a> ChangeSampler<'a> {
         let mut traced = 0;
         for &(t, n, cone, count) in &cones {
             let key = crate::util::rng::hash2(seed, t.surface as u64) as u32;
-            let rays: Vec<TraceRay> = (0..count)
+            let dirs: Vec<(DVec3, f64)> = (0..count)
                 .map(|r| {
                     let [u1, u2, _, _] =
                         sobol_burley::sample_4d(round * count + r, 0, key).map(f64::from);
-                    let (d, _) = towards(n, cone, count, u1, u2);
-                    TraceRay::new(offset_origin(x, n, x + n).as_vec3(), d.as_vec3())
+                    towards(n, cone, count, u1, u2)
                 })
                 .collect();
+            let rays: Vec<TraceRay> = (dirs.iter())
+                .map(|(d, _)| TraceRay::new(offset_origin(x, n, x + n).as_vec3(), d.as_vec3()))
+                .collect();
+            // The objects first, then the room along the rays whose first
+            // object is the target alone (as `change::trace_seen` does).
             let mut hits = vec![None; rays.len()];
-            self.tracer.intersect_batch(&rays, Layer::All, &mut hits);
-            traced += rays.len() as u64;
+            self.tracer
+                .intersect_batch(&rays, Layer::Virtual, &mut hits);
+            let aimed: Vec<usize> = (0..rays.len())
+                .filter(|&r| {
+                    hits[r].as_ref().is_some_and(|h| h.surface == t.surface)
+                        && dirs[r].0.dot(n) > 0.0
+                })
+                .collect();
+            let room_rays: Vec<TraceRay> = aimed.iter().map(|&r| rays[r]).collect();
+            let mut room = vec![None; room_rays.len()];
+            self.tracer
+                .intersect_batch(&room_rays, Layer::Real, &mut room);
+            traced += (rays.len() + room_rays.len()) as u64;
+            let mut aimed = aimed.iter().zip(&room).peekable();
             for (r, ray) in rays.iter().enumerate() {
-                let [u1, u2, _, _] =
-                    sobol_burley::sample_4d(round * count + r as u32, 0, key).map(f64::from);
-                let (d, w) = towards(n, cone, count, u1, u2);
-                let met = hits[r]
-                    .as_ref()
-                    .filter(|h| h.is_virtual && h.surface == t.surface && d.dot(n) > 0.0);
-                let Some(h) = met else {
+                let behind = match aimed.next_if(|(a, _)| **a == r) {
+                    Some((_, b)) => b,
+                    None => {
+                        add(DVec3::ZERO);
+                        continue;
+                    }
+                };
+                let h = hits[r].as_ref().expect("an aimed ray met the object");
+                // A room surface nearer than the object hides it.
+                if behind.as_ref().is_some_and(|b| b.t < h.t) {
                     add(DVec3::ZERO);
                     continue;
-                };
+                }
+                let (d, w) = dirs[r];
                 let seed = crate::util::rng::hash2(key as u64, (round * count + r as u32) as u64);
-                let (change, rays) = self.change_along(ray, d, h, seed, read);
+                let (change, rays) = self.change_along(ray, d, (h, behind.as_ref()), seed, read);
                 traced += rays;
                 add(change * (w * total as f64));
             }
@@ -113,12 +133,12 @@ impl<'a> ChangeSampler<'a> {
     }
 
     /// The radiance of the object `hit` meets along `ray` less the room's
-    /// it hides there, and the rays that took.
+    /// it hides there (`behind`, the room's first hit), and the rays that took.
     fn change_along<R>(
         &self,
         ray: &TraceRay,
         d: DVec3,
-        hit: &crate::trace::Hit,
+        (hit, behind): (&crate::trace::Hit, Option<&crate::trace::Hit>),
         seed: u64,
         read: &R,
     ) -> (DVec3, u64)
@@ -127,10 +147,9 @@ impl<'a> ChangeSampler<'a> {
     {
         let o = ray.origin.as_dvec3();
         let (with, mut rays) = read(hit, o, d, seed);
-        rays += 1;
-        let behind = match self.tracer.intersect(ray, Layer::Real) {
+        let behind = match behind {
             Some(b) => {
-                let (l, r) = read(&b, o, d, crate::util::rng::hash2(seed, 1));
+                let (l, r) = read(b, o, d, crate::util::rng::hash2(seed, 1));
                 rays += r;
                 l
             }
