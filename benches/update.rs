@@ -387,6 +387,8 @@ fn sliders(c: &mut Criterion) {
         let (low, high) = (at(1.5), at(2.0));
         let mut session =
             Session::start(&low, &photo, &settings, &mut StageTimes::default()).unwrap();
+        // The layers an interactive session's views need (`serve`'s).
+        session.keep_layers(arlux::composite::Layers::Object);
         let mut times = StageTimes::default();
         session.relight(&high, &mut times).unwrap();
         println!("{label}, one step:");
