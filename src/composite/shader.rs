@@ -308,14 +308,14 @@ impl<'a> Shader<'a> {
             any_keep: may_keep.iter().any(|k| *k),
         };
         let w = (pda.width as usize).max(1);
-        // Rows of the object layer where it is held, else none (zip stops at the shorter).
-        let held = out.object.pixels.len() == out.image.pixels.len();
-        let objects: Vec<&mut [Vec3]> = match held {
-            true => out.object.pixels.chunks_mut(w).collect(),
-            false => Vec::new(),
-        };
-        let mut objects: Vec<Option<&mut [Vec3]>> = objects.into_iter().map(Some).collect();
-        objects.resize_with(out.image.pixels.len().div_ceil(w), || None);
+        // Each row's part of the object layer where the composite holds it.
+        let objects: Vec<Option<&mut [Vec3]>> =
+            match out.object.pixels.len() == out.image.pixels.len() {
+                true => out.object.pixels.chunks_mut(w).map(Some).collect(),
+                false => (0..out.image.pixels.len().div_ceil(w))
+                    .map(|_| None)
+                    .collect(),
+            };
         let rows = out
             .image
             .pixels
