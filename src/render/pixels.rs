@@ -99,3 +99,23 @@ pub(super) fn traverse(
         .map(|t| t.map_or((None, Vec::new()), |(t, now)| (Some(t), now)))
         .unzip()
 }
+
+/// The union of two sorted lists, sorted, each value once.
+pub(super) fn merge_sorted(a: &[u32], b: &[u32]) -> Vec<u32> {
+    let mut out = Vec::with_capacity(a.len() + b.len());
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() && j < b.len() {
+        let v = a[i].min(b[j]);
+        i += (a[i] == v) as usize;
+        j += (b[j] == v) as usize;
+        if out.last() != Some(&v) {
+            out.push(v);
+        }
+    }
+    for &v in a[i..].iter().chain(&b[j..]) {
+        if out.last() != Some(&v) {
+            out.push(v);
+        }
+    }
+    out
+}
