@@ -217,9 +217,18 @@ pub enum Region {
     Tri([DVec2; 3]),
 }
 
-/// One node of the element hierarchy.
+/// One node of the element hierarchy, its fields in this order
+/// (`repr(C)`): locating a point reads `children` and `region` of each
+/// element on its way down, which then share a cache line (the order also
+/// leaves no padding).
 #[derive(Debug, Clone, PartialEq)]
+#[repr(C)]
 pub struct Element {
+    pub children: Option<[u32; 2]>,
+    /// Patch index when this element is a leaf.
+    pub patch: Option<u32>,
+    pub root: u32,
+    pub region: Region,
     pub shape: Shape,
     /// The shape's box and size ([`Shape::bounds`], [`Shape::size`]), kept:
     /// shaft tests ask for them for every candidate occluder.
@@ -229,15 +238,10 @@ pub struct Element {
     pub centre: DVec3,
     pub normal: DVec3,
     pub surface: u32,
+    pub parent: Option<u32>,
     /// On a closed surface (a solid): light leaves and arrives on the
     /// outside only, and `normal` points out. Open surfaces are two-sided.
     pub one_sided: bool,
-    pub root: u32,
-    pub parent: Option<u32>,
-    pub children: Option<[u32; 2]>,
-    /// Patch index when this element is a leaf.
-    pub patch: Option<u32>,
-    pub region: Region,
 }
 
 /// Input: one surface's triangles, with the id the tracer knows it by.
@@ -651,31 +655,30 @@ impl Patches {
         let in_quad = matches!(self.elements[root as usize].region, Region::Quad { .. })
             && st.cmpge(DVec2::ZERO).all()
             && st.cmple(DVec2::ONE).all();
+        // The parent's region carried down: each level reads the element
+        // it reaches and its first child.
+        let mut rp = &self.elements[e as usize].region;
         while let Some([a, b]) = self.elements[e as usize].children {
-            let (ra, rp) = (
-                &self.elements[a as usize].region,
-                &self.elements[e as usize].region,
-            );
+            let ra = &self.elements[a as usize].region;
             if let (true, Region::Quad { s1, t1, .. }, Region::Quad { s1: ps1, .. }) =
                 (in_quad, ra, rp)
             {
-                e = if if *s1 != *ps1 {
-                    st.x <= *s1
-                } else {
-                    st.y <= *t1
-                } {
-                    a
-                } else {
-                    b
+                let in_a = match *s1 != *ps1 {
+                    true => st.x <= *s1,
+                    false => st.y <= *t1,
+                };
+                (e, rp) = match in_a {
+                    true => (a, ra),
+                    false => (b, &self.elements[b as usize].region),
                 };
                 continue;
             }
             // Inside a: a, whatever b's distance (the same choice, one test fewer).
             let da = distance_outside(ra, st);
-            e = if da == 0.0 || da <= distance_outside(&self.elements[b as usize].region, st) {
-                a
-            } else {
-                b
+            let rb = &self.elements[b as usize].region;
+            (e, rp) = match da == 0.0 || da <= distance_outside(rb, st) {
+                true => (a, ra),
+                false => (b, rb),
             };
         }
         let el = &self.elements[e as usize];
