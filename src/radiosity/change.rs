@@ -17,7 +17,7 @@ use super::*;
 use crate::light::offset_origin;
 use crate::objects::VirtualBounds;
 use crate::patches::{Element, Patches};
-use crate::trace::{Layer, TraceRay, Tracer};
+use crate::trace::{Hit, Layer, TraceRay, Tracer};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -458,38 +458,13 @@ fn trace_seen(
     let traced: Vec<TraceRay> = (rays.iter())
         .map(|(_, x, d, _)| TraceRay::new(offset_origin(*x, n, *x + n).as_vec3(), d.as_vec3()))
         .collect();
-    // The objects first (their own small BVH): only a ray whose first
-    // object is the target is traced through the room, whose first hit
-    // says both whether the room hides the object (nearer) and what the
-    // object hides (farther). The same as one query of both layers and a
-    // second of the room, without tracing the room for rays that miss.
-    let mut hits = vec![None; traced.len()];
-    tracer.intersect_batch(&traced, Layer::Virtual, &mut hits);
-    let aimed: Vec<usize> = (0..traced.len())
-        .filter(|&i| {
-            hits[i].as_ref().is_some_and(|h| h.surface == t.surface) && rays[i].2.dot(n) > 0.0
-        })
-        .collect();
-    let count = (traced.len() + aimed.len()) as u64;
-    if aimed.is_empty() {
-        return count;
-    }
-    let room_rays: Vec<TraceRay> = aimed.iter().map(|&i| traced[i]).collect();
-    let mut room = vec![None; room_rays.len()];
-    tracer.intersect_batch(&room_rays, Layer::Real, &mut room);
-    for (&i, b) in aimed.iter().zip(&room) {
-        let h = hits[i].as_ref().expect("a ray that met the object");
-        // A room surface nearer than the object hides it (at the same
-        // distance the object is taken, as a query of both layers does).
-        if b.as_ref().is_some_and(|b| b.t < h.t) {
-            continue;
-        }
+    let (met, count) = meet_target(tracer, &traced, t.surface, |i| rays[i].2.dot(n) > 0.0);
+    for (i, h, b) in met {
         let (o, d) = (traced[i].origin.as_dvec3(), rays[i].2);
         let Some(object) = patches.locate(h.surface, h.triangle, o + d * h.t as f64) else {
             continue;
         };
         let behind = b
-            .as_ref()
             .and_then(|b| patches.locate(b.surface, b.triangle, o + d * b.t as f64))
             .map_or(u32::MAX, |l| l.patch);
         seen.push(Seen {
@@ -500,6 +475,47 @@ fn trace_seen(
         });
     }
     count
+}
+
+/// The rays among `rays` (those `wanted` says) that meet virtual surface
+/// `surface` before any other object and any room surface: each ray's
+/// number, its hit on the surface and the room's first hit along it (what
+/// the surface hides there); and the queries made. The objects are traced
+/// first (their own small BVH), the room only along the rays whose first
+/// object is `surface`: one room query says both whether the room hides
+/// the surface (nearer) and what it hides (farther). The same answers as
+/// a query of both layers followed by one of the room, without crossing
+/// the room where a ray misses.
+pub(super) fn meet_target(
+    tracer: &Tracer,
+    rays: &[TraceRay],
+    surface: u32,
+    wanted: impl Fn(usize) -> bool,
+) -> (Vec<(usize, Hit, Option<Hit>)>, u64) {
+    let mut hits = vec![None; rays.len()];
+    tracer.intersect_batch(rays, Layer::Virtual, &mut hits);
+    let aimed: Vec<usize> = (0..rays.len())
+        .filter(|&i| hits[i].as_ref().is_some_and(|h| h.surface == surface) && wanted(i))
+        .collect();
+    let count = (rays.len() + aimed.len()) as u64;
+    if aimed.is_empty() {
+        return (Vec::new(), count);
+    }
+    let room_rays: Vec<TraceRay> = aimed.iter().map(|&i| rays[i]).collect();
+    let mut room = vec![None; room_rays.len()];
+    tracer.intersect_batch(&room_rays, Layer::Real, &mut room);
+    let met = (aimed.into_iter().zip(room))
+        .filter_map(|(i, b)| {
+            let h = hits[i].take().expect("an aimed ray met the surface");
+            // A room surface nearer hides it; at the same distance the
+            // object is taken, as a query of both layers has it.
+            match b {
+                Some(b) if b.t < h.t => None,
+                _ => Some((i, h, b)),
+            }
+        })
+        .collect();
+    (met, count)
 }
 
 /// The point at parameters (`s`, `t`) ∈ \[0, 1)² of the element (a

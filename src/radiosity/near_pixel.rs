@@ -2,12 +2,14 @@
 //! rounds of rays: the near grid's estimator ([`super::NearView`]) at a
 //! pixel's own point, which [`crate::residual`] averages over rounds.
 
-use super::change::{Target, cone_towards, rays_for, receiving_side, targets, towards};
+use super::change::{
+    Target, cone_towards, meet_target, rays_for, receiving_side, targets, towards,
+};
 use super::near::taper;
 use crate::light::offset_origin;
 use crate::objects::VirtualBounds;
 use crate::patches::Patches;
-use crate::trace::{Layer, TraceRay, Tracer};
+use crate::trace::{TraceRay, Tracer};
 use glam::DVec3;
 
 /// Rays per round from a point towards an object that fills its
@@ -91,40 +93,18 @@ impl<'a> ChangeSampler<'a> {
             let rays: Vec<TraceRay> = (dirs.iter())
                 .map(|(d, _)| TraceRay::new(offset_origin(x, n, x + n).as_vec3(), d.as_vec3()))
                 .collect();
-            // The objects first, then the room along the rays whose first
-            // object is the target alone (as `change::trace_seen` does).
-            let mut hits = vec![None; rays.len()];
-            self.tracer
-                .intersect_batch(&rays, Layer::Virtual, &mut hits);
-            let aimed: Vec<usize> = (0..rays.len())
-                .filter(|&r| {
-                    hits[r].as_ref().is_some_and(|h| h.surface == t.surface)
-                        && dirs[r].0.dot(n) > 0.0
-                })
-                .collect();
-            let room_rays: Vec<TraceRay> = aimed.iter().map(|&r| rays[r]).collect();
-            let mut room = vec![None; room_rays.len()];
-            self.tracer
-                .intersect_batch(&room_rays, Layer::Real, &mut room);
-            traced += (rays.len() + room_rays.len()) as u64;
-            let mut aimed = aimed.iter().zip(&room).peekable();
+            let (met, queries) =
+                meet_target(self.tracer, &rays, t.surface, |r| dirs[r].0.dot(n) > 0.0);
+            traced += queries;
+            let mut met = met.into_iter().peekable();
             for (r, ray) in rays.iter().enumerate() {
-                let behind = match aimed.next_if(|(a, _)| **a == r) {
-                    Some((_, b)) => b,
-                    None => {
-                        add(DVec3::ZERO);
-                        continue;
-                    }
-                };
-                let h = hits[r].as_ref().expect("an aimed ray met the object");
-                // A room surface nearer than the object hides it.
-                if behind.as_ref().is_some_and(|b| b.t < h.t) {
+                let Some((_, h, behind)) = met.next_if(|m| m.0 == r) else {
                     add(DVec3::ZERO);
                     continue;
-                }
+                };
                 let (d, w) = dirs[r];
                 let seed = crate::util::rng::hash2(key as u64, (round * count + r as u32) as u64);
-                let (change, rays) = self.change_along(ray, d, (h, behind.as_ref()), seed, read);
+                let (change, rays) = self.change_along(ray, d, (&h, behind.as_ref()), seed, read);
                 traced += rays;
                 add(change * (w * total as f64));
             }
