@@ -67,31 +67,28 @@ pub struct ObjectMaterials {
 impl ObjectMaterials {
     /// The scene's objects as posed now (none: no object has a material).
     pub fn of(scene: &Scene) -> ObjectMaterials {
-        let mut id = scene.surfaces.len() as u32;
         let mut surfaces = HashMap::new();
-        for o in &scene.objects {
-            for (i, s) in o.surfaces.iter().enumerate() {
-                if let (true, Some(m)) = (o.enabled, &s.material) {
-                    let rotation = o.pose.rotation;
-                    let normals = m
-                        .attributes
-                        .normals
-                        .iter()
-                        .map(|t| t.map(|n| (rotation * n.as_dvec3()).normalize_or_zero().as_vec3()))
-                        .collect();
-                    surfaces.insert(
-                        id,
-                        PlacedSurface {
-                            material: m.material.clone(),
-                            triangles: o.world_triangles(i),
-                            normals,
-                            attributes: m.attributes.clone(),
-                            rotation,
-                        },
-                    );
-                }
-                id += 1;
-            }
+        for (id, o, i) in scene.virtual_surfaces().filter(|(_, o, _)| o.enabled) {
+            let Some(m) = &o.surfaces[i].material else {
+                continue;
+            };
+            let rotation = o.pose.rotation;
+            let normals = m
+                .attributes
+                .normals
+                .iter()
+                .map(|t| t.map(|n| (rotation * n.as_dvec3()).normalize_or_zero().as_vec3()))
+                .collect();
+            surfaces.insert(
+                id,
+                PlacedSurface {
+                    material: m.material.clone(),
+                    triangles: o.world_triangles(i),
+                    normals,
+                    attributes: m.attributes.clone(),
+                    rotation,
+                },
+            );
         }
         ObjectMaterials { surfaces }
     }

@@ -54,28 +54,22 @@ pub(crate) fn virtual_triangle_sets<'a>(
 /// coordinate reaches the cutoff.
 fn alpha_masks(scene: &Scene) -> std::collections::HashMap<u32, Mask> {
     let mut out = std::collections::HashMap::new();
-    let mut id = scene.surfaces.len() as u32;
-    for o in &scene.objects {
-        for s in &o.surfaces {
-            if let Some(m) = s
-                .material
-                .as_ref()
-                .filter(|m| m.material.alpha_cutoff.is_some())
-            {
-                let (material, attributes) = (m.material.clone(), m.attributes.clone());
-                let mask: Mask = std::sync::Arc::new(move |k: u32, u: f32, v: f32| {
-                    let uv = attributes
-                        .uvs
-                        .get(k as usize)
-                        .map_or(glam::Vec2::ZERO, |t| {
-                            t[0] * (1.0 - u - v) + t[1] * u + t[2] * v
-                        });
-                    material.at(uv, 0.0).opaque
+    for (id, o, i) in scene.virtual_surfaces() {
+        let material = o.surfaces[i].material.as_ref();
+        let Some(m) = material.filter(|m| m.material.alpha_cutoff.is_some()) else {
+            continue;
+        };
+        let (material, attributes) = (m.material.clone(), m.attributes.clone());
+        let mask: Mask = std::sync::Arc::new(move |k: u32, u: f32, v: f32| {
+            let uv = attributes
+                .uvs
+                .get(k as usize)
+                .map_or(glam::Vec2::ZERO, |t| {
+                    t[0] * (1.0 - u - v) + t[1] * u + t[2] * v
                 });
-                out.insert(id, mask);
-            }
-            id += 1;
-        }
+            material.at(uv, 0.0).opaque
+        });
+        out.insert(id, mask);
     }
     out
 }

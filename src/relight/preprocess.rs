@@ -692,15 +692,8 @@ pub(super) fn display_factors(
 /// The surface ids of the enabled objects' surfaces that have a material
 /// (shaded per pixel by their BRDF; the others are diffuse clay).
 fn surfaces_with_material(scene: &Scene) -> std::collections::HashSet<u32> {
-    let mut id = scene.surfaces.len() as u32;
-    let mut out = std::collections::HashSet::new();
-    for o in &scene.objects {
-        for s in &o.surfaces {
-            if o.enabled && s.material.is_some() {
-                out.insert(id);
-            }
-            id += 1;
-        }
-    }
-    out
+    (scene.virtual_surfaces())
+        .filter(|(_, o, i)| o.enabled && o.surfaces[*i].material.is_some())
+        .map(|(id, ..)| id)
+        .collect()
 }

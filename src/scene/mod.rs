@@ -669,53 +669,42 @@ impl Scene {
         ))
     }
 
+    /// Every virtual object's surfaces with their ids, numbered after the
+    /// real surfaces over every object, enabled or not (as
+    /// [`Scene::surface_names`]): (id, object, the surface's index in it).
+    pub fn virtual_surfaces(&self) -> impl Iterator<Item = (u32, &VirtualObject, usize)> {
+        (self.objects.iter())
+            .flat_map(|o| (0..o.surfaces.len()).map(move |i| (o, i)))
+            .zip(self.surfaces.len() as u32..)
+            .map(|((o, i), id)| (id, o, i))
+    }
+
     /// World-space triangles of every enabled virtual object's surfaces, with
-    /// their ids (numbered after the real surfaces, as [`Scene::surface_names`]).
+    /// their ids ([`Scene::virtual_surfaces`]).
     pub fn virtual_world_surfaces(&self) -> Vec<(u32, Vec<Triangle>)> {
-        let mut id = self.surfaces.len() as u32;
-        let mut out = Vec::new();
-        for o in &self.objects {
-            for i in 0..o.surfaces.len() {
-                if o.enabled {
-                    out.push((id, o.world_triangles(i)));
-                }
-                id += 1;
-            }
-        }
-        out
+        (self.virtual_surfaces())
+            .filter(|(_, o, _)| o.enabled)
+            .map(|(id, o, i)| (id, o.world_triangles(i)))
+            .collect()
     }
 
     /// Diffuse reflectance of every virtual surface id (enabled or not).
     pub(crate) fn virtual_surface_rgb(&self) -> HashMap<u32, DVec3> {
-        let mut id = self.surfaces.len() as u32;
-        let mut out = HashMap::new();
-        for o in &self.objects {
-            for s in &o.surfaces {
-                out.insert(id, s.rgb);
-                id += 1;
-            }
-        }
-        out
+        (self.virtual_surfaces())
+            .map(|(id, o, i)| (id, o.surfaces[i].rgb))
+            .collect()
     }
 
     /// Radiosity emitted (π × the mean emitted radiance) by every virtual
     /// surface whose material glows; the others are absent.
     pub(crate) fn virtual_surface_emission(&self) -> HashMap<u32, DVec3> {
-        let mut id = self.surfaces.len() as u32;
-        let mut out = HashMap::new();
-        for o in &self.objects {
-            for s in &o.surfaces {
-                let glow = s
-                    .material
-                    .as_ref()
-                    .map_or(DVec3::ZERO, |m| m.material.mean_emission());
-                if glow != DVec3::ZERO {
-                    out.insert(id, glow * std::f64::consts::PI);
-                }
-                id += 1;
-            }
-        }
-        out
+        (self.virtual_surfaces())
+            .filter_map(|(id, o, i)| {
+                let m = o.surfaces[i].material.as_ref()?;
+                let glow = m.material.mean_emission();
+                (glow != DVec3::ZERO).then(|| (id, glow * std::f64::consts::PI))
+            })
+            .collect()
     }
 
     /// Whether this scene differs from what the photo shows: an enabled
