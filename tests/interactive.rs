@@ -160,21 +160,61 @@ fn the_shadow_view_and_saved_layers_of_an_updated_session_are_a_full_render_s() 
         let out = place(&mut it, p, times);
         assert!(matches!(out.path, RenderPath::Update { .. }), "{out:?}");
     }
-    let c = it.composite().unwrap();
-    assert!(c.direct.pixels.is_empty() && c.object.pixels.len() == c.image.pixels.len());
     let name = it.next_variant_name();
     let file = it.save_variant(&name).unwrap();
     let saved = Scene::load(&file).unwrap().with_variant(&name).unwrap();
-    let (full, _) = common::render_default(&saved);
+    check_views_and_layers(&mut it, &saved);
+    // The next move composites the views' layers alone again.
+    let p = pixel_of(&it, DVec3::new(0.1, 0.0, 0.5));
+    place(&mut it, p, times);
+    assert!(it.composite().unwrap().direct.pixels.is_empty());
+}
+
+/// The same with a glTF chrome ball, whose pixels are shaded per pixel
+/// through its BRDF (the composite's other path).
+#[test]
+fn a_material_object_s_shadow_view_and_saved_layers_are_a_full_render_s() {
+    let scene = common::load("materials", "scene.toml");
+    let photo = scene.read_photo().unwrap().0;
+    let times = &mut StageTimes::default();
+    let mut it = Interactive::new(scene, photo, RenderSettings::default(), times).unwrap();
+    let chrome = it.base().objects.iter().position(|o| o.name == "chrome");
+    let chrome = chrome.expect("the materials scene has a chrome ball");
+    for (k, x) in [0.4, 0.5].into_iter().enumerate() {
+        let p = pixel_of(&it, DVec3::new(x, 0.0, -0.5));
+        let edit = Edit::Place {
+            object: chrome,
+            x: p.0,
+            y: p.1,
+        };
+        let out = it.apply(edit, times).unwrap();
+        // The first shows the ball (a new set of objects), the next moves it.
+        assert_eq!(
+            matches!(out.path, RenderPath::Update { .. }),
+            k > 0,
+            "{out:?}"
+        );
+    }
+    let state = it.scene().clone();
+    check_views_and_layers(&mut it, &state);
+}
+
+/// `it`'s shadow view and every layer it saves are those of the full
+/// render of `scene`, bit for bit; the session holds the views' layers alone.
+fn check_views_and_layers(it: &mut Interactive, scene: &Scene) {
+    let c = it.composite().unwrap();
+    assert!(c.direct.pixels.is_empty() && c.object.pixels.len() == c.image.pixels.len());
+    let (full, _) = common::render_default(scene);
     let photo = it.photo().clone();
     let shadow = full.composite.shadow(&photo);
     assert!(
         shadow.pixels.iter().any(|s| s.x < 0.9),
-        "the box casts a shadow"
+        "the object casts a shadow"
     );
+    assert!(full.composite.object.pixels.iter().any(|o| o.x > 0.0));
     assert_eq!(bits(&it.frame().shadow), bits(&shadow));
     let f = &full.composite;
-    it.with_every_layer(times, |c| {
+    it.with_every_layer(&mut StageTimes::default(), |c| {
         for (name, a, b) in [
             ("image", &c.image, &f.image),
             ("direct", &c.direct, &f.direct),
@@ -187,10 +227,6 @@ fn the_shadow_view_and_saved_layers_of_an_updated_session_are_a_full_render_s() 
         assert!(c.alpha == f.alpha);
     })
     .unwrap();
-    // The next move composites the views' layers alone again.
-    let p = pixel_of(&it, DVec3::new(0.1, 0.0, 0.5));
-    place(&mut it, p, times);
-    assert!(it.composite().unwrap().direct.pixels.is_empty());
 }
 
 #[test]
