@@ -10,8 +10,8 @@ use crate::trace::{Layer, Tracer};
 
 use super::GatherRows;
 use super::form_factor::{
-    PairShafts, coplanar, faces_away, may_be_occluded, occluders_between, occluders_between_using,
-    point_factor, straddles, unoccluded_form_factor, visibility,
+    PairShafts, coplanar, faces_away, may_be_occluded, may_be_occluded_using, occluders_between,
+    occluders_between_using, point_factor, straddles, unoccluded_form_factor, visibility,
 };
 
 /// Default refinement threshold of hierarchical radiosity: on the desk at
@@ -336,8 +336,16 @@ pub(super) fn refine(with: &Refiner, p: u32, q: u32, candidates: &[u32], out: &m
     if coplanar(ep, eq) || faces_away(ep, eq) {
         return;
     }
-    let occluders =
-        occluders_between_using(patches, layer, ep, eq, candidates, &PairShafts::default());
+    // The roots that may block the pair, listed only where children inherit
+    // them (a split) or the rays ask whether an object is among them; a pair
+    // linked whole (most: a leaf receiver takes one link from each piece of
+    // every wall) asks whether there is any, which the first root that may
+    // block answers, or asks nothing when the two do not see each other.
+    let shafts = PairShafts::default();
+    let listed = std::cell::OnceCell::new();
+    let occluders = || {
+        listed.get_or_init(|| occluders_between_using(patches, layer, ep, eq, candidates, &shafts))
+    };
     let (p_leaf, q_leaf) = (ep.children.is_none(), eq.children.is_none());
     // Two leaves split neither way: their factors' spread decides nothing.
     let (spread, mean) = if p_leaf && q_leaf {
@@ -362,14 +370,17 @@ pub(super) fn refine(with: &Refiner, p: u32, q: u32, candidates: &[u32], out: &m
         // where its rays disagree: a conservative shaft holds many roots
         // that block nothing. Above ε a pair is split at once, as its rays
         // could all pass by a small occluder that matters at that size.
-        let occluded = !occluders.is_empty();
+        let occluded = match listed.get() {
+            Some(list) => !list.is_empty(),
+            None => may_be_occluded_using(patches, layer, ep, eq, candidates, &shafts),
+        };
         let splits = occluded && f > epsilon * VISIBILITY_REFINE_FRACTION && !(p_leaf && q_leaf);
         // Where no object may block, the rays skip the objects: one could
         // meet them only from the part of the receiver behind a one-sided
         // source's plane, light the form factor already leaves out (lost
         // twice, were it counted here).
         let traced = || match layer {
-            Layer::All if !occluders.iter().any(|&r| patches.is_virtual_element(r)) => {
+            Layer::All if !occluders().iter().any(|&r| patches.is_virtual_element(r)) => {
                 visibility(ep, eq, tracer, Layer::Real)
             }
             _ => visibility(ep, eq, tracer, layer),
@@ -398,12 +409,12 @@ pub(super) fn refine(with: &Refiner, p: u32, q: u32, candidates: &[u32], out: &m
             .children
             .unwrap()
             .iter()
-            .for_each(|&c| refine(with, c, q, &occluders, out)),
+            .for_each(|&c| refine(with, c, q, occluders(), out)),
         Some(false) => eq
             .children
             .unwrap()
             .iter()
-            .for_each(|&c| refine(with, p, c, &occluders, out)),
+            .for_each(|&c| refine(with, p, c, occluders(), out)),
         None => {}
     }
 }
