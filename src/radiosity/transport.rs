@@ -295,6 +295,25 @@ pub(super) fn factor_spread(p: &Element, q: &Element) -> (f64, f64) {
     (hi - lo, mean / (corners.len() + 1) as f64)
 }
 
+/// A bound on the point-to-polygon factor from any point of `p` to `q`:
+/// the factor is at most q's solid angle over π, at most its area over π
+/// times the nearest distance squared, and no point of p lies nearer to
+/// one of q than their centres' distance less each one's farthest corner.
+/// Infinite where the two may touch; 1e-6 above the bound, so that it
+/// holds for the factors as rounded.
+pub(super) fn factor_bound(p: &Element, q: &Element) -> f64 {
+    let reach = |e: &Element| {
+        (e.shape.corners().iter())
+            .map(|c| (*c - e.centre).length())
+            .fold(0.0, f64::max)
+    };
+    let gap = (q.centre - p.centre).length() - reach(p) - reach(q);
+    if gap <= 0.0 {
+        return f64::INFINITY;
+    }
+    q.area / (std::f64::consts::PI * gap * gap) * (1.0 + 1e-6)
+}
+
 /// How unevenly `p` sees the points of `q`: the relative spread of the
 /// point-to-point kernel cosθ_p·cosθ_q/r² from p's centre over q's corners
 /// and centre. Averaging q's radiosity over q errs by about F × this × the
@@ -347,15 +366,18 @@ pub(super) fn refine(with: &Refiner, p: u32, q: u32, candidates: &[u32], out: &m
         listed.get_or_init(|| occluders_between_using(patches, layer, ep, eq, candidates, &shafts))
     };
     let (p_leaf, q_leaf) = (ep.children.is_none(), eq.children.is_none());
-    // Two leaves split neither way: their factors' spread decides nothing.
-    let (spread, mean) = if p_leaf && q_leaf {
-        (0.0, 0.0)
-    } else {
-        factor_spread(ep, eq)
+    // Two leaves split neither way; a leaf receiver splits its source only
+    // where the factor times the source's spread exceeds ε, which no factor
+    // of a source that far can reach: neither needs the factor's points.
+    let source = (!q_leaf).then(|| source_spread(ep, eq));
+    let (spread, mean) = match (p_leaf, source) {
+        (true, None) => (0.0, 0.0),
+        (true, Some(s)) if factor_bound(ep, eq) * s <= epsilon => (0.0, 0.0),
+        _ => factor_spread(ep, eq),
     };
-    let split_receiver = if (spread > epsilon || straddles(ep, eq)) && !p_leaf {
+    let split_receiver = if !p_leaf && (spread > epsilon || straddles(ep, eq)) {
         Some(true)
-    } else if !q_leaf && mean * source_spread(ep, eq) > epsilon {
+    } else if source.is_some_and(|s| mean * s > epsilon) {
         Some(false)
     } else {
         let f = unoccluded_form_factor(ep, eq);
