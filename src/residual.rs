@@ -234,20 +234,29 @@ fn luminance(x: DVec3) -> f64 {
 }
 
 /// Runs the rounds the settings ask for (none: None).
+///
+/// Without rounds, the pixels an object's hard shadow edge crosses are
+/// still averaged over their footprint, at 16 points each.
 pub fn estimate(input: &ResidualInput) -> Option<PixelResidual> {
     let settings = input.settings;
-    if !settings.enabled() {
+    let enabled = settings.enabled();
+    let began = Instant::now();
+    let mut shadows = shadows::tasks(input);
+    if !enabled && shadows.is_empty() {
         return None;
     }
-    let began = Instant::now();
-    let mut objects = objects::tasks(input);
-    let mut room = room::tasks(input);
-    let mut shadows = shadows::tasks(input);
-    let mut edges = edges::tasks(input);
+    let (mut objects, mut room, mut edges) = match enabled {
+        true => (
+            objects::tasks(input),
+            room::tasks(input),
+            edges::tasks(input),
+        ),
+        false => Default::default(),
+    };
     let nothing = objects.is_empty() && room.is_empty() && shadows.is_empty() && edges.is_empty();
     let most = match settings.samples {
         // No pixel to sample: no round (a time budget would run them all).
-        _ if nothing => 0,
+        _ if nothing || !enabled => 0,
         0 => MAX_SAMPLES,
         n => n.min(MAX_SAMPLES),
     };
@@ -278,15 +287,29 @@ pub fn estimate(input: &ResidualInput) -> Option<PixelResidual> {
             }
         }
     }
+    // The shadow edges' own rounds, continuing their sequence, up to the
+    // least every render takes.
+    for round in rounds..shadows::LEAST_ROUNDS {
+        rays += (shadows.par_iter_mut())
+            .map(|t| shadows::sample(input, t, round))
+            .sum::<u64>();
+    }
+    // Without rounds only the shadow edges hold anything (read with `get`).
+    let per = |n: usize| if enabled { n } else { 0 };
+    let (points, samples, edge_count) = (
+        per(input.pda.real.points.len()),
+        per(input.pda.virtual_samples.points.len()),
+        per(input.pda.edges.len()),
+    );
     let mut out = PixelResidual {
-        object_irradiance: vec![None; input.pda.virtual_samples.points.len()],
-        object_radiance: vec![None; input.pda.virtual_samples.points.len()],
-        room_correction: vec![None; input.pda.real.points.len()],
+        object_irradiance: vec![None; samples],
+        object_radiance: vec![None; samples],
+        room_correction: vec![None; points],
         shadow: Vec::new(),
-        edge_shares: vec![None; input.pda.edges.len()],
-        edge_irradiance: vec![None; input.pda.edges.len()],
-        edge_radiance: vec![None; input.pda.edges.len()],
-        noise: vec![0.0; input.pda.real_index.len()],
+        edge_shares: vec![None; edge_count],
+        edge_irradiance: vec![None; edge_count],
+        edge_radiance: vec![None; edge_count],
+        noise: vec![0.0; per(input.pda.real_index.len())],
         stats: ResidualStats {
             rounds,
             rays,
@@ -333,9 +356,10 @@ pub fn estimate(input: &ResidualInput) -> Option<PixelResidual> {
         if let Some(v) = v {
             out.shadow.push((t.point, v));
         }
-        let slot = &mut noise[t.pixel as usize - first];
-        let before = *slot as f64;
-        *slot = (before * before + n * n).sqrt() as f32;
+        if let Some(slot) = noise.get_mut(t.pixel as usize - first) {
+            let before = *slot as f64;
+            *slot = (before * before + n * n).sqrt() as f32;
+        }
         squares += n * n;
         values += luminance(input.shading.photo.pixels[t.pixel as usize].as_dvec3());
     }

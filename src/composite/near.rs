@@ -27,6 +27,13 @@ pub(super) fn refine(
     }
     let pda = shader.pda();
     let first = out.first_row as usize * out.image.width as usize;
+    // The real points a shadow edge crosses, marked once (a search of the
+    // list per pixel cost more than the pixels it finds).
+    let mut edged =
+        vec![false; residual.map_or(0, |r| r.shadow.len().min(1) * pda.real.points.len())];
+    for &(k, _) in residual.map_or(&[][..], |r| &r.shadow[..]) {
+        edged[k as usize] = true;
+    }
     let redone: Vec<(usize, PixelShade)> = (0..out.image.pixels.len())
         .into_par_iter()
         .filter_map(|local| {
@@ -42,7 +49,8 @@ pub(super) fn refine(
                 let f = field?.at(p.location.patch, p.position.as_dvec3())?;
                 Some(f.as_vec3())
             });
-            let terms = residual.and_then(|r| footprint_terms(pda, r, k));
+            let terms = (residual.filter(|_| edged.get(k as usize) == Some(&true)))
+                .and_then(|r| footprint_terms(pda, r, k));
             if c.is_none() && terms.is_none() {
                 return None;
             }

@@ -93,7 +93,9 @@ impl<'a> Shader<'a> {
             .binary_search_by_key(&(i as u32), |e| e.pixel)
             .ok();
         let rounds = self.input.residual.zip(edge);
-        let refined = rounds.is_some();
+        // Rounds ran over the outlines (without rounds a residual holds the
+        // shadow edges alone, and a band without one holds none).
+        let refined = rounds.is_some_and(|(r, _)| !r.edge_shares.is_empty());
         // The objects' indirect light gathered at the pixel by the rounds.
         let gathered = rounds.and_then(|(r, k)| r.edge_irradiance.get(k).copied().flatten());
         // And the mean of the objects' part, their materials sampled over

@@ -96,10 +96,16 @@ impl Session {
         }
         out.noise = Vec::new();
         if let Some(r) = residual {
+            self.run.rays += r.stats.rays;
+            // Without rounds only the shadow edges ran: no rounds to report.
+            if !self.prepared.settings.residual.enabled() {
+                self.composite = out;
+                self.pose.known = known;
+                return;
+            }
             if r.noise.len() == out.image.pixels.len() {
                 out.noise = r.noise;
             }
-            self.run.rays += r.stats.rays;
             self.run.residual_stats = Some(match self.run.residual_stats {
                 // A still's bands: their rounds are one, their work adds up.
                 Some(s) if self.run.band.is_some() && !self.run.for_updates => s.and(&r.stats),
@@ -113,9 +119,6 @@ impl Session {
     /// The rounds of per-pixel samples the settings ask for (None: none).
     fn residual(&self, shading: &ObjectShading, times: &mut StageTimes) -> Option<PixelResidual> {
         let mut settings = self.prepared.settings.residual;
-        if !settings.enabled() {
-            return None;
-        }
         if let Some(limit) = settings.time {
             // The bands after the first run the rounds it ran: its budget
             // is its share of what is left.
@@ -145,7 +148,11 @@ impl Session {
             settings,
             started: self.run.started,
         };
-        times.time("per-pixel rounds", || estimate(&input))
+        match settings.enabled() {
+            true => times.time("per-pixel rounds", || estimate(&input)),
+            // Without rounds, the shadow edges alone (see `estimate`).
+            false => times.time("shadow edges", || estimate(&input)),
+        }
     }
 }
 
