@@ -233,6 +233,55 @@ fn luminance(x: DVec3) -> f64 {
     x.dot(DVec3::new(0.2126, 0.7152, 0.0722))
 }
 
+/// Runs up to `most` rounds over every kind of task (fewer where the time
+/// budget ends them), then the shadow edges' own rounds up to the least
+/// every render takes; returns the rounds run and the rays traced.
+fn run_rounds(
+    input: &ResidualInput,
+    (objects, room, shadows, edges): (
+        &mut [objects::Task],
+        &mut [room::Task],
+        &mut [shadows::Task],
+        &mut [edges::Task],
+    ),
+    most: u32,
+) -> (u32, u64) {
+    let (mut rounds, mut rays) = (0, 0u64);
+    // The rect lights a sample may meet, listed once for every pixel.
+    let lamps = input.shading.lamps();
+    while rounds < most {
+        let round = Instant::now();
+        rays += (objects.par_iter_mut())
+            .map(|t| objects::sample(input, t, (rounds, &lamps)))
+            .sum::<u64>();
+        rays += (room.par_iter_mut())
+            .map(|t| room::sample(input, t, (rounds, &lamps)))
+            .sum::<u64>();
+        rays += (shadows.par_iter_mut())
+            .map(|t| shadows::sample(input, t, rounds))
+            .sum::<u64>();
+        rays += (edges.par_iter_mut())
+            .map(|t| edges::sample(input, t, (rounds, &lamps)))
+            .sum::<u64>();
+        rounds += 1;
+        if let Some(limit) = input.settings.time {
+            // The next round costs about what this one did; what follows
+            // the rounds (the composite, writing) is kept a twentieth.
+            let next = input.started.elapsed().as_secs_f64() + round.elapsed().as_secs_f64();
+            if next > limit * (1.0 - TIME_RESERVE) {
+                break;
+            }
+        }
+    }
+    // The shadow edges' own rounds, continuing their sequence.
+    for round in rounds..shadows::LEAST_ROUNDS {
+        rays += (shadows.par_iter_mut())
+            .map(|t| shadows::sample(input, t, round))
+            .sum::<u64>();
+    }
+    (rounds, rays)
+}
+
 /// Runs the rounds the settings ask for (none: None).
 ///
 /// Without rounds, the pixels an object's hard shadow edge crosses are
@@ -260,40 +309,11 @@ pub fn estimate(input: &ResidualInput) -> Option<PixelResidual> {
         0 => MAX_SAMPLES,
         n => n.min(MAX_SAMPLES),
     };
-    let (mut rounds, mut rays) = (0, 0u64);
-    // The rect lights a sample may meet, listed once for every pixel.
-    let lamps = input.shading.lamps();
-    while rounds < most {
-        let round = Instant::now();
-        rays += (objects.par_iter_mut())
-            .map(|t| objects::sample(input, t, (rounds, &lamps)))
-            .sum::<u64>();
-        rays += (room.par_iter_mut())
-            .map(|t| room::sample(input, t, (rounds, &lamps)))
-            .sum::<u64>();
-        rays += (shadows.par_iter_mut())
-            .map(|t| shadows::sample(input, t, rounds))
-            .sum::<u64>();
-        rays += (edges.par_iter_mut())
-            .map(|t| edges::sample(input, t, (rounds, &lamps)))
-            .sum::<u64>();
-        rounds += 1;
-        if let Some(limit) = settings.time {
-            // The next round costs about what this one did; what follows
-            // the rounds (the composite, writing) is kept a twentieth.
-            let next = input.started.elapsed().as_secs_f64() + round.elapsed().as_secs_f64();
-            if next > limit * (1.0 - TIME_RESERVE) {
-                break;
-            }
-        }
-    }
-    // The shadow edges' own rounds, continuing their sequence, up to the
-    // least every render takes.
-    for round in rounds..shadows::LEAST_ROUNDS {
-        rays += (shadows.par_iter_mut())
-            .map(|t| shadows::sample(input, t, round))
-            .sum::<u64>();
-    }
+    let (rounds, rays) = run_rounds(
+        input,
+        (&mut objects, &mut room, &mut shadows, &mut edges),
+        most,
+    );
     // Without rounds only the shadow edges hold anything (read with `get`).
     let per = |n: usize| if enabled { n } else { 0 };
     let (points, samples, edge_count) = (
