@@ -95,14 +95,11 @@ impl Session {
             });
         }
         out.noise = Vec::new();
-        if let Some(r) = residual {
+        if let Some(r) = &residual {
             self.run.rays += r.stats.rays;
-            // Without rounds only the shadow edges ran: no rounds to report.
-            if !self.prepared.settings.residual.enabled() {
-                self.composite = out;
-                self.pose.known = known;
-                return;
-            }
+        }
+        // Without rounds only the shadow edges ran: no rounds to report.
+        if let Some(r) = residual.filter(|_| self.prepared.settings.residual.enabled()) {
             if r.noise.len() == out.image.pixels.len() {
                 out.noise = r.noise;
             }
@@ -116,7 +113,9 @@ impl Session {
         self.pose.known = known;
     }
 
-    /// The rounds of per-pixel samples the settings ask for (None: none).
+    /// The rounds of per-pixel samples the settings ask for; without
+    /// rounds, the point lights' shadow edges alone (None: nothing to
+    /// sample).
     fn residual(&self, shading: &ObjectShading, times: &mut StageTimes) -> Option<PixelResidual> {
         let mut settings = self.prepared.settings.residual;
         if let Some(limit) = settings.time {
