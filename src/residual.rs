@@ -282,10 +282,9 @@ fn run_rounds(
     (rounds, rays)
 }
 
-/// Runs the rounds the settings ask for (none: None).
-///
-/// Without rounds, the pixels an object's hard shadow edge crosses are
-/// still averaged over their footprint, at 16 points each.
+/// Runs the rounds the settings ask for. Without rounds, the pixels a
+/// point light's hard shadow edge crosses are still averaged over their
+/// footprint, at 16 points each (None: no rounds and no such pixel).
 pub fn estimate(input: &ResidualInput) -> Option<PixelResidual> {
     let settings = input.settings;
     let enabled = settings.enabled();

@@ -27,12 +27,19 @@ pub(super) fn refine(
     }
     let pda = shader.pda();
     let first = out.first_row as usize * out.image.width as usize;
-    // The real points a shadow edge crosses, marked once (a search of the
-    // list per pixel cost more than the pixels it finds).
-    let mut edged =
-        vec![false; residual.map_or(0, |r| r.shadow.len().min(1) * pda.real.points.len())];
-    for &(k, _) in residual.map_or(&[][..], |r| &r.shadow[..]) {
-        edged[k as usize] = true;
+    // Per real point, its entry in the shadow edges' list, found once (a
+    // search of the list per pixel cost more than the pixels it finds).
+    let edges = residual.map_or(&[][..], |r| &r.shadow[..]);
+    let mut edge_of = vec![
+        u32::MAX;
+        if edges.is_empty() {
+            0
+        } else {
+            pda.real.points.len()
+        }
+    ];
+    for (at, &(k, _)) in edges.iter().enumerate() {
+        edge_of[k as usize] = at as u32;
     }
     let redone: Vec<(usize, PixelShade)> = (0..out.image.pixels.len())
         .into_par_iter()
@@ -49,8 +56,9 @@ pub(super) fn refine(
                 let f = field?.at(p.location.patch, p.position.as_dvec3())?;
                 Some(f.as_vec3())
             });
-            let terms = (residual.filter(|_| edged.get(k as usize) == Some(&true)))
-                .and_then(|r| footprint_terms(pda, r, k));
+            let terms = (edge_of.get(k as usize).copied())
+                .filter(|&at| at != u32::MAX)
+                .map(|at| footprint_terms(pda, &edges[at as usize]));
             if c.is_none() && terms.is_none() {
                 return None;
             }
@@ -71,16 +79,15 @@ pub(super) fn refine(
     }
 }
 
-/// Real point `k`'s light terms with the objects' shadow averaged over its
-/// pixel's footprint where an edge crosses it (None: none does).
-fn footprint_terms(pda: &PixelDataArray, r: &PixelResidual, k: u32) -> Option<Vec<LightTerm>> {
-    let at = r.shadow.binary_search_by_key(&k, |s| s.0).ok()?;
+/// A real point's light terms with the objects' shadow averaged over its
+/// pixel's footprint, as its entry `edge` in the shadow edges' list says.
+fn footprint_terms(pda: &PixelDataArray, edge: &(u32, Vec<(u8, f32)>)) -> Vec<LightTerm> {
     let lights = pda.light_count;
-    let k = k as usize;
+    let k = edge.0 as usize;
     let mut terms = pda.real.terms[k * lights..(k + 1) * lights].to_vec();
-    for &(l, v) in &r.shadow[at].1 {
+    for &(l, v) in &edge.1 {
         let t = &mut terms[l as usize];
         *t = LightTerm::new(t.unoccluded, t.visible(false), v as f64);
     }
-    Some(terms)
+    terms
 }

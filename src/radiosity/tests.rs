@@ -48,6 +48,50 @@ fn form_factor_of_parallel_unit_squares_at_distance_one() {
     assert!((f - exact).abs() < 0.005 * exact, "{f}");
 }
 
+/// A quad of side `size` (the other side 0.2–0.7 of it) at `at`, turned at random.
+fn random_quad(state: &mut u64, at: DVec3, size: f64) -> Element {
+    let mut r = || 2.0 * unit_random(state) - 1.0;
+    let u = DVec3::new(r(), r(), r()).normalize_or(DVec3::X) * size;
+    let w = DVec3::new(r(), r(), r());
+    let v = u.cross(w).normalize_or(DVec3::Z) * size * (0.2 + 0.5 * r().abs());
+    element(Shape::Quad { origin: at, u, v })
+}
+
+#[test]
+fn the_far_source_bound_holds_for_every_point_of_the_receiver() {
+    // Refinement skips a leaf receiver's factor points where this bound
+    // times the source's spread is below ε: it must bound every point
+    // factor of the receiver, at any size, turn and distance.
+    let mut state = 7u64;
+    let (mut tested, mut finite) = (0, 0);
+    for _ in 0..400 {
+        let size = 0.05 + 0.5 * unit_random(&mut state);
+        let p = random_quad(&mut state, DVec3::ZERO, size);
+        let at = DVec3::new(
+            6.0 * unit_random(&mut state) - 3.0,
+            6.0 * unit_random(&mut state) - 3.0,
+            6.0 * unit_random(&mut state) - 3.0,
+        );
+        let size = 0.05 + 0.5 * unit_random(&mut state);
+        let q = random_quad(&mut state, at, size);
+        let bound = factor_bound(&p, &q);
+        assert!(bound > 0.0 && !bound.is_nan(), "{bound}");
+        finite += bound.is_finite() as usize;
+        let (polygon, corners) = (q.shape.corners(), p.shape.corners());
+        let points = (p.shape.quadrature(4).into_iter().map(|(x, _)| x))
+            .chain(corners.iter().copied())
+            .chain(std::iter::once(p.centre));
+        for x in points {
+            let f = point_factor(x, &p, &q, &polygon);
+            assert!(f <= bound, "factor {f} over the bound {bound}");
+            tested += 1;
+        }
+    }
+    // Most pairs lie apart: the bound is finite there.
+    assert!(finite > 300, "{finite} of 400 finite");
+    println!("{tested} point factors under their bound");
+}
+
 #[test]
 fn form_factor_of_touching_perpendicular_unit_squares() {
     let p = element(Shape::Quad {

@@ -392,10 +392,7 @@ pub(super) fn refine(with: &Refiner, p: u32, q: u32, candidates: &[u32], out: &m
         // where its rays disagree: a conservative shaft holds many roots
         // that block nothing. Above ε a pair is split at once, as its rays
         // could all pass by a small occluder that matters at that size.
-        let occluded = match listed.get() {
-            Some(list) => !list.is_empty(),
-            None => may_be_occluded_using(patches, layer, ep, eq, candidates, &shafts),
-        };
+        let occluded = may_be_occluded_using(patches, layer, ep, eq, candidates, &shafts);
         let splits = occluded && f > epsilon * VISIBILITY_REFINE_FRACTION && !(p_leaf && q_leaf);
         // Where no object may block, the rays skip the objects: one could
         // meet them only from the part of the receiver behind a one-sided
