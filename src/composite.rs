@@ -72,6 +72,9 @@ pub struct CompositeInput<'a> {
     /// objects' pixels' gathered light and the room's per-pixel change,
     /// in place of the interpolated ones (None: none ran).
     pub residual: Option<&'a crate::residual::PixelResidual>,
+    /// The objects' points shaded before the composite (a session's, some
+    /// read again over kept samples); None: shaded here.
+    pub shaded: Option<&'a crate::object_shading::kept::ShadedPoints>,
     /// Which layers to fill beside the image and its alpha.
     pub layers: Layers,
 }

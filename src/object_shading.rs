@@ -41,6 +41,7 @@ use crate::scene::Scene;
 use crate::trace::{Layer, TraceRay, Tracer};
 use crate::util::rng::hash2;
 
+pub mod kept;
 mod paths;
 mod rounds;
 pub(crate) use paths::Reading;
@@ -193,6 +194,18 @@ impl ObjectShading<'_> {
     /// irradiance `h` given (gathered at the pixel, [`crate::residual`])
     /// instead of interpolated from the vertices.
     pub fn radiance_with(&self, p: &SurfacePoint, share: f64, h: Option<DVec3>) -> Option<DVec3> {
+        self.shade_point(p, share, h, None)
+    }
+
+    /// [`ObjectShading::radiance_with`], each sample's parts kept in
+    /// `record` when one is given ([`kept`]).
+    pub(crate) fn shade_point(
+        &self,
+        p: &SurfacePoint,
+        share: f64,
+        h: Option<DVec3>,
+        record: Option<&mut kept::Record>,
+    ) -> Option<DVec3> {
         self.materials.surfaces.get(&p.surface)?;
         let x = p.position.as_dvec3();
         let seed = hash2(
@@ -202,6 +215,7 @@ impl ObjectShading<'_> {
         let to = x - self.camera.position;
         let centre = match self.seen(to.normalize_or_zero(), to.length() * 1.001 + 1e-4, 1.0) {
             Some(Seen::Shaded(point)) => point,
+            // Clay has no samples to keep, nor has what an alpha mask's cut shows.
             Some(Seen::Clay) => return None,
             // Cut away by an alpha mask, or the sample's own ray now misses it.
             _ => return Some(self.behind(x, to.normalize_or_zero(), seed)),
@@ -215,48 +229,93 @@ impl ObjectShading<'_> {
         .max(DVec3::ZERO);
         let side = (n as f64).sqrt().ceil() as u32;
         let key = hash2(seed, 0xA11A5) as u32;
-        let mut sum = DVec3::ZERO;
+        // Summed apart: what rays fixed, what reads the solution, the
+        // diffuse part's factors (see [`kept`], which sums them alike).
+        let (mut base, mut reads, mut diffuse) = (DVec3::ZERO, DVec3::ZERO, DVec3::ZERO);
+        let eye = self.camera.position;
+        let mut kept = kept::Record {
+            keepable: record.is_some(),
+            view: ((x + (x - eye) * 1e-3).as_vec3(), 0.0),
+            samples: n,
+            ..Default::default()
+        };
         for j in 0..n {
             // The point of the pixel and the lobe's direction as four
             // dimensions of one Owen-scrambled Sobol point: each stratified,
             // and independent of the other (on one shared grid, a pixel's
             // left part took the lobe's low directions only).
             let [dx, dy, u1, u2] = sobol_burley::sample_4d(j, 0, key).map(f64::from);
-            let sub = at.and_then(|(px, py, _)| {
-                let ray = self
-                    .camera
-                    .ray(px + (2.0 * dx - 1.0) * half, py + (2.0 * dy - 1.0) * half);
-                match self.seen(ray.direction, f64::INFINITY, 1.0 / side as f64)? {
-                    Seen::Shaded(point) => Some(point),
-                    _ => None,
+            let (sub, end) = match at {
+                Some((px, py, _)) => {
+                    let ray = self
+                        .camera
+                        .ray(px + (2.0 * dx - 1.0) * half, py + (2.0 * dy - 1.0) * half);
+                    let (seen, t) = self.seen_far(ray.direction, f64::INFINITY, 1.0 / side as f64);
+                    let end = eye + ray.direction * t.min(1e4);
+                    match seen {
+                        Some(Seen::Shaded(point)) => (Some(point), end),
+                        _ => (None, end),
+                    }
                 }
-            });
+                None => (None, x),
+            };
             let point = sub.as_ref().unwrap_or(&centre);
             let sobol = rounds::Sobol::new(j, key, [u1, u2]);
-            sum += self.one_sample(point, &rects, Sample { j, seed, sobol }, h);
+            let (own, (reflected, y), d) =
+                self.sample_parts(point, &rects, Sample { j, seed, sobol });
+            base += own;
+            diffuse += d;
+            let read = match reflected {
+                paths::Reflected::Fixed(v) => {
+                    base += v;
+                    None
+                }
+                paths::Reflected::Read(m) => {
+                    reads += m.radiance(self);
+                    Some(m)
+                }
+            };
+            if kept.keepable {
+                kept.sees(eye, x, end);
+                let spread = (point.shadow_origin - x).length() as f32;
+                kept.spread = kept.spread.max(spread * (1.0 + 1e-6));
+                kept.lobes.push((y.as_vec3(), read));
+            }
         }
-        Some((sum / n as f64).max(DVec3::ZERO))
+        if let Some(r) = record {
+            (kept.base, kept.diffuse) = (base, diffuse);
+            *r = kept;
+        }
+        Some(kept::total(base, reads, diffuse, h, n))
     }
 
     /// What the camera sees along unit `d` (up to `far`) among the objects
     /// with materials; `scale`: the pixel footprint's fraction a sample covers.
     fn seen(&self, d: DVec3, far: f64, scale: f64) -> Option<Seen> {
+        self.seen_far(d, far, scale).0
+    }
+
+    /// [`ObjectShading::seen`], and how far the ray went (infinity: it met nothing).
+    fn seen_far(&self, d: DVec3, far: f64, scale: f64) -> (Option<Seen>, f64) {
         let ray = TraceRay {
             origin: self.camera.position.as_vec3(),
             direction: d.as_vec3(),
             tnear: 0.0,
             tfar: far.min(f32::MAX as f64) as f32,
         };
-        let hit = self.tracer.intersect(&ray, Layer::All)?;
+        let Some(hit) = self.tracer.intersect(&ray, Layer::All) else {
+            return (None, f64::INFINITY);
+        };
+        let t = hit.t as f64;
         if !hit.is_virtual {
-            return None;
+            return (None, t);
         }
         let Some(s) = self.materials.surfaces.get(&hit.surface) else {
-            return Some(Seen::Clay);
+            return (Some(Seen::Clay), t);
         };
-        let x = self.camera.position + d * hit.t as f64;
-        let point = self.point(s, hit.triangle, x, d, hit.t as f64 * scale);
-        Some(point.map_or(Seen::Masked, Seen::Shaded))
+        let x = self.camera.position + d * t;
+        let point = self.point(s, hit.triangle, x, d, t * scale);
+        (Some(point.map_or(Seen::Masked, Seen::Shaded)), t)
     }
 
     /// Everything shading needs at `x`, on `triangle` of `surface` (the

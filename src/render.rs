@@ -253,6 +253,8 @@ struct Pose {
     reached: Vec<Vec<u32>>,
     /// Per light, the blocks' shafts the traversals built so far.
     block_shafts: Vec<crate::blocks::BlockShafts>,
+    /// The objects' shaded samples, for the next update.
+    shaded: crate::object_shading::kept::KeptShading,
 }
 
 impl Pose {
@@ -278,6 +280,7 @@ impl Pose {
             gather_directions,
             reached: Vec::new(),
             block_shafts: Vec::new(),
+            shaded: Default::default(),
         }
     }
 }
@@ -363,6 +366,8 @@ pub struct UpdateStats {
     pub bundles_kept: u64,
     /// Still objects' vertices whose gather was summed again over kept rays.
     pub gathers_kept: usize,
+    /// Still objects' shaded points read again over kept samples.
+    pub shaded_kept: usize,
     /// Blocks skipped by one shaft test, per light: (level, x, y).
     pub skipped_blocks: Vec<Vec<(u8, u32, u32)>>,
 }
@@ -702,6 +707,9 @@ impl Session {
         let view = &mut rays.view;
         let still = still.as_ref();
         directions.since = still.cloned(); // gathers no mover comes near: summed again
+        if let Some(s) = still {
+            self.pose.shaded.since(Box::new(s.clone()));
+        }
         let (solved, ((touched, pixel_rays, retraced), near)) = times.concurrently(
             "radiosity | pixels",
             |times| {
@@ -734,6 +742,7 @@ impl Session {
         stats.pixels_retraced = retraced;
         self.run.rays = stats.rays;
         self.recomposite(times, &touched);
+        stats.shaded_kept = self.pose.shaded.kept;
         Ok(stats)
     }
 

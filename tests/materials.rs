@@ -142,6 +142,45 @@ fn an_update_of_a_chrome_ball_equals_a_full_render_of_its_pose() {
     }
 }
 
+/// The chrome ball rolls past the globe and the vase, which stand still:
+/// a session reads their pixels again over the samples it kept where the
+/// ball comes near none of their rays, and every update still equals a
+/// full render of its pose, bit for bit.
+#[test]
+fn objects_standing_still_keep_their_samples_and_updates_equal_full_renders() {
+    let base = load("materials", "scene.toml");
+    let first = base.with_variant("trio").unwrap();
+    let photo = first.load_photo().unwrap();
+    let settings = RenderSettings::default();
+    let mut session =
+        Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+    let chrome = (first.objects.iter())
+        .position(|o| o.name == "chrome")
+        .unwrap();
+    let mut scene = first.clone();
+    for step in 1..=3 {
+        scene.objects[chrome].pose.translate += glam::DVec3::new(-0.06, 0.0, 0.05);
+        let stats = session.update(&scene, &mut StageTimes::default()).unwrap();
+        let full = render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap();
+        let differing = (session.composite.image.pixels.iter())
+            .zip(&full.composite.image.pixels)
+            .filter(|(a, b)| a.to_array().map(f32::to_bits) != b.to_array().map(f32::to_bits))
+            .count();
+        println!(
+            "step {step}: {} points kept, {differing} pixels differ",
+            stats.shaded_kept
+        );
+        assert!(
+            stats.shaded_kept > 1000,
+            "step {step}: the still objects' samples kept"
+        );
+        assert_eq!(
+            differing, 0,
+            "step {step}: the update differs from a full render"
+        );
+    }
+}
+
 #[test]
 fn a_tile_through_the_objects_shades_them_as_the_whole_frame_does() {
     // A reflected point's change is traced, never read from a pixel a tile

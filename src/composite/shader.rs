@@ -101,6 +101,10 @@ impl<'a> Shader<'a> {
         // And the mean of the objects' part, their materials sampled over
         // the pixel: each object sub-pixel takes it.
         let sampled = rounds.and_then(|(r, k)| r.edge_radiance.get(k).copied().flatten());
+        let shaded = |k: u32| {
+            let points = self.input.shaded.map(|s| &s.edge);
+            sampled.or_else(|| points.and_then(|p| p.get(k as usize).copied().flatten()))
+        };
         for k in e.start..e.start + e.count {
             let p = &pda.edge_samples.points[k as usize];
             let terms = match pda.real_at(i) {
@@ -117,7 +121,7 @@ impl<'a> Shader<'a> {
                     share,
                     Rounds {
                         irradiance: gathered,
-                        radiance: sampled,
+                        radiance: shaded(k),
                     },
                 )
             } else {
@@ -209,7 +213,11 @@ impl<'a> Shader<'a> {
                 Rounds {
                     irradiance: residual
                         .and_then(|r| r.object_irradiance.get(k).copied().flatten()),
-                    radiance: residual.and_then(|r| r.object_radiance.get(k).copied().flatten()),
+                    radiance: (residual.and_then(|r| r.object_radiance.get(k).copied().flatten()))
+                        .or_else(|| {
+                            let shaded = self.input.shaded.map(|s| &s.whole);
+                            shaded.and_then(|s| s.get(k).copied().flatten())
+                        }),
                 },
             );
             let object = s.value;

@@ -97,29 +97,40 @@ impl ObjectShading<'_> {
 
     /// One sample of the light leaving point `p` towards the camera: its
     /// emission, each light once (rect lights by one area sample, weighted
-    /// against the specular sampler), one specular ray, and the diffuse
-    /// part's indirect light from `h`, the irradiance the radiosity stage
-    /// gathered there (the same for every sample of a pixel).
-    pub(super) fn one_sample(&self, p: &Point, rects: &[Rect], s: Sample, h: DVec3) -> DVec3 {
-        let split = self.split_sample(p, rects, s);
-        split.own + split.diffuse * h / std::f64::consts::PI
+    /// against the specular sampler), one specular ray; and the diffuse
+    /// part's factor, which the indirect irradiance gathered there (the
+    /// same for every sample of a pixel) multiplies once it is known.
+    pub(super) fn split_sample(&self, p: &Point, rects: &[Rect], s: Sample) -> Split {
+        let (base, reflected, diffuse) = self.sample_parts(p, rects, s);
+        Split {
+            own: base + reflected.0.value(self),
+            diffuse,
+        }
     }
 
-    /// [`ObjectShading::one_sample`] before the diffuse part's indirect
-    /// irradiance is known.
-    pub(super) fn split_sample(&self, p: &Point, rects: &[Rect], s: Sample) -> Split {
+    /// A sample's parts: emission plus direct light, what its lobe's ray
+    /// met (with where that ray ended) and the diffuse part's factor.
+    /// Their sum is [`ObjectShading::split_sample`]'s, summed alike.
+    pub(super) fn sample_parts(
+        &self,
+        p: &Point,
+        rects: &[Rect],
+        s: Sample,
+    ) -> (DVec3, (Reflected, DVec3), DVec3) {
         let n_dot_v = p.n.dot(p.v);
         if n_dot_v <= 0.0 {
             // One-sided (glTF): a shading normal turned from the viewer reflects nothing.
-            return Split {
-                own: p.emissive,
-                diffuse: DVec3::ZERO,
-            };
+            return (
+                p.emissive,
+                (Reflected::Fixed(DVec3::ZERO), p.x),
+                DVec3::ZERO,
+            );
         }
-        Split {
-            own: p.emissive + self.direct(p, rects, s) + self.reflected(p, rects, s),
-            diffuse: p.lobes.diffuse_mean(n_dot_v),
-        }
+        (
+            p.emissive + self.direct(p, rects, s),
+            self.reflected(p, rects, s),
+            p.lobes.diffuse_mean(n_dot_v),
+        )
     }
 
     /// Direct light through the BRDF: point lights by a shadow ray, rect
@@ -168,11 +179,12 @@ impl ObjectShading<'_> {
     }
 
     /// One ray drawn from the specular lobe: what it meets of the room,
-    /// the lamps (weighted against their area samples) and the objects.
-    fn reflected(&self, p: &Point, rects: &[Rect], s: Sample) -> DVec3 {
+    /// the lamps (weighted against their area samples) and the objects;
+    /// and where the ray ended (far off where it met nothing).
+    fn reflected(&self, p: &Point, rects: &[Rect], s: Sample) -> (Reflected, DVec3) {
         let [u1, u2] = s.sobol.lobe;
         let Some((d, pdf_b, weight)) = p.lobes.sample_specular(p.n, p.v, u1, u2) else {
-            return DVec3::ZERO;
+            return (Reflected::Fixed(DVec3::ZERO), p.x);
         };
         let o = offset_origin(p.shadow_origin, p.ng, p.x + d);
         let ray = TraceRay::new(o.as_vec3(), d.as_vec3());
@@ -186,11 +198,19 @@ impl ObjectShading<'_> {
         if let Some((rect, t)) = lamp {
             let (fd, fs) = p.lobes.eval(p.n, p.v, d);
             let le = self.emitted(rect.light, d, rect.area, rect.normal);
-            return (fd + fs) * p.n.dot(d) * le / (rect.pdf(d, t) + pdf_b);
+            let value = (fd + fs) * p.n.dot(d) * le / (rect.pdf(d, t) + pdf_b);
+            return (Reflected::Fixed(value), o + d * t);
         }
         match hit {
-            Some(h) => weight * self.arriving(&h, o, d, hash2(s.seed, s.j as u64)),
-            None => DVec3::ZERO,
+            Some(h) => {
+                let reading = Reading::with_objects(hash2(s.seed, s.j as u64), ROOM_LEVEL);
+                let end = o + d * h.t as f64;
+                match self.measure(&h, o, d, reading) {
+                    Some((m, _)) => (Reflected::Read(m.scaled(weight)), end),
+                    None => (Reflected::Fixed(weight * DVec3::ZERO), end),
+                }
+            }
+            None => (Reflected::Fixed(DVec3::ZERO), o + d * FAR),
         }
     }
 
@@ -225,11 +245,18 @@ impl ObjectShading<'_> {
         self.arriving_at(h, o, d, Reading::with_objects(seed, ROOM_LEVEL))
     }
 
+    /// [`ObjectShading::arriving_at`]: what is measured at the point met,
+    /// then read against the solution's indirect light.
+    pub(crate) fn arriving_at(&self, h: &Hit, o: DVec3, d: DVec3, reading: Reading) -> DVec3 {
+        self.measure(h, o, d, reading)
+            .map_or(DVec3::ZERO, |(m, extra)| m.radiance_plus(self, extra))
+    }
+
     /// [`ObjectShading::arriving`] as `reading` says: 2^level shadow rays
     /// per rect light at the point met (a gather that averages many rays
     /// takes one), and whether the objects are there (the light a real
     /// point would send without them: what an object hides).
-    pub(crate) fn arriving_at(&self, h: &Hit, o: DVec3, d: DVec3, reading: Reading) -> DVec3 {
+    fn measure(&self, h: &Hit, o: DVec3, d: DVec3, reading: Reading) -> Option<(Measured, DVec3)> {
         let Reading {
             seed,
             level,
@@ -241,9 +268,7 @@ impl ObjectShading<'_> {
         // The change is traced here rather than read from the Pixel Data
         // Array's terms at y's pixel: those exist only inside a crop, and
         // a tile must equal the whole frame bit for bit.
-        let Some(at) = self.patches.locate(h.surface, h.triangle, y) else {
-            return DVec3::ZERO;
-        };
+        let at = self.patches.locate(h.surface, h.triangle, y)?;
         let mut n = h.normal.as_dvec3().normalize_or_zero();
         if n.dot(d) > 0.0 {
             n = -n;
@@ -277,20 +302,121 @@ impl ObjectShading<'_> {
                 e_without += all.unoccluded * (swo * real);
             }
         }
-        let with = e_with + self.patches.interpolate(self.indirect_with, &at) + extra;
-        if h.is_virtual {
-            return rho * with / std::f64::consts::PI;
-        }
-        let without = e_without + self.patches.interpolate(self.indirect_without, &at);
-        let photo = match seen_at {
-            Some((px, py)) => Some(self.photo.bilinear(px, py)),
-            None => crate::gather::photo_radiance_at(self.camera, self.tracer, self.photo, y),
+        let photo = match (h.is_virtual, seen_at) {
+            (true, _) => None,
+            (false, Some((px, py))) => Some(self.photo.bilinear(px, py)),
+            (false, None) => {
+                crate::gather::photo_radiance_at(self.camera, self.tracer, self.photo, y)
+            }
         };
-        match photo {
-            Some(photo) => changed(photo, with, without, rho),
-            None => rho * with / std::f64::consts::PI,
+        let without = match photo {
+            Some(_) => e_without + self.patches.interpolate(self.indirect_without, &at),
+            None => DVec3::ZERO,
+        };
+        let (p, q) = affine(photo, e_with, without, rho);
+        let measured = Measured {
+            p: p.as_vec3(),
+            q: q.as_vec3(),
+            patch: at.patch,
+            weights: at.weights.map(|(_, w)| w as f32),
+            is_virtual: h.is_virtual,
+            surface: h.surface,
+        };
+        Some((measured, extra))
+    }
+}
+
+/// Far along a ray that met nothing: where it is taken to end.
+const FAR: f64 = 1e4;
+
+/// What a sample's lobe ray met: a radiance fixed by the geometry (a
+/// lamp, nothing), or a point whose light reads the solution (its
+/// measures scaled by the lobe's weight).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum Reflected {
+    Fixed(DVec3),
+    Read(Measured),
+}
+
+impl Reflected {
+    pub(crate) fn value(&self, shading: &ObjectShading) -> DVec3 {
+        match self {
+            Reflected::Fixed(v) => *v,
+            Reflected::Read(m) => m.radiance(shading),
         }
     }
+}
+
+/// What [`ObjectShading::arriving_at`] measures at the point met before
+/// it reads the indirect light there: all that rays decide (where, the
+/// lights' direct light with and without the objects, the photo there),
+/// as the radiance it sends back, max(p + q·I, 0) per channel, for I the
+/// indirect irradiance there with the changes. Stored in single precision
+/// (a session keeps one per sample: [`super::kept`]); shading anew reads
+/// the same numbers, so a kept sample gives what a fresh one does.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Measured {
+    p: glam::Vec3,
+    q: glam::Vec3,
+    patch: u32,
+    /// Interpolation weights on the patch's vertices.
+    weights: [f32; 4],
+    pub is_virtual: bool,
+    pub surface: u32,
+}
+
+impl Measured {
+    /// The radiance the point sends back, over the solution `shading` holds.
+    pub(crate) fn radiance(&self, shading: &ObjectShading) -> DVec3 {
+        self.radiance_plus(shading, DVec3::ZERO)
+    }
+
+    /// [`Measured::radiance`] with `extra` indirect irradiance added there.
+    fn radiance_plus(&self, shading: &ObjectShading, extra: DVec3) -> DVec3 {
+        let ids = shading.patches.patch_vertices[self.patch as usize];
+        let mut i = extra;
+        for (&v, &w) in ids.iter().zip(&self.weights).filter(|(_, w)| **w != 0.0) {
+            i += shading
+                .indirect_with
+                .get(v as usize)
+                .copied()
+                .unwrap_or(DVec3::ZERO)
+                * w as f64;
+        }
+        (self.p.as_dvec3() + self.q.as_dvec3() * i).max(DVec3::ZERO)
+    }
+
+    /// Scaled by the lobe's `weight` (not negative).
+    fn scaled(self, weight: DVec3) -> Measured {
+        Measured {
+            p: (self.p.as_dvec3() * weight).as_vec3(),
+            q: (self.q.as_dvec3() * weight).as_vec3(),
+            ..self
+        }
+    }
+}
+
+/// The radiance a point sends back as p + q·I per channel, I its indirect
+/// irradiance with the changes, `e_with` its direct light with them: a
+/// real point the camera sees, its `photo` changed as the compositor
+/// changes it (× with ÷ `without`, or, without ≈ 0, plus ρ·Δ/π); any
+/// other point its radiosity, ρ·with/π.
+fn affine(photo: Option<DVec3>, e_with: DVec3, without: DVec3, rho: DVec3) -> (DVec3, DVec3) {
+    let pi = std::f64::consts::PI;
+    let Some(photo) = photo else {
+        return (rho * e_with / pi, rho / pi);
+    };
+    let (mut p, mut q) = (DVec3::ZERO, DVec3::ZERO);
+    for c in 0..3 {
+        if without[c] > 1e-6 * without.max_element().max(1e-30) {
+            q[c] = photo[c] / without[c];
+            p[c] = q[c] * e_with[c];
+        } else {
+            q[c] = rho[c] / pi;
+            p[c] = photo[c] + q[c] * (e_with[c] - without[c]);
+        }
+    }
+    (p, q)
 }
 
 /// How [`ObjectShading::arriving_at`] reads a point.
@@ -318,20 +444,6 @@ impl Reading {
             extra: DVec3::ZERO,
         }
     }
-}
-
-/// The photo's radiance `photo` of a real point changed as the compositor
-/// changes it: × with ÷ without, or (without ≈ 0) plus ρ·Δ/π.
-fn changed(photo: DVec3, with: DVec3, without: DVec3, rho: DVec3) -> DVec3 {
-    let mut out = DVec3::ZERO;
-    for c in 0..3 {
-        out[c] = if without[c] > 1e-6 * without.max_element().max(1e-30) {
-            photo[c] * with[c] / without[c]
-        } else {
-            photo[c] + rho[c] * (with[c] - without[c]) / std::f64::consts::PI
-        };
-    }
-    out.max(DVec3::ZERO)
 }
 
 /// Interpolates a per-vertex table at a patch point.

@@ -91,13 +91,22 @@ impl StillSurfaces {
         })
     }
 
+    /// Whether no surface that moved, where it was or where it is, comes
+    /// near any segment from a point within `slack` of `a` to a point
+    /// within `radius` of `c` (its sphere against the cone from `a` to
+    /// `c`'s ball, `slack` further).
+    pub fn clear_of_movers_towards(&self, a: DVec3, c: DVec3, radius: f64, slack: f64) -> bool {
+        (self.movers.iter())
+            .all(|&(m, r)| distance_to_cone(m, a, c, radius) > r + slack + ORIGIN_SLACK)
+    }
+
     /// How far still surface `surface`'s patch numbers moved (None: it
     /// moved, or was shown or hidden).
     pub fn patch_shift(&self, surface: u32) -> Option<i64> {
         self.shift.get(surface as usize).copied().flatten()
     }
 
-    pub(super) fn is_still(&self, surface: u32) -> bool {
+    pub fn is_still(&self, surface: u32) -> bool {
         self.shift
             .get(surface as usize)
             .is_some_and(|s| s.is_some())
@@ -182,6 +191,26 @@ fn patch_runs(patches: &Patches) -> std::collections::HashMap<u32, (usize, usize
     runs
 }
 
+/// A lower bound of the distance from `p` to the cone of segments from
+/// `a` to the ball of `radius` around `b`: the least over the axis's
+/// points at fraction s of |p − (a + s(b − a))| − s·radius (each point of
+/// the cone at s lies within s·radius of the axis), a convex function of
+/// s, whose least is where its slope is zero, or at an end.
+fn distance_to_cone(p: DVec3, a: DVec3, b: DVec3, radius: f64) -> f64 {
+    let axis = b - a;
+    let length = axis.length();
+    if radius <= 0.0 || length <= radius {
+        return distance_to_segment(p, a, b) - radius;
+    }
+    let u = axis / length;
+    let along = (p - a).dot(u);
+    let across = ((p - a) - u * along).length();
+    // Zero slope: (s·L − along) / |…| = radius / L.
+    let k = radius / length;
+    let s = ((along + across * k / (1.0 - k * k).sqrt()) / length).clamp(0.0, 1.0);
+    (p - (a + axis * s)).length() - s * radius
+}
+
 /// The distance from `p` to the segment from `a` to `b`.
 fn distance_to_segment(p: DVec3, a: DVec3, b: DVec3) -> f64 {
     let d = b - a;
@@ -225,6 +254,30 @@ mod tests {
             &moved(DVec3::new(1.0, 0.0, 1.0), 0.1),
             (DVec3::Z, None)
         ));
+    }
+
+    #[test]
+    fn the_distance_to_a_cone_bounds_every_segment_in_it() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        let v = |rng: &mut rand::rngs::StdRng, s: f64| {
+            DVec3::new(rng.random(), rng.random(), rng.random()) * s - DVec3::splat(0.5 * s)
+        };
+        for _ in 0..2000 {
+            let (a, b, p) = (v(&mut rng, 4.0), v(&mut rng, 4.0), v(&mut rng, 4.0));
+            let radius = rng.random::<f64>() * 0.8;
+            let bound = distance_to_cone(p, a, b, radius);
+            // Segments to points of the ball's surface and inside it.
+            for _ in 0..40 {
+                let w = v(&mut rng, 2.0).normalize_or_zero() * radius * rng.random::<f64>();
+                let d = distance_to_segment(p, a, b + w);
+                assert!(bound <= d + 1e-12, "bound {bound} above a segment's {d}");
+            }
+        }
+        // Along the axis the cone narrows to its apex.
+        let (a, b) = (DVec3::ZERO, DVec3::new(4.0, 0.0, 0.0));
+        let near_apex = distance_to_cone(DVec3::new(0.5, 0.5, 0.0), a, b, 1.0);
+        assert!(near_apex > 0.3 && near_apex < 0.4, "{near_apex}");
     }
 
     #[test]

@@ -41,6 +41,13 @@ impl Session {
             settings: self.prepared.settings.shading,
         };
         let residual = self.residual(&shading, times);
+        // A session's objects with materials are shaded first, their samples
+        // kept for the next update (rounds sample them their own way).
+        let mut kept = std::mem::take(&mut self.pose.shaded);
+        let shaded = (self.run.for_updates
+            && !materials.is_empty()
+            && !self.prepared.settings.residual.enabled())
+        .then(|| times.time("objects' pixels", || kept.shade(&shading, &self.pose.pda)));
         let known = times.time("composite", || {
             let input = CompositeInput {
                 objects: (!materials.is_empty()).then_some(&shading),
@@ -60,6 +67,7 @@ impl Session {
                 known: None,
                 near: near.as_ref(),
                 residual: residual.as_ref(),
+                shaded: shaded.as_ref(),
                 layers: self.run.layers,
             };
             if !self.run.for_updates {
@@ -111,6 +119,7 @@ impl Session {
         }
         self.composite = out;
         self.pose.known = known;
+        self.pose.shaded = kept;
     }
 
     /// The rounds of per-pixel samples the settings ask for; without
@@ -175,5 +184,16 @@ impl Session {
         self.recomposite(times, &[]);
         self.prepared.settings.residual = kept;
         self.run.residual_stats
+    }
+}
+
+/// An update's moved objects, for the samples a session keeps.
+impl crate::object_shading::kept::Movers for crate::radiosity::StillSurfaces {
+    fn clear_towards(&self, a: DVec3, c: DVec3, radius: f64, slack: f64) -> bool {
+        self.clear_of_movers_towards(a, c, radius, slack)
+    }
+
+    fn unmoved(&self, surface: u32) -> bool {
+        self.is_still(surface) && self.patch_shift(surface) == Some(0)
     }
 }

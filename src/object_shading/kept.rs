@@ -1,0 +1,257 @@
+//! What a session keeps of its objects' shaded pixels, so that an update
+//! shades again only the pixels whose rays the moved objects may cross.
+//!
+//! A pixel of an object with a material is the mean of its samples (see
+//! [`ObjectShading::radiance`]), and each sample is emission plus direct
+//! light, one ray from the specular lobe and the diffuse part's indirect
+//! light. What the rays decide (the points met, the lights' visibility
+//! there, the photo where the camera sees them) stays as it was while no
+//! moved object comes near any of the sample's rays; what the solution
+//! decides (the room's indirect light where the lobe's ray landed, the
+//! object's own gathered light) changes with every pose. A session keeps
+//! the first per sample and reads the second again: the same numbers,
+//! summed in the same order, as shading the pixel anew, so an update's
+//! image is still a full render's, bit for bit. A pixel of a still object
+//! beside a moving one is read again in microseconds where shading it
+//! traces 16-24 camera rays and 3 + 3 × lights shadow and lobe rays.
+
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+
+use super::paths::Measured;
+use super::{ObjectShading, paths};
+use crate::light::{Emitter, LightSource};
+use crate::pda::{PixelDataArray, SurfacePoint};
+use crate::util::FastMap;
+
+/// At most this many bytes of kept samples (a 2 m glossy table seen whole
+/// keeps about 50 MB); past it, pixels are shaded anew at every update.
+const KEEP_BYTES: usize = 256 << 20;
+
+/// What moved since the samples were kept: an update's objects where they
+/// were and where they are.
+pub trait Movers: Sync {
+    /// Whether no moved object comes near any segment from a point within
+    /// `slack` of `a` to a point within `radius` of `c`.
+    fn clear_towards(&self, a: DVec3, c: DVec3, radius: f64, slack: f64) -> bool;
+    /// Whether virtual surface `surface` stood still, its patches numbered
+    /// as before.
+    fn unmoved(&self, surface: u32) -> bool;
+}
+
+/// A shaded point's samples as a session keeps them (see the module's doc).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(crate) struct Record {
+    /// Whether it may be kept: not a point an alpha mask cuts away
+    /// (shaded by what lies behind it).
+    pub keepable: bool,
+    /// Emission, direct light and the lamps' reflections, summed over the samples.
+    pub base: DVec3,
+    /// The diffuse part's factors, summed.
+    pub diffuse: DVec3,
+    pub samples: u32,
+    /// Each sample's lobe ray: where it ended, and what it met that reads
+    /// the solution.
+    pub lobes: Vec<(Vec3, Option<Measured>)>,
+    /// A cone from the camera holding every sample's camera ray: its
+    /// axis's far end and radius there.
+    pub view: (Vec3, f32),
+    /// How far the samples' points lie from the pixel's point at most.
+    pub spread: f32,
+}
+
+impl Record {
+    /// Widens the view cone from `eye` through `x` to hold the camera ray that ended at `end`.
+    pub(crate) fn sees(&mut self, eye: DVec3, x: DVec3, end: DVec3) {
+        let u = (x - eye).normalize_or_zero();
+        let far = self.view.0.as_dvec3();
+        let reach = ((far - eye).dot(u)).max((x - eye).length() * 1.001);
+        let t = (end - eye).dot(u).max(1e-9);
+        let across = ((end - eye) - u * t).length();
+        let reach_now = reach.max(t);
+        let radius = (self.view.1 as f64 * reach_now / reach).max(across * reach_now / t);
+        self.view = (
+            (eye + u * reach_now).as_vec3(),
+            (radius * (1.0 + 1e-6)) as f32,
+        );
+    }
+}
+
+/// The point a record is for: its position's bits, surface and share of its pixel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+struct PointKey([u32; 3], u32, u64);
+
+impl PointKey {
+    fn of(p: &SurfacePoint, share: f64) -> PointKey {
+        let x = p.position;
+        PointKey(
+            [x.x.to_bits(), x.y.to_bits(), x.z.to_bits()],
+            p.surface,
+            share.to_bits(),
+        )
+    }
+}
+
+/// Each virtual point's radiance for the composite, as
+/// [`ObjectShading::radiance`] gives it (None: no material there).
+#[derive(Debug, Clone, Default)]
+pub struct ShadedPoints {
+    /// By point of the pixel data's whole virtual pixels.
+    pub whole: Vec<Option<DVec3>>,
+    /// By point of its edge pixels' sub-pixels.
+    pub edge: Vec<Option<DVec3>>,
+}
+
+/// A session's kept samples, by point (see the module's doc).
+#[derive(Default)]
+pub struct KeptShading {
+    /// The lights' scales the samples were drawn at.
+    scales: Vec<f64>,
+    records: FastMap<PointKey, Record>,
+    /// What moved since, for the next composite (None: nothing is kept).
+    movers: Option<Box<dyn Movers + Send>>,
+    /// Points read again over kept samples in the last composite.
+    pub kept: usize,
+}
+
+impl std::fmt::Debug for KeptShading {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("KeptShading")
+            .field("points", &self.records.len())
+            .field("kept", &self.kept)
+            .finish()
+    }
+}
+
+/// A point's radiance and what becomes of its record.
+enum Outcome {
+    Kept(PointKey, DVec3),
+    Fresh(PointKey, Option<DVec3>, Record),
+    Plain(Option<DVec3>),
+}
+
+impl KeptShading {
+    /// The next composite's samples may be kept where `movers` come near none of their rays.
+    pub fn since(&mut self, movers: Box<dyn Movers + Send>) {
+        self.movers = Some(movers);
+    }
+
+    /// Shades every virtual point of `pda` whose surface has a material:
+    /// the kept samples read again where nothing that moved comes near
+    /// their rays, the others drawn anew and kept.
+    pub fn shade(&mut self, shading: &ObjectShading, pda: &PixelDataArray) -> ShadedPoints {
+        let movers = self
+            .movers
+            .take()
+            .filter(|_| self.scales == shading.scales_with);
+        let old = std::mem::take(&mut self.records);
+        let lights = lit(shading.lights, shading.scales_with);
+        let one = |p: &SurfacePoint, share: f64| {
+            if !p.is_virtual || !shading.materials.has(p.surface) {
+                return Outcome::Plain(None);
+            }
+            let key = PointKey::of(p, share);
+            let kept = old.get(&key).filter(|r| r.keepable);
+            if let (Some(m), Some(r)) = (&movers, kept)
+                && clear(&**m, shading, p, r, &lights)
+            {
+                return Outcome::Kept(key, replay(shading, p, r));
+            }
+            let mut record = Record::default();
+            let value = shading.shade_point(p, share, None, Some(&mut record));
+            Outcome::Fresh(key, value, record)
+        };
+        let share = 1.0 / (pda.supersample * pda.supersample) as f64;
+        let whole: Vec<Outcome> = (pda.virtual_samples.points.par_iter())
+            .map(|p| one(p, 1.0))
+            .collect();
+        let edge: Vec<Outcome> = (pda.edge_samples.points.par_iter())
+            .map(|p| one(p, share))
+            .collect();
+        self.scales = shading.scales_with.to_vec();
+        self.kept = 0;
+        let mut old = old;
+        let mut bytes = 0;
+        let mut keep = |o: Outcome| -> Option<DVec3> {
+            let (key, value, record) = match o {
+                Outcome::Plain(v) => return v,
+                Outcome::Kept(key, v) => (key, Some(v), old.remove(&key).unwrap_or_default()),
+                Outcome::Fresh(key, v, record) => (key, v, record),
+            };
+            bytes += std::mem::size_of::<Record>()
+                + record.lobes.len() * std::mem::size_of::<(Vec3, Option<Measured>)>();
+            if bytes <= KEEP_BYTES {
+                self.records.insert(key, record);
+            }
+            value
+        };
+        let mut kept = 0;
+        let mut take = |o: Outcome| {
+            kept += usize::from(matches!(o, Outcome::Kept(..)));
+            keep(o)
+        };
+        let out = ShadedPoints {
+            whole: whole.into_iter().map(&mut take).collect(),
+            edge: edge.into_iter().map(&mut take).collect(),
+        };
+        self.kept = kept;
+        out
+    }
+}
+
+/// The lights a sample's rays may reach with the objects in the way:
+/// centre and reach (half a rect's sides), those lit alone.
+fn lit(lights: &[LightSource], scales: &[f64]) -> Vec<(DVec3, f64)> {
+    (lights.iter().zip(scales))
+        .filter(|(_, s)| **s > 0.0)
+        .map(|(l, _)| match l.emitter {
+            Emitter::Point => (l.position, 0.0),
+            Emitter::Rect { u, v, .. } => (l.position, 0.5 * (u.length() + v.length())),
+        })
+        .collect()
+}
+
+/// Whether point `p`'s kept samples hold: its surface stood still and no
+/// moved object comes near its camera rays, its shadow rays, its lobe's
+/// rays or the shadow rays where they landed.
+fn clear(
+    movers: &dyn Movers,
+    shading: &ObjectShading,
+    p: &SurfacePoint,
+    r: &Record,
+    lights: &[(DVec3, f64)],
+) -> bool {
+    let eye = shading.camera.position;
+    let x = p.position.as_dvec3();
+    let spread = r.spread as f64;
+    let towards_lights = |a: DVec3, slack: f64| {
+        (lights.iter()).all(|&(c, radius)| movers.clear_towards(a, c, radius, slack))
+    };
+    movers.unmoved(p.surface)
+        && movers.clear_towards(eye, r.view.0.as_dvec3(), r.view.1 as f64, 0.0)
+        && towards_lights(x, spread)
+        && r.lobes.iter().all(|(y, m)| {
+            let y = y.as_dvec3();
+            movers.clear_towards(x, y, 0.0, spread)
+                && m.as_ref().is_none_or(|m| {
+                    (!m.is_virtual || movers.unmoved(m.surface)) && towards_lights(y, 0.0)
+                })
+        })
+}
+
+/// The radiance of `p` from its kept samples over the solution `shading`
+/// holds, summed as [`ObjectShading::shade_point`] sums them.
+fn replay(shading: &ObjectShading, p: &SurfacePoint, r: &Record) -> DVec3 {
+    let h =
+        paths::interpolate(shading.indirect_with, &p.location, shading.patches).max(DVec3::ZERO);
+    let reads = (r.lobes.iter().filter_map(|(_, m)| m.as_ref()))
+        .fold(DVec3::ZERO, |sum, m| sum + m.radiance(shading));
+    total(r.base, reads, r.diffuse, h, r.samples)
+}
+
+/// A point's radiance from its samples' sums: `base` (emission, direct
+/// light, lamps' reflections), `reads` (the lobes' rays that read the
+/// solution), `diffuse` (factors of the indirect irradiance `h`).
+pub(crate) fn total(base: DVec3, reads: DVec3, diffuse: DVec3, h: DVec3, n: u32) -> DVec3 {
+    (((base + reads) + diffuse * h / std::f64::consts::PI) / n as f64).max(DVec3::ZERO)
+}
