@@ -19,7 +19,7 @@ use crate::inputs::{fine_patch_size, lamps_in_view, resolve_inputs, room_diagona
 pub use crate::output::RenderOutput;
 use crate::patches::Patches;
 use crate::pda::{CLEAR_TEST_LIMIT, PdaInput, PdaSettings, PixelDataArray, VirtualBounds};
-use crate::radiosity::{Solution, direct_irradiance_with_objects, solve_from, total_direct};
+use crate::radiosity::{Solution, solve_from, total_direct};
 use crate::scene::Scene;
 use crate::trace::Layer;
 

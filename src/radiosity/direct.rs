@@ -1,6 +1,7 @@
 //! Direct irradiance per patch from each light, through the room or the
 //! room and the objects.
 
+use super::still::StillSurfaces;
 use crate::light::LightSource;
 use crate::objects::VirtualBounds;
 use crate::patches::Patches;
@@ -45,6 +46,44 @@ pub fn direct_irradiance_with_objects(
     room: &[Vec<DVec3>],
     objects: &VirtualBounds,
 ) -> Vec<Vec<DVec3>> {
+    let input = DirectWithObjects {
+        patches,
+        lights,
+        tracer,
+        level,
+        room,
+        objects,
+    };
+    direct_keeping(&input, None)
+}
+
+/// What [`direct_keeping`] reads: [`direct_irradiance_with_objects`]'s arguments.
+pub struct DirectWithObjects<'a> {
+    pub patches: &'a Patches,
+    pub lights: &'a [LightSource],
+    pub tracer: &'a Tracer,
+    pub level: usize,
+    pub room: &'a [Vec<DVec3>],
+    pub objects: &'a VirtualBounds,
+}
+
+/// [`direct_irradiance_with_objects`], with `kept`: what moved since the
+/// pose before and its values for the same lights. A patch of the room or
+/// of a still object (numbered as before) whose shaft to a light no moved
+/// box enters, where it was or is, takes the value it had: its rays,
+/// seeded by its number, meet what they met.
+pub fn direct_keeping(
+    input: &DirectWithObjects,
+    kept: Option<(&StillSurfaces, &[Vec<DVec3>])>,
+) -> Vec<Vec<DVec3>> {
+    let DirectWithObjects {
+        patches,
+        lights,
+        tracer,
+        level,
+        room,
+        objects,
+    } = *input;
     let share = face_clusters(patches, room.first().map_or(0, |r| r.len()));
     lights
         .iter()
@@ -59,10 +98,20 @@ pub fn direct_irradiance_with_objects(
                         return DVec3::ZERO;
                     }
                     let el = patches.patch(k);
+                    // The value it had, if no moved box enters its shaft.
+                    let before = |shaft: &Shaft| {
+                        let (still, last) = kept?;
+                        let last = last.get(l).filter(|v| v.len() == patches.patch_count())?;
+                        let same = k < room.len() || still.patch_shift(el.surface) == Some(0);
+                        (same && still.clear_of_shaft(shaft)).then_some(last[k])
+                    };
                     if k < room.len() {
                         let shaft = Shaft::between_boxes(el.bounds, light_box);
                         if objects.objects.iter().all(|o| o.outside(&shaft)) {
                             return room[k];
+                        }
+                        if let Some(v) = before(&shaft) {
+                            return v;
                         }
                     } else if objects.only_own_blocks(el.surface, el.centre, el.normal, l, light) {
                         return patch_direct_by(patches, k, light, |x, n, seed| {
@@ -72,6 +121,13 @@ pub fn direct_irradiance_with_objects(
                                 }
                             })
                         });
+                    }
+                    let shaft = || Shaft::between_boxes(el.bounds, light_box);
+                    if let Some(v) = kept
+                        .and_then(|_| before(&shaft()))
+                        .filter(|_| k >= room.len())
+                    {
+                        return v;
                     }
                     patch_direct(patches, k, light, tracer, Layer::All, level)
                 })

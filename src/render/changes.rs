@@ -55,6 +55,8 @@ pub(super) struct GatherDirections {
     pub(super) since: Option<crate::radiosity::StillSurfaces>,
     /// How many vertices the last gather summed again without tracing.
     pub(super) reused: usize,
+    /// The lights on and their direct light per patch, for the next pose.
+    pub(super) direct: Option<(Vec<usize>, Vec<Vec<DVec3>>)>,
 }
 
 impl GatherDirections {
@@ -293,20 +295,27 @@ pub(super) fn solve_changes(
     let on: Vec<usize> = (0..model.lights.len())
         .filter(|&l| input.scales_with[l] > 0.0)
         .collect();
+    // The pose before's values, for the same lights, where nothing moved across.
+    let last = (directions.direct.as_ref()).filter(|(lights, _)| *lights == on);
+    let kept = directions.since.as_ref().zip(last.map(|(_, d)| &d[..]));
+    let lights: Vec<_> = on.iter().map(|&l| model.lights[l].clone()).collect();
+    let room: Vec<_> = (on.iter())
+        .map(|&l| model.direct_per_light[l].clone())
+        .collect();
     let direct = times.time("direct light with objects", || {
-        direct_irradiance_with_objects(
+        let with = crate::radiosity::DirectWithObjects {
             patches,
-            &on.iter()
-                .map(|&l| model.lights[l].clone())
-                .collect::<Vec<_>>(),
-            input.tracer,
-            input.settings.model.light_level,
-            &on.iter()
-                .map(|&l| model.direct_per_light[l].clone())
-                .collect::<Vec<_>>(),
-            input.bounds,
-        )
+            lights: &lights,
+            tracer: input.tracer,
+            level: input.settings.model.light_level,
+            room: &room,
+            objects: input.bounds,
+        };
+        crate::radiosity::direct_keeping(&with, kept)
     });
+    if directions.kept {
+        directions.direct = Some((on.clone(), direct.clone()));
+    }
     let scales_on: Vec<f64> = on.iter().map(|&l| input.scales_with[l]).collect();
     if view.is_none() {
         *view = Some(times.time("objects seen from the room", || {
