@@ -217,6 +217,14 @@ impl LightSource {
         }
     }
 
+    /// A ball around the emitting shape: its centre and radius.
+    pub fn ball(&self) -> (DVec3, f64) {
+        match self.emitter {
+            Emitter::Point => (self.position, 0.0),
+            Emitter::Rect { u, v, .. } => (self.position, 0.5 * (u.length() + v.length())),
+        }
+    }
+
     /// The box around the emitting shape.
     pub fn bounds(&self) -> (DVec3, DVec3) {
         crate::geometry::bounds(self.corners())

@@ -8,6 +8,17 @@ use crate::light::LightSource;
 use crate::shaft::{ObjectBounds, Shaft};
 use crate::trace::Hit;
 
+/// What moved since a session kept what its rays met: an update's objects
+/// where they were and where they are (`radiosity::StillSurfaces`).
+pub trait Movers: Sync {
+    /// Whether no moved object comes near any segment from a point within
+    /// `slack` of `a` to a point within `radius` of `c`.
+    fn clear_towards(&self, a: DVec3, c: DVec3, radius: f64, slack: f64) -> bool;
+    /// Whether virtual surface `surface` stood still, its patches numbered
+    /// as before.
+    fn unmoved(&self, surface: u32) -> bool;
+}
+
 /// What the oracle needs about the virtual objects: each surface's bounds
 /// ([`ObjectBounds`]: its world box and its box turned about the vertical)
 /// and id, and, for a solid, per triangle whether the solid lies wholly

@@ -205,6 +205,9 @@ pub struct PixelDataArray {
     pub edge_samples: Samples,
     /// Shadow and sub-pixel rays traced.
     pub rays: u64,
+    /// The pixels the last update re-traced (sorted), and whether every
+    /// pixel was a candidate for an edge then; None before the first.
+    pub examined: Option<(Vec<u32>, bool)>,
 }
 
 const NONE: u32 = u32::MAX;
@@ -456,10 +459,17 @@ impl PixelDataArray {
 
     /// Rebuilds the virtual points and edge pixels for the objects' current
     /// placement (`input.bounds`), as [`build`] would; returns rays cast and
-    /// the pixels examined.
+    /// the pixels examined. With `movers` (what moved since the last
+    /// update), a pixel that update re-traced keeps its points and their
+    /// light where no moved object comes near its camera rays or their
+    /// shadow rays: what it would trace again is what it traced then.
     ///
     /// [`build`]: PixelDataArray::build
-    pub(crate) fn rebuild_virtual(&mut self, input: &PdaInput) -> (u64, u64) {
+    pub(crate) fn rebuild_virtual(
+        &mut self,
+        input: &PdaInput,
+        movers: Option<&dyn crate::objects::Movers>,
+    ) -> (u64, u64) {
         let n = self.real_index.len();
         let first = self.first_pixel();
         // Reset in place, where the last placement set it: a fresh 0.8 MB
@@ -469,13 +479,7 @@ impl PixelDataArray {
         for &pixel in &self.virtual_pixels {
             self.virtual_index[pixel as usize - first] = NONE;
         }
-        self.virtual_pixels.clear();
-        // Emptied, their room kept: the next placement fills about as many.
-        for samples in [&mut self.virtual_samples, &mut self.edge_samples] {
-            samples.points.clear();
-            samples.terms.clear();
-        }
-        self.edges.clear();
+        let old = Placed::take(self);
         let boxes = screen_boxes(input.camera, input.bounds);
         let candidates = if boxes.is_empty() {
             None
@@ -483,10 +487,30 @@ impl PixelDataArray {
             edge_candidates(input)
         };
         let pixels = self.pixels_to_retrace(input, &boxes);
-        let found = self.retrace(input, &pixels, candidates.as_deref());
+        let examined = self.examined.take();
+        let keep: Vec<bool> = match (movers, &examined) {
+            (Some(m), Some((before, all))) if *all == candidates.is_none() => (pixels.par_iter())
+                .map(|&p| before.binary_search(&p).is_ok() && old.clear(input, m, p))
+                .collect(),
+            _ => vec![false; pixels.len()],
+        };
+        let fresh: Vec<u32> = (pixels.iter().zip(&keep))
+            .filter(|(_, k)| !**k)
+            .map(|(p, _)| *p)
+            .collect();
+        let mut found = self
+            .retrace(input, &fresh, candidates.as_deref())
+            .into_iter();
         let mut rays = 0;
-        for (pixel, virt, edge, r) in found {
-            rays += r;
+        for (&pixel, &kept) in pixels.iter().zip(&keep) {
+            let (virt, edge) = match kept {
+                true => old.at(pixel),
+                false => {
+                    let (_, virt, edge, r) = found.next().expect("one per pixel traced");
+                    rays += r;
+                    (virt, edge)
+                }
+            };
             if let Some((p, terms)) = virt {
                 self.push_virtual(pixel, p, &terms);
             }
@@ -494,7 +518,11 @@ impl PixelDataArray {
                 self.push_edge(pixel, kept, &terms);
             }
         }
-        (rays, pixels.len() as u64)
+        let examined = pixels.len() as u64;
+        if movers.is_some() || examined > 0 {
+            self.examined = Some((pixels, candidates.is_none()));
+        }
+        (rays, examined)
     }
 
     /// How many of `window`'s pixels have a centre that sees a real surface.

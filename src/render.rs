@@ -700,6 +700,7 @@ impl Session {
             reached: &mut self.pose.reached,
             block_shafts: &mut self.pose.block_shafts,
             stats: &mut stats,
+            movers: still.as_ref().map(|s| s as &dyn crate::objects::Movers),
         };
         let directions = &mut self.pose.gather_directions;
         let objects_ref = objects.as_ref();

@@ -148,6 +148,7 @@ fn a_seam_pixel_takes_the_change_of_the_side_it_shows_in_the_photo() {
         edges: Vec::new(),
         edge_samples: Samples::default(),
         rays: 0,
+        examined: None,
     };
     let shows_one = |i: usize| i as u32 % w <= 8;
     let mut photo = Image::new(w, h);

@@ -20,24 +20,14 @@ use rayon::prelude::*;
 
 use super::paths::Measured;
 use super::{ObjectShading, paths};
-use crate::light::{Emitter, LightSource};
+use crate::light::LightSource;
+use crate::objects::Movers;
 use crate::pda::{PixelDataArray, SurfacePoint};
 use crate::util::FastMap;
 
 /// At most this many bytes of kept samples (a 2 m glossy table seen whole
 /// keeps about 50 MB); past it, pixels are shaded anew at every update.
 const KEEP_BYTES: usize = 256 << 20;
-
-/// What moved since the samples were kept: an update's objects where they
-/// were and where they are.
-pub trait Movers: Sync {
-    /// Whether no moved object comes near any segment from a point within
-    /// `slack` of `a` to a point within `radius` of `c`.
-    fn clear_towards(&self, a: DVec3, c: DVec3, radius: f64, slack: f64) -> bool;
-    /// Whether virtual surface `surface` stood still, its patches numbered
-    /// as before.
-    fn unmoved(&self, surface: u32) -> bool;
-}
 
 /// A shaded point's samples as a session keeps them (see the module's doc).
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -199,15 +189,12 @@ impl KeptShading {
     }
 }
 
-/// The lights a sample's rays may reach with the objects in the way:
-/// centre and reach (half a rect's sides), those lit alone.
+/// The lights a sample's rays may reach with the objects in the way (those
+/// lit): balls around them.
 fn lit(lights: &[LightSource], scales: &[f64]) -> Vec<(DVec3, f64)> {
     (lights.iter().zip(scales))
         .filter(|(_, s)| **s > 0.0)
-        .map(|(l, _)| match l.emitter {
-            Emitter::Point => (l.position, 0.0),
-            Emitter::Rect { u, v, .. } => (l.position, 0.5 * (u.length() + v.length())),
-        })
+        .map(|(l, _)| l.ball())
         .collect()
 }
 

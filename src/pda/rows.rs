@@ -138,6 +138,7 @@ impl PixelDataArray {
             edges: Vec::new(),
             edge_samples: Samples::default(),
             rays: 0,
+            examined: None,
         };
         let first = pda.first_pixel();
         for r in rows {
@@ -289,5 +290,98 @@ impl PixelDataArray {
                 (pixel, virt, edge, rays)
             })
             .collect()
+    }
+}
+
+/// The last placement's virtual points and edge pixels, for the pixels an
+/// update keeps.
+pub(super) struct Placed {
+    pixels: Vec<u32>,
+    samples: Samples,
+    edges: Vec<EdgePixel>,
+    edge_samples: Samples,
+    lights: usize,
+}
+
+/// A pixel's virtual point and its edge's sub-pixel points, with their light terms.
+type PixelPoints = (
+    Option<(SurfacePoint, Vec<LightTerm>)>,
+    Option<(Vec<SurfacePoint>, Vec<LightTerm>)>,
+);
+
+impl Placed {
+    /// Takes them from `pda`, which is left without any.
+    pub(super) fn take(pda: &mut PixelDataArray) -> Placed {
+        Placed {
+            pixels: std::mem::take(&mut pda.virtual_pixels),
+            samples: std::mem::take(&mut pda.virtual_samples),
+            edges: std::mem::take(&mut pda.edges),
+            edge_samples: std::mem::take(&mut pda.edge_samples),
+            lights: pda.light_count,
+        }
+    }
+
+    /// Pixel `pixel`'s points.
+    pub(super) fn at(&self, pixel: u32) -> PixelPoints {
+        let l = self.lights;
+        let virt = self.pixels.binary_search(&pixel).ok().map(|k| {
+            let terms = self.samples.terms[k * l..(k + 1) * l].to_vec();
+            (self.samples.points[k], terms)
+        });
+        let edge = (self.edges.binary_search_by_key(&pixel, |e| e.pixel).ok()).map(|k| {
+            let e = self.edges[k];
+            let (a, b) = (e.start as usize, (e.start + e.count) as usize);
+            let terms = self.edge_samples.terms[a * l..b * l].to_vec();
+            (self.edge_samples.points[a..b].to_vec(), terms)
+        });
+        (virt, edge)
+    }
+
+    /// Whether no moved object comes near pixel `pixel`'s camera rays (a
+    /// cone from the camera through its corners) nor the shadow rays of
+    /// its points to the active lights, and its virtual point's surface
+    /// stood still.
+    pub(super) fn clear(
+        &self,
+        input: &PdaInput,
+        movers: &dyn crate::objects::Movers,
+        pixel: u32,
+    ) -> bool {
+        let cam = input.camera;
+        let (col, row) = (pixel % cam.width, pixel / cam.width);
+        let centre = cam.pixel_ray(col, row);
+        let d = centre.direction.normalize_or_zero();
+        let widest = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
+            .iter()
+            .map(|(x, y)| {
+                let c = cam
+                    .ray(col as f64 + x, row as f64 + y)
+                    .direction
+                    .normalize_or_zero();
+                c.dot(d).clamp(-1.0, 1.0).acos()
+            })
+            .fold(0.0, f64::max);
+        const FAR: f64 = 1e4;
+        let radius = FAR * (1.5 * widest).min(1.0).tan();
+        if !movers.clear_towards(centre.origin, centre.origin + d * FAR, radius, 0.0) {
+            return false;
+        }
+        let (virt, edge) = self.at(pixel);
+        let points = virt
+            .iter()
+            .map(|(p, _)| p)
+            .chain(edge.iter().flat_map(|(ps, _)| ps));
+        let lights: Vec<(DVec3, f64)> = (input.lights.iter().zip(input.active))
+            .filter(|(_, a)| **a)
+            .map(|(l, _)| l.ball())
+            .collect();
+        let mut points = points;
+        points.all(|p| {
+            let x = p.position.as_dvec3();
+            (!p.is_virtual || movers.unmoved(p.surface))
+                && lights
+                    .iter()
+                    .all(|&(c, r)| movers.clear_towards(x, c, r, 1e-3))
+        })
     }
 }

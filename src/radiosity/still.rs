@@ -184,6 +184,17 @@ impl StillSurfaces {
     }
 }
 
+/// An update's moved objects, for what a session keeps of its rays.
+impl crate::objects::Movers for StillSurfaces {
+    fn clear_towards(&self, a: DVec3, c: DVec3, radius: f64, slack: f64) -> bool {
+        self.clear_of_movers_towards(a, c, radius, slack)
+    }
+
+    fn unmoved(&self, surface: u32) -> bool {
+        self.is_still(surface) && self.patch_shift(surface) == Some(0)
+    }
+}
+
 /// Per virtual surface, its patches' first number and count, where they
 /// are one run (a surface meshed as any other is).
 fn patch_runs(patches: &Patches) -> std::collections::HashMap<u32, (usize, usize)> {

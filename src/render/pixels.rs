@@ -12,6 +12,8 @@ pub(super) struct PixelUpdate<'a> {
     pub(super) reached: &'a mut Vec<Vec<u32>>,
     pub(super) block_shafts: &'a mut Vec<crate::blocks::BlockShafts>,
     pub(super) stats: &'a mut UpdateStats,
+    /// What moved since the last update (None: re-trace every pixel).
+    pub(super) movers: Option<&'a dyn crate::objects::Movers>,
 }
 
 impl PixelUpdate<'_> {
@@ -37,8 +39,9 @@ impl PixelUpdate<'_> {
             band: None,
         };
         let pda = self.pda;
-        let (mut rays, retraced) =
-            times.time("re-trace objects and edges", || pda.rebuild_virtual(&input));
+        let (mut rays, retraced) = times.time("re-trace objects and edges", || {
+            pda.rebuild_virtual(&input, self.movers)
+        });
         // The pixels whose shafts may meet the objects' old bounds are those
         // the last update (or the hierarchy's building) reached against
         // them: only the new bounds are traversed.

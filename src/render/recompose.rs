@@ -186,14 +186,3 @@ impl Session {
         self.run.residual_stats
     }
 }
-
-/// An update's moved objects, for the samples a session keeps.
-impl crate::object_shading::kept::Movers for crate::radiosity::StillSurfaces {
-    fn clear_towards(&self, a: DVec3, c: DVec3, radius: f64, slack: f64) -> bool {
-        self.clear_of_movers_towards(a, c, radius, slack)
-    }
-
-    fn unmoved(&self, surface: u32) -> bool {
-        self.is_still(surface) && self.patch_shift(surface) == Some(0)
-    }
-}
