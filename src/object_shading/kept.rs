@@ -126,19 +126,35 @@ impl KeptShading {
         self.movers = Some(movers);
     }
 
-    /// Shades every virtual point of `pda` whose surface has a material:
-    /// the kept samples read again where nothing that moved comes near
-    /// their rays, the others drawn anew and kept.
+    /// Shades every virtual point of `pda` whose surface has a material.
+    /// After an update, a still object's kept samples are read again where
+    /// nothing that moved comes near their rays, and its points drawn anew
+    /// are kept; a moved object's are not (it is likely to move again: a
+    /// drag). The session's first composite keeps every point's; any other
+    /// (the lights scaled, a render saved) shades anew and keeps the samples
+    /// as they were, dropping them if the lights' scales changed.
     pub fn shade(&mut self, shading: &ObjectShading, pda: &PixelDataArray) -> ShadedPoints {
-        let movers = self
-            .movers
-            .take()
-            .filter(|_| self.scales == shading.scales_with);
+        let movers = self.movers.take();
+        let first = self.scales.is_empty();
+        if movers.is_none() && !first {
+            if self.scales != shading.scales_with {
+                *self = KeptShading::default();
+            }
+            self.kept = 0;
+            let plain = |p: &SurfacePoint, share| {
+                (p.is_virtual).then(|| shading.radiance(p, share)).flatten()
+            };
+            return shaded_points(pda, plain);
+        }
+        let movers = movers.filter(|_| self.scales == shading.scales_with);
         let old = std::mem::take(&mut self.records);
         let lights = lit(shading.lights, shading.scales_with);
         let one = |p: &SurfacePoint, share: f64| {
             if !p.is_virtual || !shading.materials.has(p.surface) {
                 return Outcome::Plain(None);
+            }
+            if movers.as_ref().is_some_and(|m| !m.unmoved(p.surface)) {
+                return Outcome::Plain(shading.radiance(p, share));
             }
             let key = PointKey::of(p, share);
             let kept = old.get(&key).filter(|r| r.keepable);
@@ -152,8 +168,10 @@ impl KeptShading {
             Outcome::Fresh(key, value, record)
         };
         let share = 1.0 / (pda.supersample * pda.supersample) as f64;
+        let edge_pixel = at_edges(pda);
         let whole: Vec<Outcome> = (pda.virtual_samples.points.par_iter())
-            .map(|p| one(p, 1.0))
+            .zip(&edge_pixel)
+            .map(|(p, &e)| if e { Outcome::Plain(None) } else { one(p, 1.0) })
             .collect();
         let edge: Vec<Outcome> = (pda.edge_samples.points.par_iter())
             .map(|p| one(p, share))
@@ -187,6 +205,35 @@ impl KeptShading {
         self.kept = kept;
         out
     }
+}
+
+/// Each virtual point's radiance by `shade(point, share of its pixel)`.
+fn shaded_points(
+    pda: &PixelDataArray,
+    shade: impl Fn(&SurfacePoint, f64) -> Option<DVec3> + Sync,
+) -> ShadedPoints {
+    let share = 1.0 / (pda.supersample * pda.supersample) as f64;
+    ShadedPoints {
+        whole: (pda.virtual_samples.points.par_iter())
+            .zip(&at_edges(pda))
+            .map(|(p, &e)| if e { None } else { shade(p, 1.0) })
+            .collect(),
+        edge: (pda.edge_samples.points.par_iter())
+            .map(|p| shade(p, share))
+            .collect(),
+    }
+}
+
+/// Per whole virtual point, whether its pixel is an edge pixel, which the
+/// composite shades from its sub-pixels alone (both lists in pixel order).
+fn at_edges(pda: &PixelDataArray) -> Vec<bool> {
+    let mut edges = pda.edges.iter().map(|e| e.pixel).peekable();
+    (pda.virtual_pixels.iter())
+        .map(|&pixel| {
+            while edges.next_if(|&e| e < pixel).is_some() {}
+            edges.peek() == Some(&pixel)
+        })
+        .collect()
 }
 
 /// The lights a sample's rays may reach with the objects in the way (those

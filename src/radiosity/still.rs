@@ -94,10 +94,15 @@ impl StillSurfaces {
     /// Whether no surface that moved, where it was or where it is, comes
     /// near any segment from a point within `slack` of `a` to a point
     /// within `radius` of `c` (its sphere against the cone from `a` to
-    /// `c`'s ball, `slack` further).
+    /// `c`'s ball, `slack` further). Its box is tested too: the cone lies
+    /// within `radius` + `slack` of the segment a–c, which then misses the
+    /// box grown by as much.
     pub fn clear_of_movers_towards(&self, a: DVec3, c: DVec3, radius: f64, slack: f64) -> bool {
-        (self.movers.iter())
-            .all(|&(m, r)| distance_to_cone(m, a, c, radius) > r + slack + ORIGIN_SLACK)
+        (self.movers.iter().zip(&self.boxes)).all(|(&(m, r), &(lo, hi))| {
+            let pad = DVec3::splat(radius + slack + ORIGIN_SLACK);
+            distance_to_cone(m, a, c, radius) > r + slack + ORIGIN_SLACK
+                || !crate::geometry::segment_meets_box(a, c, lo - pad, hi + pad)
+        })
     }
 
     /// Whether every surface that moved, where it was and where it is,
