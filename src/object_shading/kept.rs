@@ -289,3 +289,14 @@ fn replay(shading: &ObjectShading, p: &SurfacePoint, r: &Record) -> DVec3 {
 pub(crate) fn total(base: DVec3, reads: DVec3, diffuse: DVec3, h: DVec3, n: u32) -> DVec3 {
     (((base + reads) + diffuse * h / std::f64::consts::PI) / n as f64).max(DVec3::ZERO)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// What a session holds per lobe ray kept (`design/updates.md` gives it).
+    #[test]
+    fn a_kept_lobe_ray_takes_64_bytes() {
+        assert_eq!(std::mem::size_of::<(Vec3, Option<Measured>)>(), 64);
+    }
+}
