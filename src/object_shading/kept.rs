@@ -25,8 +25,9 @@ use crate::objects::Movers;
 use crate::pda::{PixelDataArray, SurfacePoint};
 use crate::util::FastMap;
 
-/// At most this many bytes of kept samples (a 2 m glossy table seen whole
-/// keeps about 50 MB); past it, pixels are shaded anew at every update.
+/// At most this many bytes of kept samples (a lobe ray takes 64: 4 M of
+/// them, an object over 200,000 pixels of a plate at 20 a pixel); past it,
+/// pixels are shaded anew at every update.
 const KEEP_BYTES: usize = 256 << 20;
 
 /// A shaded point's samples as a session keeps them (see the module's doc).
@@ -121,8 +122,13 @@ enum Outcome {
 }
 
 impl KeptShading {
-    /// The next composite's samples may be kept where `movers` come near none of their rays.
+    /// The next composite's samples may be kept where `movers` come near
+    /// none of their rays. A second move before the samples were read again
+    /// (composites with rounds skip them) leaves them unknown: dropped.
     pub fn since(&mut self, movers: Box<dyn Movers + Send>) {
+        if self.movers.is_some() {
+            *self = KeptShading::default();
+        }
         self.movers = Some(movers);
     }
 
