@@ -37,8 +37,7 @@ mod transport;
 
 pub use change::{ObjectView, cosine_direction, solve_change};
 pub use direct::{
-    DirectWithObjects, direct_irradiance, direct_irradiance_with_objects, direct_keeping,
-    total_direct,
+    DirectWithObjects, direct_irradiance, direct_irradiance_with_objects, total_direct,
 };
 pub use form_factor::{PairShafts, element_form_factor, visibility};
 pub use gather_rows::{GatherRows, GatherRowsSettings, ObjectLinkEstimate};

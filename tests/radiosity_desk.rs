@@ -140,14 +140,15 @@ fn direct_light_with_objects_reuses_the_room_only_where_it_is_the_same() {
         let room_direct = direct_irradiance(&room, &lights, &tracer, Layer::Real, 4);
         let objects = arlux::pda::VirtualBounds::of(&scene.virtual_world_surfaces())
             .with_room(&room.real_root_polygons(), &lights);
-        let fast = arlux::radiosity::direct_irradiance_with_objects(
-            &with,
-            &lights,
-            &tracer,
-            4,
-            &room_direct,
-            &objects,
-        );
+        let input = arlux::radiosity::DirectWithObjects {
+            patches: &with,
+            lights: &lights,
+            tracer: &tracer,
+            level: 4,
+            room: &room_direct,
+            objects: &objects,
+        };
+        let fast = arlux::radiosity::direct_irradiance_with_objects(&input, None);
         let known = (room.patch_count()..with.patch_count())
             .filter(|&k| {
                 (0..lights.len()).any(|l| {

@@ -31,62 +31,36 @@ pub fn direct_irradiance(
         .collect()
 }
 
-/// [`direct_irradiance`] through real and virtual geometry, where `room`
-/// holds the room's own values (through real geometry, for the first
-/// patches): those are taken wherever the shaft from a patch to the
-/// light excludes every one of the objects — no ray can meet an object
-/// there, so the numbers are the same — and only the rest are traced.
-/// An object's patch whose light only its own solid can block
-/// ([`VirtualBounds::only_own_blocks`]) knows its rays without tracing.
-pub fn direct_irradiance_with_objects(
-    patches: &Patches,
-    lights: &[LightSource],
-    tracer: &Tracer,
-    level: usize,
-    room: &[Vec<DVec3>],
-    objects: &VirtualBounds,
-) -> Vec<Vec<DVec3>> {
-    let input = DirectWithObjects {
-        patches,
-        lights,
-        tracer,
-        level,
-        room,
-        objects,
-    };
-    direct_keeping(&input, None)
-}
-
-/// What [`direct_keeping`] reads: [`direct_irradiance_with_objects`]'s arguments.
+/// What [`direct_irradiance_with_objects`] reads.
 pub struct DirectWithObjects<'a> {
     pub patches: &'a Patches,
     pub lights: &'a [LightSource],
     pub tracer: &'a Tracer,
+    /// Shadow rays per point to a rect light: 2^level.
     pub level: usize,
+    /// The room's own values per light (through real geometry, for the first patches).
     pub room: &'a [Vec<DVec3>],
     pub objects: &'a VirtualBounds,
 }
 
-/// [`direct_irradiance_with_objects`], with `kept`: what moved since the
-/// pose before and its values for the same lights. A patch of the room or
-/// of a still object (numbered as before) whose shaft to a light no moved
-/// box enters, where it was or is, takes the value it had: its rays,
-/// seeded by its number, meet what they met.
-pub fn direct_keeping(
+/// [`direct_irradiance`] through real and virtual geometry: the room's own
+/// values are taken wherever the shaft from a patch to the light excludes
+/// every one of the objects — no ray can meet an object there, so the
+/// numbers are the same — and only the rest are traced. An object's patch
+/// whose light only its own solid can block
+/// ([`VirtualBounds::only_own_blocks`]) knows its rays without tracing.
+/// `kept`: what moved since the pose before and its values for the same
+/// lights; a patch of the room or of a still object (numbered as before)
+/// whose shaft to a light no moved box enters, where it was or is, takes
+/// the value it had: its rays, seeded by its number, meet what they met.
+pub fn direct_irradiance_with_objects(
     input: &DirectWithObjects,
     kept: Option<(&StillSurfaces, &[Vec<DVec3>])>,
 ) -> Vec<Vec<DVec3>> {
-    let DirectWithObjects {
-        patches,
-        lights,
-        tracer,
-        level,
-        room,
-        objects,
-    } = *input;
+    let (patches, room, objects) = (input.patches, input.room, input.objects);
+    let (tracer, level) = (input.tracer, input.level);
     let share = face_clusters(patches, room.first().map_or(0, |r| r.len()));
-    lights
-        .iter()
+    (input.lights.iter())
         .zip(room)
         .enumerate()
         .map(|(l, (light, room))| {

@@ -311,7 +311,7 @@ pub(super) fn solve_changes(
             room: &room,
             objects: input.bounds,
         };
-        crate::radiosity::direct_keeping(&with, kept)
+        crate::radiosity::direct_irradiance_with_objects(&with, kept)
     });
     if directions.kept {
         directions.direct = Some((on.clone(), direct.clone()));
