@@ -17,6 +17,8 @@ pub trait Movers: Sync {
     /// Whether virtual surface `surface` stood still, its patches numbered
     /// as before.
     fn unmoved(&self, surface: u32) -> bool;
+    /// Whether any virtual surface stood still (else nothing can be kept).
+    fn any_unmoved(&self) -> bool;
 }
 
 /// What the oracle needs about the virtual objects: each surface's bounds

@@ -479,7 +479,13 @@ impl PixelDataArray {
         for &pixel in &self.virtual_pixels {
             self.virtual_index[pixel as usize - first] = NONE;
         }
-        let old = Placed::take(self);
+        // With nothing standing still nothing is kept: the arrays are
+        // emptied in place, their room kept for the next placement.
+        let movers = movers.filter(|m| m.any_unmoved());
+        let old = match movers {
+            Some(_) => Placed::take(self),
+            None => Placed::cleared(self),
+        };
         let boxes = screen_boxes(input.camera, input.bounds);
         let candidates = if boxes.is_empty() {
             None
@@ -489,9 +495,12 @@ impl PixelDataArray {
         let pixels = self.pixels_to_retrace(input, &boxes);
         let examined = self.examined.take();
         let keep: Vec<bool> = match (movers, &examined) {
-            (Some(m), Some((before, all))) if *all == candidates.is_none() => (pixels.par_iter())
-                .map(|&p| before.binary_search(&p).is_ok() && old.clear(input, m, p))
-                .collect(),
+            (Some(m), Some((before, all))) if *all == candidates.is_none() => {
+                let reach = pixel_reach(input.camera);
+                (pixels.par_iter())
+                    .map(|&p| before.binary_search(&p).is_ok() && old.clear(input, m, (p, reach)))
+                    .collect()
+            }
             _ => vec![false; pixels.len()],
         };
         let fresh: Vec<u32> = (pixels.iter().zip(&keep))

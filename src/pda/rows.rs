@@ -321,6 +321,23 @@ impl Placed {
         }
     }
 
+    /// None, `pda`'s emptied in place (their room kept).
+    pub(super) fn cleared(pda: &mut PixelDataArray) -> Placed {
+        pda.virtual_pixels.clear();
+        for samples in [&mut pda.virtual_samples, &mut pda.edge_samples] {
+            samples.points.clear();
+            samples.terms.clear();
+        }
+        pda.edges.clear();
+        Placed {
+            pixels: Vec::new(),
+            samples: Samples::default(),
+            edges: Vec::new(),
+            edge_samples: Samples::default(),
+            lights: pda.light_count,
+        }
+    }
+
     /// Pixel `pixel`'s points.
     pub(super) fn at(&self, pixel: u32) -> PixelPoints {
         let l = self.lights;
@@ -338,31 +355,20 @@ impl Placed {
     }
 
     /// Whether no moved object comes near pixel `pixel`'s camera rays (a
-    /// cone from the camera through its corners) nor the shadow rays of
-    /// its points to the active lights, and its virtual point's surface
-    /// stood still.
+    /// cone from the camera around its centre ray, `widest` its half-angle
+    /// in radians: see [`pixel_reach`]) nor the shadow rays of its points
+    /// to the active lights, and its virtual point's surface stood still.
     pub(super) fn clear(
         &self,
         input: &PdaInput,
         movers: &dyn crate::objects::Movers,
-        pixel: u32,
+        (pixel, widest): (u32, f64),
     ) -> bool {
         let cam = input.camera;
-        let (col, row) = (pixel % cam.width, pixel / cam.width);
-        let centre = cam.pixel_ray(col, row);
+        let centre = cam.pixel_ray(pixel % cam.width, pixel / cam.width);
         let d = centre.direction.normalize_or_zero();
-        let widest = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
-            .iter()
-            .map(|(x, y)| {
-                let c = cam
-                    .ray(col as f64 + x, row as f64 + y)
-                    .direction
-                    .normalize_or_zero();
-                c.dot(d).clamp(-1.0, 1.0).acos()
-            })
-            .fold(0.0, f64::max);
         const FAR: f64 = 1e4;
-        let radius = FAR * (1.5 * widest).min(1.0).tan();
+        let radius = FAR * widest.min(1.0).tan();
         if !movers.clear_towards(centre.origin, centre.origin + d * FAR, radius, 0.0) {
             return false;
         }
@@ -384,4 +390,26 @@ impl Placed {
                     .all(|&(c, r)| movers.clear_towards(x, c, r, 1e-3))
         })
     }
+}
+
+/// The widest angle between a pixel's centre ray and a ray through one of
+/// its corners, over pixels spread across the image (every 16th row and
+/// column), twice over: a lens's distortion changes it smoothly.
+pub(super) fn pixel_reach(cam: &crate::camera::Camera) -> f64 {
+    let (w, h) = (cam.width, cam.height);
+    let step = |n: u32| (0..n).step_by(16).chain([n.saturating_sub(1)]);
+    let mut widest: f64 = 0.0;
+    for row in step(h) {
+        for col in step(w) {
+            let d = cam.pixel_ray(col, row).direction.normalize_or_zero();
+            for (x, y) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+                let c = cam
+                    .ray(col as f64 + x, row as f64 + y)
+                    .direction
+                    .normalize_or_zero();
+                widest = widest.max(c.dot(d).clamp(-1.0, 1.0).acos());
+            }
+        }
+    }
+    2.0 * widest
 }

@@ -73,18 +73,30 @@ pub fn direct_irradiance_with_objects(
                     }
                     let el = patches.patch(k);
                     // The value it had, if no moved box enters its shaft.
-                    let before = |shaft: &Shaft| {
+                    // (Its shaft given, or made only when it may be kept.)
+                    let before = |shaft: Option<&Shaft>| {
                         let (still, last) = kept?;
                         let last = last.get(l).filter(|v| v.len() == patches.patch_count())?;
                         let same = k < room.len() || still.patch_shift(el.surface) == Some(0);
-                        (same && still.clear_of_shaft(shaft)).then_some(last[k])
+                        if !same {
+                            return None;
+                        }
+                        let made;
+                        let shaft = match shaft {
+                            Some(s) => s,
+                            None => {
+                                made = Shaft::between_boxes(el.bounds, light_box);
+                                &made
+                            }
+                        };
+                        still.clear_of_shaft(shaft).then_some(last[k])
                     };
                     if k < room.len() {
                         let shaft = Shaft::between_boxes(el.bounds, light_box);
                         if objects.objects.iter().all(|o| o.outside(&shaft)) {
                             return room[k];
                         }
-                        if let Some(v) = before(&shaft) {
+                        if let Some(v) = before(Some(&shaft)) {
                             return v;
                         }
                     } else if objects.only_own_blocks(el.surface, el.centre, el.normal, l, light) {
@@ -96,11 +108,7 @@ pub fn direct_irradiance_with_objects(
                             })
                         });
                     }
-                    let shaft = || Shaft::between_boxes(el.bounds, light_box);
-                    if let Some(v) = kept
-                        .and_then(|_| before(&shaft()))
-                        .filter(|_| k >= room.len())
-                    {
+                    if let Some(v) = (k >= room.len()).then(|| before(None)).flatten() {
                         return v;
                     }
                     patch_direct(patches, k, light, tracer, Layer::All, level)

@@ -198,6 +198,10 @@ impl crate::objects::Movers for StillSurfaces {
     fn unmoved(&self, surface: u32) -> bool {
         self.is_still(surface) && self.patch_shift(surface) == Some(0)
     }
+
+    fn any_unmoved(&self) -> bool {
+        self.shift.contains(&Some(0))
+    }
 }
 
 /// Per virtual surface, its patches' first number and count, where they
