@@ -236,7 +236,6 @@ impl ObjectShading<'_> {
         let mut kept = kept::Record {
             keepable: record.is_some(),
             view: ((x + (x - eye) * 1e-3).as_vec3(), 0.0),
-            samples: n,
             ..Default::default()
         };
         for j in 0..n {

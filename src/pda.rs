@@ -496,9 +496,9 @@ impl PixelDataArray {
         let examined = self.examined.take();
         let keep: Vec<bool> = match (movers, &examined) {
             (Some(m), Some((before, all))) if *all == candidates.is_none() => {
-                let reach = pixel_reach(input.camera);
+                let reach = Reach::of(input);
                 (pixels.par_iter())
-                    .map(|&p| before.binary_search(&p).is_ok() && old.clear(input, m, (p, reach)))
+                    .map(|&p| before.binary_search(&p).is_ok() && old.clear(input, m, (p, &reach)))
                     .collect()
             }
             _ => vec![false; pixels.len()],
@@ -512,25 +512,27 @@ impl PixelDataArray {
             .into_iter();
         let mut rays = 0;
         for (&pixel, &kept) in pixels.iter().zip(&keep) {
-            let (virt, edge) = match kept {
-                true => old.at(pixel),
-                false => {
-                    let (_, virt, edge, r) = found.next().expect("one per pixel traced");
-                    rays += r;
-                    (virt, edge)
+            if kept {
+                let (virt, edge) = old.at(pixel);
+                if let Some((p, terms)) = virt {
+                    self.push_virtual(pixel, p, terms);
                 }
-            };
+                if let Some((subs, terms)) = edge {
+                    self.push_edge(pixel, subs, terms);
+                }
+                continue;
+            }
+            let (_, virt, edge, r) = found.next().expect("one per pixel traced");
+            rays += r;
             if let Some((p, terms)) = virt {
                 self.push_virtual(pixel, p, &terms);
             }
-            if let Some((kept, terms)) = edge {
-                self.push_edge(pixel, kept, &terms);
+            if let Some((subs, terms)) = edge {
+                self.push_edge(pixel, &subs, &terms);
             }
         }
         let examined = pixels.len() as u64;
-        if movers.is_some() || examined > 0 {
-            self.examined = Some((pixels, candidates.is_none()));
-        }
+        self.examined = Some((pixels, candidates.is_none()));
         (rays, examined)
     }
 

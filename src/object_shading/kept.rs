@@ -40,9 +40,8 @@ pub(crate) struct Record {
     pub base: DVec3,
     /// The diffuse part's factors, summed.
     pub diffuse: DVec3,
-    pub samples: u32,
-    /// Each sample's lobe ray: where it ended, and what it met that reads
-    /// the solution.
+    /// Each sample's lobe ray (one a sample): where it ended, and what it
+    /// met that reads the solution.
     pub lobes: Vec<(Vec3, Option<Measured>)>,
     /// A cone from the camera holding every sample's camera ray: its
     /// axis's far end and radius there.
@@ -153,7 +152,7 @@ impl KeptShading {
             return shaded_points(pda, plain);
         }
         let movers = movers.filter(|_| self.scales == shading.scales_with);
-        let old = std::mem::take(&mut self.records);
+        let mut old = std::mem::take(&mut self.records);
         let lights = lit(shading.lights, shading.scales_with);
         let one = |p: &SurfacePoint, share: f64| {
             if !p.is_virtual || !shading.materials.has(p.surface) {
@@ -183,8 +182,6 @@ impl KeptShading {
             .map(|p| one(p, share))
             .collect();
         self.scales = shading.scales_with.to_vec();
-        self.kept = 0;
-        let mut old = old;
         let mut bytes = 0;
         let mut keep = |o: Outcome| -> Option<DVec3> {
             let (key, value, record) = match o {
@@ -286,7 +283,7 @@ fn replay(shading: &ObjectShading, p: &SurfacePoint, r: &Record) -> DVec3 {
         paths::interpolate(shading.indirect_with, &p.location, shading.patches).max(DVec3::ZERO);
     let reads = (r.lobes.iter().filter_map(|(_, m)| m.as_ref()))
         .fold(DVec3::ZERO, |sum, m| sum + m.radiance(shading));
-    total(r.base, reads, r.diffuse, h, r.samples)
+    total(r.base, reads, r.diffuse, h, r.lobes.len() as u32)
 }
 
 /// A point's radiance from its samples' sums: `base` (emission, direct

@@ -315,8 +315,8 @@ impl ObjectShading<'_> {
         };
         let (p, q) = affine(photo, e_with, without, rho);
         let measured = Measured {
-            p: p.as_vec3(),
-            q: q.as_vec3(),
+            p: single(p),
+            q: single(q),
             patch: at.patch,
             weights: at.weights.map(|(_, w)| w as f32),
             is_virtual: h.is_virtual,
@@ -389,11 +389,18 @@ impl Measured {
     /// Scaled by the lobe's `weight` (not negative).
     fn scaled(self, weight: DVec3) -> Measured {
         Measured {
-            p: (self.p.as_dvec3() * weight).as_vec3(),
-            q: (self.q.as_dvec3() * weight).as_vec3(),
+            p: single(self.p.as_dvec3() * weight),
+            q: single(self.q.as_dvec3() * weight),
             ..self
         }
     }
+}
+
+/// `v` in single precision, held within ±1e30: a photo's pixel over a
+/// light without the objects of 1e-36 (what the ratio's threshold admits)
+/// would pass f32's range, and an infinite factor times no light is NaN.
+fn single(v: DVec3) -> glam::Vec3 {
+    v.clamp(DVec3::splat(-1e30), DVec3::splat(1e30)).as_vec3()
 }
 
 /// The radiance a point sends back as p + q·I per channel, I its indirect
@@ -462,4 +469,25 @@ pub(super) fn interpolate(
         .filter(|(_, w)| *w != 0.0)
         .map(|(&v, w)| table.get(v as usize).copied().unwrap_or(DVec3::ZERO) * w as f64)
         .sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+
+    /// A real point the photo shows lit where the model has nearly no
+    /// light without the objects: its factor passes single precision's
+    /// range, and must not come back infinite, nor NaN where no indirect
+    /// light arrives.
+    #[test]
+    fn a_point_nearly_dark_without_the_objects_sends_back_finite_light() {
+        let without = DVec3::splat(1e-35);
+        let (p, q) = super::affine(Some(DVec3::splat(1e4)), DVec3::ZERO, without, DVec3::ONE);
+        let (p, q) = (super::single(p), super::single(q));
+        assert!(p.is_finite() && q.is_finite(), "{p} {q}");
+        for i in [0.0, 1e-6, 10.0] {
+            let v = (p.as_dvec3() + q.as_dvec3() * i).max(DVec3::ZERO);
+            assert!(v.is_finite() && v.min_element() >= 0.0, "{i}: {v}");
+        }
+    }
 }

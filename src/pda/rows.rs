@@ -153,7 +153,7 @@ impl PixelDataArray {
             }
             pda.virtual_samples.terms.extend(r.virt_terms);
             for (pixel, subs) in r.edges {
-                pda.push_edge(pixel, subs, &[]);
+                pda.push_edge(pixel, &subs, &[]);
             }
             pda.edge_samples.terms.extend(r.edge_terms);
             pda.real_t.extend(r.real_t);
@@ -172,14 +172,14 @@ impl PixelDataArray {
     }
 
     /// Adds edge pixel `pixel`'s sub-pixel points, and their terms.
-    pub(super) fn push_edge(&mut self, pixel: u32, subs: Vec<SurfacePoint>, terms: &[LightTerm]) {
+    pub(super) fn push_edge(&mut self, pixel: u32, subs: &[SurfacePoint], terms: &[LightTerm]) {
         let start = self.edge_samples.points.len() as u32;
         self.edges.push(EdgePixel {
             pixel,
             start,
             count: subs.len() as u32,
         });
-        self.edge_samples.points.extend(subs);
+        self.edge_samples.points.extend_from_slice(subs);
         self.edge_samples.terms.extend_from_slice(terms);
     }
 
@@ -304,10 +304,47 @@ pub(super) struct Placed {
 }
 
 /// A pixel's virtual point and its edge's sub-pixel points, with their light terms.
-type PixelPoints = (
-    Option<(SurfacePoint, Vec<LightTerm>)>,
-    Option<(Vec<SurfacePoint>, Vec<LightTerm>)>,
+type PixelPoints<'a> = (
+    Option<(SurfacePoint, &'a [LightTerm])>,
+    Option<(&'a [SurfacePoint], &'a [LightTerm])>,
 );
+
+/// What testing a pixel against the moved objects reads, the same for
+/// every pixel of a placement.
+pub(super) struct Reach {
+    /// The widest angle between a pixel's centre ray and a ray through one
+    /// of its corners, over pixels spread across the image (every 16th row
+    /// and column), twice over: a lens's distortion changes it smoothly.
+    widest: f64,
+    /// The active lights' balls.
+    lights: Vec<(DVec3, f64)>,
+}
+
+impl Reach {
+    pub(super) fn of(input: &PdaInput) -> Reach {
+        let cam = input.camera;
+        let (w, h) = (cam.width, cam.height);
+        let step = |n: u32| (0..n).step_by(16).chain([n.saturating_sub(1)]);
+        let mut widest: f64 = 0.0;
+        for row in step(h) {
+            for col in step(w) {
+                let d = cam.pixel_ray(col, row).direction.normalize_or_zero();
+                for (x, y) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+                    let c = cam.ray(col as f64 + x, row as f64 + y).direction;
+                    widest = widest.max(c.normalize_or_zero().dot(d).clamp(-1.0, 1.0).acos());
+                }
+            }
+        }
+        let lights = (input.lights.iter().zip(input.active))
+            .filter(|(_, a)| **a)
+            .map(|(l, _)| l.ball())
+            .collect();
+        Reach {
+            widest: 2.0 * widest,
+            lights,
+        }
+    }
+}
 
 impl Placed {
     /// Takes them from `pda`, which is left without any.
@@ -339,77 +376,49 @@ impl Placed {
     }
 
     /// Pixel `pixel`'s points.
-    pub(super) fn at(&self, pixel: u32) -> PixelPoints {
+    pub(super) fn at(&self, pixel: u32) -> PixelPoints<'_> {
         let l = self.lights;
         let virt = self.pixels.binary_search(&pixel).ok().map(|k| {
-            let terms = self.samples.terms[k * l..(k + 1) * l].to_vec();
+            let terms = &self.samples.terms[k * l..(k + 1) * l];
             (self.samples.points[k], terms)
         });
         let edge = (self.edges.binary_search_by_key(&pixel, |e| e.pixel).ok()).map(|k| {
             let e = self.edges[k];
             let (a, b) = (e.start as usize, (e.start + e.count) as usize);
-            let terms = self.edge_samples.terms[a * l..b * l].to_vec();
-            (self.edge_samples.points[a..b].to_vec(), terms)
+            (
+                &self.edge_samples.points[a..b],
+                &self.edge_samples.terms[a * l..b * l],
+            )
         });
         (virt, edge)
     }
 
     /// Whether no moved object comes near pixel `pixel`'s camera rays (a
-    /// cone from the camera around its centre ray, `widest` its half-angle
-    /// in radians: see [`pixel_reach`]) nor the shadow rays of its points
-    /// to the active lights, and its virtual point's surface stood still.
+    /// cone from the camera around its centre ray, `reach.widest` its
+    /// half-angle in radians) nor the shadow rays of its points to the
+    /// active lights, and its virtual point's surface stood still.
     pub(super) fn clear(
         &self,
         input: &PdaInput,
         movers: &dyn crate::objects::Movers,
-        (pixel, widest): (u32, f64),
+        (pixel, reach): (u32, &Reach),
     ) -> bool {
         let cam = input.camera;
         let centre = cam.pixel_ray(pixel % cam.width, pixel / cam.width);
         let d = centre.direction.normalize_or_zero();
         const FAR: f64 = 1e4;
-        let radius = FAR * widest.min(1.0).tan();
+        let radius = FAR * reach.widest.min(1.0).tan();
         if !movers.clear_towards(centre.origin, centre.origin + d * FAR, radius, 0.0) {
             return false;
         }
         let (virt, edge) = self.at(pixel);
-        let points = virt
-            .iter()
-            .map(|(p, _)| p)
-            .chain(edge.iter().flat_map(|(ps, _)| ps));
-        let lights: Vec<(DVec3, f64)> = (input.lights.iter().zip(input.active))
-            .filter(|(_, a)| **a)
-            .map(|(l, _)| l.ball())
-            .collect();
-        let mut points = points;
-        points.all(|p| {
+        let mut points = virt.iter().map(|(p, _)| p);
+        let mut subs = edge.iter().flat_map(|(ps, _)| ps.iter());
+        let clear = |p: &SurfacePoint| {
             let x = p.position.as_dvec3();
             (!p.is_virtual || movers.unmoved(p.surface))
-                && lights
-                    .iter()
-                    .all(|&(c, r)| movers.clear_towards(x, c, r, 1e-3))
-        })
+                && (reach.lights.iter()).all(|&(c, r)| movers.clear_towards(x, c, r, 1e-3))
+        };
+        points.all(clear) && subs.all(clear)
     }
-}
-
-/// The widest angle between a pixel's centre ray and a ray through one of
-/// its corners, over pixels spread across the image (every 16th row and
-/// column), twice over: a lens's distortion changes it smoothly.
-pub(super) fn pixel_reach(cam: &crate::camera::Camera) -> f64 {
-    let (w, h) = (cam.width, cam.height);
-    let step = |n: u32| (0..n).step_by(16).chain([n.saturating_sub(1)]);
-    let mut widest: f64 = 0.0;
-    for row in step(h) {
-        for col in step(w) {
-            let d = cam.pixel_ray(col, row).direction.normalize_or_zero();
-            for (x, y) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
-                let c = cam
-                    .ray(col as f64 + x, row as f64 + y)
-                    .direction
-                    .normalize_or_zero();
-                widest = widest.max(c.dot(d).clamp(-1.0, 1.0).acos());
-            }
-        }
-    }
-    2.0 * widest
 }

@@ -108,16 +108,7 @@ impl StillSurfaces {
     /// Whether every surface that moved, where it was and where it is,
     /// lies outside `shaft` (its box).
     pub fn clear_of_shaft(&self, shaft: &crate::shaft::Shaft) -> bool {
-        self.boxes.iter().all(|&(lo, hi)| {
-            let corners: [DVec3; 8] = std::array::from_fn(|i| {
-                DVec3::new(
-                    if i & 1 == 0 { lo.x } else { hi.x },
-                    if i & 2 == 0 { lo.y } else { hi.y },
-                    if i & 4 == 0 { lo.z } else { hi.z },
-                )
-            });
-            shaft.excludes(&corners)
-        })
+        (self.boxes.iter()).all(|&(lo, hi)| shaft.excludes(&crate::geometry::box_corners(lo, hi)))
     }
 
     /// How far still surface `surface`'s patch numbers moved (None: it
