@@ -570,3 +570,35 @@ fn the_room_s_rows_change_nothing_where_the_objects_look_like_the_room() {
         "{darkened} patches lose light to a black box"
     );
 }
+
+/// One pass over the links and rows gathers the three channels as three
+/// single-channel gathers do, bit for bit (the solves gather RGB at once).
+#[test]
+fn an_rgb_gather_equals_three_single_channel_gathers_bit_for_bit() {
+    use arlux::radiosity::GatherRows;
+    let (_, tracer, room, with) = desk_with_box();
+    let rows = GatherRows::trace(&with, &tracer, &GatherRows::groups_of(&with, 0.025), 256);
+    let links = Transport::hierarchical(&room, &tracer, arlux::trace::Layer::Real, 0.02);
+    let transport = links.with_gather_rows(rows);
+    let n = with.patch_count();
+    // Uneven radiosities, one channel negative (a GMRES vector may be).
+    let b: Vec<DVec3> = (0..n)
+        .map(|k| {
+            let x = (k as f64 * 0.618_033_988_7).fract();
+            DVec3::new(x, 1.0 - x * x, -0.3 * x)
+        })
+        .collect();
+    let rgb = transport.gather_rgb(&with, &b);
+    for c in 0..3 {
+        let channel: Vec<f64> = b.iter().map(|v| v[c]).collect();
+        let mut h = vec![0.0; n];
+        transport.gather(&with, &channel, &mut h);
+        assert!(
+            h.iter().any(|h| h.abs() > 1e-3),
+            "channel {c} gathers light"
+        );
+        for (k, (one, three)) in h.iter().zip(&rgb).enumerate() {
+            assert_eq!(one.to_bits(), three[c].to_bits(), "patch {k}, channel {c}");
+        }
+    }
+}

@@ -229,13 +229,13 @@ impl ObjectView {
         out
     }
 
-    /// Subtracts from `out` (one channel, per room patch) the irradiance
-    /// the objects hide of room radiosity `x`: the objects' shadow on the
-    /// room's own links, applied to any radiosity (the change's bounces).
-    fn hide_from(&self, x: &[f64], out: &mut [f64]) {
+    /// Subtracts from `out` (per room patch) the irradiance the objects
+    /// hide of room radiosity `x`: the objects' shadow on the room's own
+    /// links, applied to any radiosity (the change's bounces).
+    fn hide_from(&self, x: &[DVec3], out: &mut [DVec3]) {
         for &(k, a, b) in &self.ranges {
-            let hidden: f64 = (self.seen[a as usize..b as usize].iter())
-                .filter_map(|s| Some(f64::from(s.weight) * x.get(s.behind as usize)?))
+            let hidden: DVec3 = (self.seen[a as usize..b as usize].iter())
+                .filter_map(|s| Some(*x.get(s.behind as usize)? * f64::from(s.weight)))
                 .sum();
             out[k as usize] -= hidden / std::f64::consts::PI;
         }
@@ -258,34 +258,20 @@ pub fn solve_change(
     view: &ObjectView,
     tolerance: f64,
 ) -> Solution {
-    let n = b.len();
-    let mut change = vec![DVec3::ZERO; n];
-    let mut indirect = vec![DVec3::ZERO; n];
-    let (mut iterations, mut residual) = (0, 0.0f64);
-    for c in 0..3 {
-        let rho: Vec<f64> = reflectance.iter().map(|r| r[c]).collect();
-        let rhs: Vec<f64> = b.iter().map(|v| v[c]).collect();
-        let gather = |x: &[f64], out: &mut [f64]| {
-            transport.gather(patches, x, out);
-            view.hide_from(x, out);
-        };
-        let apply = |x: &[f64], out: &mut [f64]| {
-            gather(x, out);
-            for ((o, x), r) in out.iter_mut().zip(x).zip(&rho) {
-                *o = x - r * *o;
-            }
-        };
-        let x0: Vec<f64> = guess.map_or(vec![0.0; n], |g| g.iter().map(|v| v[c]).collect());
-        let (x, it, res) = super::solve::gmres(apply, &rhs, x0, tolerance, 500, 40);
-        iterations = iterations.max(it);
-        residual = residual.max(res);
-        let mut h = vec![0.0; n];
-        gather(&x, &mut h);
-        for ((d, i), (x, h)) in change.iter_mut().zip(&mut indirect).zip(x.iter().zip(&h)) {
-            d[c] = *x;
-            i[c] = *h;
+    let gather = |x: &[DVec3], out: &mut [DVec3]| {
+        transport.gather_channels(patches, x, out);
+        view.hide_from(x, out);
+    };
+    let apply = |x: &[DVec3], out: &mut [DVec3]| {
+        gather(x, out);
+        for ((o, x), r) in out.iter_mut().zip(x).zip(reflectance) {
+            *o = *x - *r * *o;
         }
-    }
+    };
+    let (change, stats) = super::solve::gmres_rgb(apply, b, guess, tolerance, 500, 40);
+    let (iterations, residual) = super::solve::largest(&stats);
+    let mut indirect = vec![DVec3::ZERO; b.len()];
+    gather(&change, &mut indirect);
     Solution {
         radiosity: change,
         indirect_irradiance: indirect,

@@ -234,14 +234,18 @@ impl GatherRows {
     }
 
     /// Adds to each member's irradiance its group's row applied to the
-    /// elements' radiosities `node_b` (one channel).
-    pub fn gather_into(&self, node_b: &[f64], node_h: &mut [f64]) {
-        let h: Vec<f64> = (self.groups.par_iter())
+    /// elements' radiosities `node_b` (one channel or three).
+    pub(crate) fn gather_into<T: super::transport::Channels>(
+        &self,
+        node_b: &[T],
+        node_h: &mut [T],
+    ) {
+        let h: Vec<T> = (self.groups.par_iter())
             .with_min_len(64)
             .map(|&[_, _, a, b]| {
-                (self.entries[a as usize..b as usize].iter())
-                    .map(|&(s, w)| f64::from(w) * node_b[s as usize])
-                    .sum()
+                (self.entries[a as usize..b as usize].iter()).fold(T::default(), |h, &(s, w)| {
+                    h + node_b[s as usize] * f64::from(w)
+                })
             })
             .collect();
         for (&[a, b, ..], h) in self.groups.iter().zip(h) {

@@ -197,11 +197,25 @@ impl Transport {
 
     /// Irradiance each patch gathers from patch radiosities `b` (one channel).
     pub fn gather(&self, patches: &Patches, b: &[f64], out: &mut [f64]) {
+        self.gather_channels(patches, b, out);
+    }
+
+    /// Irradiance per patch from RGB radiosities, the three channels in one
+    /// pass over the links: each channel summed as [`Transport::gather`]
+    /// sums it, so the result equals three single-channel gathers bit for
+    /// bit, in about half their time (the links are read once, not thrice).
+    pub fn gather_rgb(&self, patches: &Patches, b: &[DVec3]) -> Vec<DVec3> {
+        let mut out = vec![DVec3::ZERO; b.len()];
+        self.gather_channels(patches, b, &mut out);
+        out
+    }
+
+    pub(crate) fn gather_channels<T: Channels>(&self, patches: &Patches, b: &[T], out: &mut [T]) {
         match self {
             Transport::Full { n, form_factors } => {
                 out.par_iter_mut().enumerate().for_each(|(i, o)| {
                     let row = &form_factors[i * n..(i + 1) * n];
-                    *o = row.iter().zip(b).map(|(f, b)| *f as f64 * b).sum();
+                    *o = (row.iter().zip(b)).fold(T::default(), |s, (f, b)| s + *b * *f as f64);
                 });
             }
             Transport::Hierarchical {
@@ -212,7 +226,7 @@ impl Transport {
                 let elements = &patches.elements;
                 // Pull: an element's radiosity is the area-weighted mean of its
                 // children's (children follow their parent in the arena).
-                let mut node_b = vec![0.0; elements.len()];
+                let mut node_b = vec![T::default(); elements.len()];
                 for (k, &e) in patches.patches.iter().enumerate() {
                     node_b[e as usize] = b[k];
                 }
@@ -223,18 +237,17 @@ impl Transport {
                             (node_b[c0 as usize] * a0 + node_b[c1 as usize] * a1) / (a0 + a1);
                     }
                 }
-                let gather_range = |&(_, a, b): &(u32, u32, u32)| -> f64 {
-                    links[a as usize..b as usize]
-                        .iter()
-                        .map(|l| l.form_factor as f64 * node_b[l.source as usize])
-                        .sum()
+                let gather_range = |&(_, a, b): &(u32, u32, u32)| -> T {
+                    (links[a as usize..b as usize].iter()).fold(T::default(), |s, l| {
+                        s + node_b[l.source as usize] * l.form_factor as f64
+                    })
                 };
-                let gathered: Vec<f64> = if links.len() < SERIAL_GATHER_LINKS {
+                let gathered: Vec<T> = if links.len() < SERIAL_GATHER_LINKS {
                     ranges.iter().map(gather_range).collect()
                 } else {
                     ranges.par_iter().map(gather_range).collect()
                 };
-                let mut node_h = vec![0.0; elements.len()];
+                let mut node_h = vec![T::default(); elements.len()];
                 for (&(receiver, _, _), h) in ranges.iter().zip(gathered) {
                     node_h[receiver as usize] = h;
                 }
@@ -244,7 +257,8 @@ impl Transport {
                 // Push: what an element gathers reaches every point of its children.
                 for e in 0..elements.len() {
                     if let Some(parent) = elements[e].parent {
-                        node_h[e] += node_h[parent as usize];
+                        let from_parent = node_h[parent as usize];
+                        node_h[e] += from_parent;
                     }
                 }
                 for (k, &e) in patches.patches.iter().enumerate() {
@@ -253,25 +267,25 @@ impl Transport {
             }
         }
     }
-
-    /// Irradiance per patch from RGB radiosities.
-    pub fn gather_rgb(&self, patches: &Patches, b: &[DVec3]) -> Vec<DVec3> {
-        let n = b.len();
-        let mut out = vec![DVec3::ZERO; n];
-        let mut channel = vec![0.0; n];
-        let mut h = vec![0.0; n];
-        for c in 0..3 {
-            for (x, v) in channel.iter_mut().zip(b) {
-                *x = v[c];
-            }
-            self.gather(patches, &channel, &mut h);
-            for (o, v) in out.iter_mut().zip(&h) {
-                o[c] = *v;
-            }
-        }
-        out
-    }
 }
+
+/// What a gather sums: one channel (`f64`) or the three of RGB (`DVec3`),
+/// each channel with the same operations in the same order, from +0 (so
+/// that even a zero's sign is the same both ways).
+pub(crate) trait Channels:
+    Copy
+    + Default
+    + Send
+    + Sync
+    + std::ops::Add<Output = Self>
+    + std::ops::AddAssign
+    + std::ops::Mul<f64, Output = Self>
+    + std::ops::Div<f64, Output = Self>
+{
+}
+
+impl Channels for f64 {}
+impl Channels for DVec3 {}
 
 /// The exact unoccluded point-to-polygon factor towards `q` at the centre
 /// and (slightly inset) corners of `p`: their spread bounds how much the
