@@ -57,7 +57,12 @@ fn main() -> anyhow::Result<()> {
         let mut times = StageTimes::default();
         let t0 = std::time::Instant::now();
         let stats = session.update(if i % 2 == 0 { &p4 } else { &p3 }, &mut times)?;
-        kept.push((stats.bundles_kept, stats.gathers_kept, stats.shaded_kept));
+        kept.push((
+            stats.bundles_kept,
+            stats.gathers_kept,
+            stats.gathers_partly_kept,
+            stats.shaded_kept,
+        ));
         totals.push(t0.elapsed().as_secs_f64() * 1e3);
         let mut per: BTreeMap<String, f64> = BTreeMap::new();
         for (stage, d) in times.0 {
@@ -80,9 +85,9 @@ fn main() -> anyhow::Result<()> {
         median(&mut totals)
     );
     kept.sort();
-    let (bundles, gathers, shaded) = kept[kept.len() / 2];
+    let (bundles, gathers, partly, shaded) = kept[kept.len() / 2];
     println!(
-        "  kept of the last pose: {bundles} bundles, {gathers} vertices' gathers, {shaded} shaded points"
+        "  kept of the last pose: {bundles} bundles, {gathers} vertices' gathers ({partly} more in part), {shaded} shaded points"
     );
     for (stage, v) in stages.iter_mut() {
         println!("  {stage:<28} {:>6.2} ms", median(v));

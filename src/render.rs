@@ -364,8 +364,10 @@ pub struct UpdateStats {
     /// pose rather than traced again (what the room's patches and the
     /// points near the objects see of them).
     pub bundles_kept: u64,
-    /// Still objects' vertices whose gather was summed again over kept rays.
+    /// Still objects' vertices whose gather was summed again over kept
+    /// rays; and those that traced again only the rays a moved object may cross.
     pub gathers_kept: usize,
+    pub gathers_partly_kept: usize,
     /// Still objects' shaded points read again over kept samples.
     pub shaded_kept: usize,
     /// Blocks skipped by one shaft test, per light: (level, x, y).
@@ -736,8 +738,8 @@ impl Session {
         stats.bundles_kept = (rays.view.iter().map(|v| v.kept))
             .chain(rays.near.iter().map(|v| v.kept))
             .sum();
-        (stats.gathers_kept, self.pose.gather_directions.since) =
-            (self.pose.gather_directions.reused, None);
+        let g = &mut self.pose.gather_directions;
+        (stats.gathers_kept, stats.gathers_partly_kept, g.since) = (g.reused, g.partly, None);
         self.pose.changes = solved.with_patches(objects, rays);
         stats.rays += pixel_rays;
         stats.pixels_retraced = retraced;

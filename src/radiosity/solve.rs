@@ -351,7 +351,9 @@ mod tests {
     fn system(n: usize) -> (Vec<Vec<f64>>, [f64; 3]) {
         let mut state = 0x9E37_79B9_7F4A_7C15u64;
         let mut next = || {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             (state >> 11) as f64 / (1u64 << 53) as f64
         };
         let t: Vec<Vec<f64>> = (0..n)

@@ -53,8 +53,10 @@ pub(super) struct GatherDirections {
     pub(super) traced: crate::util::FastMap<(u32, [u64; 3], u32), super::final_gather::Traced>,
     /// What moved since `traced` was traced (None: trace every vertex).
     pub(super) since: Option<crate::radiosity::StillSurfaces>,
-    /// How many vertices the last gather summed again without tracing.
+    /// How many vertices the last gather summed again without tracing, and
+    /// how many traced again only the rays a moved object may cross.
     pub(super) reused: usize,
+    pub(super) partly: usize,
     /// The lights on and their direct light per patch, for the next pose.
     pub(super) direct: Option<(Vec<usize>, Vec<Vec<DVec3>>)>,
 }

@@ -134,6 +134,7 @@ fn shared_light<'a>(
 /// the radiosity solution's B/π. Returns (vertex, irradiance) pairs.
 pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec<Gathered> {
     use rayon::prelude::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
     let vertices = gather_vertices(g);
     let shares = shared_gathers(g.patches, &vertices, g.share_within);
     // The gathering vertices, by their place in `vertices` (ascending).
@@ -147,7 +148,7 @@ pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec
     }
     let keeping = directions.kept;
     let kept = &*directions;
-    let reused = std::sync::atomic::AtomicUsize::new(0);
+    let (reused, partly) = (AtomicUsize::new(0), AtomicUsize::new(0));
     // The gathers, and beside them (kept by a session) their rays: one
     // pointer per gathering vertex where no session keeps them. Held for
     // the gathering vertices alone: an 80k-triangle object has 160k
@@ -168,10 +169,20 @@ pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec
             let again = (kept.since.as_ref())
                 .zip(kept.traced.get(&GatherDirections::key(v, n, side)))
                 .and_then(|(since, old)| old.kept(origin, layer, &dirs, since));
-            if again.is_some() {
-                reused.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-            }
-            let traced = again.unwrap_or_else(|| trace_at(g, origin, &dirs, layer));
+            let traced = match again {
+                Some((traced, redo)) if redo.is_empty() => {
+                    reused.fetch_add(1, Ordering::Relaxed);
+                    traced
+                }
+                Some((mut traced, redo)) => {
+                    // The rays a moved object may cross traced again, the rest kept.
+                    partly.fetch_add(1, Ordering::Relaxed);
+                    let some: Vec<DVec3> = redo.iter().map(|&i| dirs[i]).collect();
+                    traced.replace(&redo, trace_at(g, origin, &some, layer));
+                    traced
+                }
+                None => trace_at(g, origin, &dirs, layer),
+            };
             let gathered = Gathered {
                 objects_of: i,
                 ..sum_at(g, v, &traced)
@@ -179,7 +190,7 @@ pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec
             (gathered, keeping.then(|| Box::new(traced)))
         })
         .unzip();
-    directions.reused = reused.into_inner();
+    (directions.reused, directions.partly) = (reused.into_inner(), partly.into_inner());
     directions.traced.clear();
     for (t, &i) in traced.into_iter().zip(&gathering) {
         if let Some(t) = t {
@@ -300,14 +311,14 @@ pub(super) struct Gathered {
 }
 
 /// A gathering vertex's rays as traced: where each landed, and the
-/// photo's radiance at the real points the camera sees, in order (a
-/// session keeps them for the next pose).
+/// photo's radiance there where the landing point is real and the camera
+/// sees it (a session keeps them for the next pose).
 #[derive(Debug, Clone)]
 pub(super) struct Traced {
     origin: DVec3,
     layer: Layer,
     landed: Vec<Option<Landed>>,
-    /// Pixels of the photo, single precision as it holds them.
+    /// Per ray: pixels of the photo, single precision as it holds them.
     seen: Vec<Option<glam::Vec3>>,
 }
 
@@ -331,40 +342,54 @@ impl Landed {
 const FAR: f64 = 1e4;
 
 impl Traced {
-    /// These rays at this pose, when they are as they were: the vertex is
-    /// where it was, traces the same layer, and no object that moved
-    /// (`since`) comes near a ray that sees the objects; the patches met on
-    /// still objects renumbered as this pose numbers them. The photo's
-    /// radiances are read through the room alone: they stand.
+    /// These rays at this pose, where they are as they were: the vertex is
+    /// where it was and traces the same layer; the rays that see the
+    /// objects are kept where no object that moved (`since`) comes near
+    /// them, the patches met on still objects renumbered as this pose
+    /// numbers them. Returns them with the rays to trace again (by their
+    /// place in `dirs`): a ray kept lands where a fresh one would, and the
+    /// photo's radiances, read through the room alone, stand.
     fn kept(
         &self,
         origin: DVec3,
         layer: Layer,
         dirs: &[DVec3],
         since: &crate::radiosity::StillSurfaces,
-    ) -> Option<Traced> {
+    ) -> Option<(Traced, Vec<usize>)> {
         // The directions are the vertex's own (its number, normal and
         // strata, the key it was kept under).
         if self.origin != origin || self.layer != layer || self.landed.len() != dirs.len() {
             return None;
         }
         if layer == Layer::Real {
-            return Some(self.clone());
+            return Some((self.clone(), Vec::new()));
         }
-        // Checked before anything is copied: most vertices near a mover fail.
-        let clear = (self.landed.iter().zip(dirs)).all(|(l, d)| {
-            let end = l.map_or(origin + *d * FAR, |l| l.at.as_dvec3());
-            since.clear_of_movers(origin, end)
-        });
-        if !clear {
-            return None;
-        }
+        let redo: Vec<usize> = (self.landed.iter().zip(dirs).enumerate())
+            .filter(|(_, (l, d))| {
+                let end = l.map_or(origin + **d * FAR, |l| l.at.as_dvec3());
+                !since.clear_of_movers(origin, end)
+            })
+            .map(|(i, _)| i)
+            .collect();
         let mut out = self.clone();
-        for l in out.landed.iter_mut().flatten().filter(|l| l.on_object()) {
-            let shift = since.patch_shift(l.object)?;
-            l.patch = u32::try_from(l.patch as i64 + shift).ok()?;
+        for (i, l) in out.landed.iter_mut().enumerate() {
+            match l {
+                Some(l) if l.on_object() && redo.binary_search(&i).is_err() => {
+                    let shift = since.patch_shift(l.object)?;
+                    l.patch = u32::try_from(l.patch as i64 + shift).ok()?;
+                }
+                _ => {}
+            }
         }
-        Some(out)
+        Some((out, redo))
+    }
+
+    /// Puts `fresh`, the rays at places `at` traced again, in their places.
+    fn replace(&mut self, at: &[usize], fresh: Traced) {
+        for ((&i, l), s) in at.iter().zip(fresh.landed).zip(fresh.seen) {
+            self.landed[i] = l;
+            self.seen[i] = s;
+        }
     }
 }
 
@@ -398,16 +423,15 @@ fn trace_at(g: &Gather, origin: DVec3, dirs: &[DVec3], layer: Layer) -> Traced {
             Some((y, landed))
         })
         .collect();
-    let real_points: Vec<DVec3> = points
-        .iter()
-        .flatten()
-        .filter(|(_, l)| !l.on_object())
-        .map(|(y, _)| *y)
+    let real: Vec<(usize, DVec3)> = (points.iter().enumerate())
+        .filter_map(|(i, p)| p.filter(|(_, l)| !l.on_object()).map(|(y, _)| (i, y)))
         .collect();
-    let seen = crate::gather::photo_radiances(g.camera, g.tracer, g.photo, &real_points)
-        .into_iter()
-        .map(|r| r.map(|r| r.as_vec3()))
-        .collect();
+    let real_points: Vec<DVec3> = real.iter().map(|r| r.1).collect();
+    let mut seen = vec![None; dirs.len()];
+    let radiances = crate::gather::photo_radiances(g.camera, g.tracer, g.photo, &real_points);
+    for (&(i, _), r) in real.iter().zip(radiances) {
+        seen[i] = r.map(|r| r.as_vec3());
+    }
     let landed = points.into_iter().map(|p| p.map(|(_, l)| l)).collect();
     Traced {
         origin,
@@ -420,10 +444,10 @@ fn trace_at(g: &Gather, origin: DVec3, dirs: &[DVec3], layer: Layer) -> Traced {
 /// The irradiance vertex `v`'s rays `traced` gather from the radiosity.
 fn sum_at(g: &Gather, v: u32, traced: &Traced) -> Gathered {
     let pi = std::f64::consts::PI;
-    let mut seen = traced.seen.iter();
     let (mut sum, mut objects) = (DVec3::ZERO, DVec3::ZERO);
     let mut objects_met = Vec::new();
-    for l in traced.landed.iter().flatten() {
+    for (l, seen) in traced.landed.iter().zip(&traced.seen) {
+        let Some(l) = l else { continue };
         let k = l.patch as usize;
         let model = g.radiosity_with[k] / pi;
         if l.on_object() {
@@ -432,7 +456,7 @@ fn sum_at(g: &Gather, v: u32, traced: &Traced) -> Gathered {
             continue;
         }
         // Seen by the camera? Then the photo knows its radiance.
-        sum += match seen.next().copied().flatten().map(|r| r.as_dvec3()) {
+        sum += match seen.map(|r| r.as_dvec3()) {
             Some(radiance) => {
                 let ratio = (g.radiosity_with[k] / g.radiosity_without[k].max(DVec3::splat(1e-12)))
                     .min(DVec3::splat(4.0));
