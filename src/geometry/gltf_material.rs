@@ -126,9 +126,10 @@ impl<'a> GltfMaterials<'a> {
         }
         if self.images.is_none() {
             let base = self.path.parent().unwrap_or(Path::new("."));
-            let images = gltf::import_images(self.doc, Some(base), self.buffers)
-                .map_err(|e| Error::file(self.path, format!("cannot decode its images: {e}")))?;
-            self.images = Some(images);
+            self.images =
+                Some(decode_images(self.doc, base, self.buffers).map_err(|e| {
+                    Error::file(self.path, format!("cannot decode its images: {e}"))
+                })?);
         }
         let Some(img) = self.images.as_ref().and_then(|i| i.get(source)) else {
             return Ok(None);
@@ -162,4 +163,22 @@ impl<'a> GltfMaterials<'a> {
     pub(super) fn unsupported(self) -> Vec<String> {
         self.unsupported
     }
+}
+
+/// Every image of the document decoded, as `gltf::import_images` decodes
+/// them, but side by side (it decodes one after another: an export's three
+/// or four 2k-4k textures took most of the file's load); the first failing
+/// image's error, in the document's order.
+fn decode_images(
+    doc: &gltf::Document,
+    base: &Path,
+    buffers: &[gltf::buffer::Data],
+) -> std::result::Result<Vec<gltf::image::Data>, gltf::Error> {
+    use rayon::prelude::*;
+    let images: Vec<gltf::Image> = doc.images().collect();
+    (images.par_iter())
+        .map(|i| gltf::image::Data::from_source(i.source(), Some(base), buffers))
+        .collect::<Vec<_>>()
+        .into_iter()
+        .collect()
 }

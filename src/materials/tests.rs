@@ -281,3 +281,45 @@ fn the_diffuse_part_under_uniform_light_does_not_vanish_at_grazing_views() {
     }
     assert!(white.diffuse(0.02).x < 0.2, "1 − F(n·v) at a grazing view");
 }
+
+/// 8-bit texels decoded through the per-code tables are the texels the
+/// sRGB function gives one by one (every code, every channel layout,
+/// both encodings), and their mip chain is the same.
+#[test]
+fn eight_bit_texels_decode_as_the_srgb_function_does_one_by_one() {
+    let codes: Vec<u8> = (0..=255).collect();
+    for channels in 1..=4usize {
+        for srgb in [false, true] {
+            // 256 texels a row: each code in every channel, shifted per channel.
+            let data: Vec<u8> = (0..256 * channels)
+                .map(|i| codes[(i / channels + 37 * (i % channels)) % 256])
+                .collect();
+            let decode = |c: u8, colour: bool| {
+                let x = c as f32 / 255.0;
+                if srgb && colour {
+                    texture::srgb_to_linear(x)
+                } else {
+                    x
+                }
+            };
+            let texels: Vec<Vec4> = data
+                .chunks_exact(channels)
+                .map(|t| {
+                    let c = |i: usize| decode(t[i], true);
+                    match channels {
+                        1 => Vec4::new(c(0), c(0), c(0), 1.0),
+                        2 => Vec4::new(c(0), c(0), c(0), decode(t[1], false)),
+                        3 => Vec4::new(c(0), c(1), c(2), 1.0),
+                        _ => Vec4::new(c(0), c(1), c(2), decode(t[3], false)),
+                    }
+                })
+                .collect();
+            let by_table = Texture::from_u8(16, 16, channels, &data, srgb).unwrap();
+            assert_eq!(
+                by_table,
+                Texture::from_linear(16, 16, texels),
+                "{channels} channels, sRGB {srgb}"
+            );
+        }
+    }
+}

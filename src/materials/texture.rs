@@ -7,6 +7,7 @@
 //! whole images; none samples a mip chain at a point, which is all this is.
 
 use glam::{Vec2, Vec4};
+use rayon::prelude::*;
 
 /// One mip level. Texels are linear values in 16 bits (8 bytes a texel,
 /// a quarter of f32 RGBA: a 4096² texture and its mips take 180 MB, not
@@ -64,28 +65,36 @@ impl Texture {
             let x = c as f32 / 255.0;
             if srgb && colour { srgb_to_linear(x) } else { x }
         };
-        let texels = data
-            .chunks_exact(channels)
-            .take(n)
+        // Decoded once per code, not per texel (a 4096² texture's 50 M
+        // `powf`s), and packed as they are decoded (no f32 copy of the image).
+        let colour: [f32; 256] = std::array::from_fn(|c| decode(c as u8, true));
+        let alpha: [f32; 256] = std::array::from_fn(|c| decode(c as u8, false));
+        let texels = data[..n * channels]
+            .par_chunks_exact(channels)
             .map(|t| {
-                let c = |i: usize| decode(t[i], true);
-                match channels {
+                let c = |i: usize| colour[t[i] as usize];
+                pack(match channels {
                     1 => Vec4::new(c(0), c(0), c(0), 1.0),
-                    2 => Vec4::new(c(0), c(0), c(0), decode(t[1], false)),
+                    2 => Vec4::new(c(0), c(0), c(0), alpha[t[1] as usize]),
                     3 => Vec4::new(c(0), c(1), c(2), 1.0),
-                    _ => Vec4::new(c(0), c(1), c(2), decode(t[3], false)),
-                }
+                    _ => Vec4::new(c(0), c(1), c(2), alpha[t[3] as usize]),
+                })
             })
             .collect();
-        Some(Texture::from_linear(width, height, texels))
+        Some(Texture::from_packed(width, height, texels))
     }
 
     /// A texture from linear texels in [0, 1], row by row from the top.
     pub fn from_linear(width: u32, height: u32, texels: Vec<Vec4>) -> Texture {
+        Texture::from_packed(width, height, texels.into_par_iter().map(pack).collect())
+    }
+
+    /// A texture from its full level's texels, its mip chain made.
+    fn from_packed(width: u32, height: u32, texels: Vec<[u16; 4]>) -> Texture {
         let mut levels = vec![Level {
             width,
             height,
-            texels: texels.into_iter().map(pack).collect(),
+            texels,
         }];
         while let Some(next) = levels.last().and_then(half) {
             levels.push(next);
@@ -148,7 +157,8 @@ fn half(l: &Level) -> Option<Level> {
         unpack(l.texels[(y.min(l.height - 1) * l.width + x.min(l.width - 1)) as usize])
     };
     let texels = (0..h)
-        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .into_par_iter()
+        .flat_map_iter(|y| (0..w).map(move |x| (x, y)))
         .map(|(x, y)| {
             (at(2 * x, 2 * y)
                 + at(2 * x + 1, 2 * y)
