@@ -655,6 +655,16 @@ impl Patches {
         let in_quad = matches!(self.elements[root as usize].region, Region::Quad { .. })
             && st.cmpge(DVec2::ZERO).all()
             && st.cmple(DVec2::ONE).all();
+        // Within a triangle root (a rough model's walls pair into no
+        // parallelograms), a halved triangle's point lies on its side of
+        // the cut from the long edge's midpoint to the opposite corner: a
+        // sign, where the distances below take two barycentric solves (a
+        // tenth of an update's work on `lounge`). They differ only for a
+        // point within rounding of the cut, which lies on both halves.
+        let in_tri = match self.elements[root as usize].region {
+            Region::Tri(q) => barycentric(st, q).iter().all(|w| *w >= 0.0),
+            Region::Quad { .. } => false,
+        };
         // The parent's region carried down: each level reads the element
         // it reaches and its first child.
         let mut rp = &self.elements[e as usize].region;
@@ -668,6 +678,15 @@ impl Patches {
                     false => st.y <= *t1,
                 };
                 (e, rp) = match in_a {
+                    true => (a, ra),
+                    false => (b, &self.elements[b as usize].region),
+                };
+                continue;
+            }
+            if let (true, Region::Tri([corner, m, apex])) = (in_tri, ra) {
+                let side = |x: DVec2| (*apex - *m).perp_dot(x - *m);
+                let s = side(st);
+                (e, rp) = match s == 0.0 || (s > 0.0) == (side(*corner) > 0.0) {
                     true => (a, ra),
                     false => (b, &self.elements[b as usize].region),
                 };

@@ -308,3 +308,61 @@ fn a_solid_larger_than_the_per_face_limit_is_one_sided_and_faces_out() {
     }
     assert!(checked > 200, "{checked} roots checked");
 }
+
+#[test]
+fn a_triangles_cut_sends_a_point_to_the_leaf_the_distances_choose() {
+    use rand::{RngExt, SeedableRng};
+    // Triangles that pair into no parallelogram (a rough model's walls),
+    // 1-4 m across: halved five to seven times at 0.1 m.
+    let triangles: Vec<crate::geometry::Triangle> = vec![
+        [[0.0, 0.0, 0.0], [3.9, 0.02, 0.0], [0.3, 2.6, 0.01]],
+        [[3.9, 0.02, 0.0], [4.1, 2.7, 0.0], [0.3, 2.6, 0.01]],
+        [[0.0, 0.0, 1.0], [1.0, 0.3, 1.2], [0.2, 0.9, 1.1]],
+    ]
+    .into_iter()
+    .map(|t| t.map(glam::Vec3::from_array))
+    .collect();
+    let patches = mesh_object(&triangles);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+    let mut on_cuts = 0;
+    for &root in &patches.roots {
+        let Region::Tri(q) = patches.elements[root as usize].region else {
+            panic!("root {root} is a quad");
+        };
+        let inside = |u: f64, v: f64| q[0] + (q[1] - q[0]) * u + (q[2] - q[0]) * v * (1.0 - u);
+        for _ in 0..2000 {
+            // Inside the root, and beyond its edges (the distances decide).
+            for st in [
+                inside(rng.random_range(0.0..=1.0), rng.random_range(0.0..=1.0)),
+                DVec2::new(rng.random_range(-0.2..1.2), rng.random_range(-0.2..1.2)),
+            ] {
+                let x = patches.root_point(root, st);
+                assert_eq!(
+                    patches.patches[patches.locate_in_root(root, x).patch as usize],
+                    leaf_by_distances(&patches, root, x),
+                    "root {root} at {st}"
+                );
+            }
+        }
+        // On a cut: in a leaf that holds the point (both halves do).
+        for e in 0..patches.elements.len() {
+            let el = &patches.elements[e];
+            let (Some([a, _]), true) = (el.children, el.root == root) else {
+                continue;
+            };
+            let Region::Tri([_, m, apex]) = patches.elements[a as usize].region else {
+                unreachable!("a triangle's halves are triangles");
+            };
+            let st = m + (apex - m) * rng.random_range(0.0..=1.0);
+            let x = patches.root_point(root, st);
+            let leaf = patches.patches[patches.locate_in_root(root, x).patch as usize];
+            let off = distance_outside(&patches.elements[leaf as usize].region, st);
+            assert!(
+                off < 1e-12,
+                "root {root}: a point on a cut lies {off} outside its leaf"
+            );
+            on_cuts += 1;
+        }
+    }
+    assert!(on_cuts > 300, "{on_cuts} points on cuts");
+}
