@@ -58,10 +58,15 @@ pub(super) fn shared_gathers(
     // facing too differently to share).
     let weight = |i: usize, j: u32| {
         let ((v, n, side), (w, m, other_side)) = (vertices[i], vertices[j as usize]);
-        let p = patches.vertices[v as usize];
-        let (d, cos) = ((patches.vertices[w as usize] - p).length(), n.dot(m));
-        (other_side == side && d <= within && cos >= cos_max)
-            .then(|| 1.0 / (d / within + (1.0 - cos).max(0.0).sqrt()).max(1e-9))
+        // The side and the normals first: most candidates near a crease
+        // or a thin part's far face fail them, and need no distance.
+        let cos = n.dot(m);
+        let alike = other_side == side && cos >= cos_max;
+        if !alike {
+            return None;
+        }
+        let d = (patches.vertices[w as usize] - patches.vertices[v as usize]).length();
+        (d <= within).then(|| 1.0 / (d / within + (1.0 - cos).max(0.0).sqrt()).max(1e-9))
     };
     // Which vertices gather, in order (serial: each choice reads the ones
     // before). Each gathering vertex is listed in the 27 cells around its
