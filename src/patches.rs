@@ -661,9 +661,13 @@ impl Patches {
         // sign, where the distances below take two barycentric solves (a
         // tenth of an update's work on `lounge`). They differ only for a
         // point within rounding of the cut, which lies on both halves.
-        let in_tri = match self.elements[root as usize].region {
-            Region::Tri(q) => barycentric(st, q).iter().all(|w| *w >= 0.0),
-            Region::Quad { .. } => false,
+        // (Asked only of a root that was split: most of an object's are not.)
+        let root_el = &self.elements[root as usize];
+        let in_tri = match root_el.region {
+            Region::Tri(q) if root_el.children.is_some() => {
+                barycentric(st, q).iter().all(|w| *w >= 0.0)
+            }
+            _ => false,
         };
         // The parent's region carried down: each level reads the element
         // it reaches and its first child.

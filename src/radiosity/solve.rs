@@ -141,7 +141,7 @@ pub(super) fn gmres_rgb(
     let mut solvers: [Gmres; 3] = std::array::from_fn(|c| {
         let rhs: Vec<f64> = b.iter().map(|v| v[c]).collect();
         let x0 = x0.map_or(vec![0.0; n], |g| g.iter().map(|v| v[c]).collect());
-        Gmres::new(&rhs, x0, tolerance, max_iterations, restart)
+        Gmres::new(rhs, x0, tolerance, max_iterations, restart)
     });
     let (mut input, mut applied) = (vec![DVec3::ZERO; n], vec![DVec3::ZERO; n]);
     while solvers.iter().any(|s| s.wanted().is_some()) {
@@ -155,7 +155,7 @@ pub(super) fn gmres_rgb(
         for (c, s) in solvers.iter_mut().enumerate() {
             if s.wanted().is_some() {
                 let column: Vec<f64> = applied.iter().map(|v| v[c]).collect();
-                s.take(&column);
+                s.take(column);
             }
         }
     }
@@ -207,17 +207,17 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 
 impl Gmres {
     fn new(
-        b: &[f64],
+        b: Vec<f64>,
         x0: Vec<f64>,
         tolerance: f64,
         max_iterations: usize,
         restart: usize,
     ) -> Gmres {
         let n = b.len();
-        let bnorm = dot(b, b).sqrt();
+        let bnorm = dot(&b, &b).sqrt();
         let done = bnorm == 0.0 || n == 0;
         Gmres {
-            b: b.to_vec(),
+            b,
             bnorm,
             x: if done { vec![0.0; n] } else { x0 },
             tolerance,
@@ -245,9 +245,9 @@ impl Gmres {
     }
 
     /// The operator applied to [`Gmres::wanted`].
-    fn take(&mut self, applied: &[f64]) {
+    fn take(&mut self, applied: Vec<f64>) {
         match self.phase {
-            Phase::Residual => self.open_cycle(applied),
+            Phase::Residual => self.open_cycle(&applied),
             Phase::Arnoldi => self.arnoldi_step(applied),
             Phase::Done => {}
         }
@@ -279,12 +279,11 @@ impl Gmres {
         };
     }
 
-    fn arnoldi_step(&mut self, applied: &[f64]) {
+    fn arnoldi_step(&mut self, mut w: Vec<f64>) {
         let Gmres {
             v, h, cs, sn, g, ..
         } = self;
         let k = self.k;
-        let mut w = applied.to_vec();
         self.iterations += 1;
         for (i, vi) in v.iter().enumerate() {
             h[i][k] = dot(&w, vi);

@@ -210,6 +210,8 @@ impl Transport {
         out
     }
 
+    /// What each patch gathers from radiosities `b` into `out`: one
+    /// channel or three ([`Channels`]), every channel the same way.
     pub(crate) fn gather_channels<T: Channels>(&self, patches: &Patches, b: &[T], out: &mut [T]) {
         match self {
             Transport::Full { n, form_factors } => {

@@ -353,7 +353,8 @@ impl Traced {
     /// them, the patches met on still objects renumbered as this pose
     /// numbers them. Returns them with the rays to trace again (by their
     /// place in `dirs`): a ray kept lands where a fresh one would, and the
-    /// photo's radiances, read through the room alone, stand.
+    /// photo's radiances, read through the room alone, stand. None where
+    /// no ray can be kept.
     fn kept(
         &self,
         origin: DVec3,
@@ -376,6 +377,10 @@ impl Traced {
             })
             .map(|(i, _)| i)
             .collect();
+        // Every ray near a mover: nothing to keep (a fresh trace, no copy).
+        if !redo.is_empty() && redo.len() == dirs.len() {
+            return None;
+        }
         let mut out = self.clone();
         for (i, l) in out.landed.iter_mut().enumerate() {
             match l {
