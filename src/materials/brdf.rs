@@ -218,28 +218,13 @@ const TABLE_STEPS: usize = 64;
 /// [`hemispherical_albedo`] from a table over metallic and roughness,
 /// interpolated bilinearly. The albedo is affine in the base colour (the
 /// Fresnel term and the diffuse part are), a + b·base per channel, so a
-/// cell holds a and b, each cell computed once, when first read (each is
-/// two quadratures of 9,216 samples). A textured object's patches read it,
-/// one material point each: an 80k-triangle asset took 40 s by quadrature.
+/// cell holds a and b ([`albedo_cell`]). A textured object's patches read
+/// it, one material point each: an 80k-triangle asset took 40 s by
+/// quadrature.
 pub fn table_albedo(lobes: &Lobes) -> DVec3 {
-    use std::sync::OnceLock;
     const S: usize = TABLE_STEPS;
-    static TABLE: OnceLock<Vec<OnceLock<(f64, f64)>>> = OnceLock::new();
-    let table = TABLE.get_or_init(|| (0..(S + 1) * (S + 1)).map(|_| OnceLock::new()).collect());
-    let cell = |i: usize, j: usize| {
-        *table[i * (S + 1) + j].get_or_init(|| {
-            let at = |base: f64| {
-                hemispherical_albedo(&Lobes {
-                    base: DVec3::splat(base),
-                    metallic: i as f64 / S as f64,
-                    roughness: j as f64 / S as f64,
-                })
-                .x
-            };
-            let a = at(0.0);
-            (a, at(1.0) - a)
-        })
-    };
+    let table = albedo_table();
+    let cell = |i: usize, j: usize| table[i * (S + 1) + j];
     let (m, r) = (
         lobes.metallic.clamp(0.0, 1.0) * S as f64,
         lobes.roughness.clamp(0.0, 1.0) * S as f64,
@@ -252,6 +237,55 @@ pub fn table_albedo(lobes: &Lobes) -> DVec3 {
     let (a, b) = mix(lo, hi, fm);
     (DVec3::splat(a) + lobes.base.clamp(DVec3::ZERO, DVec3::ONE) * b).clamp(DVec3::ZERO, DVec3::ONE)
 }
+
+/// Cell (i, j) of [`table_albedo`]'s table, metallic i / S and roughness
+/// j / S: the hemispherical albedo a of a black base and b, what a white
+/// base adds (two quadratures of 9,216 samples). What the stored table
+/// holds; only its test computes it.
+#[cfg(test)]
+pub(crate) fn albedo_cell(i: usize, j: usize) -> (f64, f64) {
+    const S: usize = TABLE_STEPS;
+    let at = |base: f64| {
+        hemispherical_albedo(&Lobes {
+            base: DVec3::splat(base),
+            metallic: i as f64 / S as f64,
+            roughness: j as f64 / S as f64,
+        })
+        .x
+    };
+    let a = at(0.0);
+    (a, at(1.0) - a)
+}
+
+/// [`table_albedo`]'s cells, row by row of metallic, as stored in
+/// `albedo_table.bin`: each cell's a and b as little-endian f64 bits.
+/// Stored, not computed at first use: filling the table takes 155 M BRDF
+/// samples, about 0.3 s of CPU, which every render of a textured object
+/// paid (its patches read cells all over the table). A test checks that
+/// every stored cell is [`albedo_cell`]'s, bit for bit, and writes the
+/// file again when asked to.
+pub(crate) const ALBEDO_TABLE_FILE: &[u8] = include_bytes!("albedo_table.bin");
+
+/// The stored table, decoded once.
+fn albedo_table() -> &'static [(f64, f64)] {
+    use std::sync::OnceLock;
+    static TABLE: OnceLock<Vec<(f64, f64)>> = OnceLock::new();
+    TABLE.get_or_init(|| decode_albedo_table(ALBEDO_TABLE_FILE))
+}
+
+/// Cells from the stored bytes.
+pub(crate) fn decode_albedo_table(bytes: &[u8]) -> Vec<(f64, f64)> {
+    let value = |c: &[u8]| f64::from_le_bytes(c.try_into().expect("eight bytes"));
+    (bytes.chunks_exact(16))
+        .map(|c| (value(&c[..8]), value(&c[8..])))
+        .collect()
+}
+
+// A stored table of another size fails the build, not a render.
+const _: () = assert!(ALBEDO_TABLE_FILE.len() == ALBEDO_TABLE_CELLS * 16);
+
+/// Cells in [`table_albedo`]'s table.
+pub(crate) const ALBEDO_TABLE_CELLS: usize = (TABLE_STEPS + 1) * (TABLE_STEPS + 1);
 
 /// Views per unit of n·v in [`coat_transmission`]'s table.
 const COAT_STEPS: usize = 64;

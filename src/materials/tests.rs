@@ -323,3 +323,46 @@ fn eight_bit_texels_decode_as_the_srgb_function_does_one_by_one() {
         }
     }
 }
+
+#[test]
+fn the_stored_albedo_table_is_the_quadratures_bit_for_bit() {
+    // `ARLUX_WRITE_ALBEDO_TABLE=1 cargo test --release stored_albedo_table`
+    // writes the table again (after a change to the BRDF or its quadrature).
+    use super::brdf::{ALBEDO_TABLE_CELLS, ALBEDO_TABLE_FILE, albedo_cell, decode_albedo_table};
+    use rayon::prelude::*;
+    let side = (ALBEDO_TABLE_CELLS as f64).sqrt() as usize;
+    let cells: Vec<(f64, f64)> = (0..ALBEDO_TABLE_CELLS)
+        .into_par_iter()
+        .map(|k| albedo_cell(k / side, k % side))
+        .collect();
+    if std::env::var_os("ARLUX_WRITE_ALBEDO_TABLE").is_some() {
+        let bytes: Vec<u8> = (cells.iter())
+            .flat_map(|(a, b)| a.to_le_bytes().into_iter().chain(b.to_le_bytes()))
+            .collect();
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/src/materials/albedo_table.bin"
+        );
+        std::fs::write(path, bytes).unwrap();
+        return;
+    }
+    let stored = decode_albedo_table(ALBEDO_TABLE_FILE);
+    let differ = (stored.iter().zip(&cells).enumerate())
+        .filter(|(_, (s, c))| s.0.to_bits() != c.0.to_bits() || s.1.to_bits() != c.1.to_bits())
+        .map(|(k, _)| (k / side, k % side))
+        .collect::<Vec<_>>();
+    assert!(
+        differ.is_empty(),
+        "{} cells differ from the quadrature (metallic, roughness steps: {:?}…); \
+         ARLUX_WRITE_ALBEDO_TABLE=1 writes the table again",
+        differ.len(),
+        &differ[..differ.len().min(4)]
+    );
+    // And no cell can darken a base or make light from nothing
+    // (`table_albedo` clamps the sum to 1: the smoothest lobe's quadrature
+    // overshoots it by 4%).
+    assert!(
+        (stored.iter()).all(|&(a, b)| a.is_finite() && b.is_finite() && a >= 0.0 && b >= 0.0),
+        "a cell with a negative or non-finite part"
+    );
+}
