@@ -511,12 +511,12 @@ fn corner_mean(patches: &Patches, k: usize, vertex_values: &[DVec3]) -> DVec3 {
 /// the rounds a light's part took differed from the whole's, and a
 /// session's sum of its lights' parts missed a full render by 1.2e-5 on
 /// the stool, against the solvers' 1e-5).
-fn object_bounces(lit: &Lit, real_count: usize, gathered: &[Gathered], indirect: &mut [DVec3]) {
+fn object_bounces(lit: &Lit, real_count: usize, gathers: &Gathers, indirect: &mut [DVec3]) {
     let (patches, system) = (lit.patches, lit.system);
-    for g in gathered {
-        indirect[g.vertex] = g.irradiance;
+    for g in &gathers.each {
+        indirect[g.vertex as usize] = g.irradiance;
     }
-    if gathered.iter().all(|g| g.objects_met.is_empty()) {
+    if gathers.met.iter().all(|m| m.objects.is_empty()) {
         return;
     }
     let mut radiosity = vec![DVec3::ZERO; patches.patch_count()];
@@ -526,21 +526,18 @@ fn object_bounces(lit: &Lit, real_count: usize, gathered: &[Gathered], indirect:
             *b = system.reflectance[k] * (system.direct[k] + h) + lit.emission[k];
         }
         // What each gathering vertex's rays meet of the objects, once.
-        let met: Vec<DVec3> = (gathered.iter().enumerate())
-            .map(|(i, g)| match g.objects_of == i {
-                true => {
-                    let objects: DVec3 = g.objects_met.iter().map(|&k| radiosity[k as usize]).sum();
-                    objects / g.rays.max(1) as f64
-                }
-                false => DVec3::ZERO,
+        let met: Vec<DVec3> = (gathers.met.iter())
+            .map(|m| {
+                let objects: DVec3 = m.objects.iter().map(|&k| radiosity[k as usize]).sum();
+                objects / m.rays.max(1) as f64
             })
             .collect();
         let mut moved = 0.0f64;
-        for g in gathered {
-            let h = g.from_room + met[g.objects_of];
-            let was = indirect[g.vertex];
+        for g in &gathers.each {
+            let h = g.from_room + met[g.objects_of as usize];
+            let was = indirect[g.vertex as usize];
             moved = moved.max(((h - was).abs() / was.abs().max(DVec3::splat(1e-12))).max_element());
-            indirect[g.vertex] = h;
+            indirect[g.vertex as usize] = h;
         }
         if moved < 1e-6 {
             break;

@@ -41,15 +41,17 @@ pub(super) const SHARE_ANGLE_DEG: f64 = 5.0;
 /// with its triangles: a subdivided ball gathers at about as many points
 /// as a coarse one. Serial and in vertex order, so that the choice is the
 /// same whatever the thread count. Returns, per vertex, the gathering
-/// vertices it takes and their weights (empty: it gathers itself).
+/// vertices it takes and their weights (none: it gathers itself).
 pub(super) fn shared_gathers(
     patches: &Patches,
     vertices: &[(u32, DVec3, u32)],
     within: f64,
-) -> Vec<Vec<(u32, f64)>> {
-    let mut shares = vec![Vec::new(); vertices.len()];
+) -> Shares {
     if within <= 0.0 {
-        return shares;
+        return Shares {
+            start: vec![0; vertices.len() + 1],
+            taken: Vec::new(),
+        };
     }
     use rayon::prelude::*;
     let cos_max = SHARE_ANGLE_DEG.to_radians().cos();
@@ -87,30 +89,76 @@ pub(super) fn shared_gathers(
             near.entry(key).or_default().push(i as u32);
         }
     }
-    // Then, side by side, what each other vertex takes: the gathering
-    // vertices before it within reach (those after it gathered knowing it
-    // did not), in order.
-    shares.par_iter_mut().enumerate().for_each(|(i, taken)| {
-        let list = near.get(&cell_of(i)).map_or(&[][..], |l| &l[..]);
-        if list.binary_search(&(i as u32)).is_ok() {
-            return;
+    // Then, side by side in runs of vertices, what each other vertex
+    // takes: the gathering vertices before it within reach (those after
+    // it gathered knowing it did not), in order. Held in one list, not a
+    // list per vertex: an 80k-triangle object's 160k vertices each took
+    // a small allocation.
+    // Per run: each vertex's count, and their entries.
+    type Run = (Vec<u32>, Vec<(u32, f64)>);
+    let runs: Vec<Run> = (0..vertices.len().div_ceil(SHARE_RUN))
+        .into_par_iter()
+        .map(|r| {
+            let run = r * SHARE_RUN..vertices.len().min((r + 1) * SHARE_RUN);
+            let (mut counts, mut taken) = (Vec::with_capacity(run.len()), Vec::new());
+            for i in run {
+                let before = taken.len();
+                let list = near.get(&cell_of(i)).map_or(&[][..], |l| &l[..]);
+                if list.binary_search(&(i as u32)).is_err() {
+                    taken.extend(
+                        list.iter()
+                            .take_while(|&&j| (j as usize) < i)
+                            .filter_map(|&j| weight(i, j).map(|w| (j, w))),
+                    );
+                }
+                counts.push((taken.len() - before) as u32);
+            }
+            (counts, taken)
+        })
+        .collect();
+    let mut start = Vec::with_capacity(vertices.len() + 1);
+    start.push(0u32);
+    let mut taken = Vec::with_capacity(runs.iter().map(|r| r.1.len()).sum());
+    for (counts, run) in runs {
+        for c in counts {
+            start.push(start[start.len() - 1] + c);
         }
-        taken.extend(
-            list.iter()
-                .take_while(|&&j| (j as usize) < i)
-                .filter_map(|&j| weight(i, j).map(|w| (j, w))),
-        );
-    });
-    shares
+        taken.extend(run);
+    }
+    Shares { start, taken }
+}
+
+/// Vertices per run that [`shared_gathers`] lists side by side.
+const SHARE_RUN: usize = 4096;
+
+/// Per vertex, the gathering vertices it takes light from and their
+/// weights (by their place among the vertices gathered for); none for a
+/// vertex that gathers itself.
+pub(super) struct Shares {
+    /// Vertex `i`'s entries are `taken[start[i]..start[i + 1]]`.
+    start: Vec<u32>,
+    taken: Vec<(u32, f64)>,
+}
+
+impl Shares {
+    /// What vertex `i` takes (empty: it gathers).
+    pub(super) fn of(&self, i: usize) -> &[(u32, f64)] {
+        &self.taken[self.start[i] as usize..self.start[i + 1] as usize]
+    }
+
+    pub(super) fn len(&self) -> usize {
+        self.start.len() - 1
+    }
 }
 
 /// A vertex's light from the gathers it shares (see [`shared_gathers`]):
-/// the weighted mean, and the nearest one's rays for the bounces between
-/// objects.
+/// the weighted mean, and for the bounces between objects the nearest
+/// one's rays (`rank`: a gathering vertex's place among the gathers).
 fn shared_light<'a>(
     vertex: u32,
     taken: &[(u32, f64)],
     of: &impl Fn(u32) -> &'a Gathered,
+    rank: &impl Fn(u32) -> u32,
 ) -> Gathered {
     let total: f64 = taken.iter().map(|t| t.1).sum();
     let mean = |f: &dyn Fn(&Gathered) -> DVec3| -> DVec3 {
@@ -122,12 +170,10 @@ fn shared_light<'a>(
         .expect("a shared gather")
         .0;
     Gathered {
-        vertex: vertex as usize,
+        vertex,
         irradiance: mean(&|g| g.irradiance),
         from_room: mean(&|g| g.from_room),
-        objects_met: Vec::new(),
-        objects_of: nearest as usize,
-        rays: of(nearest).rays,
+        objects_of: rank(nearest),
     }
 }
 
@@ -137,14 +183,14 @@ fn shared_light<'a>(
 /// sees, the light leaving it is the photo's pixel there, times the change
 /// the objects make to that patch's radiosity (with / without); elsewhere
 /// the radiosity solution's B/π. Returns (vertex, irradiance) pairs.
-pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec<Gathered> {
+pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Gathers {
     use rayon::prelude::*;
     use std::sync::atomic::{AtomicUsize, Ordering};
     let vertices = gather_vertices(g);
     let shares = shared_gathers(g.patches, &vertices, g.share_within);
     // The gathering vertices, by their place in `vertices` (ascending).
     let gathering: Vec<usize> = (0..vertices.len())
-        .filter(|&i| shares[i].is_empty())
+        .filter(|&i| shares.of(i).is_empty())
         .collect();
     let clear_of_object = object_clearance(g.patches, gathering.len());
     if directions.kept {
@@ -158,9 +204,11 @@ pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec
     // pointer per gathering vertex where no session keeps them. Held for
     // the gathering vertices alone: an 80k-triangle object has 160k
     // vertices and under 2k gathers.
-    let (own, traced): (Vec<Gathered>, Vec<Option<Box<Traced>>>) = gathering
-        .par_iter()
-        .map(|&i| {
+    type Own = ((Gathered, Met), Option<Box<Traced>>);
+    type Kept = Vec<Option<Box<Traced>>>;
+    let (own, traced): (Vec<(Gathered, Met)>, Kept) = (gathering.par_iter())
+        .enumerate()
+        .map(|(rank, &i)| -> Own {
             let (v, n, side) = vertices[i];
             let p = g.patches.vertices[v as usize];
             let layer = if clear_of_object(p, n) {
@@ -188,11 +236,12 @@ pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec
                 }
                 None => trace_at(g, origin, &dirs, layer),
             };
+            let (gathered, met) = sum_at(g, v, &traced);
             let gathered = Gathered {
-                objects_of: i,
-                ..sum_at(g, v, &traced)
+                objects_of: rank as u32,
+                ..gathered
             };
-            (gathered, keeping.then(|| Box::new(traced)))
+            ((gathered, met), keeping.then(|| Box::new(traced)))
         })
         .unzip();
     (directions.reused, directions.partly) = (reused.into_inner(), partly.into_inner());
@@ -206,26 +255,23 @@ pub(super) fn final_gather(g: &Gather, directions: &mut GatherDirections) -> Vec
         }
     }
     // Every vertex's light, allocated once at its size: a gathering
-    // vertex's own (its rays moved in after), the others' shared.
-    let of = |j: u32| -> &Gathered {
+    // vertex's own, the others' shared.
+    let rank = |j: u32| -> u32 {
         let k = gathering
             .binary_search(&(j as usize))
             .expect("a gathering vertex");
-        &own[k]
+        k as u32
     };
-    let mut out: Vec<Gathered> = (vertices.par_iter().zip(&shares))
-        .map(|(&(v, ..), taken)| match taken.is_empty() {
-            true => Gathered {
-                vertex: v as usize,
-                ..Gathered::default()
-            },
-            false => shared_light(v, taken, &of),
+    let of = |j: u32| -> &Gathered { &own[rank(j) as usize].0 };
+    let each: Vec<Gathered> = (0..shares.len())
+        .into_par_iter()
+        .map(|i| match shares.of(i) {
+            [] => own[rank(i as u32) as usize].0,
+            taken => shared_light(vertices[i].0, taken, &of, &rank),
         })
         .collect();
-    for (g, &i) in own.into_iter().zip(&gathering) {
-        out[i] = g;
-    }
-    out
+    let met = own.into_iter().map(|(_, m)| m).collect();
+    Gathers { each, met }
 }
 
 /// Each virtual vertex with the normal of the plane it lies in and its
@@ -298,21 +344,34 @@ fn object_clearance(patches: &Patches, vertices: usize) -> impl Fn(DVec3, DVec3)
 }
 
 /// What a virtual vertex gathered: the irradiance from the room (and,
-/// at first, from the objects as the first solve left them), and the
-/// object patches its rays met, for the bounces between objects.
-#[derive(Debug, Default)]
+/// at first, from the objects as the first solve left them), and whose
+/// rays its bounces between objects read.
+#[derive(Debug, Default, Clone, Copy)]
 pub(super) struct Gathered {
-    pub(super) vertex: usize,
+    pub(super) vertex: u32,
+    /// Whose rays this vertex's bounces read: its own, or for a vertex
+    /// that shares gathers the nearest one's (by its place in
+    /// [`Gathers::met`]).
+    pub(super) objects_of: u32,
     pub(super) irradiance: DVec3,
     /// The room's part of `irradiance`.
     pub(super) from_room: DVec3,
-    /// Object patches met, one entry per ray (a gathering vertex's).
-    pub(super) objects_met: Vec<u32>,
-    /// Whose `objects_met` this vertex's bounces read: its own, or for a
-    /// vertex that shares gathers the nearest one's (by its place in the
-    /// list of gathers).
-    pub(super) objects_of: usize,
-    pub(super) rays: usize,
+}
+
+/// A gathering vertex's rays as the bounces between objects read them:
+/// the object patches they met, one entry per ray that met one, of `rays`.
+#[derive(Debug, Default)]
+pub(super) struct Met {
+    pub(super) objects: Vec<u32>,
+    pub(super) rays: u32,
+}
+
+/// Every virtual vertex's light (in the order of their vertices), and per
+/// gathering vertex, in order, what its rays met.
+#[derive(Debug, Default)]
+pub(super) struct Gathers {
+    pub(super) each: Vec<Gathered>,
+    pub(super) met: Vec<Met>,
 }
 
 /// A gathering vertex's rays as traced: where each landed, and the
@@ -451,8 +510,9 @@ fn trace_at(g: &Gather, origin: DVec3, dirs: &[DVec3], layer: Layer) -> Traced {
     }
 }
 
-/// The irradiance vertex `v`'s rays `traced` gather from the radiosity.
-fn sum_at(g: &Gather, v: u32, traced: &Traced) -> Gathered {
+/// The irradiance vertex `v`'s rays `traced` gather from the radiosity,
+/// and what they met of the objects.
+fn sum_at(g: &Gather, v: u32, traced: &Traced) -> (Gathered, Met) {
     let pi = std::f64::consts::PI;
     let (mut sum, mut objects) = (DVec3::ZERO, DVec3::ZERO);
     let mut objects_met = Vec::new();
@@ -477,12 +537,15 @@ fn sum_at(g: &Gather, v: u32, traced: &Traced) -> Gathered {
     }
     let rays = traced.landed.len();
     let per_ray = pi / rays as f64;
-    Gathered {
-        vertex: v as usize,
+    let gathered = Gathered {
+        vertex: v,
         irradiance: (sum + objects) * per_ray,
         from_room: sum * per_ray,
-        objects_met,
-        objects_of: usize::MAX,
-        rays,
-    }
+        objects_of: u32::MAX,
+    };
+    let met = Met {
+        objects: objects_met,
+        rays: rays as u32,
+    };
+    (gathered, met)
 }
