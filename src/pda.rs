@@ -12,7 +12,7 @@
 //! light can meet a virtual object's bounds; elsewhere both visibilities are
 //! the same numbers, so untouched pixels cost nothing more than the photo's.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
 
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;

@@ -182,15 +182,14 @@ pub(super) fn edge_candidates(input: &PdaInput) -> Option<Vec<bool>> {
         .filter(|r| is_virtual(r))
         .map(|&r| &patches.elements[r as usize])
         .collect();
-    let edges = interior_edges(cam, &roots);
-    let creases = crease_edges(&roots);
+    let table = edge_table(Some(cam), &roots);
     for root in &roots {
         let corners = root.shape.corners();
         for k in 0..corners.len() {
             let (a, b) = (corners[k], corners[(k + 1) % corners.len()]);
             let path = cam.project_path(a, b)?;
-            let key = edge_key(a, b);
-            if !edges.contains(&key) || creases.contains(&key) {
+            let held = &table[&edge_key(a, b)];
+            if !held.interior() || held.crease {
                 for piece in path.windows(2) {
                     mark_segment(&mut marks, w, h, piece[0], piece[1], MARGIN);
                 }
@@ -209,26 +208,48 @@ pub(super) fn edge_key(a: DVec3, b: DVec3) -> EdgeKey {
     if a <= b { [a, b] } else { [b, a] }
 }
 
-/// The objects' polygon edges that are no silhouette for `cam`: whole
-/// edges (the same ends, bit for bit) of exactly two polygons that lie on
-/// either side of the edge in the image. A convex polygon lies wholly on
-/// one side of each of its edges, so a sub-pixel on either side of such an
-/// edge sees one of the two (or something nearer), and no pixel along it
-/// mixes objects and room but where it meets an outline edge, which marks
-/// those. Decided in the image, not by the polygons' normals: a fold of an
-/// open surface can hide one side behind the other whichever way its
-/// normals turn. A polygon seen edge-on, or behind the camera, is on
-/// neither side; edges matched only in part count as outline.
-pub(super) fn interior_edges(cam: &Camera, roots: &[&crate::patches::Element]) -> HashSet<EdgeKey> {
-    // Per edge: how many polygons hold it, and which sides of it they lie on.
-    let mut sides: HashMap<EdgeKey, (u32, bool, bool)> = HashMap::new();
+/// What one pass over the objects' polygons learns of each edge: how many
+/// polygons hold it (whole: the same ends, bit for bit), which sides of
+/// it in the image they lie on, and whether it is a crease.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct EdgeHeld {
+    count: u32,
+    left: bool,
+    right: bool,
+    /// Held by polygons of two surfaces or on different planes.
+    pub(super) crease: bool,
+    /// The first polygon's surface and normal, which the others' are
+    /// compared with.
+    first: (u32, DVec3),
+}
+
+impl EdgeHeld {
+    /// Two polygons, one strictly on each side (see [`interior_edges`]).
+    pub(super) fn interior(&self) -> bool {
+        self.count == 2 && self.left && self.right
+    }
+}
+
+/// Every edge of the objects' polygons `roots` and what holds it, seen
+/// from `cam` (without one, no polygon is on either side). One table for
+/// both questions an edge is asked, each edge's polygons summed as they
+/// come: an 80k-triangle object held a list of its polygons per edge, and
+/// three such objects' lists were the peak of a render's memory.
+pub(super) fn edge_table(
+    cam: Option<&Camera>,
+    roots: &[&crate::patches::Element],
+) -> HashMap<EdgeKey, EdgeHeld> {
+    // A closed mesh's polygons share each edge by two.
+    let mut table: HashMap<EdgeKey, EdgeHeld> = HashMap::with_capacity(roots.len() * 3 / 2);
     let flat = |p: Option<(f64, f64, f64)>| p.map(|(x, y, _)| glam::DVec2::new(x, y));
+    let project = |p: DVec3| cam.and_then(|cam| flat(cam.project(p)));
     for e in roots {
-        let centre = flat(cam.project(e.centre));
+        let centre = project(e.centre);
+        let normal = e.shape.normal();
         let corners = e.shape.corners();
         for k in 0..corners.len() {
             let key = edge_key(corners[k], corners[(k + 1) % corners.len()]);
-            let [a, b] = key.map(|v| flat(cam.project(DVec3::from_array(v.map(f64::from_bits)))));
+            let [a, b] = key.map(|v| project(DVec3::from_array(v.map(f64::from_bits))));
             let side = match (a, b, centre) {
                 (Some(a), Some(b), Some(c)) => {
                     let cross = (b - a).perp_dot(c - a);
@@ -242,16 +263,41 @@ pub(super) fn interior_edges(cam: &Camera, roots: &[&crate::patches::Element]) -
                 }
                 _ => 0,
             };
-            let entry = sides.entry(key).or_insert((0, false, false));
-            entry.0 += 1;
-            entry.1 |= side < 0;
-            entry.2 |= side > 0;
+            let held = table.entry(key).or_insert(EdgeHeld {
+                count: 0,
+                left: false,
+                right: false,
+                crease: false,
+                first: (e.surface, normal),
+            });
+            held.count += 1;
+            held.left |= side < 0;
+            held.right |= side > 0;
+            let (surface, first) = held.first;
+            held.crease |=
+                e.surface != surface || normal.dot(first).abs() < f64::from(SAME_PLANE_COS);
         }
     }
-    // Two polygons, one strictly on each side.
-    sides
-        .into_iter()
-        .filter(|(_, (count, left, right))| *count == 2 && *left && *right)
+    table
+}
+
+/// The objects' polygon edges that are no silhouette for `cam`: whole
+/// edges (the same ends, bit for bit) of exactly two polygons that lie on
+/// either side of the edge in the image. A convex polygon lies wholly on
+/// one side of each of its edges, so a sub-pixel on either side of such an
+/// edge sees one of the two (or something nearer), and no pixel along it
+/// mixes objects and room but where it meets an outline edge, which marks
+/// those. Decided in the image, not by the polygons' normals: a fold of an
+/// open surface can hide one side behind the other whichever way its
+/// normals turn. A polygon seen edge-on, or behind the camera, is on
+/// neither side; edges matched only in part count as outline.
+#[cfg(test)]
+pub(super) fn interior_edges(
+    cam: &Camera,
+    roots: &[&crate::patches::Element],
+) -> std::collections::HashSet<EdgeKey> {
+    (edge_table(Some(cam), roots).into_iter())
+        .filter(|(_, held)| held.interior())
         .map(|(edge, _)| edge)
         .collect()
 }
@@ -259,22 +305,12 @@ pub(super) fn interior_edges(cam: &Camera, roots: &[&crate::patches::Element]) -
 /// The objects' polygon edges held by two polygons on different planes
 /// (or of two objects): a pixel across one sees two facets whose light
 /// differs, and its sub-pixels are shaded apart ([`sub_pixels_mix`]).
-pub(super) fn crease_edges(roots: &[&crate::patches::Element]) -> HashSet<EdgeKey> {
-    let mut held: HashMap<EdgeKey, Vec<(u32, DVec3)>> = HashMap::new();
-    for e in roots {
-        let corners = e.shape.corners();
-        for k in 0..corners.len() {
-            let key = edge_key(corners[k], corners[(k + 1) % corners.len()]);
-            held.entry(key)
-                .or_default()
-                .push((e.surface, e.shape.normal()));
-        }
-    }
-    held.into_iter()
-        .filter(|(_, by)| {
-            by.iter()
-                .any(|(s, n)| *s != by[0].0 || n.dot(by[0].1).abs() < f64::from(SAME_PLANE_COS))
-        })
+#[cfg(test)]
+pub(super) fn crease_edges(
+    roots: &[&crate::patches::Element],
+) -> std::collections::HashSet<EdgeKey> {
+    (edge_table(None, roots).into_iter())
+        .filter(|(_, held)| held.crease)
         .map(|(edge, _)| edge)
         .collect()
 }

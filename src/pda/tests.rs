@@ -3,6 +3,7 @@ use crate::light::{test_panel, test_spot};
 use crate::objects::clear_sides;
 use crate::trace::SurfaceTriangles;
 use glam::Vec3;
+use std::collections::HashSet;
 
 /// The 12 triangles of the box lo..hi, wound outwards.
 fn cube(lo: Vec3, hi: Vec3) -> Vec<crate::geometry::Triangle> {
