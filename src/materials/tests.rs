@@ -314,12 +314,19 @@ fn eight_bit_texels_decode_as_the_srgb_function_does_one_by_one() {
                     }
                 })
                 .collect();
+            // Every level's every texel: the full level as the image's
+            // codes read through their table, the mips made from it.
             let by_table = Texture::from_u8(16, 16, channels, &data, srgb).unwrap();
             assert_eq!(
-                by_table,
-                Texture::from_linear(16, 16, texels),
+                by_table.texels(),
+                Texture::from_linear(16, 16, texels).texels(),
                 "{channels} channels, sRGB {srgb}"
             );
+            // Held as a byte a channel on the full level (and its table),
+            // the mips' values in 16 bits each.
+            let full = 256 * channels + 1024;
+            let mips: usize = [64, 16, 4, 1].iter().map(|n| n * channels * 2).sum();
+            assert_eq!(by_table.memory_bytes(), full + mips);
         }
     }
 }
