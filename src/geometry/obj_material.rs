@@ -87,10 +87,18 @@ impl<'a> ObjMaterials<'a> {
     fn image(&self, file: &str) -> Result<Texture> {
         let path = self.dir.join(file);
         let img = image::open(&path)
-            .map_err(|e| Error::file(&path, format!("cannot read the texture: {e}")))?
-            .to_rgba8();
-        let (w, h) = img.dimensions();
-        Texture::from_u8(w, h, 4, img.as_raw(), true)
+            .map_err(|e| Error::file(&path, format!("cannot read the texture: {e}")))?;
+        let (w, h) = (img.width(), img.height());
+        // In 8 bits with the channels the file has (a texture holds no
+        // more): grey, grey and alpha, RGB or RGBA, read as RGBA alike.
+        let colour = img.color();
+        let (channels, texels) = match (colour.has_color(), colour.has_alpha()) {
+            (false, false) => (1, img.into_luma8().into_raw()),
+            (false, true) => (2, img.into_luma_alpha8().into_raw()),
+            (true, false) => (3, img.into_rgb8().into_raw()),
+            (true, true) => (4, img.into_rgba8().into_raw()),
+        };
+        Texture::from_u8(w, h, channels, &texels, true)
             .ok_or_else(|| Error::file(&path, "an empty texture"))
     }
 
@@ -120,5 +128,58 @@ pub(super) fn push_attributes(m: &tobj::Mesh, k: usize, out: &mut Attributes) {
                 .map_or(Vec2::ZERO, |c| Vec2::new(c[0], 1.0 - c[1]))
         };
         out.uvs.push([t(0), t(1), t(2)]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_texture_keeps_the_file_s_channels_and_reads_as_its_rgba_would() {
+        // Each layout saved as a PNG, read by `map_Kd`, against the same
+        // image expanded to RGBA first (as textures were read before).
+        let dir = tempfile::tempdir().unwrap();
+        let (w, h) = (5, 3);
+        let code = |x: u32, y: u32, k: u32| ((37 * x + 91 * y + 53 * k) % 256) as u8;
+        let images: Vec<(&str, image::DynamicImage)> = vec![
+            (
+                "grey.png",
+                image::GrayImage::from_fn(w, h, |x, y| image::Luma([code(x, y, 0)])).into(),
+            ),
+            (
+                "grey_alpha.png",
+                image::GrayAlphaImage::from_fn(w, h, |x, y| {
+                    image::LumaA([code(x, y, 0), code(x, y, 1)])
+                })
+                .into(),
+            ),
+            (
+                "rgb.png",
+                image::RgbImage::from_fn(w, h, |x, y| {
+                    image::Rgb([code(x, y, 0), code(x, y, 1), code(x, y, 2)])
+                })
+                .into(),
+            ),
+            (
+                "rgba.png",
+                image::RgbaImage::from_fn(w, h, |x, y| {
+                    image::Rgba([code(x, y, 0), code(x, y, 1), code(x, y, 2), code(x, y, 3)])
+                })
+                .into(),
+            ),
+        ];
+        let reader = ObjMaterials::new(dir.path(), &[]);
+        for (channels, (file, img)) in (1..=4).zip(images) {
+            img.save(dir.path().join(file)).unwrap();
+            let texture = reader.image(file).unwrap();
+            let rgba = img.to_rgba8();
+            let expanded = Texture::from_u8(w, h, 4, rgba.as_raw(), true).unwrap();
+            assert_eq!(texture.texels(), expanded.texels(), "{file}");
+            // A byte a channel the file has on the full level.
+            let full = (w * h) as usize * channels;
+            assert!(texture.memory_bytes() < expanded.memory_bytes() || channels == 4);
+            assert!(texture.memory_bytes() >= full, "{file}");
+        }
     }
 }
