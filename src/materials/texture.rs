@@ -94,9 +94,20 @@ fn unpack(t: [u16; 4]) -> Vec4 {
 }
 
 /// A texture ready to sample.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct Texture {
     levels: Vec<Level>,
+    /// The full level's mean, summed once when first asked (objects from
+    /// one file share their textures, and each asks: a 2048² level is 4 M
+    /// texels).
+    mean: std::sync::OnceLock<Vec4>,
+}
+
+/// Textures are their texels: whether the mean was asked yet does not count.
+impl PartialEq for Texture {
+    fn eq(&self, other: &Texture) -> bool {
+        self.levels == other.levels
+    }
 }
 
 /// The sRGB transfer function's inverse (IEC 61966-2-1), exact.
@@ -162,7 +173,10 @@ impl Texture {
         while let Some(next) = levels.last().and_then(half) {
             levels.push(next);
         }
-        Texture { levels }
+        Texture {
+            levels,
+            mean: std::sync::OnceLock::new(),
+        }
     }
 
     /// Every level's texels in linear RGBA, finest first.
@@ -194,10 +208,12 @@ impl Texture {
 
     /// The mean of the full-resolution texels.
     pub fn mean(&self) -> Vec4 {
-        let l = &self.levels[0];
-        let n = (l.width * l.height) as usize;
-        let sum: glam::DVec4 = (0..n).map(|i| l.texel(i).as_dvec4()).sum();
-        (sum / n as f64).as_vec4()
+        *self.mean.get_or_init(|| {
+            let l = &self.levels[0];
+            let n = (l.width * l.height) as usize;
+            let sum: glam::DVec4 = (0..n).map(|i| l.texel(i).as_dvec4()).sum();
+            (sum / n as f64).as_vec4()
+        })
     }
 
     /// Each channel's largest full-resolution texel value.
