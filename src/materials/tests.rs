@@ -327,6 +327,15 @@ fn eight_bit_texels_decode_as_the_srgb_function_does_one_by_one() {
             let full = 256 * channels + 1024;
             let mips: usize = [64, 16, 4, 1].iter().map(|n| n * channels * 2).sum();
             assert_eq!(by_table.memory_bytes(), full + mips);
+            // The mean by counting codes is the texels' mean.
+            let texels = &by_table.texels()[0];
+            let sum: glam::DVec4 = texels.iter().map(|t| t.as_dvec4()).sum();
+            let mean = (sum / texels.len() as f64).as_vec4();
+            let off = (by_table.mean() - mean).abs().max_element();
+            assert!(
+                off <= 1e-6 * mean.max_element(),
+                "{channels} channels: mean off by {off}"
+            );
         }
     }
 }

@@ -38,6 +38,55 @@ enum Texels {
 }
 
 impl Level {
+    /// The mean texel. An image's codes are counted side by side (whole
+    /// counts, the same in any order) and each code's value weighted by
+    /// its count, in code order: exact products, 256 sums a channel, the
+    /// same on any number of threads (a 2048² level summed texel by texel
+    /// took 35 ms on one).
+    fn mean(&self) -> Vec4 {
+        let n = (self.width * self.height) as usize;
+        let c = self.channels as usize;
+        let sum = match &self.texels {
+            Texels::Codes { codes, decoded } => {
+                let counts = (codes.par_chunks(c * 65536))
+                    .map(|chunk| {
+                        let mut counts = vec![[0u64; 256]; c];
+                        for texel in chunk.chunks_exact(c) {
+                            for (k, &code) in texel.iter().enumerate() {
+                                counts[k][code as usize] += 1;
+                            }
+                        }
+                        counts
+                    })
+                    .reduce(
+                        || vec![[0u64; 256]; c],
+                        |mut a, b| {
+                            for (x, y) in a.iter_mut().zip(&b) {
+                                x.iter_mut().zip(y).for_each(|(x, y)| *x += y);
+                            }
+                            a
+                        },
+                    );
+                // Channel k's values: colour, or alpha for the last of 2 and 4.
+                let channel = |k: usize| -> f64 {
+                    let alpha = (c == 2 || c == 4) && k + 1 == c;
+                    (counts[k].iter().zip(&decoded[alpha as usize]))
+                        .map(|(&count, &v)| count as f64 * f64::from(f32::from(v) / 65535.0))
+                        .sum()
+                };
+                let all = n as f64;
+                match c {
+                    1 => glam::DVec4::new(channel(0), channel(0), channel(0), all),
+                    2 => glam::DVec4::new(channel(0), channel(0), channel(0), channel(1)),
+                    3 => glam::DVec4::new(channel(0), channel(1), channel(2), all),
+                    _ => glam::DVec4::new(channel(0), channel(1), channel(2), channel(3)),
+                }
+            }
+            Texels::Linear(_) => (0..n).map(|i| self.texel(i).as_dvec4()).sum(),
+        };
+        (sum / n as f64).as_vec4()
+    }
+
     /// Texel `i` (row-major) in linear RGBA.
     fn texel(&self, i: usize) -> Vec4 {
         let c = self.channels as usize;
@@ -208,12 +257,7 @@ impl Texture {
 
     /// The mean of the full-resolution texels.
     pub fn mean(&self) -> Vec4 {
-        *self.mean.get_or_init(|| {
-            let l = &self.levels[0];
-            let n = (l.width * l.height) as usize;
-            let sum: glam::DVec4 = (0..n).map(|i| l.texel(i).as_dvec4()).sum();
-            (sum / n as f64).as_vec4()
-        })
+        *self.mean.get_or_init(|| self.levels[0].mean())
     }
 
     /// Each channel's largest full-resolution texel value.
