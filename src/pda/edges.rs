@@ -216,7 +216,9 @@ pub(super) struct EdgeHeld {
     count: u32,
     left: bool,
     right: bool,
-    /// Held by polygons of two surfaces or on different planes.
+    /// Held by polygons of two surfaces or on different planes: a pixel
+    /// across it sees two facets whose light differs, and its sub-pixels
+    /// are shaded apart ([`sub_pixels_mix`]).
     pub(super) crease: bool,
     /// The first polygon's surface and normal, which the others' are
     /// compared with.
@@ -224,7 +226,16 @@ pub(super) struct EdgeHeld {
 }
 
 impl EdgeHeld {
-    /// Two polygons, one strictly on each side (see [`interior_edges`]).
+    /// Whether the edge is no silhouette: whole (the same ends, bit for
+    /// bit) in exactly two polygons that lie on either side of it in the
+    /// image. A convex polygon lies wholly on one side of each of its
+    /// edges, so a sub-pixel on either side of such an edge sees one of
+    /// the two (or something nearer), and no pixel along it mixes objects
+    /// and room but where it meets an outline edge, which marks those.
+    /// Decided in the image, not by the polygons' normals: a fold of an
+    /// open surface can hide one side behind the other whichever way its
+    /// normals turn. A polygon seen edge-on, or behind the camera, is on
+    /// neither side; edges matched only in part count as outline.
     pub(super) fn interior(&self) -> bool {
         self.count == 2 && self.left && self.right
     }
@@ -281,16 +292,8 @@ pub(super) fn edge_table(
     table
 }
 
-/// The objects' polygon edges that are no silhouette for `cam`: whole
-/// edges (the same ends, bit for bit) of exactly two polygons that lie on
-/// either side of the edge in the image. A convex polygon lies wholly on
-/// one side of each of its edges, so a sub-pixel on either side of such an
-/// edge sees one of the two (or something nearer), and no pixel along it
-/// mixes objects and room but where it meets an outline edge, which marks
-/// those. Decided in the image, not by the polygons' normals: a fold of an
-/// open surface can hide one side behind the other whichever way its
-/// normals turn. A polygon seen edge-on, or behind the camera, is on
-/// neither side; edges matched only in part count as outline.
+/// The objects' polygon edges that are no silhouette for `cam`
+/// ([`EdgeHeld::interior`]).
 #[cfg(test)]
 pub(super) fn interior_edges(
     cam: &Camera,
@@ -302,9 +305,7 @@ pub(super) fn interior_edges(
         .collect()
 }
 
-/// The objects' polygon edges held by two polygons on different planes
-/// (or of two objects): a pixel across one sees two facets whose light
-/// differs, and its sub-pixels are shaded apart ([`sub_pixels_mix`]).
+/// The objects' polygon edges that are creases ([`EdgeHeld::crease`]).
 #[cfg(test)]
 pub(super) fn crease_edges(
     roots: &[&crate::patches::Element],
