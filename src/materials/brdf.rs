@@ -218,9 +218,9 @@ const TABLE_STEPS: usize = 64;
 /// [`hemispherical_albedo`] from a table over metallic and roughness,
 /// interpolated bilinearly. The albedo is affine in the base colour (the
 /// Fresnel term and the diffuse part are), a + b·base per channel, so a
-/// cell holds a and b ([`albedo_cell`]). A textured object's patches read
-/// it, one material point each: an 80k-triangle asset took 40 s by
-/// quadrature.
+/// cell holds a and b (`albedo_cell`, which its test recomputes). A
+/// textured object's patches read it, one material point each: an
+/// 80k-triangle asset took 40 s by quadrature.
 pub fn table_albedo(lobes: &Lobes) -> DVec3 {
     const S: usize = TABLE_STEPS;
     let table = albedo_table();
@@ -259,11 +259,11 @@ pub(crate) fn albedo_cell(i: usize, j: usize) -> (f64, f64) {
 
 /// [`table_albedo`]'s cells, row by row of metallic, as stored in
 /// `albedo_table.bin`: each cell's a and b as little-endian f64 bits.
-/// Stored, not computed at first use: filling the table takes 155 M BRDF
-/// samples, about 0.3 s of CPU, which every render of a textured object
-/// paid (its patches read cells all over the table). A test checks that
-/// every stored cell is [`albedo_cell`]'s, bit for bit, and writes the
-/// file again when asked to.
+/// Stored, not computed at first use: the whole table is 155 M BRDF
+/// samples, about 10 s of CPU, and a textured object's patches read cells
+/// all over it (the cells the 30k-triangle prop read took 75 ms of its
+/// render). A test checks that every stored cell is what `albedo_cell`
+/// computes, bit for bit, and writes the file again when asked to.
 pub(crate) const ALBEDO_TABLE_FILE: &[u8] = include_bytes!("albedo_table.bin");
 
 /// The stored table, decoded once.
