@@ -382,3 +382,32 @@ fn the_stored_albedo_table_is_the_quadratures_bit_for_bit() {
         "a cell with a negative or non-finite part"
     );
 }
+
+#[test]
+fn odd_and_tiny_textures_keep_their_texels_at_every_level() {
+    // Odd sides keep their last texel alone in the next level; one texel
+    // is its own chain. Each layout against the same texels as RGBA.
+    for (w, h) in [(1u32, 1u32), (5, 3), (7, 1), (1, 6)] {
+        for channels in 1..=4usize {
+            let n = (w * h) as usize;
+            let data: Vec<u8> = (0..n * channels).map(|i| (i * 61 % 256) as u8).collect();
+            let rgba: Vec<u8> = data
+                .chunks_exact(channels)
+                .flat_map(|t| match channels {
+                    1 => [t[0], t[0], t[0], 255],
+                    2 => [t[0], t[0], t[0], t[1]],
+                    3 => [t[0], t[1], t[2], 255],
+                    _ => [t[0], t[1], t[2], t[3]],
+                })
+                .collect();
+            let own = Texture::from_u8(w, h, channels, &data, true).unwrap();
+            let expanded = Texture::from_u8(w, h, 4, &rgba, true).unwrap();
+            assert_eq!(
+                own.texels(),
+                expanded.texels(),
+                "{w}×{h}, {channels} channels"
+            );
+            assert_eq!(own.mean(), expanded.mean(), "{w}×{h}, {channels} channels");
+        }
+    }
+}
