@@ -384,7 +384,7 @@ fn the_stored_albedo_table_is_the_quadratures_bit_for_bit() {
 }
 
 #[test]
-fn odd_and_tiny_textures_keep_their_texels_at_every_level() {
+fn odd_and_tiny_textures_keep_their_texels_mean_and_largest_value() {
     // Odd sides keep their last texel alone in the next level; one texel
     // is its own chain. Each layout against the same texels as RGBA.
     for (w, h) in [(1u32, 1u32), (5, 3), (7, 1), (1, 6)] {
@@ -408,6 +408,10 @@ fn odd_and_tiny_textures_keep_their_texels_at_every_level() {
                 "{w}×{h}, {channels} channels"
             );
             assert_eq!(own.mean(), expanded.mean(), "{w}×{h}, {channels} channels");
+            // The largest value among the codes held is the largest texel.
+            let largest = own.texels()[0].iter().fold(Vec4::ZERO, |m, t| m.max(*t));
+            assert_eq!(own.max(), largest, "{w}×{h}, {channels} channels");
+            assert_eq!(expanded.max(), largest, "{w}×{h}, {channels} channels");
         }
     }
 }
