@@ -37,12 +37,36 @@ enum Texels {
     Linear(Vec<u16>),
 }
 
+/// Whether value `k` of a texel of `channels` values is its alpha (the
+/// last of 2 or 4).
+fn is_alpha(channels: u8, k: usize) -> bool {
+    (channels == 2 || channels == 4) && k + 1 == channels as usize
+}
+
+/// A texel of `channels` values (`value(k)`) as RGBA: grey in R, G and B,
+/// `opaque` where it has no alpha.
+fn rgba<T: Copy>(channels: u8, value: impl Fn(usize) -> T, opaque: T) -> [T; 4] {
+    match channels {
+        1 => {
+            let g = value(0);
+            [g, g, g, opaque]
+        }
+        2 => {
+            let g = value(0);
+            [g, g, g, value(1)]
+        }
+        3 => [value(0), value(1), value(2), opaque],
+        _ => [value(0), value(1), value(2), value(3)],
+    }
+}
+
 impl Level {
-    /// Per channel, how many texels hold each code (None: a level of
-    /// linear values). Counted side by side: whole counts, the same in any
-    /// order and on any number of threads.
-    fn code_counts(&self) -> Option<Vec<[u64; 256]>> {
-        let Texels::Codes { codes, .. } = &self.texels else {
+    /// Of an image's level, per channel how many texels hold each code,
+    /// and the codes' decoded values (None: a level of linear values).
+    /// Counted side by side: whole counts, the same in any order and on
+    /// any number of threads.
+    fn code_counts(&self) -> Option<(Vec<[u64; 256]>, &[[u16; 256]; 2])> {
+        let Texels::Codes { codes, decoded } = &self.texels else {
             return None;
         };
         let c = self.channels as usize;
@@ -63,30 +87,13 @@ impl Level {
                 counts
             })
             .reduce(|| vec![[0u64; 256]; c], add);
-        Some(counts)
+        Some((counts, decoded))
     }
 
-    /// Each code's value in channel `k` of this level's image, as a texel
-    /// reads it (colour, or alpha for the last of 2 and 4 channels).
-    fn code_values(&self, k: usize) -> [f32; 256] {
-        let c = self.channels as usize;
-        let alpha = (c == 2 || c == 4) && k + 1 == c;
-        match &self.texels {
-            Texels::Codes { decoded, .. } => {
-                std::array::from_fn(|code| f32::from(decoded[alpha as usize][code]) / 65535.0)
-            }
-            Texels::Linear(_) => [0.0; 256],
-        }
-    }
-
-    /// A texel from per-channel values (`missing`: an absent alpha).
-    fn expand(&self, channel: impl Fn(usize) -> f64, missing: f64) -> glam::DVec4 {
-        match self.channels {
-            1 => glam::DVec4::new(channel(0), channel(0), channel(0), missing),
-            2 => glam::DVec4::new(channel(0), channel(0), channel(0), channel(1)),
-            3 => glam::DVec4::new(channel(0), channel(1), channel(2), missing),
-            _ => glam::DVec4::new(channel(0), channel(1), channel(2), channel(3)),
-        }
+    /// Each code's value in channel `k`, as a texel reads it.
+    fn code_values(&self, decoded: &[[u16; 256]; 2], k: usize) -> [f32; 256] {
+        let table = &decoded[is_alpha(self.channels, k) as usize];
+        std::array::from_fn(|code| f32::from(table[code]) / 65535.0)
     }
 
     /// The mean texel. An image's codes are counted ([`Level::code_counts`])
@@ -96,14 +103,13 @@ impl Level {
     fn mean(&self) -> Vec4 {
         let n = (self.width * self.height) as usize;
         let sum = match self.code_counts() {
-            Some(counts) => {
+            Some((counts, decoded)) => {
                 let channel = |k: usize| -> f64 {
-                    let values = self.code_values(k);
-                    (counts[k].iter().zip(values))
+                    (counts[k].iter().zip(self.code_values(decoded, k)))
                         .map(|(&count, v)| count as f64 * f64::from(v))
                         .sum()
                 };
-                self.expand(channel, n as f64)
+                glam::DVec4::from_array(rgba(self.channels, channel, n as f64))
             }
             None => (0..n).map(|i| self.texel(i).as_dvec4()).sum(),
         };
@@ -114,14 +120,13 @@ impl Level {
     /// among the codes it holds.
     fn max(&self) -> Vec4 {
         match self.code_counts() {
-            Some(counts) => {
-                let channel = |k: usize| -> f64 {
-                    let values = self.code_values(k);
-                    (counts[k].iter().zip(values))
+            Some((counts, decoded)) => {
+                let channel = |k: usize| -> f32 {
+                    (counts[k].iter().zip(self.code_values(decoded, k)))
                         .filter(|(count, _)| **count > 0)
-                        .fold(0.0f32, |m, (_, v)| m.max(v)) as f64
+                        .fold(0.0f32, |m, (_, v)| m.max(v))
                 };
-                self.expand(channel, 1.0).as_vec4()
+                Vec4::from_array(rgba(self.channels, channel, 1.0))
             }
             None => (0..(self.width * self.height) as usize)
                 .map(|i| self.texel(i))
@@ -132,33 +137,15 @@ impl Level {
     /// Texel `i` (row-major) in linear RGBA.
     fn texel(&self, i: usize) -> Vec4 {
         let c = self.channels as usize;
-        let value = |k: usize, alpha: bool| -> u16 {
+        let value = |k: usize| -> u16 {
             match &self.texels {
                 Texels::Codes { codes, decoded } => {
-                    decoded[alpha as usize][codes[i * c + k] as usize]
+                    decoded[is_alpha(self.channels, k) as usize][codes[i * c + k] as usize]
                 }
                 Texels::Linear(v) => v[i * c + k],
             }
         };
-        let opaque = u16::MAX;
-        let t = match c {
-            1 => {
-                let g = value(0, false);
-                [g, g, g, opaque]
-            }
-            2 => {
-                let g = value(0, false);
-                [g, g, g, value(1, true)]
-            }
-            3 => [value(0, false), value(1, false), value(2, false), opaque],
-            _ => [
-                value(0, false),
-                value(1, false),
-                value(2, false),
-                value(3, true),
-            ],
-        };
-        unpack(t)
+        unpack(rgba(self.channels, value, u16::MAX))
     }
 }
 
