@@ -32,7 +32,7 @@ enum Texels {
     Codes {
         codes: Vec<u8>,
         /// Per code, its colour value and its alpha value.
-        decoded: Box<[[u16; 256]; 2]>,
+        decoded: Box<Decoded>,
     },
     Linear(Vec<u16>),
 }
@@ -60,17 +60,23 @@ fn rgba<T: Copy>(channels: u8, value: impl Fn(usize) -> T, opaque: T) -> [T; 4] 
     }
 }
 
+/// How many texels of a channel hold each 8-bit code.
+type CodeCounts = [u64; 256];
+
+/// Per 8-bit code, its value as colour and as alpha (16-bit linear).
+type Decoded = [[u16; 256]; 2];
+
 impl Level {
     /// Of an image's level, per channel how many texels hold each code,
     /// and the codes' decoded values (None: a level of linear values).
     /// Counted side by side: whole counts, the same in any order and on
     /// any number of threads.
-    fn code_counts(&self) -> Option<(Vec<[u64; 256]>, &[[u16; 256]; 2])> {
+    fn code_counts(&self) -> Option<(Vec<CodeCounts>, &Decoded)> {
         let Texels::Codes { codes, decoded } = &self.texels else {
             return None;
         };
         let c = self.channels as usize;
-        let add = |mut a: Vec<[u64; 256]>, b: Vec<[u64; 256]>| {
+        let add = |mut a: Vec<CodeCounts>, b: Vec<CodeCounts>| {
             for (x, y) in a.iter_mut().zip(&b) {
                 x.iter_mut().zip(y).for_each(|(x, y)| *x += y);
             }
@@ -91,7 +97,7 @@ impl Level {
     }
 
     /// Each code's value in channel `k`, as a texel reads it.
-    fn code_values(&self, decoded: &[[u16; 256]; 2], k: usize) -> [f32; 256] {
+    fn code_values(&self, decoded: &Decoded, k: usize) -> [f32; 256] {
         let table = &decoded[is_alpha(self.channels, k) as usize];
         std::array::from_fn(|code| f32::from(table[code]) / 65535.0)
     }
