@@ -645,9 +645,9 @@ impl Session {
         self.prepare_updates(times);
         let mut stats = UpdateStats::default();
         let virt = scene.virtual_world_surfaces();
-        let sets = crate::scene_tracer::virtual_triangle_sets(scene, &virt);
+        let placed = crate::scene_tracer::object_instances(scene);
         // The tracer's objects, their bounds and their mesh, side by side.
-        let has_objects = sets.iter().any(|s| !s.triangles.is_empty());
+        let has_objects = virt.iter().any(|(_, t)| !t.is_empty());
         let (tracer, model, settings, meshes) = (
             &mut self.prepared.tracer,
             &self.prepared.model,
@@ -656,7 +656,7 @@ impl Session {
         );
         let (moved, (bounds, objects)) = times.concurrently(
             "place objects",
-            |times| times.time("move objects", || tracer.rebuild_virtual(&sets)),
+            |times| times.time("move objects", || tracer.place_objects(&placed)),
             |times| {
                 let bounds = VirtualBounds::of(&virt)
                     .with_room(&model.patches.real_root_polygons(), &model.lights);

@@ -5,7 +5,7 @@
 
 use crate::error::{Error, Result};
 use crate::scene::Scene;
-use crate::trace::{Mask, SurfaceTriangles, Tracer};
+use crate::trace::{Mask, ObjectInstance, SurfaceTriangles, Tracer};
 
 /// The real surfaces as tracer input, each with its id.
 pub(crate) fn real_triangle_sets(scene: &Scene) -> Vec<SurfaceTriangles<'_>> {
@@ -24,29 +24,36 @@ pub(crate) fn real_triangle_sets(scene: &Scene) -> Vec<SurfaceTriangles<'_>> {
 /// Builds the tracer: the real surfaces, and the enabled virtual objects
 /// (none built when there are none).
 pub fn build_tracer(scene: &Scene) -> Result<Tracer> {
-    let virt = scene.virtual_world_surfaces();
-    Tracer::build(
-        &real_triangle_sets(scene),
-        &virtual_triangle_sets(scene, &virt),
-    )
-    .map_err(|e| Error::file(&scene.file, e.to_string()))
+    Tracer::build_with_objects(&real_triangle_sets(scene), &object_instances(scene))
+        .map_err(|e| Error::file(&scene.file, e.to_string()))
 }
 
-/// The enabled virtual objects' surfaces as tracer input (`virt`: their
-/// world triangles, as [`Scene::virtual_world_surfaces`] gives them), each
-/// with its material's alpha mask when it has one.
-pub(crate) fn virtual_triangle_sets<'a>(
-    scene: &Scene,
-    virt: &'a [(u32, Vec<crate::geometry::Triangle>)],
-) -> Vec<SurfaceTriangles<'a>> {
+/// The enabled virtual objects as tracer input: their surfaces in their
+/// own frames, each with its material's alpha mask when it has one, and
+/// their poses.
+pub(crate) fn object_instances(scene: &Scene) -> Vec<ObjectInstance<'_>> {
     let masks = alpha_masks(scene);
-    virt.iter()
-        .map(|(id, t)| SurfaceTriangles {
-            surface: *id,
-            triangles: t,
-            mask: masks.get(id).cloned(),
-        })
-        .collect()
+    let mut out = Vec::new();
+    for (first, o, _) in scene.virtual_surfaces().filter(|&(_, _, i)| i == 0) {
+        if !o.enabled {
+            continue;
+        }
+        let surfaces = (o.surfaces.iter().enumerate())
+            .map(|(k, s)| SurfaceTriangles {
+                surface: k as u32,
+                triangles: &s.triangles,
+                mask: masks.get(&(first + k as u32)).cloned(),
+            })
+            .collect();
+        out.push(ObjectInstance {
+            surfaces,
+            first_surface: first,
+            rotation: o.pose.rotation,
+            scale: o.pose.scale,
+            translate: o.pose.translate,
+        });
+    }
+    out
 }
 
 /// Per virtual surface id, the tracer's mask of a material with alphaMode

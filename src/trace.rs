@@ -153,6 +153,7 @@ pub struct Hit {
 /// One lane of Embree's hit record, as either ray layout stores it.
 struct RawHit {
     geom_id: u32,
+    inst_id: u32,
     prim_id: u32,
     u: f32,
     v: f32,
@@ -210,6 +211,9 @@ pub struct Geometry {
     masks: Vec<Box<Mask>>,
     /// arlux surface id of each Embree geometry id.
     surface_of_geometry: Vec<u32>,
+    /// A scene of objects' instances: each instance's object, by its
+    /// Embree geometry id ([`instances`]).
+    instances: Vec<instances::Instanced>,
     triangles: usize,
     is_virtual: bool,
 }
@@ -237,6 +241,7 @@ impl Geometry {
             scene,
             masks: Vec::new(),
             surface_of_geometry: Vec::new(),
+            instances: Vec::new(),
             triangles: 0,
             is_virtual,
         };
@@ -321,10 +326,15 @@ impl Geometry {
         if h.geom_id == ffi::RTC_INVALID_GEOMETRY_ID {
             return None;
         }
-        let n = h.ng.normalize_or_zero();
+        // Embree gives an instance's normal in the object's own frame.
+        let (surface, ng) = match self.instances.get(h.inst_id as usize) {
+            Some(i) => i.surface_and_normal(h.geom_id, h.ng),
+            None => (self.surface_of_geometry[h.geom_id as usize], h.ng),
+        };
+        let n = ng.normalize_or_zero();
         let normal = if n.dot(dir) > 0.0 { -n } else { n };
         Some(Hit {
-            surface: self.surface_of_geometry[h.geom_id as usize],
+            surface,
             triangle: h.prim_id,
             u: h.u,
             v: h.v,
@@ -358,6 +368,7 @@ impl Geometry {
         let h = rh.hit;
         let raw = RawHit {
             geom_id: h.geom_id,
+            inst_id: h.inst_id[0],
             prim_id: h.prim_id,
             u: h.u,
             v: h.v,
@@ -431,6 +442,7 @@ impl Geometry {
             for (i, o) in res.iter_mut().enumerate() {
                 let raw = RawHit {
                     geom_id: h.geom_id[i],
+                    inst_id: h.inst_id[0][i],
                     prim_id: h.prim_id[i],
                     u: h.u[i],
                     v: h.v[i],
@@ -508,6 +520,9 @@ pub enum Layer {
 pub struct Tracer {
     pub real: Geometry,
     pub virtual_objects: Option<Geometry>,
+    /// The objects' own scenes the virtual one instances, kept for the next
+    /// pose ([`Tracer::build_with_objects`]).
+    object_scenes: instances::ObjectScenes,
 }
 
 impl Tracer {
@@ -527,20 +542,26 @@ impl Tracer {
         Ok(Tracer {
             real,
             virtual_objects,
+            object_scenes: Default::default(),
         })
     }
 
-    /// Replaces the virtual scene (after a move); the real scene is kept.
-    pub(crate) fn rebuild_virtual(
-        &mut self,
-        virtual_objects: &[SurfaceTriangles],
-    ) -> Result<(), TraceError> {
-        let has_virtual = virtual_objects.iter().any(|s| !s.triangles.is_empty());
-        self.virtual_objects = if has_virtual {
-            Some(Geometry::build(virtual_objects, true)?)
-        } else {
-            None
-        };
+    /// Builds the real scene, and the virtual one as instances of
+    /// `objects`' own scenes (none built when no object has triangles):
+    /// objects of one mesh share its scene, and a move keeps it.
+    pub fn build_with_objects(
+        real: &[SurfaceTriangles],
+        objects: &[ObjectInstance],
+    ) -> Result<Tracer, TraceError> {
+        let mut tracer = Tracer::build(real, &[])?;
+        tracer.place_objects(objects)?;
+        Ok(tracer)
+    }
+
+    /// Places `objects` (after a move): the real scene is kept, and so is
+    /// each object's own scene that is still shown.
+    pub(crate) fn place_objects(&mut self, objects: &[ObjectInstance]) -> Result<(), TraceError> {
+        self.virtual_objects = self.object_scenes.place(objects)?;
         Ok(())
     }
 
@@ -661,6 +682,9 @@ impl Tracer {
         }
     }
 }
+
+mod instances;
+pub use instances::ObjectInstance;
 
 #[cfg(test)]
 mod tests;

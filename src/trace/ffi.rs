@@ -6,10 +6,12 @@ pub(crate) type RTCGeometry = *mut c_void;
 pub(crate) type RTCErrorFunction = Option<unsafe extern "C" fn(*mut c_void, u32, *const c_char)>;
 
 pub(crate) const RTC_GEOMETRY_TYPE_TRIANGLE: u32 = 0;
+pub(crate) const RTC_GEOMETRY_TYPE_INSTANCE: u32 = 121;
 pub(crate) const RTC_BUFFER_TYPE_INDEX: u32 = 0;
 pub(crate) const RTC_BUFFER_TYPE_VERTEX: u32 = 1;
 pub(crate) const RTC_FORMAT_UINT3: u32 = 0x5003;
 pub(crate) const RTC_FORMAT_FLOAT3: u32 = 0x9003;
+pub(crate) const RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR: u32 = 0x9234;
 pub(crate) const RTC_BUILD_QUALITY_MEDIUM: u32 = 1;
 pub(crate) const RTC_SCENE_FLAG_ROBUST: u32 = 1 << 2;
 pub(crate) const RTC_INVALID_GEOMETRY_ID: u32 = u32::MAX;
@@ -180,6 +182,13 @@ unsafe extern "C" {
     pub(crate) fn rtcSetGeometryOccludedFilterFunction(
         geometry: RTCGeometry,
         filter: RTCFilterFunctionN,
+    );
+    pub(crate) fn rtcSetGeometryInstancedScene(geometry: RTCGeometry, scene: RTCScene);
+    pub(crate) fn rtcSetGeometryTransform(
+        geometry: RTCGeometry,
+        time_step: u32,
+        format: u32,
+        xfm: *const c_void,
     );
     pub(crate) fn rtcAttachGeometry(scene: RTCScene, geometry: RTCGeometry) -> u32;
     pub(crate) fn rtcReleaseGeometry(geometry: RTCGeometry);

@@ -1,4 +1,5 @@
 use super::*;
+use std::sync::Arc;
 
 fn quad(z: f32, half: f32) -> Vec<Triangle> {
     let (a, b, c, d) = (
@@ -154,4 +155,109 @@ fn a_masked_surface_lets_rays_through_where_it_is_cut_away_in_every_query() {
         assert_eq!(occ[i], present, "ray {i}");
         assert_eq!(tracer.occluded(r, Layer::Virtual), present, "ray {i}");
     }
+}
+
+/// A tilted, asymmetric mesh of two surfaces (so a wrong rotation, scale or
+/// surface number shows).
+fn object_mesh() -> (Vec<Triangle>, Vec<Triangle>) {
+    let a = vec![[
+        Vec3::new(-0.3, 0.0, -0.2),
+        Vec3::new(0.4, 0.1, -0.2),
+        Vec3::new(0.0, 0.5, 0.3),
+    ]];
+    let b = vec![[
+        Vec3::new(-0.3, 0.0, 0.2),
+        Vec3::new(0.3, -0.2, 0.25),
+        Vec3::new(0.1, 0.4, 0.35),
+    ]];
+    (a, b)
+}
+
+#[test]
+fn instanced_objects_hit_as_their_world_triangles_do_and_share_one_scene() {
+    let (a, b) = object_mesh();
+    let poses = [
+        (
+            glam::DMat3::from_rotation_y(0.7),
+            1.5,
+            glam::DVec3::new(0.2, 0.1, 2.0),
+        ),
+        (
+            glam::DMat3::from_euler(glam::EulerRot::XYZ, 0.3, -1.1, 0.4),
+            0.8,
+            glam::DVec3::new(-0.4, 0.3, 3.0),
+        ),
+    ];
+    let instance = |first: u32, (rotation, scale, translate)| ObjectInstance {
+        surfaces: [&a, &b]
+            .iter()
+            .enumerate()
+            .map(|(k, t)| SurfaceTriangles {
+                surface: k as u32,
+                triangles: t,
+                mask: None,
+            })
+            .collect(),
+        first_surface: first,
+        rotation,
+        scale,
+        translate,
+    };
+    let objects = [instance(5, poses[0]), instance(7, poses[1])];
+    let instanced = Tracer::build_with_objects(&[], &objects).unwrap();
+    // The same objects as world triangles, placed in double precision.
+    let world: Vec<(u32, Vec<Triangle>)> = (objects.iter())
+        .flat_map(|o| {
+            [&a, &b].into_iter().enumerate().map(move |(k, t)| {
+                let at = |p: Vec3| (o.translate + o.rotation * (p.as_dvec3() * o.scale)).as_vec3();
+                (
+                    o.first_surface + k as u32,
+                    t.iter().map(|t| t.map(at)).collect(),
+                )
+            })
+        })
+        .collect();
+    let sets: Vec<SurfaceTriangles> = (world.iter())
+        .map(|(s, t)| SurfaceTriangles {
+            surface: *s,
+            triangles: t,
+            mask: None,
+        })
+        .collect();
+    let plain = Tracer::build(&[], &sets).unwrap();
+    let mut hits = 0;
+    for i in 0..40 {
+        for j in 0..40 {
+            let d = Vec3::new(-0.8 + i as f32 * 0.04, -0.6 + j as f32 * 0.04, 1.0).normalize();
+            let ray = TraceRay::new(Vec3::ZERO, d);
+            let (x, y) = (
+                instanced.intersect(&ray, Layer::Virtual),
+                plain.intersect(&ray, Layer::Virtual),
+            );
+            let (Some(x), Some(y)) = (x, y) else {
+                // Only a ray grazing an edge may hit one and miss the other.
+                continue;
+            };
+            hits += 1;
+            assert_eq!((x.surface, x.triangle), (y.surface, y.triangle));
+            assert!((x.t - y.t).abs() < 1e-5 * y.t, "t {} against {}", x.t, y.t);
+            assert!(
+                (x.normal - y.normal).length() < 1e-5,
+                "{} against {}",
+                x.normal,
+                y.normal
+            );
+            assert!((x.u - y.u).abs() < 1e-4 && (x.v - y.v).abs() < 1e-4);
+            assert!(x.is_virtual);
+        }
+    }
+    assert!(hits > 50, "{hits} hits");
+    // One scene for the two objects of one mesh, kept by a move.
+    assert_eq!(instanced.object_scenes.kept.len(), 1);
+    let before = Arc::clone(&instanced.object_scenes.kept[0].1);
+    let mut moved = instanced;
+    let shifted = [instance(5, poses[1]), instance(7, poses[0])];
+    moved.place_objects(&shifted).unwrap();
+    assert!(Arc::ptr_eq(&before, &moved.object_scenes.kept[0].1));
+    assert_eq!(moved.virtual_objects.as_ref().unwrap().triangle_count(), 4);
 }
