@@ -645,7 +645,10 @@ impl Session {
         self.prepare_updates(times);
         let mut stats = UpdateStats::default();
         let virt = scene.virtual_world_surfaces();
-        let placed = crate::scene_tracer::object_instances(scene);
+        let (world, placed) = (
+            crate::scene_tracer::world_triangle_sets(scene, &virt),
+            crate::scene_tracer::object_instances(scene),
+        );
         // The tracer's objects, their bounds and their mesh, side by side.
         let has_objects = virt.iter().any(|(_, t)| !t.is_empty());
         let (tracer, model, settings, meshes) = (
@@ -656,7 +659,7 @@ impl Session {
         );
         let (moved, (bounds, objects)) = times.concurrently(
             "place objects",
-            |times| times.time("move objects", || tracer.place_objects(&placed)),
+            |times| times.time("move objects", || tracer.place_objects(&world, &placed)),
             |times| {
                 let bounds = VirtualBounds::of(&virt)
                     .with_room(&model.patches.real_root_polygons(), &model.lights);

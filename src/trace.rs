@@ -213,7 +213,7 @@ pub struct Geometry {
     surface_of_geometry: Vec<u32>,
     /// A scene of objects' instances: each instance's object, by its
     /// Embree geometry id ([`instances`]).
-    instances: Vec<instances::Instanced>,
+    instances: Vec<Option<instances::Instanced>>,
     triangles: usize,
     is_virtual: bool,
 }
@@ -233,6 +233,16 @@ impl Drop for Geometry {
 impl Geometry {
     /// Builds and commits a scene from surfaces' triangles.
     pub fn build(surfaces: &[SurfaceTriangles], is_virtual: bool) -> Result<Geometry, TraceError> {
+        Geometry::build_with(surfaces, &[], is_virtual)
+    }
+
+    /// Builds and commits a scene from surfaces' triangles and instances
+    /// of objects' own scenes ([`instances`]).
+    fn build_with(
+        surfaces: &[SurfaceTriangles],
+        objects: &[(std::sync::Arc<Geometry>, &ObjectInstance)],
+        is_virtual: bool,
+    ) -> Result<Geometry, TraceError> {
         let device = device()?;
         // SAFETY: the device is valid; the result is checked.
         let scene = NonNull::new(unsafe { ffi::rtcNewScene(device) })
@@ -310,6 +320,9 @@ impl Geometry {
             g.surface_of_geometry[slot] = s.surface;
             g.triangles += n;
         }
+        for (object, o) in objects {
+            g.attach_instance(device, object, o)?;
+        }
         // SAFETY: all geometries are attached and committed.
         unsafe { ffi::rtcCommitScene(scene.as_ptr()) };
         check_device("building the acceleration structure")?;
@@ -327,7 +340,11 @@ impl Geometry {
             return None;
         }
         // Embree gives an instance's normal in the object's own frame.
-        let (surface, ng) = match self.instances.get(h.inst_id as usize) {
+        let (surface, ng) = match self
+            .instances
+            .get(h.inst_id as usize)
+            .and_then(Option::as_ref)
+        {
             Some(i) => i.surface_and_normal(h.geom_id, h.ng),
             None => (self.surface_of_geometry[h.geom_id as usize], h.ng),
         };
@@ -546,22 +563,29 @@ impl Tracer {
         })
     }
 
-    /// Builds the real scene, and the virtual one as instances of
-    /// `objects`' own scenes (none built when no object has triangles):
-    /// objects of one mesh share its scene, and a move keeps it.
+    /// Builds the real scene, and the virtual one from the surfaces of
+    /// `world` (in the world's frame) and instances of `objects`' own
+    /// scenes (none built when there are no triangles): objects of one
+    /// mesh share its scene, and a move keeps it.
     pub fn build_with_objects(
         real: &[SurfaceTriangles],
+        world: &[SurfaceTriangles],
         objects: &[ObjectInstance],
     ) -> Result<Tracer, TraceError> {
         let mut tracer = Tracer::build(real, &[])?;
-        tracer.place_objects(objects)?;
+        tracer.place_objects(world, objects)?;
         Ok(tracer)
     }
 
-    /// Places `objects` (after a move): the real scene is kept, and so is
-    /// each object's own scene that is still shown.
-    pub(crate) fn place_objects(&mut self, objects: &[ObjectInstance]) -> Result<(), TraceError> {
-        self.virtual_objects = self.object_scenes.place(objects)?;
+    /// Places the virtual objects again (after a move), as
+    /// [`Tracer::build_with_objects`] does: the real scene is kept, and so
+    /// is each instanced object's own scene that is still shown.
+    pub(crate) fn place_objects(
+        &mut self,
+        world: &[SurfaceTriangles],
+        objects: &[ObjectInstance],
+    ) -> Result<(), TraceError> {
+        self.virtual_objects = self.object_scenes.place(world, objects)?;
         Ok(())
     }
 

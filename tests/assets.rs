@@ -425,3 +425,98 @@ fn the_texture_path_refuses_links_that_would_not_fit_and_says_what_would() {
         "peak {peak} over the budget {budget} it was given"
     );
 }
+
+/// A prop large enough to be traced as instances of one scene: hits of
+/// the scene's camera rays are the world triangles' (to float rounding),
+/// and an update that moves one of two copies gives the image a full
+/// render of the pose gives, bit for bit.
+#[test]
+fn large_objects_traced_as_instances_hit_as_their_triangles_and_update_as_renders_do() {
+    use arlux::model::StageTimes;
+    use arlux::render::{RenderSettings, Session, render};
+    use arlux::trace::{Layer, SurfaceTriangles, TraceRay, Tracer};
+    let desk = Desk::new();
+    let spec = AssetSpec {
+        triangles: 10_000,
+        texture: 64,
+        ..AssetSpec::heavy_prop()
+    };
+    write_asset(&desk.path("geometry"), "prop", &spec);
+    place(&desk, "prop", &[[0.3, 0.0, -0.3], [-0.2, 0.0, 0.4]]);
+    // Turned and scaled: an instance's normal and hit are the object's
+    // frame's turned into the world's.
+    desk.edit(
+        "scene.toml",
+        "name = \"prop_0\"\n",
+        "name = \"prop_0\"\nrotate = [20.0, 35.0, -10.0]\nscale = 1.3\n",
+    );
+    let text = std::fs::read_to_string(desk.path("scene.toml")).unwrap()
+        + "\n[[motion]]\nname = \"walk\"\nobject = \"prop_0\"\n"
+        + "translations = [[0.3, 0.0, -0.3], [0.12, 0.0, -0.18], [0.0, 0.0, 0.05]]\n";
+    std::fs::write(desk.path("scene.toml"), text).unwrap();
+    let base = Scene::load(desk.path("scene.toml")).unwrap();
+    let first = base.with_motion_pose("walk", 0).unwrap();
+    let prop = (first.objects.iter()).find(|o| o.name == "prop_0").unwrap();
+    let triangles: usize = prop.surfaces.iter().map(|s| s.triangles.len()).sum();
+    assert!(
+        triangles >= arlux::scene_tracer::INSTANCE_TRIANGLES,
+        "{triangles}"
+    );
+
+    // The tracer against the same objects given as world triangles.
+    let traced = arlux::scene_tracer::build_tracer(&first).unwrap();
+    let virt = first.virtual_world_surfaces();
+    let set = |surface: u32, triangles| SurfaceTriangles {
+        surface,
+        triangles,
+        mask: None,
+    };
+    let real: Vec<_> = (first.surfaces.iter().enumerate())
+        .map(|(i, s)| set(i as u32, &s.triangles))
+        .collect();
+    let world: Vec<_> = virt.iter().map(|(id, t)| set(*id, t)).collect();
+    let plain = Tracer::build(&real, &world).unwrap();
+    let camera = &first.camera;
+    let (mut props, mut apart) = (0, 0);
+    for y in (0..camera.height).step_by(3) {
+        for x in (0..camera.width).step_by(3) {
+            let r = camera.ray(x as f64 + 0.5, y as f64 + 0.5);
+            let ray = TraceRay::new(r.origin.as_vec3(), r.direction.as_vec3());
+            let (a, b) = (
+                traced.intersect(&ray, Layer::All),
+                plain.intersect(&ray, Layer::All),
+            );
+            let (Some(a), Some(b)) = (a, b) else {
+                assert!(a.is_none() && b.is_none(), "({x}, {y}): one hit, one miss");
+                continue;
+            };
+            if (a.surface, a.triangle) != (b.surface, b.triangle) {
+                // A ray along an edge between two triangles may take either.
+                apart += 1;
+                continue;
+            }
+            props += usize::from(a.is_virtual && a.surface >= first.surfaces.len() as u32);
+            assert!(
+                (a.t - b.t).abs() <= 1e-5 * b.t,
+                "({x}, {y}): t {} against {}",
+                a.t,
+                b.t
+            );
+            assert!((a.normal - b.normal).length() < 1e-4, "({x}, {y})");
+        }
+    }
+    assert!(props > 300, "{props} hits on the objects");
+    assert!(apart * 100 < props, "{apart} hits on other triangles");
+
+    let settings = RenderSettings::default();
+    let photo = first.load_photo().unwrap();
+    let mut session =
+        Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+    for pose in 1..3 {
+        let scene = base.with_motion_pose("walk", pose).unwrap();
+        session.update(&scene, &mut StageTimes::default()).unwrap();
+        let full = render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap();
+        let d = common::differing(&session.composite.image, &full.composite.image);
+        assert_eq!(d, 0, "pose {pose}: the update differs from a full render");
+    }
+}

@@ -1,9 +1,9 @@
-//! Virtual objects as Embree instances: each object's surfaces are built
-//! once in its own frame, and the virtual scene places them by their
-//! poses. A move rebuilds only the scene of instances (a few boxes), and
-//! objects from one mesh share one acceleration structure (an 80,000-
-//! triangle object's took 24 ms to build on every move, and each copy of
-//! it held its own triangles and hierarchy).
+//! Virtual objects as Embree instances: a large object's surfaces are
+//! built once in its own frame, and the virtual scene places them by their
+//! poses beside the small objects' world triangles. A move rebuilds only
+//! that scene, and objects from one mesh share one acceleration structure
+//! (an 80,000-triangle object's took 19-24 ms to build on every move, and
+//! each copy of it held its own triangles and hierarchy).
 
 use std::hash::{BuildHasher, Hasher};
 use std::sync::Arc;
@@ -108,11 +108,13 @@ pub(super) struct ObjectScenes {
 }
 
 impl ObjectScenes {
-    /// The scene of `objects`' instances (None: no triangles), each
-    /// object's own scene reused when one of the same surfaces is kept;
-    /// those no object uses any more are dropped.
+    /// The virtual scene: the surfaces of `world` as they are and
+    /// `objects`' instances (None: no triangles), each object's own scene
+    /// reused when one of the same surfaces is kept; those no object uses
+    /// any more are dropped.
     pub(super) fn place(
         &mut self,
+        world: &[SurfaceTriangles],
         objects: &[ObjectInstance],
     ) -> Result<Option<Geometry>, TraceError> {
         let shown: Vec<&ObjectInstance> = (objects.iter())
@@ -133,67 +135,53 @@ impl ObjectScenes {
             placed.push((object, o));
         }
         self.kept = kept;
-        if placed.is_empty() {
+        if placed.is_empty() && world.iter().all(|s| s.triangles.is_empty()) {
             return Ok(None);
         }
-        Geometry::of_instances(&placed).map(Some)
+        Geometry::build_with(world, &placed, true).map(Some)
     }
 }
 
 impl Geometry {
-    /// A committed scene of instances of `objects`' scenes at their poses.
-    fn of_instances(objects: &[(Arc<Geometry>, &ObjectInstance)]) -> Result<Geometry, TraceError> {
-        let device = device()?;
-        // SAFETY: the device is valid; the result is checked.
-        let scene = NonNull::new(unsafe { ffi::rtcNewScene(device) })
-            .ok_or_else(|| TraceError("could not create a scene".into()))?;
-        let mut g = Geometry {
-            scene,
-            masks: Vec::new(),
-            surface_of_geometry: Vec::new(),
-            instances: Vec::new(),
-            triangles: 0,
-            is_virtual: true,
-        };
-        // SAFETY: the scene is valid and not yet committed.
-        unsafe { ffi::rtcSetSceneFlags(scene.as_ptr(), ffi::RTC_SCENE_FLAG_ROBUST) };
-        for (object, o) in objects {
-            let transform = o.transform();
-            // SAFETY: the instanced scene is committed and outlives the
-            // instance (`g` holds it); Embree copies the transform.
-            let id = unsafe {
-                let geom = ffi::rtcNewGeometry(device, ffi::RTC_GEOMETRY_TYPE_INSTANCE);
-                if geom.is_null() {
-                    check_device("creating an instance")?;
-                    return Err(TraceError("could not create an instance".into()));
-                }
-                ffi::rtcSetGeometryInstancedScene(geom, object.scene.as_ptr());
-                ffi::rtcSetGeometryTransform(
-                    geom,
-                    0,
-                    ffi::RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR,
-                    transform.as_ptr() as *const c_void,
-                );
-                ffi::rtcCommitGeometry(geom);
-                let id = ffi::rtcAttachGeometry(scene.as_ptr(), geom);
-                ffi::rtcReleaseGeometry(geom);
-                id as usize
-            };
-            check_device("placing an instance")?;
-            // A fresh scene numbers its geometries from 0 in order.
-            if id != g.instances.len() {
-                return Err(TraceError(format!("instance {id} numbered out of order")));
+    /// Attaches an instance of `object`'s scene placed as `o` to this
+    /// scene, not yet committed.
+    pub(super) fn attach_instance(
+        &mut self,
+        device: ffi::RTCDevice,
+        object: &Arc<Geometry>,
+        o: &ObjectInstance,
+    ) -> Result<(), TraceError> {
+        let transform = o.transform();
+        // SAFETY: the instanced scene is committed and outlives the
+        // instance (`self` holds it); Embree copies the transform.
+        let id = unsafe {
+            let geom = ffi::rtcNewGeometry(device, ffi::RTC_GEOMETRY_TYPE_INSTANCE);
+            if geom.is_null() {
+                check_device("creating an instance")?;
+                return Err(TraceError("could not create an instance".into()));
             }
-            g.triangles += object.triangles;
-            g.instances.push(Instanced {
-                object: Arc::clone(object),
-                first_surface: o.first_surface,
-                rotation: o.rotation.as_mat3(),
-            });
+            ffi::rtcSetGeometryInstancedScene(geom, object.scene.as_ptr());
+            ffi::rtcSetGeometryTransform(
+                geom,
+                0,
+                ffi::RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR,
+                transform.as_ptr() as *const c_void,
+            );
+            ffi::rtcCommitGeometry(geom);
+            let id = ffi::rtcAttachGeometry(self.scene.as_ptr(), geom);
+            ffi::rtcReleaseGeometry(geom);
+            id as usize
+        };
+        check_device("placing an instance")?;
+        if self.instances.len() <= id {
+            self.instances.resize_with(id + 1, || None);
         }
-        // SAFETY: all instances are attached and committed.
-        unsafe { ffi::rtcCommitScene(scene.as_ptr()) };
-        check_device("building the scene of instances")?;
-        Ok(g)
+        self.instances[id] = Some(Instanced {
+            object: Arc::clone(object),
+            first_surface: o.first_surface,
+            rotation: o.rotation.as_mat3(),
+        });
+        self.triangles += object.triangles;
+        Ok(())
     }
 }

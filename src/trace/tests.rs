@@ -204,7 +204,14 @@ fn instanced_objects_hit_as_their_world_triangles_do_and_share_one_scene() {
         translate,
     };
     let objects = [instance(5, poses[0]), instance(7, poses[1])];
-    let instanced = Tracer::build_with_objects(&[], &objects).unwrap();
+    // Beside them, a wall given in the world's frame, as small objects are.
+    let wall = quad(6.0, 10.0);
+    let wall_set = || SurfaceTriangles {
+        surface: 20,
+        triangles: &wall,
+        mask: None,
+    };
+    let instanced = Tracer::build_with_objects(&[], &[wall_set()], &objects).unwrap();
     // The same objects as world triangles, placed in double precision.
     let world: Vec<(u32, Vec<Triangle>)> = (objects.iter())
         .flat_map(|o| {
@@ -223,6 +230,7 @@ fn instanced_objects_hit_as_their_world_triangles_do_and_share_one_scene() {
             triangles: t,
             mask: None,
         })
+        .chain([wall_set()])
         .collect();
     let plain = Tracer::build(&[], &sets).unwrap();
     let mut hits = 0;
@@ -251,13 +259,13 @@ fn instanced_objects_hit_as_their_world_triangles_do_and_share_one_scene() {
             assert!(x.is_virtual);
         }
     }
-    assert!(hits > 50, "{hits} hits");
+    assert!(hits > 1000, "{hits} hits");
     // One scene for the two objects of one mesh, kept by a move.
     assert_eq!(instanced.object_scenes.kept.len(), 1);
     let before = Arc::clone(&instanced.object_scenes.kept[0].1);
     let mut moved = instanced;
     let shifted = [instance(5, poses[1]), instance(7, poses[0])];
-    moved.place_objects(&shifted).unwrap();
+    moved.place_objects(&[wall_set()], &shifted).unwrap();
     assert!(Arc::ptr_eq(&before, &moved.object_scenes.kept[0].1));
-    assert_eq!(moved.virtual_objects.as_ref().unwrap().triangle_count(), 4);
+    assert_eq!(moved.virtual_objects.as_ref().unwrap().triangle_count(), 6);
 }
