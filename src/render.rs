@@ -645,10 +645,8 @@ impl Session {
         self.prepare_updates(times);
         let mut stats = UpdateStats::default();
         let virt = scene.virtual_world_surfaces();
-        let (world, placed) = (
-            crate::scene_tracer::world_triangle_sets(scene, &virt),
-            crate::scene_tracer::object_instances(scene),
-        );
+        let world = crate::scene_tracer::world_triangle_sets(scene, &virt);
+        let placed = crate::scene_tracer::object_instances(scene);
         // The tracer's objects, their bounds and their mesh, side by side.
         let has_objects = virt.iter().any(|(_, t)| !t.is_empty());
         let (tracer, model, settings, meshes) = (
