@@ -157,6 +157,53 @@ fn a_masked_surface_lets_rays_through_where_it_is_cut_away_in_every_query() {
     }
 }
 
+/// The same through an instance turned half round about z: its mask reads
+/// the object's own barycentrics, so it cuts the world's x > 0 away.
+#[test]
+fn an_instanced_masked_surface_lets_rays_through_where_it_is_cut_away() {
+    let (wall, blocker) = (quad(2.0, 10.0), quad(0.0, 0.5));
+    let corners = blocker.clone();
+    let mask: Mask = std::sync::Arc::new(move |k: u32, u: f32, v: f32| {
+        let t = &corners[k as usize];
+        (t[0] * (1.0 - u - v) + t[1] * u + t[2] * v).x >= 0.0
+    });
+    let object = ObjectInstance {
+        surfaces: vec![SurfaceTriangles {
+            surface: 0,
+            triangles: &blocker,
+            mask: Some(mask),
+        }],
+        first_surface: 1,
+        rotation: glam::DMat3::from_rotation_z(std::f64::consts::PI),
+        scale: 1.0,
+        translate: glam::DVec3::new(0.0, 0.0, 1.0),
+    };
+    let real = [SurfaceTriangles {
+        surface: 0,
+        triangles: &wall,
+        mask: None,
+    }];
+    let tracer = Tracer::build_with_objects(&real, &[], &[object]).unwrap();
+    let rays: Vec<TraceRay> = (0..37)
+        .map(|i| TraceRay::new(Vec3::new(-0.49 + i as f32 * 0.027, 0.1, 0.0), Vec3::Z))
+        .collect();
+    let mut hits = vec![None; rays.len()];
+    tracer.intersect_batch(&rays, Layer::All, &mut hits);
+    let mut occ = vec![false; rays.len()];
+    tracer.occluded_batch(&rays, Layer::Virtual, &mut occ);
+    for (i, r) in rays.iter().enumerate() {
+        let present = r.origin.x <= 0.0;
+        let expect = if present { 1 } else { 0 };
+        assert_eq!(hits[i].map(|h| h.surface), Some(expect), "ray {i}");
+        assert_eq!(
+            tracer.intersect(r, Layer::All).map(|h| h.surface),
+            Some(expect)
+        );
+        assert_eq!(occ[i], present, "ray {i}");
+        assert_eq!(tracer.occluded(r, Layer::Virtual), present, "ray {i}");
+    }
+}
+
 /// A tilted, asymmetric mesh of two surfaces (so a wrong rotation, scale or
 /// surface number shows).
 fn object_mesh() -> (Vec<Triangle>, Vec<Triangle>) {
