@@ -257,9 +257,12 @@ impl ObjectShading<'_> {
                     .collect();
                 let seen = self.seen_all(&directions, 1.0 / side as f64);
                 (seen.into_iter().zip(&directions))
-                    .map(|((seen, t), d)| match seen {
-                        Some(Seen::Shaded(point)) => (Some(point), eye + d * t.min(1e4)),
-                        _ => (None, eye + d * t.min(1e4)),
+                    .map(|((seen, t), d)| {
+                        let point = match seen {
+                            Some(Seen::Shaded(point)) => Some(point),
+                            _ => None,
+                        };
+                        (point, eye + d * t.min(1e4))
                     })
                     .collect()
             }

@@ -114,29 +114,20 @@ fn queries_from_rayon_threads_agree() {
     assert_eq!(hits.iter().filter(|&&h| h).count(), 5000);
 }
 
-#[test]
-fn a_masked_surface_lets_rays_through_where_it_is_cut_away_in_every_query() {
-    // The blocker's points with x < 0 are cut away (world x from the
-    // barycentrics, as a texture's alpha would be read from them).
-    let (wall, blocker) = (quad(2.0, 10.0), quad(1.0, 0.5));
-    let corners = blocker.clone();
-    let mask: Mask = std::sync::Arc::new(move |k: u32, u: f32, v: f32| {
+/// A mask cutting away the points of `triangles` (in the frame the mask
+/// reads) with x < 0, as a texture's alpha would from the barycentrics.
+fn cut_below_x0(triangles: &[Triangle]) -> Mask {
+    let corners = triangles.to_vec();
+    std::sync::Arc::new(move |k: u32, u: f32, v: f32| {
         let t = &corners[k as usize];
         (t[0] * (1.0 - u - v) + t[1] * u + t[2] * v).x >= 0.0
-    });
-    let tracer = Tracer::build(
-        &[SurfaceTriangles {
-            surface: 0,
-            triangles: &wall,
-            mask: None,
-        }],
-        &[SurfaceTriangles {
-            surface: 1,
-            triangles: &blocker,
-            mask: Some(mask),
-        }],
-    )
-    .unwrap();
+    })
+}
+
+/// Rays along +z across x: every query meets the masked blocker, surface
+/// 1, where `present` says it is, and the wall behind it, surface 0,
+/// elsewhere.
+fn assert_cut_where(tracer: &Tracer, present: impl Fn(f32) -> bool) {
     let rays: Vec<TraceRay> = (0..37)
         .map(|i| TraceRay::new(Vec3::new(-0.49 + i as f32 * 0.027, 0.1, 0.0), Vec3::Z))
         .collect();
@@ -145,7 +136,7 @@ fn a_masked_surface_lets_rays_through_where_it_is_cut_away_in_every_query() {
     let mut occ = vec![false; rays.len()];
     tracer.occluded_batch(&rays, Layer::Virtual, &mut occ);
     for (i, r) in rays.iter().enumerate() {
-        let present = r.origin.x >= 0.0;
+        let present = present(r.origin.x);
         let expect = if present { 1 } else { 0 };
         assert_eq!(hits[i].map(|h| h.surface), Some(expect), "ray {i}");
         assert_eq!(
@@ -157,21 +148,35 @@ fn a_masked_surface_lets_rays_through_where_it_is_cut_away_in_every_query() {
     }
 }
 
+#[test]
+fn a_masked_surface_lets_rays_through_where_it_is_cut_away_in_every_query() {
+    let (wall, blocker) = (quad(2.0, 10.0), quad(1.0, 0.5));
+    let tracer = Tracer::build(
+        &[SurfaceTriangles {
+            surface: 0,
+            triangles: &wall,
+            mask: None,
+        }],
+        &[SurfaceTriangles {
+            surface: 1,
+            triangles: &blocker,
+            mask: Some(cut_below_x0(&blocker)),
+        }],
+    )
+    .unwrap();
+    assert_cut_where(&tracer, |x| x >= 0.0);
+}
+
 /// The same through an instance turned half round about z: its mask reads
 /// the object's own barycentrics, so it cuts the world's x > 0 away.
 #[test]
 fn an_instanced_masked_surface_lets_rays_through_where_it_is_cut_away() {
     let (wall, blocker) = (quad(2.0, 10.0), quad(0.0, 0.5));
-    let corners = blocker.clone();
-    let mask: Mask = std::sync::Arc::new(move |k: u32, u: f32, v: f32| {
-        let t = &corners[k as usize];
-        (t[0] * (1.0 - u - v) + t[1] * u + t[2] * v).x >= 0.0
-    });
     let object = ObjectInstance {
         surfaces: vec![SurfaceTriangles {
             surface: 0,
             triangles: &blocker,
-            mask: Some(mask),
+            mask: Some(cut_below_x0(&blocker)),
         }],
         first_surface: 1,
         rotation: glam::DMat3::from_rotation_z(std::f64::consts::PI),
@@ -184,24 +189,7 @@ fn an_instanced_masked_surface_lets_rays_through_where_it_is_cut_away() {
         mask: None,
     }];
     let tracer = Tracer::build_with_objects(&real, &[], &[object]).unwrap();
-    let rays: Vec<TraceRay> = (0..37)
-        .map(|i| TraceRay::new(Vec3::new(-0.49 + i as f32 * 0.027, 0.1, 0.0), Vec3::Z))
-        .collect();
-    let mut hits = vec![None; rays.len()];
-    tracer.intersect_batch(&rays, Layer::All, &mut hits);
-    let mut occ = vec![false; rays.len()];
-    tracer.occluded_batch(&rays, Layer::Virtual, &mut occ);
-    for (i, r) in rays.iter().enumerate() {
-        let present = r.origin.x <= 0.0;
-        let expect = if present { 1 } else { 0 };
-        assert_eq!(hits[i].map(|h| h.surface), Some(expect), "ray {i}");
-        assert_eq!(
-            tracer.intersect(r, Layer::All).map(|h| h.surface),
-            Some(expect)
-        );
-        assert_eq!(occ[i], present, "ray {i}");
-        assert_eq!(tracer.occluded(r, Layer::Virtual), present, "ray {i}");
-    }
+    assert_cut_where(&tracer, |x| x <= 0.0);
 }
 
 /// A tilted, asymmetric mesh of two surfaces (so a wrong rotation, scale or
