@@ -31,8 +31,9 @@ fn place(desk: &Desk, name: &str, at: &[[f64; 3]]) {
     std::fs::write(desk.path("scene.toml"), text).unwrap();
 }
 
-/// Three objects from one file: the file is read once, and every texture
-/// and the normal map's tangent frames are one copy shared by the three.
+/// Three objects from one file: the file is read once, and its triangles,
+/// every texture and the normal map's tangent frames are one copy shared by
+/// the three and by a variant's copy of the scene.
 #[test]
 fn objects_from_one_file_share_one_copy_of_it() {
     let desk = Desk::new();
@@ -74,7 +75,17 @@ fn objects_from_one_file_share_one_copy_of_it() {
             "{}: second attributes",
             o.name
         );
+        assert!(
+            Arc::ptr_eq(&props[0].surfaces[0].triangles, &o.surfaces[0].triangles),
+            "{}: a second copy of the triangles",
+            o.name
+        );
     }
+    let copy = scene.clone();
+    assert!(Arc::ptr_eq(
+        &scene.objects[0].surfaces[0].triangles,
+        &copy.objects[0].surfaces[0].triangles
+    ));
     // Placed where asked, at the size made: nested node scales applied once.
     let size = props[0].surfaces[0]
         .triangles

@@ -58,7 +58,7 @@ impl ObjectMeshes {
     /// larger than `size`, each patch's albedo read from `material` when
     /// it is textured, meshed now if it is not kept.
     fn mesh(&mut self, surface: &ObjectSurface, scale: f64, size: f64) -> usize {
-        let triangles = surface.triangles.as_slice();
+        let triangles = &surface.triangles[..];
         let material = super::albedo::textured(surface).cloned();
         let same = |a: &Option<SurfaceMaterial>, b: &Option<SurfaceMaterial>| match (a, b) {
             (Some(a), Some(b)) => {

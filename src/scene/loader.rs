@@ -91,6 +91,10 @@ pub(super) fn list(names: &[&str]) -> String {
 /// The longest image side arlux renders, pixels.
 pub(super) const MAX_SIDE: u32 = 1 << 15;
 
+/// A surface of a mesh file: the file, the surface's index, whether it is
+/// turned Y-up from a Z-up export.
+type SurfaceKey = (PathBuf, usize, bool);
+
 /// Reads one scene file; holds what every part needs to resolve paths and
 /// report errors.
 pub(super) struct Loader<'a> {
@@ -101,7 +105,9 @@ pub(super) struct Loader<'a> {
     pub(super) meshes: std::cell::RefCell<HashMap<PathBuf, std::rc::Rc<geometry::Mesh>>>,
     /// A shaded surface's per-corner attributes (with the tangent frames a
     /// normal map needs), by mesh file and surface: shared the same way.
-    shading: std::cell::RefCell<HashMap<(PathBuf, usize, bool), Arc<crate::materials::Attributes>>>,
+    shading: std::cell::RefCell<HashMap<SurfaceKey, Arc<crate::materials::Attributes>>>,
+    /// Surface triangles by the same key: every object of one file holds one array.
+    triangles: std::cell::RefCell<HashMap<SurfaceKey, Arc<[Triangle]>>>,
     /// The objects whose meshes are read (None: all of them).
     pub(super) shown: Option<std::collections::HashSet<String>>,
 }
@@ -141,6 +147,7 @@ impl<'a> Loader<'a> {
             dir,
             meshes: Default::default(),
             shading: Default::default(),
+            triangles: Default::default(),
             shown: None,
         }
     }

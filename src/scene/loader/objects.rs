@@ -86,6 +86,20 @@ impl Loader<'_> {
         a
     }
 
+    /// Surface `i`'s triangles (turned Y-up when `z_up`), shared by every
+    /// object that reads them.
+    fn triangles(
+        &self,
+        (path, i, z_up): (&Path, usize, bool),
+        s: &geometry::MeshSurface,
+    ) -> Arc<[Triangle]> {
+        let key = (path.to_path_buf(), i, z_up);
+        let mut kept = self.triangles.borrow_mut();
+        kept.entry(key)
+            .or_insert_with(|| s.triangles.as_slice().into())
+            .clone()
+    }
+
     pub(super) fn object(&self, v: &Fields, warnings: &mut Vec<String>) -> Result<VirtualObject> {
         let name = v.req_str("name")?.to_string();
         let path = self.existing_path(v, "mesh", v.req_str("mesh")?)?;
@@ -156,7 +170,7 @@ impl Loader<'_> {
             };
             surfaces.push(ObjectSurface {
                 name: s.name.clone(),
-                triangles: s.triangles.clone(),
+                triangles: self.triangles((&path, i, z_up), s),
                 rgb,
                 material,
             });
