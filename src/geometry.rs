@@ -80,6 +80,25 @@ pub fn normal(t: &Triangle) -> DVec3 {
     (b - a).cross(c - a).normalize_or_zero()
 }
 
+/// Normal bins per cube face side ([`normal_bin`]): about 22° wide.
+const BIN_SIDE: usize = 4;
+
+/// The cube-map cell of unit direction `n`: faces of similar normal share
+/// one (the face clusters of Willmott, Heckbert & Garland 1999).
+pub(crate) fn normal_bin(n: DVec3) -> usize {
+    let a = n.abs();
+    let (face, u, v, m) = if a.x >= a.y && a.x >= a.z {
+        (usize::from(n.x < 0.0), n.y, n.z, a.x)
+    } else if a.y >= a.z {
+        (2 + usize::from(n.y < 0.0), n.x, n.z, a.y)
+    } else {
+        (4 + usize::from(n.z < 0.0), n.x, n.y, a.z)
+    };
+    let cell =
+        |t: f64| (((t / m.max(1e-300) + 1.0) / 2.0 * BIN_SIDE as f64) as usize).min(BIN_SIDE - 1);
+    face * BIN_SIDE * BIN_SIDE + cell(u) * BIN_SIDE + cell(v)
+}
+
 /// Barycentric weights of `x`, projected on the plane of a, b, c (outside
 /// the triangle some are negative; a degenerate triangle gives a's).
 pub(crate) fn barycentric(a: DVec3, b: DVec3, c: DVec3, x: DVec3) -> [f64; 3] {

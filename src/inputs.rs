@@ -235,3 +235,20 @@ pub(crate) fn input_warnings(
     }
     out
 }
+
+/// Below this share of the image seen by the model, a render is likely
+/// wrong (a camera that looks past the room, a model that misses most of
+/// the photo): the rest is the photo, unchanged.
+const MIN_COVERAGE: f64 = 0.5;
+
+/// A warning when the model covers less than [`MIN_COVERAGE`] of the
+/// image's `pixels` (the crop window's, when one is given).
+pub(crate) fn coverage_warning(covered: usize, pixels: usize) -> Option<String> {
+    let covered = covered as f64 / pixels.max(1) as f64;
+    (covered < MIN_COVERAGE).then(|| {
+        format!(
+            "the model covers {:.1}% of the image: the rest is the photo, unchanged (check the camera's position, look_at and field of view against `arlux ids`)",
+            100.0 * covered
+        )
+    })
+}

@@ -278,6 +278,10 @@ pub struct Patches {
     /// Per patch, a textured object's albedo there (None: the surface's
     /// own reflectance; see [`ObjectMeshes`]).
     pub(crate) albedo: Vec<Option<glam::Vec3>>,
+    /// Per patch of an object meshed coarser than its triangles
+    /// ([`proxy`]), the triangle of its surface its direct light is
+    /// sampled on (none for every other patch).
+    pub(crate) surface_samples: crate::util::FastMap<u32, Shape>,
 }
 
 impl Patches {
@@ -404,6 +408,7 @@ impl Patches {
             surface_is_virtual: crate::util::fast_map(),
             root_of_triangle: Vec::new(),
             albedo: Vec::new(),
+            surface_samples: crate::util::fast_map(),
         };
         p.append(inputs, target_size);
         p
@@ -608,6 +613,12 @@ impl Patches {
         &self.elements[self.patches[k] as usize]
     }
 
+    /// The shape patch `k`'s direct light is sampled on: its own, or its
+    /// surface's triangle under it ([`Patches::surface_samples`]).
+    pub(crate) fn sample_shape(&self, k: usize) -> &Shape {
+        (self.surface_samples.get(&(k as u32))).unwrap_or(&self.patch(k).shape)
+    }
+
     /// The patch under world point `x` of triangle `triangle` of `surface`
     /// (as the tracer reports them), with interpolation weights.
     pub fn locate(&self, surface: u32, triangle: u32, x: DVec3) -> Option<Location> {
@@ -765,6 +776,7 @@ impl Patches {
 
 mod albedo;
 mod objects;
+mod proxy;
 mod split;
 
 pub use objects::ObjectMeshes;

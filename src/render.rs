@@ -15,9 +15,11 @@ use crate::model::{Model, ModelSettings};
 use crate::object_shading::ObjectShading;
 use crate::util::stages::StageTimes;
 
-use crate::inputs::{fine_patch_size, lamps_in_view, resolve_inputs, room_diagonal};
+use crate::inputs::{
+    coverage_warning, fine_patch_size, lamps_in_view, resolve_inputs, room_diagonal,
+};
 pub use crate::output::RenderOutput;
-use crate::patches::Patches;
+use crate::patches::{ObjectMeshes, Patches};
 use crate::pda::{CLEAR_TEST_LIMIT, PdaInput, PdaSettings, PixelDataArray, VirtualBounds};
 use crate::radiosity::{Solution, solve_from, total_direct};
 use crate::scene::Scene;
@@ -59,6 +61,9 @@ pub struct RenderSettings {
     pub shading: crate::object_shading::ShadingSettings,
     /// Rounds of per-pixel samples over the kept solution ([`crate::residual`]).
     pub residual: crate::residual::ResidualSettings,
+    /// Object surfaces of this many triangles or more are meshed coarse
+    /// ([`crate::patches::ObjectMeshes::coarse_from`]; None: never).
+    pub coarse_objects_from: Option<usize>,
 }
 
 impl Default for RenderSettings {
@@ -72,25 +77,9 @@ impl Default for RenderSettings {
             gather_rays: 144,
             shading: crate::object_shading::ShadingSettings::default(),
             residual: crate::residual::ResidualSettings::default(),
+            coarse_objects_from: Some(crate::scene_tracer::INSTANCE_TRIANGLES),
         }
     }
-}
-
-/// Below this share of the image seen by the model, a render is likely
-/// wrong (a camera that looks past the room, a model that misses most of
-/// the photo): the rest is the photo, unchanged.
-const MIN_COVERAGE: f64 = 0.5;
-
-/// A warning when the model covers less than [`MIN_COVERAGE`] of the
-/// image's `pixels` (the crop window's, when one is given).
-fn coverage_warning(covered: usize, pixels: usize) -> Option<String> {
-    let covered = covered as f64 / pixels.max(1) as f64;
-    (covered < MIN_COVERAGE).then(|| {
-        format!(
-            "the model covers {:.1}% of the image: the rest is the photo, unchanged (check the camera's position, look_at and field of view against `arlux ids`)",
-            100.0 * covered
-        )
-    })
 }
 
 /// Renders `scene` (an effective scene: a variant or motion pose of the
@@ -437,7 +426,7 @@ impl Session {
         let room = room_solution(&model, &scales_with, &settings, times);
         let bounds = VirtualBounds::of(&scene.virtual_world_surfaces())
             .with_room(&model.patches.real_root_polygons(), &model.lights);
-        let mut meshes = crate::patches::ObjectMeshes::new(for_updates);
+        let mut meshes = ObjectMeshes::new(for_updates).coarse_from(settings.coarse_objects_from);
         let objects = object_patches(
             (scene, &model.patches, &mut meshes),
             has_objects,

@@ -67,6 +67,9 @@ pub struct RenderOptions {
     pub patch_size: Option<f64>,
     /// Largest patch edge on virtual objects, metres.
     pub virtual_patch_size: f64,
+    /// Object surfaces of this many triangles or more take their patches
+    /// on a coarse mesh (0: a patch per triangle on every object).
+    pub coarse_objects_from: usize,
     /// The full form-factor matrix instead of hierarchical radiosity.
     pub full: bool,
     /// Hierarchical radiosity's link threshold.
@@ -112,6 +115,7 @@ impl Default for RenderOptions {
             composite: render.mode,
             patch_size: None,
             virtual_patch_size: render.virtual_patch_size,
+            coarse_objects_from: render.coarse_objects_from.unwrap_or(0),
             full: false,
             epsilon: DEFAULT_LINK_EPSILON,
             min_level: render.pda.min_level,
@@ -219,6 +223,7 @@ impl RenderOptions {
             },
             patch_size: self.patch_size.map_or(PatchSize::Auto, PatchSize::Metres),
             virtual_patch_size: self.virtual_patch_size,
+            coarse_objects_from: (self.coarse_objects_from > 0).then_some(self.coarse_objects_from),
             pda: PdaSettings {
                 min_level: self.min_level,
                 penumbra_level: self.penumbra_level,

@@ -88,6 +88,36 @@ fn patch_albedo(
     albedo.is_finite().then_some(albedo)
 }
 
+/// Each patch's albedo in `block`, meshed coarser than `triangles`
+/// ([`super::proxy`]): the area-weighted mean of the albedo at the
+/// centre of every triangle under its root (`members`), each read over
+/// its own triangle's extent.
+pub(crate) fn coarse_block_albedo(
+    block: &Patches,
+    triangles: &[Triangle],
+    members: &crate::util::FastMap<u32, Vec<u32>>,
+    material: &SurfaceMaterial,
+) -> Vec<Option<glam::Vec3>> {
+    use rayon::prelude::*;
+    (0..block.patch_count())
+        .into_par_iter()
+        .map(|k| {
+            let (mut sum, mut area) = (DVec3::ZERO, 0.0);
+            for &t in members.get(&block.patch(k).root)? {
+                let [a, b, c] = triangles[t as usize].map(|p| p.as_dvec3());
+                let at = 0.5 * (b - a).cross(c - a).length();
+                if let Some(albedo) =
+                    patch_albedo((a + b + c) / 3.0, at, &[t, t], triangles, material)
+                {
+                    sum += albedo * at;
+                    area += at;
+                }
+            }
+            (area > 0.0).then(|| (sum / area).as_vec3())
+        })
+        .collect()
+}
+
 fn min3(w: [f64; 3]) -> f64 {
     w[0].min(w[1]).min(w[2])
 }

@@ -23,6 +23,10 @@ use crate::scene::{ObjectSurface, Pose, Scene};
 #[derive(Debug, Clone, Default)]
 pub struct ObjectMeshes {
     keep: bool,
+    /// A surface of this many triangles or more is meshed on its coarse
+    /// mesh when it has one ([`super::proxy`]; None: every surface on its
+    /// own triangles).
+    coarse_from: Option<usize>,
     meshed: Vec<Meshed>,
 }
 
@@ -44,7 +48,17 @@ impl ObjectMeshes {
     pub fn new(keep: bool) -> ObjectMeshes {
         ObjectMeshes {
             keep,
+            coarse_from: None,
             meshed: Vec::new(),
+        }
+    }
+
+    /// [`ObjectMeshes::new`], meshing a surface of `from` triangles or more
+    /// on its coarse mesh ([`super::proxy`]; None: on its own triangles).
+    pub fn coarse_from(self, from: Option<usize>) -> ObjectMeshes {
+        ObjectMeshes {
+            coarse_from: from,
+            ..self
         }
     }
 
@@ -78,15 +92,30 @@ impl ObjectMeshes {
                 .iter()
                 .map(|t| t.map(|p| (p.as_dvec3() * scale).as_vec3()))
                 .collect();
-            let input = SurfaceInput {
-                surface: 0,
-                triangles: &scaled,
-                is_virtual: true,
+            let coarse = (self.coarse_from)
+                .filter(|&n| scaled.len() >= n)
+                .and_then(|_| super::proxy::coarse_block(&scaled, size));
+            let block = match (coarse, &material) {
+                (Some((mut block, members)), m) => {
+                    if let Some(m) = m {
+                        block.albedo =
+                            super::albedo::coarse_block_albedo(&block, &scaled, &members, m);
+                    }
+                    block
+                }
+                (None, m) => {
+                    let input = SurfaceInput {
+                        surface: 0,
+                        triangles: &scaled,
+                        is_virtual: true,
+                    };
+                    let mut block = Patches::build(&[input], size);
+                    if let Some(m) = m {
+                        block.albedo = super::albedo::block_albedo(&block, &scaled, m);
+                    }
+                    block
+                }
             };
-            let mut block = Patches::build(&[input], size);
-            if let Some(m) = &material {
-                block.albedo = super::albedo::block_albedo(&block, &scaled, m);
-            }
             self.meshed.push(Meshed {
                 triangles: triangles.to_vec(),
                 scale,
@@ -184,6 +213,12 @@ impl Patches {
         self.patches.extend(block.patches.iter().map(|&e| e + e0));
         (self.vertices).par_extend(block.vertices.par_iter().map(|&v| at(v)));
         self.albedo.extend_from_slice(&block.albedo);
+        (self.surface_samples).extend(
+            block
+                .surface_samples
+                .iter()
+                .map(|(&k, &shape)| (k + p0, moved(shape))),
+        );
         self.patch_vertices.extend(
             block
                 .patch_vertices

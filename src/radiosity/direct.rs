@@ -141,7 +141,7 @@ fn face_clusters(patches: &Patches, first: usize) -> Vec<u32> {
             .floor()
             .as_i64vec3()
             .to_array();
-        let key = (el.surface, cell, normal_bin(el.normal));
+        let key = (el.surface, cell, crate::geometry::normal_bin(el.normal));
         groups.entry(key).or_default().push(k as u32);
     }
     for members in groups.values().filter(|m| m.len() > 1) {
@@ -219,9 +219,10 @@ pub(super) fn patch_direct_by(
 ) -> DVec3 {
     let el = patches.patch(k);
     let split = direct_split(el, light);
+    let shape = patches.sample_shape(k);
     let points = match split == 1 && patches.is_virtual_element(patches.patches[k]) {
-        true => el.shape.quadrature(1),
-        false => el.shape.split_quadrature(split),
+        true => shape.quadrature(1),
+        false => shape.split_quadrature(split),
     };
     points
         .iter()
@@ -246,22 +247,4 @@ pub fn total_direct(n: usize, scales: &[f64], per_light: &[Vec<DVec3>]) -> Vec<D
         }
     }
     e
-}
-
-/// Normal bins per cube face side ([`normal_bin`]): about 22° wide.
-const BIN_SIDE: usize = 4;
-
-/// The cube-map cell of unit direction `n`.
-fn normal_bin(n: DVec3) -> usize {
-    let a = n.abs();
-    let (face, u, v, m) = if a.x >= a.y && a.x >= a.z {
-        (usize::from(n.x < 0.0), n.y, n.z, a.x)
-    } else if a.y >= a.z {
-        (2 + usize::from(n.y < 0.0), n.x, n.z, a.y)
-    } else {
-        (4 + usize::from(n.z < 0.0), n.x, n.y, a.z)
-    };
-    let cell =
-        |t: f64| (((t / m.max(1e-300) + 1.0) / 2.0 * BIN_SIDE as f64) as usize).min(BIN_SIDE - 1);
-    face * BIN_SIDE * BIN_SIDE + cell(u) * BIN_SIDE + cell(v)
 }

@@ -36,6 +36,11 @@ pub struct RenderFlags {
     /// Largest patch edge on virtual objects, metres.
     #[arg(long, default_value_t = RenderOptions::default().virtual_patch_size)]
     pub virtual_patch_size: f64,
+    /// Object surfaces of this many triangles or more take their patches
+    /// on a coarse mesh of their shape, cells a quarter of
+    /// --virtual-patch-size wide (0: a patch per triangle on every object).
+    #[arg(long, default_value_t = RenderOptions::default().coarse_objects_from)]
+    pub coarse_objects_from: usize,
     /// Every patch against every other (the form-factor oracle) instead
     /// of hierarchical radiosity; pixel path only.
     #[arg(long)]
@@ -74,6 +79,7 @@ impl RenderFlags {
         options.composite = self.composite;
         options.patch_size = self.patch_size;
         options.virtual_patch_size = self.virtual_patch_size;
+        options.coarse_objects_from = self.coarse_objects_from;
         options.full = self.full;
         options.epsilon = self.epsilon;
         options.min_level = self.min_level;

@@ -1,0 +1,111 @@
+//! A finely tessellated object takes its patches on a coarse mesh of its
+//! shape (`patches::proxy`): the desk's box, each of its 12 triangles split
+//! into 1,600 (19,200 in all, 7 mm across), is the same box, so the
+//! desk's truths hold for it.
+
+mod common;
+
+use std::sync::Arc;
+
+use arlux::compare::skill;
+use arlux::render::RenderSettings;
+use glam::{DVec3, Vec3};
+
+type Triangle = [Vec3; 3];
+
+/// Each triangle split into `n`² by a grid of its edges' `n`ths, wound as it.
+fn split(triangles: &[Triangle], n: usize) -> Vec<Triangle> {
+    let mut out = Vec::with_capacity(triangles.len() * n * n);
+    for [a, b, c] in triangles {
+        let at = |i: usize, j: usize| {
+            *a + (*b - *a) * (i as f32 / n as f32) + (*c - *a) * (j as f32 / n as f32)
+        };
+        for i in 0..n {
+            for j in 0..n - i {
+                out.push([at(i, j), at(i + 1, j), at(i, j + 1)]);
+                if i + j + 1 < n {
+                    out.push([at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]);
+                }
+            }
+        }
+    }
+    out
+}
+
+fn render(scene: &arlux::scene::Scene, settings: &RenderSettings) -> arlux::render::RenderOutput {
+    let photo = scene.load_photo().unwrap();
+    let out = arlux::render::render(scene, &photo, settings, &mut Default::default()).unwrap();
+    common::assert_layers_sound(&scene.name, &out.composite);
+    out
+}
+
+#[test]
+fn a_finely_split_box_meshed_coarse_renders_as_the_plain_box_against_the_truth() {
+    let base = common::desk();
+    let mut dense = base.clone();
+    let surface = &mut dense.objects[0].surfaces[0];
+    let fine = split(&surface.triangles, 40);
+    assert_eq!(fine.len(), 19_200);
+    let area = |ts: &[Triangle]| -> f64 {
+        ts.iter()
+            .map(|[a, b, c]| 0.5 * (*b - *a).cross(*c - *a).length() as f64)
+            .sum()
+    };
+    assert!((area(&fine) - area(&surface.triangles)).abs() < 1e-4);
+    surface.triangles = Arc::from(fine);
+    let defaults = RenderSettings::default();
+    // Measured: plain 0.940 / 0.935; split, coarse 0.941 / 0.935 (a patch
+    // per pair of triangles: 0.943 / 0.943).
+    for (variant, bound) in [("box_floor_a", 0.935), ("box_floor_b", 0.928)] {
+        let plain = render(&base.with_variant(variant).unwrap(), &defaults);
+        let coarse = render(&dense.with_variant(variant).unwrap(), &defaults);
+        let truth = common::image("desk", &format!("truth/{variant}.exr"));
+        let photo = base.load_photo().unwrap();
+        let s = |out: &arlux::render::RenderOutput| {
+            skill(&out.composite.image, &truth, &photo).skill.unwrap()
+        };
+        let (plain_skill, coarse_skill) = (s(&plain), s(&coarse));
+        assert!(
+            coarse_skill >= bound && coarse_skill >= plain_skill - 0.005,
+            "{variant}: skill {coarse_skill:.4} split and coarse, {plain_skill:.4} plain"
+        );
+    }
+    // A patch per pair of triangles (the split's pairs join into quads):
+    // 10,060 patches with the room's; coarse, 1,767.
+    let scene = dense.with_variant("box_floor_a").unwrap();
+    let fine = RenderSettings {
+        coarse_objects_from: None,
+        ..defaults
+    };
+    let (coarse, fine) = (render(&scene, &defaults), render(&scene, &fine));
+    assert!(
+        5 * coarse.patches < fine.patches,
+        "{} patches coarse, {} a patch per triangle",
+        coarse.patches,
+        fine.patches
+    );
+}
+
+/// A coarse object's update equals a full render of its pose bit for bit,
+/// as every object's does (`tests/update_desk.rs`).
+#[test]
+fn a_coarse_object_updates_as_it_renders() {
+    let mut scene = common::desk();
+    let surface = &mut scene.objects[0].surfaces[0];
+    surface.triangles = Arc::from(split(&surface.triangles, 30));
+    let photo = scene.load_photo().unwrap();
+    let settings = RenderSettings::default();
+    let mut session =
+        arlux::render::Session::start(&scene, &photo, &settings, &mut Default::default()).unwrap();
+    for step in [DVec3::new(-0.3, 0.0, 0.2), DVec3::new(0.1, 0.0, -0.4)] {
+        let mut moved = scene.clone();
+        moved.objects[0].pose.translate += step;
+        session.update(&moved, &mut Default::default()).unwrap();
+        let full = render(&moved, &settings).composite;
+        assert_eq!(common::differing(&session.composite.image, &full.image), 0);
+        assert_eq!(
+            common::differing(&session.composite.direct, &full.direct),
+            0
+        );
+    }
+}
