@@ -54,7 +54,8 @@ impl ObjectMeshes {
     }
 
     /// [`ObjectMeshes::new`], meshing a surface of `from` triangles or more
-    /// on its coarse mesh ([`super::proxy`]; None: on its own triangles).
+    /// on its coarse mesh (`patches::proxy`: its triangles clustered on
+    /// cells a quarter of the patch size; None: on its own triangles).
     pub fn coarse_from(self, from: Option<usize>) -> ObjectMeshes {
         ObjectMeshes {
             coarse_from: from,
