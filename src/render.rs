@@ -61,7 +61,7 @@ pub struct RenderSettings {
     pub shading: crate::object_shading::ShadingSettings,
     /// Rounds of per-pixel samples over the kept solution ([`crate::residual`]).
     pub residual: crate::residual::ResidualSettings,
-    /// Object surfaces of this many triangles or more are meshed coarse
+    /// Objects of this many triangles or more are meshed coarse
     /// ([`crate::patches::ObjectMeshes::coarse_from`]; None: never).
     pub coarse_objects_from: Option<usize>,
 }

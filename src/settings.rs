@@ -67,8 +67,8 @@ pub struct RenderOptions {
     pub patch_size: Option<f64>,
     /// Largest patch edge on virtual objects, metres.
     pub virtual_patch_size: f64,
-    /// Object surfaces of this many triangles or more take their patches
-    /// on a coarse mesh (0: a patch per triangle on every object).
+    /// Objects of this many triangles or more take their patches on a
+    /// coarse mesh of each surface (0: a patch per triangle on every object).
     pub coarse_objects_from: usize,
     /// The full form-factor matrix instead of hierarchical radiosity.
     pub full: bool,

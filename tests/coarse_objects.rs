@@ -83,6 +83,26 @@ fn a_finely_split_box_meshed_coarse_renders_as_the_plain_box_against_the_truth()
         "{} patches coarse, {} a patch per triangle",
         coarse.patches,
         fine.patches
+    );    // A real asset's triangles are spread over its materials: the box as
+    // six surfaces of 3,200 triangles, each under the threshold, is meshed
+    // coarse as its object is over it.
+    let mut six = scene.clone();
+    let box_surface = six.objects[0].surfaces[0].clone();
+    six.objects[0].surfaces = (box_surface.triangles.chunks(3_200))
+        .enumerate()
+        .map(|(i, part)| arlux::scene::ObjectSurface {
+            name: format!("face_{i}"),
+            triangles: Arc::from(part),
+            ..box_surface.clone()
+        })
+        .collect();
+    assert_eq!(six.objects[0].surfaces.len(), 6);
+    let six = render(&six, &defaults);
+    assert!(
+        5 * six.patches < fine.patches,
+        "{} patches on six surfaces, {} a patch per triangle",
+        six.patches,
+        fine.patches
     );
 }
 

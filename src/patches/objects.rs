@@ -23,19 +23,22 @@ use crate::scene::{ObjectSurface, Pose, Scene};
 #[derive(Debug, Clone, Default)]
 pub struct ObjectMeshes {
     keep: bool,
-    /// A surface of this many triangles or more is meshed on its coarse
-    /// mesh when it has one ([`super::proxy`]; None: every surface on its
-    /// own triangles).
+    /// The surfaces of an object of this many triangles or more are meshed
+    /// on their coarse meshes where they have one ([`super::proxy`]; None:
+    /// every surface on its own triangles).
     coarse_from: Option<usize>,
     meshed: Vec<Meshed>,
 }
 
 #[derive(Debug, Clone)]
 struct Meshed {
-    /// The surface's triangles in its object's frame, unscaled.
-    triangles: Vec<Triangle>,
+    /// The surface's triangles in its object's frame, unscaled (the
+    /// scene's own array).
+    triangles: Arc<[Triangle]>,
     scale: f64,
     size: f64,
+    /// Meshed on its coarse mesh when it has one.
+    coarse: bool,
     /// The textured material its patches' albedo was read from.
     material: Option<SurfaceMaterial>,
     /// Surface 0 of this mesh, its coordinates scaled, not turned or moved.
@@ -53,7 +56,7 @@ impl ObjectMeshes {
         }
     }
 
-    /// [`ObjectMeshes::new`], meshing a surface of `from` triangles or more
+    /// [`ObjectMeshes::new`], meshing the surfaces of an object of `from` triangles or more
     /// on its coarse mesh (`patches::proxy`: its triangles clustered on
     /// cells a quarter of the patch size; None: on its own triangles).
     pub fn coarse_from(self, from: Option<usize>) -> ObjectMeshes {
@@ -71,9 +74,18 @@ impl ObjectMeshes {
 
     /// The index of the mesh of `triangles` at `scale` with leaves no
     /// larger than `size`, each patch's albedo read from `material` when
-    /// it is textured, meshed now if it is not kept.
-    fn mesh(&mut self, surface: &ObjectSurface, scale: f64, size: f64) -> usize {
+    /// it is textured, meshed now if it is not kept; on its coarse mesh
+    /// when its object holds `object_triangles` ≥ the `coarse_from` asked
+    /// (a real asset's many materials each hold a part of its triangles).
+    fn mesh(
+        &mut self,
+        surface: &ObjectSurface,
+        scale: f64,
+        size: f64,
+        object_triangles: usize,
+    ) -> usize {
         let triangles = &surface.triangles[..];
+        let coarse = self.coarse_from.is_some_and(|n| object_triangles >= n);
         let material = super::albedo::textured(surface).cloned();
         let same = |a: &Option<SurfaceMaterial>, b: &Option<SurfaceMaterial>| match (a, b) {
             (Some(a), Some(b)) => {
@@ -85,18 +97,19 @@ impl ObjectMeshes {
         let found = self.meshed.iter().position(|m| {
             m.scale == scale
                 && m.size == size
+                && m.coarse == coarse
                 && same(&m.material, &material)
-                && m.triangles.as_slice() == triangles
+                && (Arc::ptr_eq(&m.triangles, &surface.triangles) || m.triangles[..] == *triangles)
         });
         let k = found.unwrap_or_else(|| {
             let scaled: Vec<Triangle> = triangles
                 .iter()
                 .map(|t| t.map(|p| (p.as_dvec3() * scale).as_vec3()))
                 .collect();
-            let coarse = (self.coarse_from)
-                .filter(|&n| scaled.len() >= n)
-                .and_then(|_| super::proxy::coarse_block(&scaled, size));
-            let block = match (coarse, &material) {
+            let proxy = coarse
+                .then(|| super::proxy::coarse_block(&scaled, size))
+                .flatten();
+            let block = match (proxy, &material) {
                 (Some((mut block, members)), m) => {
                     if let Some(m) = m {
                         block.albedo =
@@ -118,9 +131,10 @@ impl ObjectMeshes {
                 }
             };
             self.meshed.push(Meshed {
-                triangles: triangles.to_vec(),
+                triangles: surface.triangles.clone(),
                 scale,
                 size,
+                coarse,
                 material,
                 block,
                 used: false,
@@ -140,9 +154,10 @@ impl Patches {
         let mut id = scene.surfaces.len() as u32;
         let mut placed = Vec::new();
         for o in &scene.objects {
+            let count = o.surfaces.iter().map(|s| s.triangles.len()).sum();
             for s in &o.surfaces {
                 if o.enabled {
-                    placed.push((meshes.mesh(s, o.pose.scale, size), id, &o.pose));
+                    placed.push((meshes.mesh(s, o.pose.scale, size, count), id, &o.pose));
                 }
                 id += 1;
             }

@@ -36,9 +36,9 @@ pub struct RenderFlags {
     /// Largest patch edge on virtual objects, metres.
     #[arg(long, default_value_t = RenderOptions::default().virtual_patch_size)]
     pub virtual_patch_size: f64,
-    /// Object surfaces of this many triangles or more take their patches
-    /// on a coarse mesh of their shape, cells a quarter of
-    /// --virtual-patch-size wide (0: a patch per triangle on every object).
+    /// Objects of this many triangles or more take their patches on a
+    /// coarse mesh of their shape, cells a quarter of --virtual-patch-size
+    /// wide (0: a patch per triangle on every object).
     #[arg(long, default_value_t = RenderOptions::default().coarse_objects_from)]
     pub coarse_objects_from: usize,
     /// Every patch against every other (the form-factor oracle) instead
