@@ -348,11 +348,12 @@ impl Patches {
         scene: &crate::scene::Scene,
         with_virtual: bool,
         target_size: f64,
-        virtual_size: f64,
+        (virtual_size, coarse_from): (f64, Option<usize>),
         marks: &SplitMarks,
     ) -> Patches {
+        let objects = (virtual_size, coarse_from);
         let mut p =
-            Self::of_scene_two_sided_marked(scene, with_virtual, target_size, virtual_size, marks);
+            Self::of_scene_two_sided_marked(scene, with_virtual, target_size, objects, marks);
         p.face_open_surfaces_towards(scene.camera.position);
         p
     }
@@ -367,7 +368,7 @@ impl Patches {
             scene,
             with_virtual,
             target_size,
-            virtual_size,
+            (virtual_size, None),
             &SplitMarks::new(),
         )
     }
@@ -376,7 +377,7 @@ impl Patches {
         scene: &crate::scene::Scene,
         with_virtual: bool,
         target_size: f64,
-        virtual_size: f64,
+        (virtual_size, coarse_from): (f64, Option<usize>),
         marks: &SplitMarks,
     ) -> Patches {
         let inputs: Vec<SurfaceInput> = scene
@@ -392,7 +393,8 @@ impl Patches {
         let mut p = Patches::build(&[], target_size);
         p.append_marked(&inputs, target_size, marks);
         if with_virtual {
-            p.append_objects(scene, virtual_size, &mut ObjectMeshes::new(false));
+            let mut meshes = ObjectMeshes::new(false).coarse_from(coarse_from);
+            p.append_objects(scene, virtual_size, &mut meshes);
         }
         p
     }

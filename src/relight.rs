@@ -81,6 +81,10 @@ pub struct TextureSettings {
     /// Rays each group of the objects' leaves gathers its light with (as
     /// the pixel path's final gather, `RenderSettings::gather_rays`).
     pub object_rays: u32,
+    /// Objects of this many triangles or more take their leaves on a
+    /// coarse mesh of their shape (as the pixel path's
+    /// `RenderSettings::coarse_objects_from`; None: a leaf per triangle).
+    pub coarse_objects_from: Option<usize>,
 }
 
 impl Default for TextureSettings {
@@ -98,6 +102,7 @@ impl Default for TextureSettings {
             cache_links: false,
             memory: None,
             object_rays: 576,
+            coarse_objects_from: Some(crate::scene_tracer::INSTANCE_TRIANGLES),
         }
     }
 }

@@ -268,6 +268,7 @@ impl RenderOptions {
             min_leaf_pixels: self.min_leaf_pixels.unwrap_or(t.min_leaf_pixels),
             cache_links: self.cache,
             memory: self.memory,
+            coarse_objects_from: (self.coarse_objects_from > 0).then_some(self.coarse_objects_from),
             ..t
         })
     }

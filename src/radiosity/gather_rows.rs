@@ -288,7 +288,11 @@ fn row(patches: &Patches, tracer: &Tracer, members: &[u32], rays: u32) -> Vec<(u
                 .partition_point(|&c| c < u0 * total)
                 .min(members.len() - 1);
             let el = &elements[members[k] as usize];
-            let x = point_on(&el.shape, u1, u2);
+            // A coarse leaf's rays leave from its surface's own triangle.
+            let shape = el
+                .patch
+                .map_or(&el.shape, |p| patches.sample_shape(p as usize));
+            let x = point_on(shape, u1, u2);
             let d = cosine_direction(el.normal, u3, u4);
             (crate::light::offset_origin(x, el.normal, x + el.normal), d)
         })

@@ -101,7 +101,7 @@ impl<'a> Setup<'a> {
                 self.scene,
                 false,
                 self.patch_size,
-                self.virtual_size,
+                (self.virtual_size, None),
                 &marks,
             );
         }
@@ -129,7 +129,8 @@ impl<'a> Setup<'a> {
         }
         let (tracer, settings) = (self.tracer, self.settings);
         let all = times.time("virtual mesh", || {
-            Patches::of_scene_refined(self.scene, true, self.patch_size, self.virtual_size, marks)
+            let objects = (self.virtual_size, self.settings.coarse_objects_from);
+            Patches::of_scene_refined(self.scene, true, self.patch_size, objects, marks)
         });
         let bounds = crate::objects::VirtualBounds::of(&self.scene.virtual_world_surfaces());
         let rows_settings = self.gather_rows();

@@ -112,7 +112,8 @@ pub(super) fn leaf_light_with_objects(
                         }
                     }
                     let seed = element_seed(patches, el);
-                    element_light(&el.shape, el.normal, light, tracer, Layer::All, level, seed)
+                    let shape = patches.sample_shape(k);
+                    element_light(shape, el.normal, light, tracer, Layer::All, level, seed)
                 })
                 .collect();
             share.iter().map(|&s| own[s as usize]).collect()
