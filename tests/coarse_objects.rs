@@ -107,7 +107,8 @@ fn a_finely_split_box_meshed_coarse_renders_as_the_plain_box_against_the_truth()
 }
 
 /// A coarse object's update equals a full render of its pose bit for bit,
-/// as every object's does (`tests/update_desk.rs`).
+/// as every object's does (`tests/update_desk.rs`), and its render is the
+/// same on one thread as on three.
 #[test]
 fn a_coarse_object_updates_as_it_renders() {
     let mut scene = common::desk();
@@ -115,6 +116,9 @@ fn a_coarse_object_updates_as_it_renders() {
     surface.triangles = Arc::from(split(&surface.triangles, 30));
     let photo = scene.load_photo().unwrap();
     let settings = RenderSettings::default();
+    let one = common::image_on_threads(&scene, &photo, &settings, 1);
+    let three = common::image_on_threads(&scene, &photo, &settings, 3);
+    assert_eq!(common::differing(&one, &three), 0);
     let mut session =
         arlux::render::Session::start(&scene, &photo, &settings, &mut Default::default()).unwrap();
     for step in [DVec3::new(-0.3, 0.0, 0.2), DVec3::new(0.1, 0.0, -0.4)] {
