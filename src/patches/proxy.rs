@@ -120,10 +120,11 @@ pub(crate) struct Proxy {
     /// Per full triangle, its coarse triangle's index.
     pub(crate) of_triangle: Vec<u32>,
     /// Per coarse triangle, the full triangle nearest its centroid among
-    /// those gathered into it: where its patches take their direct light
-    /// (a coarse triangle is a chord of a curved surface, its points up to
-    /// a few millimetres inside the solid, where shadow rays would leave
-    /// through the object's own skin).
+    /// those gathered into it: the surface there, which a solid's coarse
+    /// elements face as (each leaf samples its direct light on its own
+    /// nearest full triangle, [`samples`]: a coarse triangle is a chord of
+    /// a curved surface, its points up to a few millimetres inside the
+    /// solid, where shadow rays would leave through the object's own skin).
     pub(crate) surface_of: Vec<u32>,
 }
 
