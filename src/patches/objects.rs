@@ -56,9 +56,10 @@ impl ObjectMeshes {
         }
     }
 
-    /// [`ObjectMeshes::new`], meshing the surfaces of an object of `from` triangles or more
-    /// on its coarse mesh (`patches::proxy`: its triangles clustered on
-    /// cells a quarter of the patch size; None: on its own triangles).
+    /// [`ObjectMeshes::new`], meshing the surfaces of an object of `from`
+    /// triangles or more on their coarse meshes (`patches::proxy`: their
+    /// triangles clustered on cells a quarter of the patch size; None: on
+    /// their own triangles).
     pub fn coarse_from(self, from: Option<usize>) -> ObjectMeshes {
         ObjectMeshes {
             coarse_from: from,

@@ -149,7 +149,8 @@ pub(crate) fn cluster(triangles: &[Triangle], cell: f64) -> Option<Proxy> {
     }
     let reps = representatives(&positions, &cluster, cluster_of_key.len());
     // A coarse triangle per distinct triple of clusters, wound as the
-    // first full triangle that makes it.
+    // first full triangle that makes it (then as its members face
+    // together: `wind_as_members`).
     let mut of_triple: crate::util::FastMap<[u32; 3], u32> = crate::util::fast_map();
     let mut coarse: Vec<Triangle> = Vec::new();
     let mut coarse_normal: Vec<DVec3> = Vec::new();
