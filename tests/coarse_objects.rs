@@ -165,3 +165,33 @@ fn the_texture_path_renders_the_split_box_as_the_plain_one() {
         "{leaves} leaves with the split box, {plain_leaves} with the plain one"
     );
 }
+
+/// A session's light sliders with a coarse object: each relit image is a
+/// full render's of the new scales within 1e-5 relative, as with any
+/// object (`tests/light_sliders.rs`).
+#[test]
+fn a_session_relights_a_coarse_object_as_a_render_does() {
+    let mut base = common::desk().with_variant("box_floor_a").unwrap();
+    let surface = &mut base.objects[0].surfaces[0];
+    surface.triangles = Arc::from(split(&surface.triangles, 30));
+    // Started with the lights changed, so that the room is meshed for them.
+    base.lights[1].scale = 2.0;
+    let photo = base.load_photo().unwrap();
+    let settings = RenderSettings::default();
+    let mut session =
+        arlux::render::Session::start(&base, &photo, &settings, &mut Default::default()).unwrap();
+    for (panel, spot) in [(0.5, 2.0), (0.0, 1.0)] {
+        let mut scene = base.clone();
+        scene.lights[0].scale = panel;
+        scene.lights[1].scale = spot;
+        session.relight(&scene, &mut Default::default()).unwrap();
+        let full = render(&scene, &settings).composite;
+        for (layer, a, b) in [
+            ("image", &session.composite.image, &full.image),
+            ("direct", &session.composite.direct, &full.direct),
+        ] {
+            let d = common::relative_difference(a, b);
+            assert!(d <= 1e-5, "{layer} differs by {d:.2e} at ({panel}, {spot})");
+        }
+    }
+}
