@@ -88,18 +88,11 @@ fn samples(
     triangles: &[Triangle],
     members: &FastMap<u32, Vec<u32>>,
 ) -> FastMap<u32, Shape> {
-    let centroid = |t: u32| {
-        triangles[t as usize]
-            .iter()
-            .map(|p| p.as_dvec3())
-            .sum::<DVec3>()
-            / 3.0
-    };
     let mut out = crate::util::fast_map();
     for k in 0..block.patch_count() {
         let el = block.patch(k);
         let nearest = (members.get(&el.root).into_iter().flatten().copied()).min_by(|&a, &b| {
-            let d = |t: u32| (centroid(t) - el.centre).length_squared();
+            let d = |t: u32| (centroid(&triangles[t as usize]) - el.centre).length_squared();
             d(a).total_cmp(&d(b)).then(a.cmp(&b))
         });
         if let Some(t) = nearest {
@@ -304,7 +297,6 @@ fn wind_as_members(triangles: &[Triangle], of_triangle: &[u32], coarse: &mut [Tr
 /// Per coarse triangle, its member (full triangle) whose centroid lies
 /// nearest the coarse triangle's centroid (the lowest index among equals).
 fn nearest_members(triangles: &[Triangle], coarse: &[Triangle], of_triangle: &[u32]) -> Vec<u32> {
-    let centroid = |t: &Triangle| (t[0].as_dvec3() + t[1].as_dvec3() + t[2].as_dvec3()) / 3.0;
     let mut best = vec![(f64::INFINITY, u32::MAX); coarse.len()];
     for (t, &k) in of_triangle.iter().enumerate() {
         let d = (centroid(&triangles[t]) - centroid(&coarse[k as usize])).length_squared();
@@ -313,6 +305,11 @@ fn nearest_members(triangles: &[Triangle], coarse: &[Triangle], of_triangle: &[u
         }
     }
     best.into_iter().map(|(_, t)| t).collect()
+}
+
+/// The mean of a triangle's corners.
+fn centroid(t: &Triangle) -> DVec3 {
+    (t[0].as_dvec3() + t[1].as_dvec3() + t[2].as_dvec3()) / 3.0
 }
 
 /// Twice the area times the unit normal (winding decides the sign).

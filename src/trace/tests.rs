@@ -50,20 +50,7 @@ fn closest_hit_reports_surface_triangle_barycentrics_and_facing_normal() {
 
 #[test]
 fn batches_agree_with_single_rays_and_layers_stay_apart() {
-    let (wall, blocker) = (quad(2.0, 10.0), quad(1.0, 0.5));
-    let tracer = Tracer::build(
-        &[SurfaceTriangles {
-            surface: 0,
-            triangles: &wall,
-            mask: None,
-        }],
-        &[SurfaceTriangles {
-            surface: 1,
-            triangles: &blocker,
-            mask: None,
-        }],
-    )
-    .unwrap();
+    let tracer = wall_and_blocker(false);
     let rays: Vec<TraceRay> = (0..37)
         .map(|i| TraceRay::new(Vec3::new(-1.0 + i as f32 * 0.055, 0.1, 0.0), Vec3::Z))
         .collect();
@@ -114,6 +101,25 @@ fn queries_from_rayon_threads_agree() {
     assert_eq!(hits.iter().filter(|&&h| h).count(), 5000);
 }
 
+/// A real wall (surface 0) behind a virtual blocker (surface 1), the
+/// blocker cut away below x = 0 when `masked`.
+fn wall_and_blocker(masked: bool) -> Tracer {
+    let (wall, blocker) = (quad(2.0, 10.0), quad(1.0, 0.5));
+    Tracer::build(
+        &[SurfaceTriangles {
+            surface: 0,
+            triangles: &wall,
+            mask: None,
+        }],
+        &[SurfaceTriangles {
+            surface: 1,
+            triangles: &blocker,
+            mask: masked.then(|| cut_below_x0(&blocker)),
+        }],
+    )
+    .unwrap()
+}
+
 /// A mask cutting away the points of `triangles` (in the frame the mask
 /// reads) with x < 0, as a texture's alpha would from the barycentrics.
 fn cut_below_x0(triangles: &[Triangle]) -> Mask {
@@ -150,20 +156,7 @@ fn assert_cut_where(tracer: &Tracer, present: impl Fn(f32) -> bool) {
 
 #[test]
 fn a_masked_surface_lets_rays_through_where_it_is_cut_away_in_every_query() {
-    let (wall, blocker) = (quad(2.0, 10.0), quad(1.0, 0.5));
-    let tracer = Tracer::build(
-        &[SurfaceTriangles {
-            surface: 0,
-            triangles: &wall,
-            mask: None,
-        }],
-        &[SurfaceTriangles {
-            surface: 1,
-            triangles: &blocker,
-            mask: Some(cut_below_x0(&blocker)),
-        }],
-    )
-    .unwrap();
+    let tracer = wall_and_blocker(true);
     assert_cut_where(&tracer, |x| x >= 0.0);
 }
 
