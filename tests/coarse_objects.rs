@@ -54,8 +54,8 @@ fn a_finely_split_box_meshed_coarse_renders_as_the_plain_box_against_the_truth()
     assert!((area(&fine) - area(&surface.triangles)).abs() < 1e-4);
     surface.triangles = Arc::from(fine);
     let defaults = RenderSettings::default();
-    // Measured: plain 0.940 / 0.935; split, coarse 0.941 / 0.935 (a patch
-    // per pair of triangles: 0.943 / 0.943).
+    // Measured: plain 0.940 / 0.935; split, coarse 0.939 / 0.946 (a patch
+    // per pair of triangles: 0.944 on box_floor_a).
     for (variant, bound) in [("box_floor_a", 0.935), ("box_floor_b", 0.928)] {
         let plain = render(&base.with_variant(variant).unwrap(), &defaults);
         let coarse = render(&dense.with_variant(variant).unwrap(), &defaults);
