@@ -56,6 +56,7 @@ fn bench(c: &mut Criterion) {
         settings: settings.pda,
         for_updates: false,
         band: None,
+        shaded_per_pixel: &[],
     };
     let rays = PixelDataArray::build(&input).rays;
     g.throughput(Throughput::Elements(rays));

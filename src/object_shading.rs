@@ -101,6 +101,17 @@ impl ObjectMaterials {
         ObjectMaterials { surfaces }
     }
 
+    /// The ids of the enabled objects' surfaces that have a material,
+    /// sorted: those [`ObjectMaterials::of`] shades, without placing them.
+    pub fn surface_ids(scene: &Scene) -> Vec<u32> {
+        let mut ids: Vec<u32> = (scene.virtual_surfaces())
+            .filter(|(_, o, i)| o.enabled && o.surfaces[*i].material.is_some())
+            .map(|(id, _, _)| id)
+            .collect();
+        ids.sort_unstable();
+        ids
+    }
+
     pub fn is_empty(&self) -> bool {
         self.surfaces.is_empty()
     }
@@ -123,6 +134,19 @@ pub struct ShadingSettings {
     pub specular_rays: u32,
     /// Points sampled on each rect light.
     pub light_samples: u32,
+    /// How many times its first samples a pixel draws again where they
+    /// leave its mean uncertain (0: never).
+    pub extra_samples: u32,
+    /// The standard error of a pixel's mean (of its luminance) above which
+    /// it draws the extra samples, as a fraction of the photo's mean
+    /// luminance. Measured against the scene rather than the pixel: a
+    /// pixel's squared error counts whatever its brightness, and a dark
+    /// pixel's relative error is large where its absolute one is not.
+    /// 0.25: on `materials` (see `docs/design/materials.md`) a chrome
+    /// ball's update costs two thirds of four times the samples, with
+    /// its skill as high; 0.1 of the pixel's own mean cost half again and
+    /// gained nothing on the dielectrics.
+    pub tolerance: f64,
 }
 
 impl Default for ShadingSettings {
@@ -130,6 +154,8 @@ impl Default for ShadingSettings {
         ShadingSettings {
             specular_rays: 24,
             light_samples: 16,
+            extra_samples: 3,
+            tolerance: 0.25,
         }
     }
 }
@@ -152,6 +178,19 @@ pub struct ObjectShading<'a> {
     /// Reflectance per patch of the augmented model.
     pub reflectance: &'a [DVec3],
     pub settings: ShadingSettings,
+    /// The photo's mean luminance ([`mean_luminance`]), which
+    /// [`ShadingSettings::tolerance`] is a fraction of.
+    pub brightness: f64,
+}
+
+/// The mean luminance of `photo`, over every 61st pixel (a 24-megapixel
+/// plate reads 400,000 of them: under a millisecond a composite).
+pub fn mean_luminance(photo: &crate::image_io::Image) -> f64 {
+    let (sum, count) = (photo.pixels.iter().step_by(61))
+        .map(|p| p.as_dvec3().dot(DVec3::new(0.2126, 0.7152, 0.0722)))
+        .filter(|y| y.is_finite())
+        .fold((0.0, 0usize), |(s, c), y| (s + y.max(0.0), c + 1));
+    if count == 0 { 0.0 } else { sum / count as f64 }
 }
 
 /// A shading point: where, its frames and its material.
@@ -175,6 +214,57 @@ enum Seen {
     Masked,
     /// An object without a material.
     Clay,
+}
+
+/// What every sample of a pixel shares.
+struct PixelSamples {
+    /// The pixel's point, and its seed and Sobol key.
+    x: DVec3,
+    seed: u64,
+    key: u32,
+    /// Half the side of the part of the pixel the samples spread over, in pixels.
+    half: f64,
+    /// The point's place in the image.
+    at: Option<(f64, f64, f64)>,
+    rects: Vec<paths::Rect>,
+    /// Samples per side of the footprint a sample's texture lookup covers.
+    side: u32,
+    /// What the camera sees through the pixel's centre: a sample whose own
+    /// ray meets no material takes it.
+    centre: Point,
+}
+
+/// A pixel's samples summed apart: what rays fixed, what reads the
+/// solution, the diffuse part's factors (see [`kept`], which sums them
+/// alike); and the first and second moments of the fixed part's
+/// luminance, which decide whether more are drawn.
+#[derive(Default)]
+struct Sums {
+    base: DVec3,
+    reads: DVec3,
+    diffuse: DVec3,
+    count: u32,
+    moments: [f64; 2],
+}
+
+impl Sums {
+    fn add(&mut self, fixed: DVec3) {
+        let y = fixed.dot(DVec3::new(0.2126, 0.7152, 0.0722));
+        self.count += 1;
+        self.moments[0] += y;
+        self.moments[1] += y * y;
+    }
+
+    /// Whether the standard error of the first `n` samples' mean exceeds `tolerance`.
+    fn uncertain(&self, n: u32, tolerance: f64) -> bool {
+        if n < 2 {
+            return false;
+        }
+        let k = n as f64;
+        let mean = self.moments[0] / k;
+        let variance = ((self.moments[1] - self.moments[0] * mean) / (k - 1.0)).max(0.0);
+        (variance / k).sqrt() > tolerance
+    }
 }
 
 /// Sample `j` a pixel draws: the pixel's seed and the sample's point of
@@ -206,6 +296,15 @@ impl ObjectShading<'_> {
 
     /// [`ObjectShading::radiance_with`], each sample's parts kept in
     /// `record` when one is given ([`kept`]).
+    ///
+    /// A pixel draws the samples its material needs
+    /// ([`ObjectShading::sample_count`]), then as many again three times
+    /// over where their spread says its mean is still uncertain
+    /// ([`ShadingSettings::tolerance`]): a chrome ball's highlights and
+    /// the sharp reflections of lamps take the extra samples, its smooth
+    /// reflections of walls do not (Owen-scrambled Sobol points are
+    /// stratified at every power of two, so the extension continues the
+    /// same sequence).
     pub(crate) fn shade_point(
         &self,
         p: &SurfacePoint,
@@ -228,33 +327,59 @@ impl ObjectShading<'_> {
             _ => return Some(self.behind(x, to.normalize_or_zero(), seed)),
         };
         let n = self.sample_count(&centre.lobes, share);
-        let half = 0.5 * share.sqrt();
-        let at = self.camera.project(x);
-        let rects = self.rects();
         let h = (h
             .unwrap_or_else(|| paths::interpolate(self.indirect_with, &p.location, self.patches)))
         .max(DVec3::ZERO);
-        let side = (n as f64).sqrt().ceil() as u32;
-        let key = hash2(seed, 0xA11A5) as u32;
-        // Summed apart: what rays fixed, what reads the solution, the
-        // diffuse part's factors (see [`kept`], which sums them alike).
-        let (mut base, mut reads, mut diffuse) = (DVec3::ZERO, DVec3::ZERO, DVec3::ZERO);
-        let eye = self.camera.position;
+        let pixel = PixelSamples {
+            x,
+            seed,
+            key: hash2(seed, 0xA11A5) as u32,
+            half: 0.5 * share.sqrt(),
+            at: self.camera.project(x),
+            rects: self.rects(),
+            side: (n as f64).sqrt().ceil() as u32,
+            centre,
+        };
         let mut kept = kept::Record {
             keepable: record.is_some(),
-            view: ((x + (x - eye) * 1e-3).as_vec3(), 0.0),
+            view: ((x + (x - self.camera.position) * 1e-3).as_vec3(), 0.0),
             ..Default::default()
         };
+        let mut sums = Sums::default();
+        self.draw(&pixel, 0..n, &mut sums, &mut kept);
+        let more = n * self.settings.extra_samples;
+        let tolerance = self.settings.tolerance * self.brightness;
+        if more > 0 && sums.uncertain(n, tolerance) {
+            self.draw(&pixel, n..n + more, &mut sums, &mut kept);
+        }
+        let drawn = n + if sums.count > n { more } else { 0 };
+        if let Some(r) = record {
+            (kept.base, kept.diffuse) = (sums.base, sums.diffuse);
+            *r = kept;
+        }
+        Some(kept::total(sums.base, sums.reads, sums.diffuse, h, drawn))
+    }
+
+    /// Draws samples `range` of `pixel` into `sums`, keeping each one's
+    /// lobe ray in `kept` when it may be kept.
+    fn draw(
+        &self,
+        pixel: &PixelSamples,
+        range: std::ops::Range<u32>,
+        sums: &mut Sums,
+        kept: &mut kept::Record,
+    ) {
+        let (x, eye, half) = (pixel.x, self.camera.position, pixel.half);
         // The point of the pixel and the lobe's direction as four
         // dimensions of one Owen-scrambled Sobol point: each stratified,
         // and independent of the other (on one shared grid, a pixel's left
         // part took the lobe's low directions only).
-        let points: Vec<[f64; 4]> = (0..n)
-            .map(|j| sobol_burley::sample_4d(j, 0, key).map(f64::from))
+        let points: Vec<[f64; 4]> = (range.clone())
+            .map(|j| sobol_burley::sample_4d(j, 0, pixel.key).map(f64::from))
             .collect();
         // The pixel's camera rays, traced together: they are coherent, and
         // Embree's packets trace them at a fraction of one ray at a time.
-        let subs = match at {
+        let subs = match pixel.at {
             Some((px, py, _)) => {
                 let directions: Vec<DVec3> = (points.iter())
                     .map(|&[dx, dy, ..]| {
@@ -262,7 +387,7 @@ impl ObjectShading<'_> {
                         self.camera.ray(sx, sy).direction
                     })
                     .collect();
-                let seen = self.seen_all(&directions, 1.0 / side as f64);
+                let seen = self.seen_all(&directions, 1.0 / pixel.side as f64);
                 (seen.into_iter().zip(&directions))
                     .map(|((seen, t), d)| {
                         let point = match seen {
@@ -273,25 +398,36 @@ impl ObjectShading<'_> {
                     })
                     .collect()
             }
-            None => (0..n).map(|_| (None, x)).collect::<Vec<_>>(),
+            None => range.clone().map(|_| (None, x)).collect::<Vec<_>>(),
         };
-        for (j, ([_, _, u1, u2], (sub, end))) in (0..n).zip(points.into_iter().zip(subs)) {
-            let point = sub.as_ref().unwrap_or(&centre);
-            let sobol = rounds::Sobol::new(j, key, [u1, u2]);
-            let (own, (reflected, y), d) =
-                self.sample_parts(point, &rects, Sample { j, seed, sobol });
-            base += own;
-            diffuse += d;
+        for (j, ([_, _, u1, u2], (sub, end))) in range.zip(points.into_iter().zip(subs)) {
+            let point = sub.as_ref().unwrap_or(&pixel.centre);
+            let sobol = rounds::Sobol::new(j, pixel.key, [u1, u2]);
+            let sample = Sample {
+                j,
+                seed: pixel.seed,
+                sobol,
+            };
+            let (own, (reflected, y), d) = self.sample_parts(point, &pixel.rects, sample);
+            // What decides whether more samples are drawn is what the rays
+            // fixed: a kept sample replayed over a new solution draws as
+            // many as shading it anew would.
+            let mut fixed = own;
+            sums.base += own;
+            sums.diffuse += d;
             let read = match reflected {
                 paths::Reflected::Fixed(v) => {
-                    base += v;
+                    sums.base += v;
+                    fixed += v;
                     None
                 }
                 paths::Reflected::Read(m) => {
-                    reads += m.radiance(self);
+                    sums.reads += m.radiance(self);
+                    fixed += m.fixed();
                     Some(m)
                 }
             };
+            sums.add(fixed);
             if kept.keepable {
                 kept.sees(eye, x, end);
                 let spread = (point.shadow_origin - x).length() as f32;
@@ -299,11 +435,6 @@ impl ObjectShading<'_> {
                 kept.lobes.push((y.as_vec3(), read));
             }
         }
-        if let Some(r) = record {
-            (kept.base, kept.diffuse) = (base, diffuse);
-            *r = kept;
-        }
-        Some(kept::total(base, reads, diffuse, h, n))
     }
 
     /// What the camera sees along unit `d` (up to `far`) among the objects

@@ -238,6 +238,11 @@ pub struct PdaInput<'a> {
     /// Only these rows (of the crop, if any): a band of a still rendered
     /// band by band. Its data reaches the seams' neighbourhood beyond.
     pub band: Option<(u32, u32)>,
+    /// The object surfaces (sorted ids) whose pixels are shaded per pixel
+    /// by their material ([`crate::object_shading`]): its samples spread
+    /// over the pixel, each at its own point, so a pixel that sees only
+    /// these needs no sub-pixels of its own however many facets cross it.
+    pub shaded_per_pixel: &'a [u32],
 }
 
 /// How far past the pixels it is for the pixel data reaches, in pixels:
@@ -247,6 +252,11 @@ pub struct PdaInput<'a> {
 pub const MARGIN: u32 = 5;
 
 impl PdaInput<'_> {
+    /// Whether surface `surface`'s pixels are shaded per pixel by a material.
+    pub(crate) fn shades_per_pixel(&self, surface: u32) -> bool {
+        self.shaded_per_pixel.binary_search(&surface).is_ok()
+    }
+
     /// The pixels computed: [`PdaInput::own`]'s, and a margin beyond
     /// (their pixels read their neighbours' data in the seams' filter:
     /// computed that far beyond, they are the whole frame's).

@@ -510,6 +510,7 @@ impl Session {
     /// and its band's when rendered by bands).
     fn trace_pixels(&mut self, times: &mut StageTimes) {
         let patches = own_or_room(&self.pose.changes.own, &self.prepared.model);
+        let shaded = crate::object_shading::ObjectMaterials::surface_ids(&self.prepared.scene);
         let input = PdaInput {
             camera: &self.prepared.scene.camera,
             tracer: &self.prepared.tracer,
@@ -520,6 +521,7 @@ impl Session {
             settings: self.prepared.settings.pda,
             for_updates: self.run.for_updates,
             band: self.run.band,
+            shaded_per_pixel: &shaded,
         };
         self.pose.pda = times.time("pixel data array", || PixelDataArray::build(&input));
         // The grid near the objects covers the patches these pixels see.

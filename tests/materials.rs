@@ -191,9 +191,10 @@ fn objects_standing_still_keep_their_samples_and_updates_equal_full_renders() {
             stats.shaded_kept
         );
         // Kept wherever the samples were drawn at these scales, of objects
-        // that stood still then and now (after the relight none are).
+        // that stood still then and now (after the relight none are): at
+        // step 6 the chrome ball's and the vase's pixels, about 600.
         if step != 4 {
-            assert!(stats.shaded_kept > 1000, "step {step}: nothing kept");
+            assert!(stats.shaded_kept > 400, "step {step}: nothing kept");
         }
         assert_eq!(d, 0, "step {step}: the update differs from a full render");
     }
@@ -282,10 +283,10 @@ fn the_objects_pixels_are_the_same_on_one_thread_and_on_three() {
 #[test]
 fn rounds_sample_a_metals_lamp_highlights_over_the_pixel() {
     // The chrome ball on the table mirrors the lamps: a highlight's edge
-    // crosses pixels, which the default's few samples per pixel average
-    // coarsely. Rounds add samples of the pixel's points and the lobe's
-    // directions from one Sobol sequence. Measured: skill 0.948 -> 0.976,
-    // the objects' RMSE 0.026 -> 0.010.
+    // crosses pixels, which the default's samples per pixel (16, 64 where
+    // they spread) average coarsely. Rounds add samples of the pixel's
+    // points and the lobe's directions from one Sobol sequence. Measured:
+    // skill 0.965 -> 0.976, the objects' RMSE 0.017 -> 0.0098.
     let (scene, photo, truth) = posed_with_truth("chrome_table");
     let mut last: Option<(f64, f64)> = None;
     for samples in [0, 16] {
@@ -298,9 +299,9 @@ fn rounds_sample_a_metals_lamp_highlights_over_the_pixel() {
         let s = skill(&out.composite.image, &truth, &photo).skill.unwrap();
         println!("{samples} rounds: skill {s:.4}, objects' RMSE {rmse:.4}");
         if let Some((s0, rmse0)) = last {
-            assert!(s >= 0.965 && s >= s0 + 0.02, "skill {s:.4} after {s0:.4}");
+            assert!(s >= 0.972 && s >= s0 + 0.008, "skill {s:.4} after {s0:.4}");
             assert!(
-                rmse <= 0.5 * rmse0,
+                rmse <= 0.65 * rmse0,
                 "objects' RMSE {rmse:.4} after {rmse0:.4}"
             );
         }

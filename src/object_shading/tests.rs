@@ -111,3 +111,36 @@ fn a_shading_normal_turned_from_the_viewer_is_bent_back_just_enough() {
     // In the plane of the two normals, between them.
     assert!(n.y.abs() < 1e-12 && n.x < 0.0 && n.z < 1.0);
 }
+
+#[test]
+fn a_pixel_draws_more_samples_where_its_mean_is_uncertain() {
+    // Sixteen samples, half black and half of luminance 1: mean 0.5,
+    // sample variance 16/15 × 0.25, standard error √(1/60) = 0.1291.
+    let mut sums = Sums::default();
+    for j in 0..16 {
+        sums.add(DVec3::splat(f64::from(j % 2)));
+    }
+    assert_eq!(sums.count, 16);
+    assert!(sums.uncertain(16, 0.129));
+    assert!(!sums.uncertain(16, 0.1292));
+    // The same light in every sample leaves nothing uncertain (but
+    // rounding), however bright; one sample says nothing of its spread.
+    let mut flat = Sums::default();
+    for _ in 0..16 {
+        flat.add(DVec3::splat(40.0));
+    }
+    assert!(!flat.uncertain(16, 1e-6));
+    assert!(!sums.uncertain(1, 0.0));
+}
+
+#[test]
+fn the_photos_mean_luminance_skips_what_is_not_finite() {
+    let mut photo = crate::image_io::Image::new(61, 2);
+    for (i, p) in photo.pixels.iter_mut().enumerate() {
+        *p = glam::Vec3::splat(if i == 61 { f32::INFINITY } else { 0.5 });
+    }
+    photo.pixels[0] = glam::Vec3::new(1.0, 0.0, 0.0);
+    // Pixels 0 and 61 are read: 0.2126 and infinity (left out).
+    assert!((mean_luminance(&photo) - 0.2126).abs() < 1e-6);
+    assert_eq!(mean_luminance(&crate::image_io::Image::new(0, 0)), 0.0);
+}

@@ -113,12 +113,17 @@ pub(super) fn sub_pixels_mix(
     }
     // A pixel wholly on the objects mixes where its sub-pixels see
     // different planes: a small curved object's facets, each lit its own
-    // way, over a pixel's area as the camera averages them.
+    // way, over a pixel's area as the camera averages them. Not where
+    // every one is shaded per pixel by its material, whose samples spread
+    // over the pixel each at its own point: as sub-pixels, a finely
+    // tessellated object's pixels drew four times a whole pixel's samples
+    // (nearly every pixel of an 80k-triangle prop or a 4k-triangle ball).
     let facets = match visible.first() {
-        Some(Some(f)) if seen == count => visible
-            .iter()
-            .flatten()
-            .any(|h| h.surface != f.surface || h.normal.dot(f.normal) < SAME_PLANE_COS),
+        Some(Some(f)) if seen == count => {
+            let planes = (visible.iter().flatten())
+                .any(|h| h.surface != f.surface || h.normal.dot(f.normal) < SAME_PLANE_COS);
+            planes && !(visible.iter().flatten()).all(|h| input.shades_per_pixel(h.surface))
+        }
         _ => false,
     };
     (seen > 0 && seen < count || facets, visible, rays_cast)
@@ -189,7 +194,11 @@ pub(super) fn edge_candidates(input: &PdaInput) -> Option<Vec<bool>> {
             let (a, b) = (corners[k], corners[(k + 1) % corners.len()]);
             let path = cam.project_path(a, b)?;
             let held = &table[&edge_key(a, b)];
-            if !held.interior() || held.crease {
+            // A crease between surfaces shaded per pixel mixes nothing
+            // ([`sub_pixels_mix`]).
+            let per_pixel =
+                input.shades_per_pixel(held.first.0) && input.shades_per_pixel(held.last);
+            if !held.interior() || (held.crease && !per_pixel) {
                 for piece in path.windows(2) {
                     mark_segment(&mut marks, w, h, piece[0], piece[1], MARGIN);
                 }
@@ -223,6 +232,8 @@ pub(super) struct EdgeHeld {
     /// The first polygon's surface and normal, which the others' are
     /// compared with.
     first: (u32, DVec3),
+    /// The last polygon's surface: with the first, both of an interior edge's.
+    last: u32,
 }
 
 impl EdgeHeld {
@@ -280,8 +291,10 @@ pub(super) fn edge_table(
                 right: false,
                 crease: false,
                 first: (e.surface, normal),
+                last: e.surface,
             });
             held.count += 1;
+            held.last = e.surface;
             held.left |= side < 0;
             held.right |= side > 0;
             let (surface, first) = held.first;

@@ -351,18 +351,36 @@ fn pixels_across_a_crease_of_an_object_are_shaded_per_sub_pixel() {
     )
     .unwrap();
     let bounds = VirtualBounds::of(&[(7, boxed.clone())]);
-    let pda = PixelDataArray::build(&PdaInput {
-        camera: &camera,
-        tracer: &tracer,
-        patches: &patches,
-        lights: &[test_spot(DVec3::new(2.5, 2.0, 0.3))],
-        active: &[true],
-        bounds: &bounds,
-        settings: PdaSettings::default(),
-        for_updates: false,
-        band: None,
-    });
+    let lights = [test_spot(DVec3::new(2.5, 2.0, 0.3))];
+    let build = |shaded_per_pixel| {
+        PixelDataArray::build(&PdaInput {
+            camera: &camera,
+            tracer: &tracer,
+            patches: &patches,
+            lights: &lights,
+            active: &[true],
+            bounds: &bounds,
+            settings: PdaSettings::default(),
+            for_updates: false,
+            band: None,
+            shaded_per_pixel,
+        })
+    };
+    let pda = build(&[]);
     let full = pda.supersample * pda.supersample;
+    // With a material, whose samples spread over the pixel each at its
+    // own point, a pixel wholly on the box is one pixel whatever faces
+    // cross it; its outline's pixels still mix box and background.
+    let shaded = build(&[7]);
+    let outline = |pda: &PixelDataArray| -> Vec<u32> {
+        (pda.edges.iter())
+            .filter(|e| e.count < full)
+            .map(|e| e.pixel)
+            .collect()
+    };
+    assert!(shaded.edges.iter().all(|e| e.count < full));
+    assert_eq!(outline(&shaded), outline(&pda));
+    assert!(shaded.virtual_pixels.len() == pda.virtual_pixels.len());
     let planes = |e: &EdgePixel| {
         let points = &pda.edge_samples.points[e.start as usize..(e.start + e.count) as usize];
         let mut normals: Vec<Vec3> = Vec::new();

@@ -39,6 +39,7 @@ impl TexturePath {
             indirect_without: &h,
             reflectance: &self.reflectance,
             settings: ShadingSettings::default(),
+            brightness: crate::object_shading::mean_luminance(&self.photo),
         };
         let w = self.photo.width.max(1);
         let shaded: Vec<(usize, Vec3)> = self

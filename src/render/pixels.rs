@@ -27,6 +27,7 @@ impl PixelUpdate<'_> {
         times: &mut StageTimes,
     ) -> (Vec<u32>, u64, u64) {
         let model = changes.model;
+        let shaded = crate::object_shading::ObjectMaterials::surface_ids(changes.scene);
         let input = PdaInput {
             camera: &changes.scene.camera,
             tracer: changes.tracer,
@@ -37,6 +38,7 @@ impl PixelUpdate<'_> {
             settings: changes.settings.pda,
             for_updates: true,
             band: None,
+            shaded_per_pixel: &shaded,
         };
         let pda = self.pda;
         let (mut rays, retraced) = times.time("re-trace objects and edges", || {

@@ -39,6 +39,7 @@ impl Session {
             indirect_without: &self.prepared.indirect_without,
             reflectance: &self.pose.changes.reflectance,
             settings: self.prepared.settings.shading,
+            brightness: crate::object_shading::mean_luminance(&self.prepared.photo),
         };
         let residual = self.residual(&shading, times);
         // A session's objects with materials are shaded first, their samples
