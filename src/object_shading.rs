@@ -112,6 +112,25 @@ impl ObjectMaterials {
         ids
     }
 
+    /// The ids of the enabled objects' surfaces whose material is a metal
+    /// throughout (metallic 1, no texture to lower it), sorted: their
+    /// pixels have no diffuse part, and read no light gathered at their
+    /// vertices.
+    pub fn metal_ids(scene: &Scene) -> Vec<u32> {
+        let mut ids: Vec<u32> = (scene.virtual_surfaces())
+            .filter(|(_, o, i)| {
+                o.enabled
+                    && o.surfaces[*i].material.as_ref().is_some_and(|m| {
+                        m.material.metallic >= 1.0
+                            && m.material.metallic_roughness_texture.is_none()
+                    })
+            })
+            .map(|(id, _, _)| id)
+            .collect();
+        ids.sort_unstable();
+        ids
+    }
+
     pub fn is_empty(&self) -> bool {
         self.surfaces.is_empty()
     }

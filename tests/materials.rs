@@ -441,3 +441,33 @@ fn rounds_stay_finite_with_a_bulb_a_millimetre_from_the_floor_beside_the_chrome_
     .unwrap();
     assert!(object(&out.composite) > object(&dark.composite));
 }
+
+#[test]
+fn only_a_metal_throughout_is_shaded_without_its_vertices_light() {
+    // The chrome ball's vertices gather a quarter of the rays (their light
+    // reaches the image only through the room); the globe and the vase
+    // have a diffuse part that reads theirs.
+    let scene = load("materials", "scene.toml")
+        .with_variant("trio")
+        .unwrap();
+    let metals = arlux::object_shading::ObjectMaterials::metal_ids(&scene);
+    let shaded = arlux::object_shading::ObjectMaterials::surface_ids(&scene);
+    let of = |name: &str| -> Vec<u32> {
+        (scene.virtual_surfaces())
+            .filter(|(_, o, _)| o.name == name)
+            .map(|(id, _, _)| id)
+            .collect()
+    };
+    assert!(!metals.is_empty() && metals.windows(2).all(|w| w[0] < w[1]));
+    assert!(of("chrome").iter().all(|id| metals.contains(id)));
+    for other in ["globe", "vase"] {
+        assert!(of(other).iter().all(|id| !metals.contains(id)), "{other}");
+        assert!(of(other).iter().all(|id| shaded.contains(id)), "{other}");
+    }
+    // A hidden object's surfaces are neither.
+    assert!(
+        of("ring")
+            .iter()
+            .all(|id| !shaded.contains(id) && !metals.contains(id))
+    );
+}

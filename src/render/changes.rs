@@ -486,6 +486,7 @@ fn gather_objects(
             radiosity_without: &model.estimate.solution.radiosity,
             rays: input.settings.gather_rays,
             share_within: input.settings.virtual_patch_size / 4.0,
+            bounce_only: &crate::object_shading::ObjectMaterials::metal_ids(input.scene),
         };
         final_gather(&gather, directions)
     });
