@@ -367,7 +367,11 @@ impl ObjectShading<'_> {
         let mut sums = Sums::default();
         self.draw(&pixel, 0..n, &mut sums, &mut kept);
         let more = n * self.settings.extra_samples;
-        let tolerance = self.settings.tolerance * self.brightness;
+        // A sub-pixel's error weighs in its pixel's by its share, and its
+        // pixel's other sub-pixels add theirs: the pixel's standard error
+        // is √share of its sub-pixels' (independent, alike), so a
+        // sub-pixel is held to the bound over √share.
+        let tolerance = self.settings.tolerance * self.brightness / share.sqrt();
         if more > 0 && sums.uncertain(n, tolerance) {
             self.draw(&pixel, n..n + more, &mut sums, &mut kept);
         }
