@@ -223,9 +223,15 @@ struct Point {
     v: DVec3,
     lobes: Lobes,
     emissive: DVec3,
+    /// The vertices the point's indirect light is interpolated from, with
+    /// their weights (None: not located; the pixel's are taken).
+    location: Option<[(u32, f64); 4]>,
 }
 
 /// What a camera ray meets first.
+// Returned by value once per camera ray and matched at once: boxing the
+// shaded point would allocate per sample.
+#[allow(clippy::large_enum_variant)]
 enum Seen {
     /// A surface with a material, here.
     Shaded(Point),
@@ -251,6 +257,8 @@ struct PixelSamples {
     /// What the camera sees through the pixel's centre: a sample whose own
     /// ray meets no material takes it.
     centre: Point,
+    /// The pixel's point's vertices and weights, for a sample not located.
+    location: [(u32, f64); 4],
 }
 
 /// A pixel's samples summed apart: what rays fixed, what reads the
@@ -262,6 +270,8 @@ struct Sums {
     base: DVec3,
     reads: DVec3,
     diffuse: DVec3,
+    /// The diffuse factors on the vertices each sample's point reads.
+    weights: kept::DiffuseWeights,
     count: u32,
     moments: [f64; 2],
 }
@@ -346,9 +356,14 @@ impl ObjectShading<'_> {
             _ => return Some(self.behind(x, to.normalize_or_zero(), seed)),
         };
         let n = self.sample_count(&centre.lobes, share);
-        let h = (h
-            .unwrap_or_else(|| paths::interpolate(self.indirect_with, &p.location, self.patches)))
-        .max(DVec3::ZERO);
+        let corners = self.patches.patch_vertices.get(p.location.patch as usize);
+        let mut location = [(u32::MAX, 0.0); 4];
+        for (slot, (&v, w)) in location
+            .iter_mut()
+            .zip(corners.into_iter().flatten().zip(p.location.weights))
+        {
+            *slot = (v, f64::from(w));
+        }
         let pixel = PixelSamples {
             x,
             seed,
@@ -358,6 +373,7 @@ impl ObjectShading<'_> {
             rects: self.rects(),
             side: (n as f64).sqrt().ceil() as u32,
             centre,
+            location,
         };
         let mut kept = kept::Record {
             keepable: record.is_some(),
@@ -376,11 +392,17 @@ impl ObjectShading<'_> {
             self.draw(&pixel, n..n + more, &mut sums, &mut kept);
         }
         let drawn = n + if sums.count > n { more } else { 0 };
+        // The indirect light gathered at the pixel (rounds), or read at
+        // each sample's point.
+        let diffuse = match h {
+            Some(h) => sums.diffuse * h.max(DVec3::ZERO),
+            None => sums.weights.light(self.indirect_with),
+        };
         if let Some(r) = record {
-            (kept.base, kept.diffuse) = (sums.base, sums.diffuse);
+            (kept.base, kept.diffuse) = (sums.base, sums.weights);
             *r = kept;
         }
-        Some(kept::total(sums.base, sums.reads, sums.diffuse, h, drawn))
+        Some(kept::total(sums.base, sums.reads, diffuse, drawn))
     }
 
     /// Draws samples `range` of `pixel` into `sums`, keeping each one's
@@ -438,6 +460,7 @@ impl ObjectShading<'_> {
             let mut fixed = own;
             sums.base += own;
             sums.diffuse += d;
+            (sums.weights).add(d, point.location.unwrap_or(pixel.location));
             let read = match reflected {
                 paths::Reflected::Fixed(v) => {
                     sums.base += v;
@@ -509,7 +532,13 @@ impl ObjectShading<'_> {
             return (Some(Seen::Clay), t);
         };
         let x = self.camera.position + d * t;
-        let point = self.point(s, hit.triangle, x, d, t * scale);
+        let point = self
+            .point(s, hit.triangle, x, d, t * scale)
+            .map(|mut point| {
+                point.location =
+                    (self.patches.locate(hit.surface, hit.triangle, x)).map(|l| l.weights);
+                point
+            });
         (Some(point.map_or(Seen::Masked, Seen::Shaded)), t)
     }
 
@@ -537,6 +566,7 @@ impl ObjectShading<'_> {
                 v,
                 lobes: m.lobes,
                 emissive: m.emissive,
+                location: None,
             });
         };
         let k = triangle as usize;
@@ -599,6 +629,7 @@ impl ObjectShading<'_> {
             v,
             lobes: m.lobes,
             emissive: m.emissive,
+            location: None,
         })
     }
 }

@@ -460,24 +460,6 @@ impl Reading {
     }
 }
 
-/// Interpolates a per-vertex table at a patch point.
-pub(super) fn interpolate(
-    table: &[DVec3],
-    at: &crate::pda::PatchPoint,
-    patches: &Patches,
-) -> DVec3 {
-    let vertices = patches.patch_vertices.get(at.patch as usize);
-    let Some(vertices) = vertices else {
-        return DVec3::ZERO;
-    };
-    vertices
-        .iter()
-        .zip(at.weights)
-        .filter(|(_, w)| *w != 0.0)
-        .map(|(&v, w)| table.get(v as usize).copied().unwrap_or(DVec3::ZERO) * w as f64)
-        .sum()
-}
-
 #[cfg(test)]
 mod tests {
     use glam::DVec3;
