@@ -460,7 +460,9 @@ impl ObjectShading<'_> {
             let mut fixed = own;
             sums.base += own;
             sums.diffuse += d;
-            (sums.weights).add(d, point.location.unwrap_or(pixel.location));
+            if d != DVec3::ZERO {
+                (sums.weights).add(d, point.location.unwrap_or(pixel.location));
+            }
             let read = match reflected {
                 paths::Reflected::Fixed(v) => {
                     sums.base += v;
@@ -532,11 +534,14 @@ impl ObjectShading<'_> {
             return (Some(Seen::Clay), t);
         };
         let x = self.camera.position + d * t;
+        // Located for its diffuse part's light; a metal has none.
         let point = self
             .point(s, hit.triangle, x, d, t * scale)
             .map(|mut point| {
-                point.location =
-                    (self.patches.locate(hit.surface, hit.triangle, x)).map(|l| l.weights);
+                if point.lobes.metallic < 1.0 {
+                    point.location =
+                        (self.patches.locate(hit.surface, hit.triangle, x)).map(|l| l.weights);
+                }
                 point
             });
         (Some(point.map_or(Seen::Masked, Seen::Shaded)), t)
