@@ -104,12 +104,7 @@ impl ObjectMaterials {
     /// The ids of the enabled objects' surfaces that have a material,
     /// sorted: those [`ObjectMaterials::of`] shades, without placing them.
     pub fn surface_ids(scene: &Scene) -> Vec<u32> {
-        let mut ids: Vec<u32> = (scene.virtual_surfaces())
-            .filter(|(_, o, i)| o.enabled && o.surfaces[*i].material.is_some())
-            .map(|(id, _, _)| id)
-            .collect();
-        ids.sort_unstable();
-        ids
+        material_ids(scene, |_| true)
     }
 
     /// The ids of the enabled objects' surfaces whose material is a metal
@@ -117,18 +112,9 @@ impl ObjectMaterials {
     /// pixels have no diffuse part, and read no light gathered at their
     /// vertices.
     pub fn metal_ids(scene: &Scene) -> Vec<u32> {
-        let mut ids: Vec<u32> = (scene.virtual_surfaces())
-            .filter(|(_, o, i)| {
-                o.enabled
-                    && o.surfaces[*i].material.as_ref().is_some_and(|m| {
-                        m.material.metallic >= 1.0
-                            && m.material.metallic_roughness_texture.is_none()
-                    })
-            })
-            .map(|(id, _, _)| id)
-            .collect();
-        ids.sort_unstable();
-        ids
+        material_ids(scene, |m| {
+            m.material.metallic >= 1.0 && m.material.metallic_roughness_texture.is_none()
+        })
     }
 
     pub fn is_empty(&self) -> bool {
@@ -139,6 +125,19 @@ impl ObjectMaterials {
     pub fn has(&self, surface: u32) -> bool {
         self.surfaces.contains_key(&surface)
     }
+}
+
+/// The sorted ids of the enabled objects' surfaces whose material `keep` takes.
+fn material_ids(
+    scene: &Scene,
+    keep: impl Fn(&crate::materials::SurfaceMaterial) -> bool,
+) -> Vec<u32> {
+    let mut ids: Vec<u32> = (scene.virtual_surfaces())
+        .filter(|(_, o, i)| o.enabled && o.surfaces[*i].material.as_ref().is_some_and(&keep))
+        .map(|(id, _, _)| id)
+        .collect();
+    ids.sort_unstable();
+    ids
 }
 
 /// Sample counts per shaded point.
@@ -391,7 +390,6 @@ impl ObjectShading<'_> {
         if more > 0 && sums.uncertain(n, tolerance) {
             self.draw(&pixel, n..n + more, &mut sums, &mut kept);
         }
-        let drawn = n + if sums.count > n { more } else { 0 };
         // The indirect light gathered at the pixel (rounds), or read at
         // each sample's point.
         let diffuse = match h {
@@ -402,7 +400,7 @@ impl ObjectShading<'_> {
             (kept.base, kept.diffuse) = (sums.base, sums.weights);
             *r = kept;
         }
-        Some(kept::total(sums.base, sums.reads, diffuse, drawn))
+        Some(kept::total(sums.base, sums.reads, diffuse, sums.count))
     }
 
     /// Draws samples `range` of `pixel` into `sums`, keeping each one's
