@@ -150,12 +150,9 @@ pub struct ShadingSettings {
     /// against 256 differ by 0.045 on a chrome ball's pixels, nearly all
     /// in its highlights.
     pub specular_rays: u32,
-    /// Points sampled on each rect light, and the fewest samples any
-    /// pixel draws. 32: a whole pixel on a curved dielectric draws what its
-    /// split sub-pixels drew between them before (16 left `globe_floor`
-    /// 0.0009 and `vase_floor` 0.0003 short of the split's skill, noise the
-    /// uncertainty test did not catch even at 0.1; the 80k prop's update
-    /// costs 1.3× as much, metals draw 32 already).
+    /// Points sampled on each rect light, and the fewest samples a pixel
+    /// draws. 32 gained `globe_floor` 0.0009 and cost a large textured
+    /// object's update 1.2–1.3× (`docs/design/materials.md`).
     pub light_samples: u32,
     /// How many times its first samples a pixel draws again where they
     /// leave its mean uncertain (0: never).
@@ -176,7 +173,7 @@ impl Default for ShadingSettings {
     fn default() -> Self {
         ShadingSettings {
             specular_rays: 24,
-            light_samples: 32,
+            light_samples: 16,
             extra_samples: 3,
             tolerance: 0.25,
         }
