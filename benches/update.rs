@@ -389,9 +389,20 @@ fn sliders(c: &mut Criterion) {
             Session::start(&low, &photo, &settings, &mut StageTimes::default()).unwrap();
         // The layers an interactive session's views need (`serve`'s).
         session.keep_layers(arlux::composite::Layers::Object);
+        // What `serve` solves while idle, then the slider's first step.
+        let ahead = std::time::Instant::now();
+        session.prepare_relights(&mut StageTimes::default());
+        println!(
+            "{label}, solved ahead in {:.1} ms",
+            ahead.elapsed().as_secs_f64() * 1e3
+        );
         let mut times = StageTimes::default();
+        let first = std::time::Instant::now();
         session.relight(&high, &mut times).unwrap();
-        println!("{label}, one step:");
+        println!(
+            "{label}, first step {:.1} ms:",
+            first.elapsed().as_secs_f64() * 1e3
+        );
         for (name, d) in &times.0 {
             println!("    {name:<28} {:>7.1} ms", d.as_secs_f64() * 1e3);
         }

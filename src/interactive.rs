@@ -173,6 +173,10 @@ pub struct Interactive {
     /// Rounds of per-pixel samples the image was last refined with
     /// ([`Interactive::refine`]; 0 after every change), and their report.
     refined: (u32, Option<crate::residual::ResidualStats>),
+    /// Whether an idle moment should solve ahead for a light's slider
+    /// ([`Interactive::prepare_relights`]): after a full render or a
+    /// relight, not after a move (a drag's next move would wait for it).
+    relights_ahead: bool,
     /// States to go back to (newest last), and to go forward to again.
     undo: Vec<Snapshot>,
     redo: Vec<Snapshot>,
@@ -217,6 +221,7 @@ impl Interactive {
             room,
             version: 0,
             refined: (0, None),
+            relights_ahead: false,
             undo: Vec::new(),
             redo: Vec::new(),
             placing: None,
@@ -267,6 +272,17 @@ impl Interactive {
         };
         self.refined = (rounds, session.refine(rounds, times));
         self.refined.1
+    }
+
+    /// Solves ahead, once per state that asks for it, what a light's
+    /// scale change would solve on its first step (each light's solution
+    /// of the room and of the objects' change): the server calls it while
+    /// no edit waits. Returns whether anything was solved.
+    pub fn prepare_relights(&mut self, times: &mut StageTimes) -> bool {
+        match (&mut self.rendered, std::mem::take(&mut self.relights_ahead)) {
+            (Rendered::Frame(renderer), true) => renderer.prepare_relights(times),
+            _ => false,
+        }
     }
 
     /// `write` given the state's composite with every layer (direct,
@@ -635,6 +651,7 @@ impl Interactive {
         {
             let stats = session.update(&scene, times)?;
             self.scene = scene;
+            self.relights_ahead = false;
             match stats {
                 Some(stats) => RenderPath::Update {
                     pixels_recomputed: stats.pixels_recomputed,
@@ -651,6 +668,7 @@ impl Interactive {
             match session.relight(&scene, times) {
                 Ok(()) => {
                     self.scene = scene;
+                    self.relights_ahead = true;
                     RenderPath::Relight
                 }
                 Err(why) => {
@@ -688,6 +706,7 @@ impl Interactive {
         } else {
             Rendered::Photo
         };
+        self.relights_ahead = true;
         self.scene = scene;
         Ok(RenderPath::Full { reason })
     }

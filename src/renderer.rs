@@ -128,6 +128,16 @@ impl Renderer {
         }
     }
 
+    /// Solves ahead what a light's scale change reads (the pixel path's
+    /// [`Session::prepare_relights`]; the texture path relights its kept
+    /// preprocess as it is). Returns whether anything was solved.
+    pub fn prepare_relights(&mut self, times: &mut StageTimes) -> bool {
+        match self {
+            Renderer::Pixels(s) => s.prepare_relights(times),
+            Renderer::Textures(_) => false,
+        }
+    }
+
     /// Builds what the pixel path's updates traverse (nothing on the texture path).
     pub fn prepare_updates(&mut self, times: &mut StageTimes) {
         if let Renderer::Pixels(s) = self {

@@ -144,3 +144,54 @@ fn relit_sessions_of_other_rooms_equal_their_full_renders() {
         }
     }
 }
+
+/// Solved ahead ([`Session::prepare_relights`], what `arlux serve` does
+/// while idle), a slider's first step solves nothing per light: it sums.
+/// Its image is a full render's, and so is a move's after it. On the
+/// photo's lights with the automatic patch size nothing is solved ahead:
+/// a change of lights meshes the room finer and renders in full.
+#[test]
+fn lights_solved_ahead_make_the_first_step_a_sum() {
+    let base = desk().with_variant("box_floor_a").unwrap();
+    let photo = base.load_photo().unwrap();
+    let settings = RenderSettings::default();
+    let stages = |times: &StageTimes| -> Vec<String> {
+        times.0.iter().map(|(name, _)| name.to_string()).collect()
+    };
+    let mut photographed =
+        Session::start(&base, &photo, &settings, &mut StageTimes::default()).unwrap();
+    assert!(!photographed.prepare_relights(&mut StageTimes::default()));
+    let first = scaled(&base, 1.0, 2.0);
+    let mut session =
+        Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+    let mut ahead = StageTimes::default();
+    assert!(session.prepare_relights(&mut ahead));
+    let solved = stages(&ahead);
+    assert!(
+        solved.iter().any(|s| s == "solve the room per light"),
+        "{solved:?}"
+    );
+    assert!(solved.iter().any(|s| s == "solve the change"), "{solved:?}");
+    // Once: the next call finds both solved.
+    assert!(!session.prepare_relights(&mut StageTimes::default()));
+    let scene = scaled(&base, 0.5, 2.5);
+    let mut step = StageTimes::default();
+    session.relight(&scene, &mut step).unwrap();
+    let done = stages(&step);
+    assert!(
+        done.iter().any(|s| s == "sum the change per light"),
+        "{done:?}"
+    );
+    for solve in [
+        "solve the room per light",
+        "solve the change",
+        "final gather on objects",
+    ] {
+        assert!(!done.iter().any(|s| s == solve), "{solve} ran: {done:?}");
+    }
+    assert_same(&session, &scene, &photo, &settings);
+    let mut moved = scene.clone();
+    moved.objects[0].pose.translate.x += 0.1;
+    session.update(&moved, &mut StageTimes::default()).unwrap();
+    assert_same(&session, &moved, &photo, &settings);
+}

@@ -118,10 +118,13 @@ pub(crate) fn run(
     }
 }
 
-/// The next job. While none waits, the image refines a level at a time
-/// (1, 2, 4 … rounds of per-pixel samples, up to `--samples`), each level
-/// published when done; an edit that arrives is served after the level
-/// under way, and starts again from the session's own image.
+/// The next job. While none waits, the session first solves ahead what a
+/// light's slider would solve on its first step (after a full render or
+/// a relight: [`Interactive::prepare_relights`]), then the image refines a
+/// level at a time (1, 2, 4 … rounds of per-pixel samples, up to
+/// `--samples`), each level published when done; an edit that arrives is
+/// served after the step under way, and starts again from the session's
+/// own image.
 fn next_job(cx: &Context, it: &mut Interactive, queue: &Receiver<Job>) -> Option<Job> {
     use std::sync::mpsc::TryRecvError;
     loop {
@@ -129,6 +132,16 @@ fn next_job(cx: &Context, it: &mut Interactive, queue: &Receiver<Job>) -> Option
             Ok(j) => return Some(j),
             Err(TryRecvError::Disconnected) => return None,
             Err(TryRecvError::Empty) => {}
+        }
+        // First what a light's slider would solve on its first step.
+        let ahead =
+            std::panic::AssertUnwindSafe(|| it.prepare_relights(&mut StageTimes::default()));
+        match std::panic::catch_unwind(ahead) {
+            Ok(true) => continue,
+            Ok(false) => {}
+            Err(_) => {
+                eprintln!("arlux serve: solving ahead failed (see above); the session goes on")
+            }
         }
         let (done, _) = it.refined();
         if it.composite().is_none() || done >= cx.refine_to {
