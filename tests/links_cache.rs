@@ -181,3 +181,45 @@ fn the_rooms_automatic_patch_size_is_read_from_the_cache() {
     let (other, _) = render("d.exr", &[]);
     assert_eq!((other, sizes()), (2, 2));
 }
+
+/// What `arlux serve` refines beside a session on the photo's lights: the
+/// links of the finer mesh a first change of lights renders with. That
+/// render then reads them (in the same program: an entry is read only by
+/// the build that wrote it), and its image is the one refining gives, bit
+/// for bit. Nothing is refined ahead where the patch size is given or the
+/// scene's lights already change (its own render refines them).
+#[test]
+fn the_links_a_change_of_lights_needs_are_refined_ahead() {
+    use arlux::render::{PatchSize, RenderSettings, render, warm_links_for_light_changes};
+    use arlux::util::stages::StageTimes;
+    let desk = Desk::new();
+    let scene = arlux::scene::Scene::load(desk.path("scene.toml")).unwrap();
+    let photo = scene.load_photo().unwrap();
+    let mut settings = RenderSettings::default();
+    settings.model.cache_links = true;
+    let given = RenderSettings {
+        patch_size: PatchSize::Metres(0.5),
+        ..settings
+    };
+    let times = &mut StageTimes::default();
+    assert!(!warm_links_for_light_changes(&scene, &given, times).unwrap());
+    let changed = scene.clone().with_variant("panel_off").unwrap();
+    assert!(!warm_links_for_light_changes(&changed, &settings, times).unwrap());
+    assert!(!desk.path(".arlux-cache").exists());
+    assert!(warm_links_for_light_changes(&scene, &settings, times).unwrap());
+    let mut warm = StageTimes::default();
+    let read = render(&changed, &photo, &settings, &mut warm).unwrap();
+    let stages: Vec<String> = warm.0.iter().map(|(s, _)| s.to_string()).collect();
+    assert!(
+        stages.iter().any(|s| s == "links from the cache")
+            && !stages.iter().any(|s| s == "form factors"),
+        "{stages:?}"
+    );
+    let mut uncached = settings;
+    uncached.model.cache_links = false;
+    let refined = render(&changed, &photo, &uncached, &mut StageTimes::default()).unwrap();
+    assert!(
+        read.composite.image.pixels == refined.composite.image.pixels,
+        "the links read differ from the links refined"
+    );
+}
