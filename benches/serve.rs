@@ -109,7 +109,8 @@ fn drag(name: &str, object: &str, a: DVec3, b: DVec3, steps: usize) {
 /// Moves `light`'s slider in `steps` steps between 1.2 and 2.0 on scene
 /// `name` as its file has it. The first two moves are left
 /// out: the first renders in full (the room meshed for light changes), the
-/// second solves the room and the objects' change per light.
+/// second solves the room and the objects' change per light (the moves
+/// come back to back: the session, never idle, does not solve them ahead).
 fn slide(name: &str, light: &str, steps: usize) {
     let dir = tempfile::tempdir().unwrap();
     copy_scene(name, dir.path());
