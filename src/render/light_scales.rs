@@ -127,7 +127,7 @@ impl BasisParts<'_> {
         // Nothing moves between the parts (nor since the pose's own solve):
         // each vertex's gather rays are kept and summed again over the part's
         // radiosity, what tracing them again gives (trio's four parts'
-        // gathers 88 → 24 ms).
+        // gathers 88 → 15 ms).
         let (scene, bounds) = (self.input.scene, self.input.bounds);
         let still = crate::radiosity::StillSurfaces::between(
             (bounds, self.patches),
@@ -216,8 +216,11 @@ impl Relight {
 /// `scene` with its lights changed would mesh and refine (the automatic
 /// patch size meshes the room finer once lights change): on `lounge` 10.5
 /// s of a first light change's 11.4 s from a cold cache. `arlux serve`
-/// runs it beside the session from its start, on a thread of its own, so
-/// that the first change of a light reads them. Returns whether it
+/// runs it beside the session from its start, on threads of its own at
+/// the least priority, so that the first change of a light reads them.
+/// The mesh is the one a full render sizes once lights change, as
+/// [`Model::build`] meshes it (a mesh of another size would only miss the
+/// cache). Returns whether it
 /// refined or read anything (nothing with a patch size given, lights
 /// already changed, or no cache).
 pub fn warm_links_for_light_changes(
@@ -318,26 +321,11 @@ impl Session {
         }
         let linear = below_gather_clamp(&self.pose.room, model);
         let objects = self.pose.changes.own.take();
-        if let (Some(patches), Some(rooms), true, None) = (
-            objects.as_ref(),
-            &self.pose.room_per_light,
-            linear,
-            &self.pose.changes.per_light,
-        ) {
-            let input = self.prepared.change_input(
-                &self.pose.scales_with,
-                &self.pose.bounds,
-                &self.pose.room,
-            );
-            let parts = BasisParts {
-                input: &input,
-                patches,
-                rooms,
-            };
-            let directions = &mut self.pose.gather_directions;
-            let view = &mut self.pose.changes.rays.view;
-            self.pose.changes.per_light = Some(parts.solve(directions, view, times));
-            solved = true;
+        if let (Some(patches), true, None) =
+            (objects.as_ref(), linear, &self.pose.changes.per_light)
+        {
+            self.pose.changes.per_light = self.change_basis(patches, times);
+            solved |= self.pose.changes.per_light.is_some();
         }
         self.pose.changes.own = objects;
         solved
@@ -348,34 +336,29 @@ impl Session {
     /// render computes, else solved at the scales.
     fn relit_change(&mut self, times: &mut StageTimes) {
         let objects = self.pose.changes.own.take();
-        // The pose is the same: its rays are read with the new radiosity.
-        let mut rays = std::mem::take(&mut self.pose.changes.rays);
         let kept = self.pose.changes.per_light.take();
-        let input =
-            self.prepared
-                .change_input(&self.pose.scales_with, &self.pose.bounds, &self.pose.room);
-        let directions = &mut self.pose.gather_directions;
         let linear = below_gather_clamp(&self.pose.room, &self.prepared.model);
-        let summed = match (objects.as_ref(), &self.pose.room_per_light, linear) {
-            (Some(patches), Some(rooms), true) => {
-                let basis = kept.unwrap_or_else(|| {
-                    let parts = BasisParts {
-                        input: &input,
-                        patches,
-                        rooms,
-                    };
-                    parts.solve(directions, &mut rays.view, times)
-                });
-                let solved = times.time("sum the change per light", || {
-                    basis.at(&self.pose.scales_with)
-                });
-                solved.map(|s| (s, basis))
-            }
+        let basis = match (objects.as_ref(), linear) {
+            (Some(patches), true) => kept.or_else(|| self.change_basis(patches, times)),
             _ => None,
         };
+        let summed = basis.and_then(|basis| {
+            let solved = times.time("sum the change per light", || {
+                basis.at(&self.pose.scales_with)
+            });
+            solved.map(|s| (s, basis))
+        });
+        // The pose is the same: its rays are read with the new radiosity.
+        let mut rays = std::mem::take(&mut self.pose.changes.rays);
         let (solved, per_light) = match summed {
             Some((solved, basis)) => (solved, Some(basis)),
             None => {
+                let input = self.prepared.change_input(
+                    &self.pose.scales_with,
+                    &self.pose.bounds,
+                    &self.pose.room,
+                );
+                let directions = &mut self.pose.gather_directions;
                 let solved =
                     solve_changes(&input, objects.as_ref(), directions, &mut rays.view, times);
                 (solved, None)
@@ -383,6 +366,26 @@ impl Session {
         };
         self.pose.changes = solved.with_patches(objects, rays);
         self.pose.changes.per_light = per_light;
+    }
+
+    /// The objects' change per light at this pose (`patches`: the pose's
+    /// objects, which the caller holds meanwhile); None before the room is
+    /// solved per light.
+    fn change_basis(&mut self, patches: &Patches, times: &mut StageTimes) -> Option<ChangeBasis> {
+        let rooms = self.pose.room_per_light.as_ref()?;
+        let input =
+            self.prepared
+                .change_input(&self.pose.scales_with, &self.pose.bounds, &self.pose.room);
+        let parts = BasisParts {
+            input: &input,
+            patches,
+            rooms,
+        };
+        let (directions, view) = (
+            &mut self.pose.gather_directions,
+            &mut self.pose.changes.rays.view,
+        );
+        Some(parts.solve(directions, view, times))
     }
 
     /// Whether `scene` is the session's but for its lights' scales, with the
