@@ -748,3 +748,32 @@ fn objects_added_from_an_asset_folder_render_as_the_variant_saved() {
         "undo gives back the image with one crate"
     );
 }
+
+/// What the server solves ahead for a slider while idle
+/// ([`Interactive::prepare_relights`]): nothing on the photo's lights (a
+/// change of lights renders in full, on a finer mesh), each light's part
+/// once after that full render, so that the next step only sums, and
+/// nothing after a move (a drag's next move would wait for it).
+#[test]
+fn a_slider_s_parts_are_solved_ahead_after_a_light_change_not_after_a_move() {
+    let desk = Desk::new();
+    let mut it = session(&desk);
+    let times = &mut StageTimes::default();
+    assert!(!it.prepare_relights(times));
+    let out = light(&mut it, 0, 0.5, times);
+    assert!(matches!(out.path, RenderPath::Full { .. }), "{out:?}");
+    assert!(it.prepare_relights(times));
+    assert!(!it.prepare_relights(times));
+    let mut step = StageTimes::default();
+    let out = light(&mut it, 0, 0.75, &mut step);
+    assert!(matches!(out.path, RenderPath::Relight), "{out:?}");
+    let stages: Vec<&str> = step.0.iter().map(|(s, _)| *s).collect();
+    assert!(
+        !stages.contains(&"solve the room per light") && !stages.contains(&"solve the change"),
+        "{stages:?}"
+    );
+    let p = pixel_of(&it, DVec3::new(-0.5, 0.0, 0.5));
+    let out = place(&mut it, p, times);
+    assert!(matches!(out.path, RenderPath::Update { .. }), "{out:?}");
+    assert!(!it.prepare_relights(times));
+}
