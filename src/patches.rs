@@ -115,41 +115,46 @@ impl Shape {
     /// Quadrature of order `n`: points with weights summing to 1. Quads:
     /// n×n Gauss-Legendre; triangles: centroids of an n×n regular split.
     pub fn quadrature(&self, n: usize) -> Vec<(DVec3, f64)> {
+        let mut out = Vec::with_capacity(n.max(1) * n.max(1));
+        self.for_each_quadrature_point(n, |x, w| out.push((x, w)));
+        out
+    }
+
+    /// [`Shape::quadrature`]'s points and weights, in its order, handed
+    /// to `f` one at a time: the links' refinement integrates millions of
+    /// form factors, and a list each was a tenth of their time.
+    pub fn for_each_quadrature_point(&self, n: usize, mut f: impl FnMut(DVec3, f64)) {
         let n = n.max(1);
         match *self {
             Shape::Quad { origin, u, v } => {
                 // The table stops at order 16.
                 let (x, w) = gauss_legendre(n);
                 let n = x.len();
-                let mut out = Vec::with_capacity(n * n);
                 for i in 0..n {
                     for j in 0..n {
-                        out.push((origin + u * x[i] + v * x[j], w[i] * w[j]));
+                        f(origin + u * x[i] + v * x[j], w[i] * w[j]);
                     }
                 }
-                out
             }
             Shape::Tri([a, b, c]) => {
                 let (e1, e2) = (b - a, c - a);
                 let w = 1.0 / (n * n) as f64;
                 let k = n as f64;
-                let mut out = Vec::with_capacity(n * n);
                 for i in 0..n {
                     for j in 0..n - i {
                         let (fi, fj) = (i as f64, j as f64);
-                        out.push((
+                        f(
                             a + e1 * ((fi + 1.0 / 3.0) / k) + e2 * ((fj + 1.0 / 3.0) / k),
                             w,
-                        ));
+                        );
                         if i + j + 1 < n {
-                            out.push((
+                            f(
                                 a + e1 * ((fi + 2.0 / 3.0) / k) + e2 * ((fj + 2.0 / 3.0) / k),
                                 w,
-                            ));
+                            );
                         }
                     }
                 }
-                out
             }
         }
     }

@@ -60,7 +60,19 @@ impl Shaft {
     /// face of it, so it is a polygon's own plane or holds an edge of one
     /// and a corner of the other.
     pub(crate) fn between_polygons(p: &[DVec3], q: &[DVec3]) -> Shaft {
-        let points: Vec<DVec3> = p.iter().chain(q).copied().collect();
+        // Element corners (at most four each) on the stack: the links'
+        // refinement builds millions of these shafts (6.3 million on
+        // lounge's finer mesh), and a heap list each was a tenth of them.
+        let mut buf = [DVec3::ZERO; 8];
+        let on_heap: Vec<DVec3>;
+        let points: &[DVec3] = if p.len() + q.len() <= buf.len() {
+            buf[..p.len()].copy_from_slice(p);
+            buf[p.len()..p.len() + q.len()].copy_from_slice(q);
+            &buf[..p.len() + q.len()]
+        } else {
+            on_heap = p.iter().chain(q).copied().collect();
+            &on_heap
+        };
         let scale = points
             .iter()
             .map(|x| x.abs().max_element())
@@ -76,7 +88,7 @@ impl Shaft {
             if poly.len() >= 3 {
                 add_face(
                     &mut planes,
-                    &points,
+                    points,
                     [poly[0], poly[1], poly[2]],
                     extent,
                     tolerance,
@@ -87,13 +99,13 @@ impl Shaft {
             for i in 0..a.len() {
                 let (e0, e1) = (a[i], a[(i + 1) % a.len()]);
                 for &v in b {
-                    add_face(&mut planes, &points, [e0, e1, v], extent, tolerance);
+                    add_face(&mut planes, points, [e0, e1, v], extent, tolerance);
                 }
             }
         }
         // Coplanar polygons have a flat hull: the general search handles it.
         if planes.len() < 4 {
-            return Shaft::hull(&points);
+            return Shaft::hull(points);
         }
         Shaft { planes, tolerance }
     }
@@ -266,22 +278,26 @@ fn add_face(
     if len < 1e-12 * extent * extent {
         return;
     }
-    let normal = normal / len;
-    let d = normal.dot(a);
+    // Most candidates are not faces: they are rejected on the normal as
+    // it comes, the tolerance scaled to its length, and only a face's is
+    // normalised.
+    let scaled = tolerance * len;
     let (mut above, mut below) = (false, false);
     for p in points {
-        let s = normal.dot(*p) - d;
-        above |= s > tolerance;
-        below |= s < -tolerance;
+        let s = normal.dot(*p - a);
+        above |= s > scaled;
+        below |= s < -scaled;
         // Points on both sides: not a face, whatever the rest say.
         if above && below {
             return;
         }
     }
+    let normal = normal / len;
+    let d = normal.dot(a);
     let plane = if above { (-normal, -d) } else { (normal, d) };
     if !planes
         .iter()
-        .any(|(m, e)| (*m - plane.0).length() < 1e-9 && (e - plane.1).abs() <= tolerance)
+        .any(|(m, e)| (*m - plane.0).length_squared() < 1e-18 && (e - plane.1).abs() <= tolerance)
     {
         planes.push(plane);
     }
