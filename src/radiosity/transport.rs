@@ -396,6 +396,15 @@ pub(super) fn refine(with: &Refiner, p: u32, q: u32, candidates: &[u32], out: &m
     let (spread, mean) = match (p_leaf, source) {
         (true, None) => (0.0, 0.0),
         (true, Some(s)) if factor_bound(ep, eq) * s <= epsilon => (0.0, 0.0),
+        // A leaf receiver asks only whether to split the source, by the
+        // factor at its centre: its corners' factors (four more exact
+        // point factors) were a third of all the refinement computed
+        // (lounge's finer mesh: links 11% faster, 0.1% fewer, skills the
+        // same to 1e-5). Not across a one-sided source's plane, where the
+        // centre may see nothing of what its front part sees.
+        (true, Some(_)) if !straddles(ep, eq) => {
+            (0.0, point_factor(ep.centre, ep, eq, &eq.shape.corners()))
+        }
         _ => factor_spread(ep, eq),
     };
     let split_receiver = if !p_leaf && (spread > epsilon || straddles(ep, eq)) {
