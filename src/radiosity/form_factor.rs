@@ -129,6 +129,8 @@ pub(super) struct ShaftTest<'a> {
     /// segment that carries light between the two.
     pub(super) planes: [Option<(DVec3, DVec3)>; 2],
     pub(super) plane_slack: f64,
+    /// Whether a root the box and planes keep is tested against the hull too.
+    pub(super) hull: bool,
 }
 
 impl<'a> ShaftTest<'a> {
@@ -177,6 +179,7 @@ impl<'a> ShaftTest<'a> {
             shafts,
             planes,
             plane_slack,
+            hull: true,
         }
     }
 
@@ -220,6 +223,9 @@ impl<'a> ShaftTest<'a> {
             |&(o, n): &(DVec3, DVec3)| corners.iter().all(|c| (*c - o).dot(n) <= self.plane_slack);
         if self.planes.iter().flatten().any(behind) {
             return false;
+        }
+        if !self.hull {
+            return true;
         }
         let (p, q) = (self.p, self.q);
         let hull = (self.shafts.hull)
@@ -268,7 +274,15 @@ pub(crate) fn may_be_occluded(
     q: &Element,
     candidates: &[u32],
 ) -> bool {
-    may_be_occluded_using(patches, layer, p, q, candidates, &PairShafts::default())
+    may_be_occluded_using(
+        patches,
+        layer,
+        p,
+        q,
+        candidates,
+        &PairShafts::default(),
+        true,
+    )
 }
 
 /// [`may_be_occluded`] with the pair's shafts kept in `shafts`.
@@ -279,8 +293,12 @@ pub(super) fn may_be_occluded_using(
     q: &Element,
     candidates: &[u32],
     shafts: &PairShafts,
+    hull: bool,
 ) -> bool {
-    let test = ShaftTest::new(patches, layer, p, q, shafts);
+    let test = ShaftTest {
+        hull,
+        ..ShaftTest::new(patches, layer, p, q, shafts)
+    };
     candidates.iter().any(|&r| test.may_block(r))
 }
 
