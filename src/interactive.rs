@@ -25,12 +25,14 @@ mod display;
 mod lights;
 mod placement;
 mod save;
+mod standby;
 
 use lights::LightEdit;
 
 pub use assets::{MESH_EXTENSIONS, list_assets};
 pub use display::{Frame, View};
 pub use placement::{LIGHT_HEIGHT_M, Room};
+pub use standby::Standby;
 
 /// One change a user makes. Objects and lights are indices into the
 /// scene's `objects` and `lights`.
@@ -177,6 +179,8 @@ pub struct Interactive {
     /// ([`Interactive::prepare_relights`]): after a full render or a
     /// relight, not after a move (a drag's next move would wait for it).
     relights_ahead: bool,
+    /// The finer session made ahead, taken at the first change of a light.
+    standby: Option<Standby>,
     /// States to go back to (newest last), and to go forward to again.
     undo: Vec<Snapshot>,
     redo: Vec<Snapshot>,
@@ -222,6 +226,7 @@ impl Interactive {
             version: 0,
             refined: (0, None),
             relights_ahead: false,
+            standby: None,
             undo: Vec::new(),
             redo: Vec::new(),
             placing: None,
@@ -673,7 +678,7 @@ impl Interactive {
                 }
                 Err(why) => {
                     let reason = format!("the lights changed ({})", why.describe());
-                    self.render_full(scene, reason, times)?
+                    self.render_by_standby(scene, reason, times)?
                 }
             }
         } else {

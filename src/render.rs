@@ -779,7 +779,8 @@ pub use bands::{
     BYTES_PER_BAND_PIXEL, BYTES_PER_FRAME_PIXEL, BandSink, band_rows, default_memory, parse_memory,
     render_bands,
 };
-pub use light_scales::{Relight, warm_links_for_light_changes};
+pub use light_scales::Relight;
+pub(crate) use room::lights_change;
 
 use changes::*;
 use final_gather::*;

@@ -195,3 +195,84 @@ fn lights_solved_ahead_make_the_first_step_a_sum() {
     session.update(&moved, &mut StageTimes::default()).unwrap();
     assert_same(&session, &moved, &photo, &settings);
 }
+
+/// A standby (the session a change of the lights renders, made ahead)
+/// makes the first change of a light a relight, after a move too; its
+/// image is the full render's of the state to 1e-5 relative. Where it
+/// cannot give the state (the lights as photographed), the change renders
+/// in full.
+#[test]
+fn a_standby_makes_the_first_change_of_a_light_a_relight() {
+    use arlux::interactive::{Edit, Interactive, RenderPath, Standby};
+    let base = desk().with_variant("box_floor_a").unwrap();
+    let photo = base.load_photo().unwrap();
+    let settings = RenderSettings::default();
+    let method = arlux::settings::Method::Pda(settings);
+    let times = &mut StageTimes::default();
+    let same_as_full = |it: &Interactive| {
+        let full = render(it.scene(), &photo, &settings, &mut StageTimes::default()).unwrap();
+        let d = relative_difference(it.image(), &full.composite.image);
+        println!("at scales {:?}: {d:.2e} relative", scales(it.scene()));
+        assert!(d <= 1e-5, "{d:.2e} at scales {:?}", scales(it.scene()));
+    };
+    for moved_first in [false, true] {
+        let mut it = Interactive::new(base.clone(), photo.clone(), settings, times).unwrap();
+        let scene = it
+            .standby_scene()
+            .expect("the photo's lights on the automatic size");
+        it.offer_standby(Standby::start(scene, &photo, &method, times).unwrap());
+        if moved_first {
+            let nudge = Edit::Nudge {
+                object: 0,
+                right_m: 0.1,
+                forward_m: 0.05,
+            };
+            let out = it.apply(nudge, times).unwrap();
+            assert!(matches!(out.path, RenderPath::Update { .. }), "{out:?}");
+        }
+        let out = it
+            .apply(
+                Edit::Light {
+                    light: 0,
+                    scale: 0.5,
+                },
+                times,
+            )
+            .unwrap();
+        assert!(matches!(out.path, RenderPath::Relight), "{out:?}");
+        same_as_full(&it);
+        // Its lights were solved ahead, at its pose or the one it moved to.
+        let out = it
+            .apply(
+                Edit::Light {
+                    light: 1,
+                    scale: 2.0,
+                },
+                times,
+            )
+            .unwrap();
+        assert!(matches!(out.path, RenderPath::Relight), "{out:?}");
+        same_as_full(&it);
+        // As photographed: the coarser mesh, in full.
+        it.apply(
+            Edit::Light {
+                light: 1,
+                scale: 1.0,
+            },
+            times,
+        )
+        .unwrap();
+        let out = it
+            .apply(
+                Edit::Light {
+                    light: 0,
+                    scale: 1.0,
+                },
+                times,
+            )
+            .unwrap();
+        assert!(matches!(out.path, RenderPath::Full { .. }), "{out:?}");
+        same_as_full(&it);
+        assert!(it.standby_scene().is_some());
+    }
+}

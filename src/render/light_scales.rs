@@ -212,39 +212,6 @@ impl Relight {
     }
 }
 
-/// Refines, into the links cache, the room's links that a full render of
-/// `scene` with its lights changed would mesh and refine (the automatic
-/// patch size meshes the room finer once lights change): on `lounge` 10.5
-/// s of a first light change's 11.4 s from a cold cache. `arlux serve`
-/// runs it beside the session from its start, on threads of its own at
-/// the least priority, so that the first change of a light reads them.
-/// The mesh is the one a full render sizes once lights change, as
-/// [`Model::build`] meshes it (a mesh of another size would only miss the
-/// cache). Returns whether it
-/// refined or read anything (nothing with a patch size given, lights
-/// already changed, or no cache).
-pub fn warm_links_for_light_changes(
-    scene: &Scene,
-    settings: &RenderSettings,
-    times: &mut StageTimes,
-) -> Result<bool> {
-    let crate::model::TransportMethod::Hierarchical { epsilon } = settings.model.transport else {
-        return Ok(false);
-    };
-    if settings.patch_size != PatchSize::Auto
-        || lights_change(&scene.lights)
-        || !settings.model.cache_links
-    {
-        return Ok(false);
-    }
-    let size = fine_patch_size(scene);
-    crate::model::check_patch_count(scene, size)?;
-    let tracer = crate::scene_tracer::build_tracer(scene)?;
-    let patches = Patches::of_scene(scene, false, size);
-    crate::model::room_links(scene, &patches, &tracer, epsilon, true, times);
-    Ok(true)
-}
-
 impl Session {
     /// Renders `scene`, which differs from the session's only in its
     /// lights' scales, without tracing a pixel again; the image is what

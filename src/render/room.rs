@@ -86,7 +86,7 @@ pub(super) fn photo_model(
 }
 
 /// Whether a scene's lights switch, scale or add a light.
-pub(super) fn lights_change(lights: &[crate::scene::Light]) -> bool {
+pub(crate) fn lights_change(lights: &[crate::scene::Light]) -> bool {
     lights
         .iter()
         .any(|l| l.scale != if l.real { 1.0 } else { 0.0 })

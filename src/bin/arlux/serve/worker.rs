@@ -74,11 +74,7 @@ pub(crate) fn run(
     queue: Receiver<Job>,
 ) {
     let started = Instant::now();
-    let ahead = match &method {
-        arlux::settings::Method::Pda(settings) => Some((scene.clone(), *settings)),
-        arlux::settings::Method::Texture(_) => None,
-    };
-    let made = Interactive::with_method(scene, photo, method, &mut StageTimes::default());
+    let made = Interactive::with_method(scene, photo, method.clone(), &mut StageTimes::default());
     cx.bar.finish_and_clear();
     let mut it = match made {
         Ok(it) => it,
@@ -102,9 +98,9 @@ pub(crate) fn run(
         "arlux serve: ready ({:.1} s of preprocess)",
         started.elapsed().as_secs_f64()
     );
-    if let Some((scene, settings)) = ahead {
-        links_ahead(scene, settings);
-    }
+    let standby = it
+        .standby_scene()
+        .map(|scene| standby_ahead(scene, it.photo().clone(), method));
     let mut held: VecDeque<Job> = VecDeque::new();
     let mut history = History::default();
     loop {
@@ -115,6 +111,10 @@ pub(crate) fn run(
                 None => return,
             },
         };
+        // Taken before the job: it may be the light change it is for.
+        if let Some(made) = standby.as_ref().and_then(|r| r.try_recv().ok()) {
+            it.offer_standby(made);
+        }
         let job = coalesce(job, &queue, &mut held);
         // A bug in a stage must not end the session: the job fails, the
         // session goes on from its last state.
@@ -125,34 +125,46 @@ pub(crate) fn run(
     }
 }
 
-/// Refines, beside the session and at the least priority, the room's
-/// links a first change of the lights would refine (the room meshed
-/// finer), into the links cache that render then reads: on `lounge` that
-/// change took 13 s from a cold cache. Its threads take only the CPU the
-/// session leaves idle (the stool's drag steps 107 ms alone, 115 ms beside
-/// it; 201 ms beside one thread at the session's priority).
-fn links_ahead(scene: Scene, settings: arlux::render::RenderSettings) {
+/// Makes, beside the session and at the least priority, the session a
+/// first change of the lights renders (the room meshed finer, its links
+/// refined, each light solved: [`arlux::interactive::Standby`]); the
+/// worker takes it from the returned channel before its next job. On
+/// `lounge` from a cold cache that change took 13 s in full, 1.1 s with
+/// its links refined ahead. Its threads take only the CPU the session
+/// leaves idle (the stool's drag steps 107 ms alone, 115 ms beside it;
+/// 201 ms beside one thread at the session's priority).
+fn standby_ahead(
+    scene: Scene,
+    photo: Image,
+    method: arlux::settings::Method,
+) -> Receiver<arlux::interactive::Standby> {
+    let (send, made) = std::sync::mpsc::channel();
+    let started = Instant::now();
     std::thread::spawn(move || {
-        let warm = || {
-            arlux::render::warm_links_for_light_changes(
-                &scene,
-                &settings,
-                &mut StageTimes::default(),
-            )
+        let start = || {
+            arlux::interactive::Standby::start(scene, &photo, &method, &mut StageTimes::default())
         };
         let pool = rayon::ThreadPoolBuilder::new()
-            .thread_name(|i| format!("arlux-links-{i}"))
+            .thread_name(|i| format!("arlux-ahead-{i}"))
             .start_handler(|_| lowest_priority())
             .build();
         // Without a pool of its own, not at all: it would take the
         // session's threads.
-        let why = match pool.map(|p| p.install(warm)) {
-            Ok(Ok(_)) => return,
+        let why = match pool.map(|p| p.install(start)) {
+            Ok(Ok(standby)) => {
+                eprintln!(
+                    "arlux serve: changes of the lights relight from here on ({:.1} s after the first image)",
+                    started.elapsed().as_secs_f64()
+                );
+                let _ = send.send(standby);
+                return;
+            }
             Ok(Err(e)) => e.to_string(),
             Err(e) => e.to_string(),
         };
-        eprintln!("arlux serve: the links for a change of lights were not refined ahead: {why}");
+        eprintln!("arlux serve: the session for a change of lights was not made ahead: {why}");
     });
+    made
 }
 
 /// Lowers the calling thread to the least priority (nice 19), by

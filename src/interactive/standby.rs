@@ -1,0 +1,135 @@
+//! A second session, made ahead on the mesh a change of the lights renders
+//! with, so that the first change of a light is a sum of its lights'
+//! solutions rather than a full render.
+//!
+//! With the automatic patch size, the photo's lights render on a coarse
+//! mesh and changed lights on a finer one (`docs/design/relighting.md`):
+//! the first change of a light leaves the session's mesh and renders in
+//! full (lounge: 1.1 s with its links cached, 9 s more without). A standby
+//! is that finer session, started on the state with one real light
+//! doubled (the same lights traced, the mesh a change gives) and its
+//! lights solved ahead. At the first change of a light the session takes
+//! it: moved to the objects' poses of the moment where they differ (an
+//! update), then relit to the new scales. The image is the full render's
+//! of the new state, as a relight's is (to 1e-5 relative).
+
+use super::{Interactive, RenderPath, Rendered};
+use crate::error::Result;
+use crate::image_io::Image;
+use crate::render::{PatchSize, lights_change};
+use crate::renderer::Renderer;
+use crate::scene::Scene;
+use crate::settings::Method;
+use crate::util::stages::StageTimes;
+
+/// A session on the finer mesh, its lights solved ahead (see the module).
+pub struct Standby {
+    renderer: Box<Renderer>,
+    /// The scene it rendered: the state it was made for, a light doubled.
+    scene: Scene,
+}
+
+impl Standby {
+    /// The scene a standby for `state` renders: `state` with its first
+    /// real light that is on doubled. None where a change of lights keeps
+    /// the mesh: a patch size given, the texture path (which relights on
+    /// its own mesh), lights already changed, or no real light on.
+    pub fn scene_for(state: &Scene, method: &Method) -> Option<Scene> {
+        let Method::Pda(settings) = method else {
+            return None;
+        };
+        if settings.patch_size != PatchSize::Auto || lights_change(&state.lights) {
+            return None;
+        }
+        let mut scene = state.clone();
+        let light = (scene.lights.iter_mut()).find(|l| l.real && l.scale > 0.0)?;
+        light.scale *= 2.0;
+        Some(scene)
+    }
+
+    /// Renders `scene` (from [`Standby::scene_for`]) and solves each of
+    /// its lights ahead. The room's links of the finer mesh are refined
+    /// here where the links cache does not hold them.
+    pub fn start(
+        scene: Scene,
+        photo: &Image,
+        method: &Method,
+        times: &mut StageTimes,
+    ) -> Result<Standby> {
+        let mut renderer = Renderer::start(&scene, photo, method, times)?;
+        renderer.prepare_relights(times);
+        renderer.keep_layers(crate::composite::Layers::Object);
+        Ok(Standby {
+            renderer: Box::new(renderer),
+            scene,
+        })
+    }
+
+    /// The standby moved to `target`'s objects and relit to its lights,
+    /// or None where it cannot give `target` so: other objects shown,
+    /// lights other than scaled, or scales the coarse mesh renders.
+    pub(super) fn take_to(
+        mut self,
+        target: &Scene,
+        times: &mut StageTimes,
+    ) -> Option<Box<Renderer>> {
+        let shown = |s: &Scene| s.objects.iter().map(|o| o.enabled).collect::<Vec<_>>();
+        if shown(target) != shown(&self.scene) || !lights_change(&target.lights) {
+            return None;
+        }
+        let same_poses =
+            (self.scene.objects.iter().zip(&target.objects)).all(|(a, b)| a.pose == b.pose);
+        if !same_poses {
+            let mut moved = target.clone();
+            moved.lights.clone_from(&self.scene.lights);
+            self.renderer.update(&moved, times).ok()?;
+        }
+        self.renderer.relight(target, times).ok()?;
+        Some(self.renderer)
+    }
+}
+
+impl Interactive {
+    /// `scene` from the standby where it can give it (a relight of the
+    /// finer session), else a full render.
+    pub(super) fn render_by_standby(
+        &mut self,
+        scene: Scene,
+        reason: String,
+        times: &mut StageTimes,
+    ) -> Result<RenderPath> {
+        match (self.standby.take()).and_then(|s| s.take_to(&scene, times)) {
+            Some(renderer) => {
+                self.rendered = Rendered::Frame(renderer);
+                self.relights_ahead = true;
+                self.scene = scene;
+                Ok(RenderPath::Relight)
+            }
+            None => self.render_full(scene, reason, times),
+        }
+    }
+
+    /// The scene a standby for this state renders (see [`Standby`]): None
+    /// where a change of lights would keep the session's mesh, and
+    /// Not where two sessions' pixel data would not fit in the memory a
+    /// render may hold ([`crate::render::default_memory`]): a 24-megapixel
+    /// plate's is 2.2 GB.
+    pub fn standby_scene(&self) -> Option<Scene> {
+        let Rendered::Frame(renderer) = &self.rendered else {
+            return None;
+        };
+        let m = renderer.memory_bytes();
+        let held = m.pixel_data + m.pixel_blocks + m.room_solution + m.change;
+        let photo = self.photo.pixels.len() * std::mem::size_of::<glam::Vec3>();
+        if (2 * held + photo) as u64 > crate::render::default_memory() {
+            return None;
+        }
+        Standby::scene_for(&self.scene, &self.method)
+    }
+
+    /// Holds `standby` for the first change of a light that leaves the
+    /// session's mesh.
+    pub fn offer_standby(&mut self, standby: Standby) {
+        self.standby = Some(standby);
+    }
+}
