@@ -225,10 +225,11 @@ fn drags_queued_behind_an_update_are_coalesced_the_latest_winning() {
     let server = std::sync::Arc::new(Server::start(&desk.scene(), &[]));
     server.wait_ready();
     let scene = arlux::scene::Scene::load(desk.scene()).unwrap();
-    // A light change is a full render: the drags sent meanwhile queue up.
+    // A virtual light switched on is a full render (its terms were never
+    // traced): the drags sent meanwhile queue up.
     let slow = {
         let s = std::sync::Arc::clone(&server);
-        std::thread::spawn(move || s.post("/api/light", &json!({ "light": "spot", "scale": 2.0 })))
+        std::thread::spawn(move || s.post("/api/light", &json!({ "light": "bulb", "scale": 2.0 })))
     };
     std::thread::sleep(Duration::from_millis(50));
     let points: Vec<(f64, f64)> = (0..8)
@@ -585,10 +586,17 @@ fn undo_and_redo_step_through_the_edits_and_give_back_their_images() {
     for _ in 0..4 {
         ok("/api/redo", json!({}));
     }
-    assert_eq!(
-        server.linear().0,
-        image_last,
-        "redoing every step gives the last image"
+    // The same state; the light step may come by another exact path the
+    // second time (a relight of the session made ahead for the lights, or
+    // a full render), equal to 1e-5 as a relight is to a full render.
+    let redone = server.linear().0;
+    let mean = image_last.iter().map(|v| *v as f64).sum::<f64>() / image_last.len() as f64;
+    let worst = (redone.iter().zip(&image_last))
+        .map(|(a, b)| (*a as f64 - *b as f64).abs() / (*b as f64).abs().max(1e-3 * mean))
+        .fold(0.0, f64::max);
+    assert!(
+        worst <= 1e-5,
+        "redoing every step gives the last image: {worst:.2e} relative"
     );
     // A new edit after an undo clears the redo list.
     ok("/api/undo", json!({}));

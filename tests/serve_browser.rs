@@ -273,14 +273,16 @@ async fn a_box_clicked_dragged_and_saved_in_the_browser_renders_as_the_server_sh
     let rendered = arlux::image_io::read_image(&exr).unwrap();
     let rendered: Vec<f32> = rendered.pixels.iter().flat_map(|p| p.to_array()).collect();
     assert_eq!(rendered.len(), served.len());
-    let differ = rendered
-        .iter()
-        .zip(&served)
-        .filter(|(a, b)| a.to_bits() != b.to_bits())
-        .count();
-    assert_eq!(
-        differ, 0,
-        "{differ} values differ between arlux render and the server's image"
+    // The panel's switch is a relight where the session made ahead for a
+    // change of the lights was ready (a sum of the lights' solutions, to
+    // 1e-5 of the full render), a full render where it was not.
+    let mean = rendered.iter().map(|v| *v as f64).sum::<f64>() / rendered.len() as f64;
+    let worst = (served.iter().zip(&rendered))
+        .map(|(a, b)| (*a as f64 - *b as f64).abs() / (*b as f64).abs().max(1e-3 * mean))
+        .fold(0.0, f64::max);
+    assert!(
+        worst <= 1e-5,
+        "the server's image differs from arlux render's by {worst:.2e} relative"
     );
 
     // The box's footprint centre projects onto the drag's last point.
@@ -360,12 +362,20 @@ async fn the_page_refines_and_hides_the_wipe() {
         assert_eq!(displayed(&client, "before").await, shown, "{view}");
         assert_eq!(displayed(&client, "wipe").await, shown, "{view}");
     }
-    // A light change (a full render) shows that it is working, and five
-    // moves of a slider meanwhile coalesce: the latest wins.
+    // A virtual light switched on with its box (a full render: its terms
+    // were never traced) shows that it is working, and five moves of its
+    // slider meanwhile coalesce: the latest wins.
     let before = server.get("/api/state").json()["version"].as_u64().unwrap();
     client
         .execute(
-            "const row = document.querySelector(\"[data-light='spot']\");
+            "const status = document.getElementById('status');
+             window.__worked = false;
+             new MutationObserver(() => {
+               if (status.dataset.working === 'true') window.__worked = true;
+             }).observe(status, { attributes: true });
+             const row = document.querySelector(\"[data-light='bulb']\");
+             const box = row.querySelector('input[type=checkbox]');
+             box.checked = true; box.dispatchEvent(new Event('change'));
              const range = row.querySelector('input[type=range]');
              for (const v of [0.5, 1.5, 2.0, 2.5, 3.0]) {
                range.value = v; range.dispatchEvent(new Event('change'));
@@ -374,19 +384,17 @@ async fn the_page_refines_and_hides_the_wipe() {
         )
         .await
         .unwrap();
-    wait_until(
-        &client,
-        "document.getElementById('status').dataset.working === 'true'",
-    )
-    .await;
+    // Watched as it changes, not polled: the render takes a few tenths
+    // of a second, the flag is up for the part beyond 100 ms.
+    wait_until(&client, "window.__worked").await;
     wait_until(
         &client,
         "!busy && waiting.size === 0 && document.getElementById('status').dataset.working === 'false'",
     )
     .await;
     let state = server.get("/api/state").json();
-    let spot = light_in(&state, "spot");
-    assert_eq!(spot["scale"], 3.0, "{state}");
+    let bulb = light_in(&state, "bulb");
+    assert_eq!(bulb["scale"], 3.0, "{state}");
     let edits = state["version"].as_u64().unwrap() - before;
     assert!(edits <= 2, "{edits} edits for five moves of one slider");
     let errors = client
