@@ -6,8 +6,9 @@
 use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::Receiver;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use serde_json::{Value, json};
 use tokio::sync::oneshot;
@@ -98,7 +99,7 @@ pub(crate) fn run(
         "arlux serve: ready ({:.1} s of preprocess)",
         started.elapsed().as_secs_f64()
     );
-    let standby = it
+    let ahead = it
         .standby_scene()
         .map(|scene| standby_ahead(scene, it.photo().clone(), method));
     let mut held: VecDeque<Job> = VecDeque::new();
@@ -112,8 +113,11 @@ pub(crate) fn run(
             },
         };
         // Taken before the job: it may be the light change it is for.
-        if let Some(made) = standby.as_ref().and_then(|r| r.try_recv().ok()) {
-            it.offer_standby(made);
+        if let Some((made, quiet)) = &ahead {
+            quiet.busy.store(true, Ordering::Relaxed);
+            if let Ok(standby) = made.try_recv() {
+                it.offer_standby(standby);
+            }
         }
         let job = coalesce(job, &queue, &mut held);
         // A bug in a stage must not end the session: the job fails, the
@@ -122,25 +126,81 @@ pub(crate) fn run(
         if std::panic::catch_unwind(job_run).is_err() {
             eprintln!("arlux serve: a job failed (see above); the session goes on");
         }
+        if let Some((_, quiet)) = &ahead {
+            // Once the session has left the photo's lights it is on the
+            // finer mesh itself: a standby not yet begun is not made.
+            if it.standby_scene().is_none() {
+                quiet.wanted.store(false, Ordering::Relaxed);
+            }
+            quiet.mark_idle();
+        }
+    }
+}
+
+/// How long the session must have been without an edit before the
+/// standby begins: made beside a drag or a slider, it took their caches
+/// (the serve bench's slider steps 36 → 48 ms median, the stool's drag
+/// steps 118 → 129 ms), and a change of lights made before it is ready
+/// renders on the finer mesh anyway.
+const QUIET_BEFORE_STANDBY: Duration = Duration::from_secs(1);
+
+/// What the worker tells the thread that makes the standby: whether an
+/// edit is being served, when the last one ended, and whether a standby
+/// is still wanted.
+struct Quiet {
+    epoch: Instant,
+    busy: AtomicBool,
+    /// Milliseconds from `epoch` to the end of the last edit.
+    idle_since_ms: AtomicU64,
+    wanted: AtomicBool,
+}
+
+impl Quiet {
+    fn mark_idle(&self) {
+        let now = self.epoch.elapsed().as_millis() as u64;
+        self.idle_since_ms.store(now, Ordering::Relaxed);
+        self.busy.store(false, Ordering::Relaxed);
+    }
+
+    fn quiet_for(&self) -> Duration {
+        if self.busy.load(Ordering::Relaxed) {
+            return Duration::ZERO;
+        }
+        let since = Duration::from_millis(self.idle_since_ms.load(Ordering::Relaxed));
+        self.epoch.elapsed().saturating_sub(since)
     }
 }
 
 /// Makes, beside the session and at the least priority, the session a
 /// first change of the lights renders (the room meshed finer, its links
-/// refined, each light solved: [`arlux::interactive::Standby`]); the
+/// refined, each light solved: [`arlux::interactive::Standby`]), once the
+/// session has been without an edit for [`QUIET_BEFORE_STANDBY`]; the
 /// worker takes it from the returned channel before its next job. On
 /// `lounge` from a cold cache that change took 13 s in full, 1.1 s with
 /// its links refined ahead. Its threads take only the CPU the session
-/// leaves idle (the stool's drag steps 107 ms alone, 115 ms beside it;
-/// 201 ms beside one thread at the session's priority).
+/// leaves idle (the stool's drag steps 107 ms alone, 115 ms beside the
+/// links' refinement; 201 ms beside one thread at the session's priority).
 fn standby_ahead(
     scene: Scene,
     photo: Image,
     method: arlux::settings::Method,
-) -> Receiver<arlux::interactive::Standby> {
+) -> (Receiver<arlux::interactive::Standby>, Arc<Quiet>) {
     let (send, made) = std::sync::mpsc::channel();
-    let started = Instant::now();
+    let quiet = Arc::new(Quiet {
+        epoch: Instant::now(),
+        busy: AtomicBool::new(false),
+        idle_since_ms: AtomicU64::new(0),
+        wanted: AtomicBool::new(true),
+    });
+    let told = Arc::clone(&quiet);
     std::thread::spawn(move || {
+        while told.quiet_for() < QUIET_BEFORE_STANDBY {
+            if !told.wanted.load(Ordering::Relaxed) {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        let started = Instant::now();
         let start = || {
             arlux::interactive::Standby::start(scene, &photo, &method, &mut StageTimes::default())
         };
@@ -153,7 +213,7 @@ fn standby_ahead(
         let why = match pool.map(|p| p.install(start)) {
             Ok(Ok(standby)) => {
                 eprintln!(
-                    "arlux serve: changes of the lights relight from here on ({:.1} s after the first image)",
+                    "arlux serve: changes of the lights relight from here on (made in {:.1} s)",
                     started.elapsed().as_secs_f64()
                 );
                 let _ = send.send(standby);
@@ -164,7 +224,7 @@ fn standby_ahead(
         };
         eprintln!("arlux serve: the session for a change of lights was not made ahead: {why}");
     });
-    made
+    (made, quiet)
 }
 
 /// Lowers the calling thread to the least priority (nice 19), by
