@@ -589,11 +589,7 @@ fn undo_and_redo_step_through_the_edits_and_give_back_their_images() {
     // The same state; the light step may come by another exact path the
     // second time (a relight of the session made ahead for the lights, or
     // a full render), equal to 1e-5 as a relight is to a full render.
-    let redone = server.linear().0;
-    let mean = image_last.iter().map(|v| *v as f64).sum::<f64>() / image_last.len() as f64;
-    let worst = (redone.iter().zip(&image_last))
-        .map(|(a, b)| (*a as f64 - *b as f64).abs() / (*b as f64).abs().max(1e-3 * mean))
-        .fold(0.0, f64::max);
+    let worst = common::relative_difference_of(&server.linear().0, &image_last);
     assert!(
         worst <= 1e-5,
         "redoing every step gives the last image: {worst:.2e} relative"

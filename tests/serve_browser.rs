@@ -276,10 +276,7 @@ async fn a_box_clicked_dragged_and_saved_in_the_browser_renders_as_the_server_sh
     // The panel's switch is a relight where the session made ahead for a
     // change of the lights was ready (a sum of the lights' solutions, to
     // 1e-5 of the full render), a full render where it was not.
-    let mean = rendered.iter().map(|v| *v as f64).sum::<f64>() / rendered.len() as f64;
-    let worst = (served.iter().zip(&rendered))
-        .map(|(a, b)| (*a as f64 - *b as f64).abs() / (*b as f64).abs().max(1e-3 * mean))
-        .fold(0.0, f64::max);
+    let worst = common::relative_difference_of(&served, &rendered);
     assert!(
         worst <= 1e-5,
         "the server's image differs from arlux render's by {worst:.2e} relative"

@@ -206,11 +206,21 @@ pub fn differing(a: &Image, b: &Image) -> usize {
 /// The largest difference between two images relative to the second's
 /// value (a floor of 1e-3 of its mean for the darkest pixels).
 pub fn relative_difference(a: &Image, b: &Image) -> f64 {
-    let mean = b.pixels.iter().map(|p| p.element_sum() as f64).sum::<f64>()
-        / (3 * b.pixels.len().max(1)) as f64;
-    (a.pixels.iter().zip(&b.pixels))
-        .flat_map(|(x, y)| (0..3).map(move |c| (x[c] as f64, y[c] as f64)))
-        .map(|(x, y)| (x - y).abs() / y.abs().max(1e-3 * mean))
+    let values = |i: &Image| {
+        i.pixels
+            .iter()
+            .flat_map(|p| p.to_array())
+            .collect::<Vec<f32>>()
+    };
+    relative_difference_of(&values(a), &values(b))
+}
+
+/// [`relative_difference`] of two images' values as flat lists (what
+/// `serve`'s `/api/linear` returns).
+pub fn relative_difference_of(a: &[f32], b: &[f32]) -> f64 {
+    let mean = b.iter().map(|v| *v as f64).sum::<f64>() / b.len().max(1) as f64;
+    (a.iter().zip(b))
+        .map(|(x, y)| (*x as f64 - *y as f64).abs() / (*y as f64).abs().max(1e-3 * mean))
         .fold(0.0, f64::max)
 }
 
