@@ -678,7 +678,12 @@ impl Interactive {
                 }
                 Err(why) => {
                     let reason = format!("the lights changed ({})", why.describe());
-                    self.render_by_standby(scene, reason, times)?
+                    match why {
+                        crate::render::Relight::PatchSize => {
+                            self.render_by_standby(scene, reason, times)?
+                        }
+                        _ => self.render_full(scene, reason, times)?,
+                    }
                 }
             }
         } else {

@@ -197,10 +197,10 @@ fn lights_solved_ahead_make_the_first_step_a_sum() {
 }
 
 /// A standby (the session a change of the lights renders, made ahead)
-/// makes the first change of a light a relight, after a move too; its
-/// image is the full render's of the state to 1e-5 relative. Where it
-/// cannot give the state (the lights as photographed), the change renders
-/// in full.
+/// makes the first change of a light a relight, after a move too, and the
+/// session it replaced stands by for the lights set back as photographed;
+/// each image is the full render's of the state to 1e-5 relative. What
+/// neither traced (a virtual light switched on) renders in full.
 #[test]
 fn a_standby_makes_the_first_change_of_a_light_a_relight() {
     use arlux::interactive::{Edit, Interactive, RenderPath, Standby};
@@ -253,26 +253,23 @@ fn a_standby_makes_the_first_change_of_a_light_a_relight() {
             .unwrap();
         assert!(matches!(out.path, RenderPath::Relight), "{out:?}");
         same_as_full(&it);
-        // As photographed: the coarser mesh, in full.
-        it.apply(
-            Edit::Light {
-                light: 1,
-                scale: 1.0,
-            },
-            times,
-        )
-        .unwrap();
-        let out = it
-            .apply(
-                Edit::Light {
-                    light: 0,
-                    scale: 1.0,
-                },
-                times,
-            )
-            .unwrap();
-        assert!(matches!(out.path, RenderPath::Full { .. }), "{out:?}");
+        // As photographed: the coarser session the standby replaced stands
+        // by in turn, and relights (at the scales it was rendered at, and
+        // moved by updates: bit for bit); changed again, the finer one does.
+        let set = |it: &mut Interactive, light, scale, times: &mut StageTimes| {
+            it.apply(Edit::Light { light, scale }, times).unwrap().path
+        };
+        set(&mut it, 1, 1.0, times);
+        let path = set(&mut it, 0, 1.0, times);
+        assert!(matches!(path, RenderPath::Relight), "{path:?}");
+        let full = render(it.scene(), &photo, &settings, &mut StageTimes::default()).unwrap();
+        assert_eq!(differing(it.image(), &full.composite.image), 0);
+        let path = set(&mut it, 0, 0.25, times);
+        assert!(matches!(path, RenderPath::Relight), "{path:?}");
         same_as_full(&it);
-        assert!(it.standby_scene().is_some());
+        // A virtual light switched on was never traced: in full.
+        let path = set(&mut it, 2, 1.0, times);
+        assert!(matches!(path, RenderPath::Full { .. }), "{path:?}");
+        same_as_full(&it);
     }
 }

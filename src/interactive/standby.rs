@@ -65,18 +65,24 @@ impl Standby {
         })
     }
 
-    /// The standby moved to `target`'s objects and relit to its lights,
-    /// or None where it cannot give `target` so: other objects shown,
-    /// lights other than scaled, or scales the coarse mesh renders.
-    pub(super) fn take_to(
-        mut self,
-        target: &Scene,
-        times: &mut StageTimes,
-    ) -> Option<Box<Renderer>> {
+    /// Whether `target` shows the objects the standby shows, under the same
+    /// lights (their scales aside): what an update and a relight can give.
+    fn shows_as(&self, target: &Scene) -> bool {
         let shown = |s: &Scene| s.objects.iter().map(|o| o.enabled).collect::<Vec<_>>();
-        if shown(target) != shown(&self.scene) || !lights_change(&target.lights) {
-            return None;
-        }
+        let unscaled = |l: &crate::scene::Light| crate::scene::Light {
+            scale: 0.0,
+            ..l.clone()
+        };
+        shown(target) == shown(&self.scene)
+            && target.lights.len() == self.scene.lights.len()
+            && (target.lights.iter().zip(&self.scene.lights))
+                .all(|(a, b)| unscaled(a) == unscaled(b))
+    }
+
+    /// The standby moved to `target`'s objects and relit to its lights,
+    /// or None where its relight refuses them (a light switched on that
+    /// it never traced, scales another mesh renders).
+    fn take_to(mut self, target: &Scene, times: &mut StageTimes) -> Option<Box<Renderer>> {
         let same_poses =
             (self.scene.objects.iter().zip(&target.objects)).all(|(a, b)| a.pose == b.pose);
         if !same_poses {
@@ -90,23 +96,37 @@ impl Standby {
 }
 
 impl Interactive {
-    /// `scene` from the standby where it can give it (a relight of the
-    /// finer session), else a full render.
+    /// `scene`, whose scales the session's own mesh does not render, from
+    /// the standby where it can give it (a relight), else a full render.
+    /// The session it replaces stands by in turn: lights set back as
+    /// photographed relight on it, and changed again on the finer one.
     pub(super) fn render_by_standby(
         &mut self,
         scene: Scene,
         reason: String,
         times: &mut StageTimes,
     ) -> Result<RenderPath> {
-        match (self.standby.take()).and_then(|s| s.take_to(&scene, times)) {
-            Some(renderer) => {
-                self.rendered = Rendered::Frame(renderer);
-                self.relights_ahead = true;
-                self.scene = scene;
-                Ok(RenderPath::Relight)
+        let standby = match self.standby.take() {
+            Some(s) if s.shows_as(&scene) => s,
+            kept => {
+                self.standby = kept;
+                return self.render_full(scene, reason, times);
             }
-            None => self.render_full(scene, reason, times),
+        };
+        let Some(renderer) = standby.take_to(&scene, times) else {
+            return self.render_full(scene, reason, times);
+        };
+        let last = std::mem::replace(&mut self.scene, scene);
+        if let Rendered::Frame(session) =
+            std::mem::replace(&mut self.rendered, Rendered::Frame(renderer))
+        {
+            self.standby = Some(Standby {
+                renderer: session,
+                scene: last,
+            });
         }
+        self.relights_ahead = true;
+        Ok(RenderPath::Relight)
     }
 
     /// The scene a standby for this state renders (see [`Standby`]): None
