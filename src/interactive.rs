@@ -179,7 +179,8 @@ pub struct Interactive {
     /// ([`Interactive::prepare_relights`]): after a full render or a
     /// relight, not after a move (a drag's next move would wait for it).
     relights_ahead: bool,
-    /// The finer session made ahead, taken at the first change of a light.
+    /// The session on the other mesh, taken when the lights cross between
+    /// the photo's and changed ones.
     standby: Option<Standby>,
     /// States to go back to (newest last), and to go forward to again.
     undo: Vec<Snapshot>,

@@ -11,7 +11,10 @@
 //! lights solved ahead. At the first change of a light the session takes
 //! it: moved to the objects' poses of the moment where they differ (an
 //! update), then relit to the new scales. The image is the full render's
-//! of the new state, as a relight's is (to 1e-5 relative).
+//! of the new state, as a relight's is (to 1e-5 relative). The session it
+//! replaces stands by in turn, for the lights set back as photographed
+//! (bit for bit: a relight to the scales a session holds does nothing),
+//! and so on each time the lights cross between the two meshes.
 
 use super::{Interactive, RenderPath, Rendered};
 use crate::error::Result;
@@ -22,10 +25,12 @@ use crate::scene::Scene;
 use crate::settings::Method;
 use crate::util::stages::StageTimes;
 
-/// A session on the finer mesh, its lights solved ahead (see the module).
+/// A session on the other mesh: the finer one made ahead, its lights
+/// solved, or the one it replaced (see the module).
 pub struct Standby {
     renderer: Box<Renderer>,
-    /// The scene it rendered: the state it was made for, a light doubled.
+    /// The scene it holds: the state it was made for (a light doubled) or
+    /// the one it last showed.
     scene: Scene,
 }
 
