@@ -40,16 +40,20 @@ impl Standby {
     /// the mesh: a patch size given, the texture path (which relights on
     /// its own mesh), lights already changed, or no real light on.
     pub fn scene_for(state: &Scene, method: &Method) -> Option<Scene> {
-        let Method::Pda(settings) = method else {
-            return None;
-        };
-        if settings.patch_size != PatchSize::Auto || lights_change(&state.lights) {
+        if !Standby::wanted_for(state, method) {
             return None;
         }
         let mut scene = state.clone();
         let light = (scene.lights.iter_mut()).find(|l| l.real && l.scale > 0.0)?;
         light.scale *= 2.0;
         Some(scene)
+    }
+
+    /// Whether a change of `state`'s lights would leave its mesh: the
+    /// pixel path on the automatic patch size, on the photo's lights.
+    fn wanted_for(state: &Scene, method: &Method) -> bool {
+        matches!(method, Method::Pda(s) if s.patch_size == PatchSize::Auto)
+            && !lights_change(&state.lights)
     }
 
     /// Renders `scene` (from [`Standby::scene_for`]) and solves each of
@@ -135,10 +139,10 @@ impl Interactive {
     }
 
     /// The scene a standby for this state renders (see [`Standby`]): None
-    /// where a change of lights would keep the session's mesh, and
-    /// Not where two sessions' pixel data would not fit in the memory a
-    /// render may hold ([`crate::render::default_memory`]): a 24-megapixel
-    /// plate's is 2.2 GB.
+    /// where a change of lights would keep the session's mesh, where the
+    /// state shows the photo itself, and where two sessions' pixel data
+    /// would not fit in the memory a render may hold
+    /// ([`crate::render::default_memory`]): a 24-megapixel plate's is 2.2 GB.
     pub fn standby_scene(&self) -> Option<Scene> {
         let Rendered::Frame(renderer) = &self.rendered else {
             return None;
@@ -150,6 +154,13 @@ impl Interactive {
             return None;
         }
         Standby::scene_for(&self.scene, &self.method)
+    }
+
+    /// Whether a standby could still serve this state's next change of
+    /// lights (the session is on the photo's lights, the automatic patch
+    /// size): asked after every edit, so it clones nothing.
+    pub fn standby_wanted(&self) -> bool {
+        Standby::wanted_for(&self.scene, &self.method)
     }
 
     /// Holds `standby` for the first change of a light that leaves the

@@ -129,7 +129,7 @@ pub(crate) fn run(
         if let Some((_, quiet)) = &ahead {
             // Once the session has left the photo's lights it is on the
             // finer mesh itself: a standby not yet begun is not made.
-            if it.standby_scene().is_none() {
+            if !it.standby_wanted() {
                 quiet.wanted.store(false, Ordering::Relaxed);
             }
             quiet.mark_idle();
