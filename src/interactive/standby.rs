@@ -5,7 +5,7 @@
 //! With the automatic patch size, the photo's lights render on a coarse
 //! mesh and changed lights on a finer one (`docs/design/relighting.md`):
 //! the first change of a light leaves the session's mesh and renders in
-//! full (lounge: 1.1 s with its links cached, 9 s more without). A standby
+//! full (lounge: 1.1 s with its links cached, 8.5 s without). A standby
 //! is that finer session, started on the state with one real light
 //! doubled (the same lights traced, the mesh a change gives) and its
 //! lights solved ahead. At the first change of a light the session takes
