@@ -17,6 +17,11 @@ use crate::scene::{Intensity, Light, LightPosition, LightShape, Scene};
 use crate::trace::{Layer, TraceRay, Tracer};
 use crate::util::rng::{hash2, unit_random};
 
+mod lambert;
+#[cfg(test)]
+use lambert::angle_atan2;
+pub use lambert::{polygon_form_factor, polygon_form_factor_sided, polygon_form_factors_sided};
+
 /// Goniometric intensity I(direction) in W/sr, before the light's scale.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Distribution {
@@ -540,117 +545,6 @@ pub fn segment(a: DVec3, b: DVec3) -> TraceRay {
         tnear: 0.0,
         tfar: 1.0 - eps,
     }
-}
-
-/// The unoccluded form factor from a differential area at `x` with unit
-/// normal `n` to a planar convex polygon (Lambert's formula), two-sided at
-/// `x`: the parts of the polygon on either side of the tangent plane both
-/// count. Finite for any x off the polygon; at most 1. Polygons have at most
-/// six corners.
-pub fn polygon_form_factor(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
-    polygon_form_factor_sided(x, n, polygon, true)
-}
-
-/// [`polygon_form_factor`], with `two_sided` false counting only the part
-/// of the polygon on the side `n` points to.
-pub fn polygon_form_factor_sided(x: DVec3, n: DVec3, polygon: &[DVec3], two_sided: bool) -> f64 {
-    debug_assert!(polygon.len() <= 6);
-    let (mut above, mut below) = (false, false);
-    for p in polygon {
-        let s = (*p - x).dot(n);
-        above |= s > 0.0;
-        below |= s < 0.0;
-    }
-    let mut total = 0.0;
-    let mut buf = [DVec3::ZERO; 8];
-    for (side, present) in [(1.0, above), (-1.0, below && two_sided)] {
-        if !present {
-            continue;
-        }
-        let clipped: &[DVec3] = if above && below {
-            let k = clip_to_halfspace(polygon, x, n * side, &mut buf);
-            &buf[..k]
-        } else {
-            polygon
-        };
-        if clipped.len() < 3 {
-            continue;
-        }
-        let mut sum = 0.0;
-        for k in 0..clipped.len() {
-            let a = clipped[k] - x;
-            let b = clipped[(k + 1) % clipped.len()] - x;
-            let c = a.cross(b);
-            let cl = c.length();
-            if cl < 1e-300 {
-                continue;
-            }
-            sum += angle_atan2(cl, a.dot(b)) * c.dot(n) / cl;
-        }
-        total += (sum / (2.0 * std::f64::consts::PI)).abs();
-    }
-    total.min(1.0)
-}
-
-/// atan2(y, x) for y ≥ 0: the angle in [0, π] (Cephes' `atan`, accurate
-/// to about 2 units in the last place). The polygon form factors sum four
-/// such angles each, and glibc's `atan2` saves and restores the rounding
-/// mode on every call: it took about half of their time.
-fn angle_atan2(y: f64, x: f64) -> f64 {
-    use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
-    const P: [f64; 5] = [
-        -8.750_608_600_031_904e-1,
-        -1.615_753_718_733_365_2e1,
-        -7.500_855_792_314_705e1,
-        -1.228_866_684_490_136_1e2,
-        -6.485_021_904_942_025e1,
-    ];
-    const Q: [f64; 5] = [
-        2.485_846_490_142_306_2e1,
-        1.650_270_098_316_988_5e2,
-        4.328_810_604_912_902_7e2,
-        4.853_903_996_359_137e2,
-        1.945_506_571_482_614e2,
-    ];
-    const MOREBITS: f64 = 6.123_233_995_736_766e-17;
-    const TAN_3PI_8: f64 = 2.414_213_562_373_095;
-    debug_assert!(y >= 0.0);
-    let ax = x.abs();
-    if ax == 0.0 {
-        return if y == 0.0 { 0.0 } else { FRAC_PI_2 };
-    }
-    // atan(y / |x|), reduced to |t| ≤ 0.66.
-    let (base, t, more) = if y > TAN_3PI_8 * ax {
-        (FRAC_PI_2, -ax / y, MOREBITS)
-    } else if y <= 0.66 * ax {
-        (0.0, y / ax, 0.0)
-    } else {
-        (FRAC_PI_4, (y - ax) / (y + ax), 0.5 * MOREBITS)
-    };
-    let z = t * t;
-    let p = (((P[0] * z + P[1]) * z + P[2]) * z + P[3]) * z + P[4];
-    let q = ((((z + Q[0]) * z + Q[1]) * z + Q[2]) * z + Q[3]) * z + Q[4];
-    let a = base + (t * (z * p / q) + t + more);
-    if x < 0.0 { PI - a } else { a }
-}
-
-/// Writes into `out` the part of a convex polygon where (p − x)·m ≥ 0
-/// (Sutherland-Hodgman) and returns its corner count.
-fn clip_to_halfspace(polygon: &[DVec3], x: DVec3, m: DVec3, out: &mut [DVec3; 8]) -> usize {
-    let mut len = 0;
-    for k in 0..polygon.len() {
-        let (p, q) = (polygon[k], polygon[(k + 1) % polygon.len()]);
-        let (dp, dq) = ((p - x).dot(m), (q - x).dot(m));
-        if dp >= 0.0 {
-            out[len] = p;
-            len += 1;
-        }
-        if (dp >= 0.0) != (dq >= 0.0) {
-            out[len] = p + (q - p) * (dp / (dp - dq));
-            len += 1;
-        }
-    }
-    len
 }
 
 #[cfg(test)]

@@ -232,3 +232,52 @@ fn the_polygon_factors_angle_matches_atan2_to_the_last_places() {
         );
     }
 }
+
+#[test]
+fn the_factors_at_four_points_at_once_are_the_single_points_bit_for_bit() {
+    // Points in front of, behind, beside and in the plane of a quad and a
+    // triangle, with tangent planes that cut them (the clipping path), at
+    // polygon corners (zero-length edges' cross products) and far off.
+    let quad = square(DVec3::new(0.2, 1.0, -0.1), 0.5);
+    let tri = [
+        DVec3::new(-0.4, 0.3, 0.2),
+        DVec3::new(0.7, 0.9, -0.3),
+        DVec3::new(0.1, 1.6, 0.8),
+    ];
+    let mut state = 5u64;
+    let mut r = |scale: f64| (unit_random(&mut state) - 0.5) * scale;
+    let (mut clipped, mut compared) = (0, 0);
+    for trial in 0..4000 {
+        let polygon: &[DVec3] = if trial % 2 == 0 { &quad } else { &tri };
+        let n = DVec3::new(r(2.0), r(2.0), r(2.0)).normalize_or(DVec3::Y);
+        let scale = [0.01, 1.0, 100.0][trial % 3];
+        let mut points: Vec<DVec3> = (0..1 + trial % 11)
+            .map(|_| DVec3::new(r(scale), r(scale), r(scale)))
+            .collect();
+        if trial % 7 == 0 {
+            points.push(polygon[0]);
+            points.push(DVec3::new(polygon[1].x, 1.0, polygon[1].z));
+        }
+        for two_sided in [false, true] {
+            let mut batch = vec![f64::NAN; points.len()];
+            polygon_form_factors_sided(&points, n, polygon, two_sided, &mut batch);
+            for (x, f) in points.iter().zip(&batch) {
+                let one = polygon_form_factor_sided(*x, n, polygon, two_sided);
+                assert_eq!(
+                    f.to_bits(),
+                    one.to_bits(),
+                    "at {x} (n {n}): {f} against {one}"
+                );
+                let sides = polygon.iter().map(|p| (*p - *x).dot(n));
+                clipped +=
+                    (sides.clone().any(|s| s > 0.0) && sides.clone().any(|s| s < 0.0)) as u32;
+                compared += 1;
+            }
+        }
+    }
+    // Both paths were taken.
+    assert!(
+        clipped > 1000 && compared - clipped > 1000,
+        "{clipped} of {compared} clipped"
+    );
+}

@@ -90,16 +90,55 @@ pub(crate) fn unoccluded_form_factor(p: &Element, q: &Element) -> f64 {
     // Integrated over q instead (A_p·F_pq = A_q·F_qp), each point of q
     // clips p to q's front exactly.
     if straddles(p, q) && !straddles(q, p) && p.area > 0.0 {
-        let polygon = p.shape.corners();
-        let mut f = 0.0;
-        (q.shape)
-            .for_each_quadrature_point(FF_ORDER, |y, w| f += w * point_factor(y, q, p, &polygon));
-        return f * q.area / p.area;
+        return quadrature_factor(q, p) * q.area / p.area;
     }
+    quadrature_factor(p, q)
+}
+
+/// Quadrature points a receiver's shape has at most ([`FF_ORDER`]²).
+const QUADRATURE_POINTS: usize = 16;
+const _: () = assert!(FF_ORDER * FF_ORDER <= QUADRATURE_POINTS);
+
+/// [`point_factor`] from `p` to `q` at the quadrature points of `p`,
+/// weighted and summed in their order: the points' factors taken at once
+/// ([`crate::light::polygon_form_factors_sided`]), the same sum bit for bit.
+fn quadrature_factor(p: &Element, q: &Element) -> f64 {
     let polygon = q.shape.corners();
+    let (mut xs, mut ws, mut count) = (
+        [DVec3::ZERO; QUADRATURE_POINTS],
+        [0.0; QUADRATURE_POINTS],
+        0,
+    );
+    (p.shape).for_each_quadrature_point(FF_ORDER, |x, w| {
+        (xs[count], ws[count]) = (x, w);
+        count += 1;
+    });
+    let mut factors = [0.0; QUADRATURE_POINTS];
+    let (xs, factors) = (&xs[..count], &mut factors[..count]);
+    point_factors(xs, p, q, &polygon, factors);
     let mut f = 0.0;
-    (p.shape).for_each_quadrature_point(FF_ORDER, |x, w| f += w * point_factor(x, p, q, &polygon));
+    for (w, factor) in ws.iter().zip(factors) {
+        f += w * *factor;
+    }
     f
+}
+
+/// [`point_factor`] at each of `xs` into `out`, taken at once
+/// ([`crate::light::polygon_form_factors_sided`]): the same numbers bit
+/// for bit.
+pub(super) fn point_factors(
+    xs: &[DVec3],
+    p: &Element,
+    q: &Element,
+    polygon: &[DVec3],
+    out: &mut [f64],
+) {
+    crate::light::polygon_form_factors_sided(xs, p.normal, polygon, !p.one_sided, out);
+    for (x, f) in xs.iter().zip(out) {
+        if q.one_sided && (*x - q.centre).dot(q.normal) <= 0.0 {
+            *f = 0.0;
+        }
+    }
 }
 
 /// The shaft `ShaftTest` tests roots against, built when first needed:

@@ -11,7 +11,8 @@ use crate::trace::{Layer, Tracer};
 use super::GatherRows;
 use super::form_factor::{
     PairShafts, coplanar, faces_away, may_be_occluded, may_be_occluded_using, occluders_between,
-    occluders_between_using, point_factor, straddles, unoccluded_form_factor, visibility,
+    occluders_between_using, point_factor, point_factors, straddles, unoccluded_form_factor,
+    visibility,
 };
 
 /// Default refinement threshold of hierarchical radiosity: on the desk at
@@ -305,12 +306,15 @@ pub(super) fn factor_spread(p: &Element, q: &Element) -> (f64, f64) {
     let mut hi: f64 = 0.0;
     let mut mean = 0.0;
     let corners = p.shape.corners();
-    for x in corners
-        .iter()
-        .map(|c| p.centre + (*c - p.centre) * 0.9)
-        .chain(std::iter::once(p.centre))
-    {
-        let f = point_factor(x, p, q, &polygon);
+    // The inset corners and the centre, their factors taken at once.
+    let mut xs = [p.centre; 5];
+    for (x, c) in xs.iter_mut().zip(corners.iter()) {
+        *x = p.centre + (*c - p.centre) * 0.9;
+    }
+    let xs = &xs[..corners.len() + 1];
+    let mut factors = [0.0; 5];
+    point_factors(xs, p, q, &polygon, &mut factors[..xs.len()]);
+    for &f in &factors[..xs.len()] {
         lo = lo.min(f);
         hi = hi.max(f);
         mean += f;
