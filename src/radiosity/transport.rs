@@ -135,6 +135,8 @@ impl Transport {
             .into_par_iter()
             .filter(|&k| k / roots.len() != k % roots.len())
             .flat_map_iter(|k| {
+                // Links refined ahead (a standby session) wait here while an edit is served.
+                crate::util::pause::point();
                 let mut out = Vec::new();
                 refine(
                     &with,

@@ -40,6 +40,7 @@ fn room_per_light(
                 if !active {
                     return None;
                 }
+                crate::util::pause::point();
                 let b: Vec<DVec3> = reflectance.iter().zip(e).map(|(r, e)| *r * *e).collect();
                 Some(solve_from(
                     &model.patches,

@@ -35,6 +35,8 @@ pub struct StageTimes(
 impl StageTimes {
     /// Runs `f` and records its time under `name`.
     pub fn time<T>(&mut self, name: &'static str, f: impl FnOnce() -> T) -> T {
+        // Work made ahead may pause between its stages.
+        super::pause::point();
         started(name);
         let t0 = Instant::now();
         let out = f();

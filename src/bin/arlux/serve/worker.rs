@@ -115,7 +115,11 @@ pub(crate) fn run(
         // Taken before the job: it may be the light change it is for.
         if let Some((made, quiet)) = &ahead {
             quiet.busy.store(true, Ordering::Relaxed);
-            if let Ok(standby) = made.try_recv() {
+            // Made for a session that has since left the photo's lights
+            // (and so the coarse mesh) itself, it could serve nothing: freed.
+            if let Ok(standby) = made.try_recv()
+                && it.standby_wanted()
+            {
                 it.offer_standby(standby);
             }
         }
@@ -128,7 +132,7 @@ pub(crate) fn run(
         }
         if let Some((_, quiet)) = &ahead {
             // Once the session has left the photo's lights it is on the
-            // finer mesh itself: a standby not yet begun is not made.
+            // finer mesh itself: a standby under way is given up.
             if !it.standby_wanted() {
                 quiet.wanted.store(false, Ordering::Relaxed);
             }
@@ -136,13 +140,6 @@ pub(crate) fn run(
         }
     }
 }
-
-/// How long the session must have been without an edit before the
-/// standby begins: made beside a drag or a slider, it took their caches
-/// (the serve bench's slider steps 36 → 48 ms median, the stool's drag
-/// steps 118 → 129 ms), and a change of lights made before it is ready
-/// renders on the finer mesh anyway.
-const QUIET_BEFORE_STANDBY: Duration = Duration::from_secs(1);
 
 /// What the worker tells the thread that makes the standby: whether an
 /// edit is being served, when the last one ended, and whether a standby
@@ -169,17 +166,43 @@ impl Quiet {
         let since = Duration::from_millis(self.idle_since_ms.load(Ordering::Relaxed));
         self.epoch.elapsed().saturating_sub(since)
     }
+
+    /// What the standby's threads do at a pause point: wait until the
+    /// session has gone [`QUIET_FOR_STANDBY`] without an edit, or give the
+    /// standby up once it is no longer wanted.
+    fn wait_for_quiet(&self) {
+        while self.quiet_for() < QUIET_FOR_STANDBY {
+            if !self.wanted.load(Ordering::Relaxed) {
+                arlux::util::pause::cancel();
+            }
+            std::thread::sleep(PAUSE_POLL);
+        }
+        if !self.wanted.load(Ordering::Relaxed) {
+            arlux::util::pause::cancel();
+        }
+    }
 }
+
+/// How long the session must have gone without an edit for the standby to
+/// go on: made beside a drag or a slider's steps, it took their caches
+/// (the serve bench's slider steps 36 → 48 ms median, the stool's drag
+/// steps 118 → 129 ms). A drag's steps come closer than this.
+const QUIET_FOR_STANDBY: Duration = Duration::from_millis(300);
+
+/// How often a paused standby looks whether the session is quiet.
+const PAUSE_POLL: Duration = Duration::from_millis(2);
 
 /// Makes, beside the session and at the least priority, the session a
 /// first change of the lights renders (the room meshed finer, its links
-/// refined, each light solved: [`arlux::interactive::Standby`]), once the
-/// session has been without an edit for [`QUIET_BEFORE_STANDBY`]; the
-/// worker takes it from the returned channel before its next job. On
-/// `lounge` from a cold cache that change took 13 s in full, 1.1 s with
-/// its links refined ahead. Its threads take only the CPU the session
-/// leaves idle (the stool's drag steps 107 ms alone, 115 ms beside the
-/// links' refinement; 201 ms beside one thread at the session's priority).
+/// refined, each light solved: [`arlux::interactive::Standby`]), from the
+/// first image on, pausing at its pause points ([`arlux::util::pause`])
+/// while edits come, and given up once the session no longer wants it
+/// (its lights changed before it was made); the worker takes it from the returned channel
+/// before its next job. On `lounge` from a cold cache that change took
+/// 13 s in full, 1.1 s with its links refined ahead. Its threads take only
+/// the CPU the session leaves idle (the stool's drag steps 107 ms alone,
+/// 115 ms beside the links' refinement; 201 ms beside one thread at the
+/// session's priority).
 fn standby_ahead(
     scene: Scene,
     photo: Image,
@@ -187,31 +210,33 @@ fn standby_ahead(
 ) -> (Receiver<arlux::interactive::Standby>, Arc<Quiet>) {
     let (send, made) = std::sync::mpsc::channel();
     let quiet = Arc::new(Quiet {
-        epoch: Instant::now(),
+        // Quiet from the first image on: the standby begins at once.
+        epoch: (Instant::now().checked_sub(QUIET_FOR_STANDBY)).unwrap_or_else(Instant::now),
         busy: AtomicBool::new(false),
         idle_since_ms: AtomicU64::new(0),
         wanted: AtomicBool::new(true),
     });
     let told = Arc::clone(&quiet);
     std::thread::spawn(move || {
-        while told.quiet_for() < QUIET_BEFORE_STANDBY {
-            if !told.wanted.load(Ordering::Relaxed) {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(100));
-        }
         let started = Instant::now();
         let start = || {
             arlux::interactive::Standby::start(scene, &photo, &method, &mut StageTimes::default())
         };
+        let paused = Arc::clone(&told);
         let pool = rayon::ThreadPoolBuilder::new()
             .thread_name(|i| format!("arlux-ahead-{i}"))
-            .start_handler(|_| lowest_priority())
+            .start_handler(move |_| {
+                lowest_priority();
+                let paused = Arc::clone(&paused);
+                arlux::util::pause::set_check(Arc::new(move || paused.wait_for_quiet()));
+            })
             .build();
         // Without a pool of its own, not at all: it would take the
         // session's threads.
-        let why = match pool.map(|p| p.install(start)) {
-            Ok(Ok(standby)) => {
+        let made = pool.map(|p| arlux::util::pause::cancellable(|| p.install(start)));
+        let why = match made {
+            Ok(None) => return, // given up: the session changed its lights first
+            Ok(Some(Ok(standby))) => {
                 eprintln!(
                     "arlux serve: changes of the lights relight from here on (made in {:.1} s)",
                     started.elapsed().as_secs_f64()
@@ -219,7 +244,7 @@ fn standby_ahead(
                 let _ = send.send(standby);
                 return;
             }
-            Ok(Err(e)) => e.to_string(),
+            Ok(Some(Err(e))) => e.to_string(),
             Err(e) => e.to_string(),
         };
         eprintln!("arlux serve: the session for a change of lights was not made ahead: {why}");
