@@ -59,10 +59,41 @@ pub struct RealPixels {
     pub floor: DVec3,
     /// The pixels on the real surfaces' seams ([`super::seams::seam_pixels`]).
     pub(super) seams: Vec<u32>,
+    /// The lights' scales changed since these were prepared: every pixel
+    /// is prepared again, the seams kept (see [`RealPixels::for_new_scales`]).
+    pub(super) scales_changed: bool,
 }
 
 impl RealPixels {
     pub fn of(input: &CompositeInput) -> RealPixels {
+        RealPixels::with_seams(input, super::seams::seam_pixels(input.pda))
+    }
+
+    /// What a change of the lights' scales keeps: every real pixel's terms
+    /// read the scales, the seams only the real surfaces (finding them
+    /// again was a fifth of a `lounge` relight's composite).
+    pub(crate) fn for_new_scales(self) -> RealPixels {
+        RealPixels {
+            affine: Vec::new(),
+            keep: Vec::new(),
+            scales_changed: true,
+            ..self
+        }
+    }
+
+    /// The prepared pixels for `input`: prepared again, the seams kept,
+    /// after [`RealPixels::for_new_scales`]; else refreshed where the
+    /// pixels `recomputed` had their light terms changed.
+    pub(crate) fn again(mut self, input: &CompositeInput, recomputed: &[u32]) -> RealPixels {
+        if self.scales_changed {
+            return RealPixels::with_seams(input, self.seams);
+        }
+        self.refresh(input, recomputed);
+        self
+    }
+
+    /// [`RealPixels::of`] with the seams already found.
+    fn with_seams(input: &CompositeInput, seams: Vec<u32>) -> RealPixels {
         let pda = input.pda;
         let lights = pda.light_count;
         let floor = input.floor;
@@ -91,7 +122,8 @@ impl RealPixels {
             widest_band: vec![Vec3::splat(-1.0); input.patch_vertices.len()],
             without: patch_corners(input.indirect_without, input.patch_vertices),
             floor,
-            seams: super::seams::seam_pixels(pda),
+            seams,
+            scales_changed: false,
         };
         for k in 0..known.affine.len() {
             known.widen(&known.get(k));

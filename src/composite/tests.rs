@@ -80,6 +80,7 @@ fn a_patch_said_to_keep_nothing_has_no_pixel_within_its_band() {
             without: patch_corners(&without, &[ids]),
             floor: DVec3::ZERO,
             seams: Vec::new(),
+            scales_changed: false,
         };
         for (r, _) in &pixels {
             known.widen(r);

@@ -270,8 +270,9 @@ impl Session {
             superposed(per_light, &self.pose.scales_with, n)
         });
         self.relit_change(times);
-        // Every real pixel's composite reads the scales: none is kept.
-        self.pose.known = None;
+        // Every real pixel's composite reads the scales: none is kept but
+        // the seams.
+        self.pose.known = self.pose.known.take().map(RealPixels::for_new_scales);
         self.recomposite(times, &[]);
         Ok(())
     }

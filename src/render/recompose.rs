@@ -77,10 +77,7 @@ impl Session {
             }
             // Once, then kept for every update, which refreshes only what it recomputed.
             let known = match known {
-                Some(mut k) => {
-                    k.refresh(&input, recomputed);
-                    k
-                }
+                Some(k) => k.again(&input, recomputed),
                 None => RealPixels::of(&input),
             };
             composite_into(
