@@ -147,8 +147,8 @@ pub(crate) fn room_links(
         ),
         None => {
             let transport = Transport::hierarchical(patches, tracer, Layer::Real, epsilon);
-            if let Transport::Hierarchical { links, .. } = &transport {
-                links_cache::write(&entry, links);
+            if let Transport::Hierarchical { .. } = &transport {
+                links_cache::write(&entry, transport.links());
             }
             ("form factors", transport)
         }

@@ -47,7 +47,7 @@ pub use object_albedo::object_reflectances;
 pub(crate) use solve::solve_from;
 pub use solve::{Solution, solve, solve_by_iteration};
 pub use still::StillSurfaces;
-pub use transport::{DEFAULT_LINK_EPSILON, Link, Transport};
+pub use transport::{DEFAULT_LINK_EPSILON, Link, SourceLink, Transport};
 
 #[cfg(test)]
 mod tests;

@@ -97,7 +97,7 @@ pub(super) fn read(path: &Path, patches: &Patches) -> Option<Vec<Link>> {
 
 /// Stores `links` at `path` (atomically, written as it is encoded; a cache
 /// that cannot be written is no error), then prunes the folder.
-pub(super) fn write(path: &Path, links: &[Link]) {
+pub(super) fn write(path: &Path, links: impl ExactSizeIterator<Item = Link>) {
     let Some(build) = build_id() else {
         return;
     };

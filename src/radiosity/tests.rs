@@ -743,3 +743,25 @@ fn rounds_of_the_per_point_estimator_converge_to_the_traced_change() {
         "64 rounds not closer than 4: squared error {late} against {early}"
     );
 }
+
+#[test]
+fn a_transport_gives_back_its_links_with_their_receivers_in_order() {
+    let link = |receiver, source, form_factor| Link {
+        receiver,
+        source,
+        form_factor,
+    };
+    let given = vec![
+        link(3, 1, 0.25),
+        link(0, 2, 0.5),
+        link(3, 0, 0.125),
+        link(1, 3, 1.0),
+    ];
+    let transport = Transport::hierarchical_from_links(given.clone());
+    let back: Vec<Link> = transport.links().collect();
+    let mut sorted = given;
+    sorted.sort_by_key(|l| (l.receiver, l.source));
+    assert_eq!(back, sorted);
+    assert_eq!(transport.link_count(), 4);
+    assert_eq!(transport.memory_bytes(), 4 * 8 + 3 * 12);
+}
