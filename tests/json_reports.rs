@@ -76,13 +76,13 @@ fn every_command_s_report_follows_its_documented_schema() {
         &[&scene, "--variant", "box_floor_a", "-o", &at("r.exr")],
     );
     assert!(r["skill"]["skill"].as_f64().unwrap() > 0.8, "{r}");
-    // A hierarchical link is 12 bytes (receiver, source, factor), plus each receiver's range.
+    // A hierarchical link is 8 bytes (source, factor), plus each receiver's range.
     let (links, bytes) = (
         r["links"].as_u64().unwrap(),
         r["links_bytes"].as_u64().unwrap(),
     );
     assert!(
-        links > 0 && bytes >= 12 * links && bytes < 24 * links,
+        links > 0 && bytes >= 8 * links && bytes < 20 * links,
         "{r}"
     );
     // Every patch is an element, and a root split in two has three.
