@@ -81,10 +81,7 @@ fn every_command_s_report_follows_its_documented_schema() {
         r["links"].as_u64().unwrap(),
         r["links_bytes"].as_u64().unwrap(),
     );
-    assert!(
-        links > 0 && bytes >= 8 * links && bytes < 20 * links,
-        "{r}"
-    );
+    assert!(links > 0 && bytes >= 8 * links && bytes < 20 * links, "{r}");
     // Every patch is an element, and a root split in two has three.
     let elements = r["elements"].as_u64().unwrap();
     let patches = r["patches"].as_u64().unwrap();
