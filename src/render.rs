@@ -293,6 +293,10 @@ struct Run {
     /// The share of the time left that a composite's rounds may take (a
     /// still's first band: one over the bands).
     time_share: f64,
+    /// The last composite's shadow edges (no rounds), with the lights on
+    /// they were sampled for; `edges_still`: the geometry is the same since.
+    edges: Option<(Vec<bool>, crate::residual::PixelResidual)>,
+    edges_still: bool,
 }
 
 impl Prepared {
@@ -498,6 +502,8 @@ impl Session {
                 time_share: band.map_or(1.0, |(a, b)| {
                     ((b - a) as f64 / scene.camera.height.max(1) as f64).min(1.0)
                 }),
+                edges: None,
+                edges_still: false,
             },
             composite: Composite::empty(),
         };

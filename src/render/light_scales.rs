@@ -273,6 +273,8 @@ impl Session {
         // Every real pixel's composite reads the scales: none is kept but
         // the seams.
         self.pose.known = self.pose.known.take().map(RealPixels::for_new_scales);
+        // Nothing moved: the shadow edges sampled last hold where the same lights are on.
+        self.run.edges_still = true;
         self.recomposite(times, &[]);
         Ok(())
     }

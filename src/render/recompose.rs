@@ -24,6 +24,15 @@ impl Session {
             _ => None,
         };
         let known = self.pose.known.take();
+        // The shadow edges' samples read the geometry and which lights are
+        // on, not their scales: a relight that switches none on or off
+        // takes the last ones (the same, bit for bit; a ninth of a
+        // `lounge` relight's time, traced again).
+        let on: Vec<bool> = self.pose.scales_with.iter().map(|&s| s > 0.0).collect();
+        let still = std::mem::take(&mut self.run.edges_still);
+        let kept_edges = (self.run.edges.take())
+            .filter(|(was_on, _)| still && *was_on == on)
+            .map(|(_, edges)| edges);
         let mut out = std::mem::replace(&mut self.composite, crate::composite::Composite::empty());
         let materials = crate::object_shading::ObjectMaterials::of(&self.prepared.scene);
         let shading = ObjectShading {
@@ -41,7 +50,13 @@ impl Session {
             settings: self.prepared.settings.shading,
             brightness: crate::object_shading::mean_luminance(&self.prepared.photo),
         };
-        let residual = self.residual(&shading, times);
+        let rounds = self.prepared.settings.residual.enabled();
+        let kept_edges = kept_edges.filter(|_| !rounds);
+        let reused = kept_edges.is_some();
+        let residual = match kept_edges {
+            Some(edges) => Some(edges),
+            None => self.residual(&shading, times),
+        };
         // A session's objects with materials are shaded first, their samples
         // kept for the next update (rounds sample them their own way).
         let mut kept = std::mem::take(&mut self.pose.shaded);
@@ -101,11 +116,14 @@ impl Session {
             });
         }
         out.noise = Vec::new();
-        if let Some(r) = &residual {
+        if let Some(r) = residual.as_ref().filter(|_| !reused) {
             self.run.rays += r.stats.rays;
         }
-        // Without rounds only the shadow edges ran: no rounds to report.
-        if let Some(r) = residual.filter(|_| self.prepared.settings.residual.enabled()) {
+        // Without rounds only the shadow edges ran: no rounds to report,
+        // the edges kept for a relight.
+        if !rounds {
+            self.run.edges = residual.map(|r| (on, r));
+        } else if let Some(r) = residual {
             if r.noise.len() == out.image.pixels.len() {
                 out.noise = r.noise;
             }
