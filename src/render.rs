@@ -244,6 +244,8 @@ struct Pose {
     block_shafts: Vec<crate::blocks::BlockShafts>,
     /// The objects' shaded samples, for the next update.
     shaded: crate::object_shading::kept::KeptShading,
+    /// The last composite's shadow edges, for a relight.
+    edges: KeptEdges,
 }
 
 impl Pose {
@@ -270,6 +272,7 @@ impl Pose {
             reached: Vec::new(),
             block_shafts: Vec::new(),
             shaded: Default::default(),
+            edges: KeptEdges::default(),
         }
     }
 }
@@ -293,10 +296,6 @@ struct Run {
     /// The share of the time left that a composite's rounds may take (a
     /// still's first band: one over the bands).
     time_share: f64,
-    /// The last composite's shadow edges (no rounds), with the lights on
-    /// they were sampled for; `edges_still`: the geometry is the same since.
-    edges: Option<(Vec<bool>, crate::residual::PixelResidual)>,
-    edges_still: bool,
 }
 
 impl Prepared {
@@ -502,8 +501,6 @@ impl Session {
                 time_share: band.map_or(1.0, |(a, b)| {
                     ((b - a) as f64 / scene.camera.height.max(1) as f64).min(1.0)
                 }),
-                edges: None,
-                edges_still: false,
             },
             composite: Composite::empty(),
         };
@@ -791,6 +788,7 @@ pub(crate) use room::lights_change;
 use changes::*;
 use final_gather::*;
 use pixels::*;
+use recompose::KeptEdges;
 use room::*;
 
 #[cfg(test)]

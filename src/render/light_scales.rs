@@ -274,7 +274,7 @@ impl Session {
         // the seams.
         self.pose.known = self.pose.known.take().map(RealPixels::for_new_scales);
         // Nothing moved: the shadow edges sampled last hold where the same lights are on.
-        self.run.edges_still = true;
+        self.pose.edges.still = true;
         self.recomposite(times, &[]);
         Ok(())
     }

@@ -4,6 +4,15 @@
 use super::*;
 use crate::residual::{PixelResidual, ResidualInput, estimate};
 
+/// The last composite's shadow edges (without rounds: the residual holds
+/// nothing else), with the lights on they were sampled for.
+#[derive(Default)]
+pub(super) struct KeptEdges {
+    last: Option<(Vec<bool>, PixelResidual)>,
+    /// Nothing moved since they were sampled (a relight is next).
+    pub(super) still: bool,
+}
+
 impl Session {
     /// Composites the image; `recomputed` lists the pixels whose real
     /// point's light terms changed since the last composite.
@@ -29,8 +38,8 @@ impl Session {
         // takes the last ones (the same, bit for bit; a ninth of a
         // `lounge` relight's time, traced again).
         let on: Vec<bool> = self.pose.scales_with.iter().map(|&s| s > 0.0).collect();
-        let still = std::mem::take(&mut self.run.edges_still);
-        let kept_edges = (self.run.edges.take())
+        let still = std::mem::take(&mut self.pose.edges.still);
+        let kept_edges = (self.pose.edges.last.take())
             .filter(|(was_on, _)| still && *was_on == on)
             .map(|(_, edges)| edges);
         let mut out = std::mem::replace(&mut self.composite, crate::composite::Composite::empty());
@@ -122,7 +131,7 @@ impl Session {
         // Without rounds only the shadow edges ran: no rounds to report,
         // the edges kept for a relight.
         if !rounds {
-            self.run.edges = residual.map(|r| (on, r));
+            self.pose.edges.last = residual.map(|r| (on, r));
         } else if let Some(r) = residual {
             if r.noise.len() == out.image.pixels.len() {
                 out.noise = r.noise;
