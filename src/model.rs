@@ -147,9 +147,7 @@ pub(crate) fn room_links(
         ),
         None => {
             let transport = Transport::hierarchical(patches, tracer, Layer::Real, epsilon);
-            if let Transport::Hierarchical { .. } = &transport {
-                links_cache::write(&entry, transport.links());
-            }
+            links_cache::write(&entry, transport.links());
             ("form factors", transport)
         }
     };

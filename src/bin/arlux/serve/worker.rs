@@ -208,14 +208,14 @@ impl Quiet {
     /// waits for the standby), or give the standby up once it is no
     /// longer wanted.
     fn wait_for_quiet(&self) {
-        while self.quiet_for() < QUIET_FOR_STANDBY && !self.urgent.load(Ordering::Relaxed) {
+        loop {
             if !self.wanted.load(Ordering::Relaxed) {
                 arlux::util::pause::cancel();
             }
+            if self.urgent.load(Ordering::Relaxed) || self.quiet_for() >= QUIET_FOR_STANDBY {
+                return;
+            }
             std::thread::sleep(PAUSE_POLL);
-        }
-        if !self.wanted.load(Ordering::Relaxed) {
-            arlux::util::pause::cancel();
         }
     }
 }
@@ -234,8 +234,8 @@ const PAUSE_POLL: Duration = Duration::from_millis(2);
 /// refined, each light solved: [`arlux::interactive::Standby`]), from the
 /// first image on, pausing at its pause points ([`arlux::util::pause`])
 /// while edits come, and given up once the session no longer wants it
-/// (its lights changed before it was made); the worker takes it from the returned channel
-/// before its next job. On `lounge` from a cold cache that change took
+/// (its lights changed before it was made); the worker takes it from the
+/// returned channel before its next job. On `lounge` from a cold cache that change took
 /// 13 s in full, 1.1 s with its links refined ahead. Its threads take only
 /// the CPU the session leaves idle (the stool's drag steps 107 ms alone,
 /// 115 ms beside the links' refinement; 201 ms beside one thread at the
