@@ -41,7 +41,7 @@ pub use direct::{
 };
 pub use form_factor::{PairShafts, element_form_factor, visibility};
 pub use gather_rows::{GatherRows, GatherRowsSettings, ObjectLinkEstimate};
-pub use near::{NearField, NearView};
+pub use near::{NearField, NearView, ReadPoints};
 pub use near_pixel::ChangeSampler;
 pub use object_albedo::object_reflectances;
 pub(crate) use solve::solve_from;

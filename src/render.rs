@@ -684,13 +684,12 @@ impl Session {
         self.pose.bounds = bounds;
         // The Pixel Data Array does not depend on the radiosity solution:
         // the two are computed side by side, and beside them the rays of the
-        // grid near the objects (geometry only; the patches the camera sees
-        // stay with the room).
-        let seen = changes::seen_patches(&self.prepared.model, &self.pose.pda);
+        // grid near the objects (geometry only; at the points of the pixels
+        // that show no object once the pixels are updated).
         let input =
             self.prepared
                 .change_input(&self.pose.scales_with, &self.pose.bounds, &self.pose.room);
-        let pixels = PixelUpdate {
+        let mut pixels = PixelUpdate {
             pda: &mut self.pose.pda,
             blocks: self.pose.blocks.as_ref().expect("prepared above"),
             active: &self.pose.active,
@@ -723,7 +722,8 @@ impl Session {
                 let last = last_rays.near.as_ref().zip(still);
                 let near = objects_ref.map(|o| {
                     times.time("rays near the objects", || {
-                        changes::near_rays(&input, o, &seen, last)
+                        let read = changes::read_points(input.model, pixels.pda);
+                        changes::near_rays(&input, o, &read, last)
                     })
                 });
                 (out, near)

@@ -12,6 +12,14 @@
 //! a pixel on it reads the difference from the interpolated means,
 //! tapered to nothing at twice an object's radius from it, where the
 //! patch means take over unchanged.
+//!
+//! A composite reads the field only at the plain real pixels' points (a
+//! pixel that shows an object reads the object's light), so a grid traces
+//! only the points whose cells hold one of them ([`ReadPoints`]): the floor
+//! under an object, and what the camera does not see of a patch, cost
+//! nothing. Each point's rays are its own (seeded by patch, point and
+//! target), so the points read hold the same values bit for bit whichever
+//! others are traced.
 
 use super::change::{
     Bundle, cone_towards, rays_for, receiving_side, targets, towards, trace_bundle,
@@ -24,6 +32,7 @@ use crate::patches::Shape;
 use crate::trace::Tracer;
 use glam::DVec2;
 use glam::DVec3;
+use glam::Vec3;
 use rayon::prelude::*;
 
 /// Rays from a grid point towards an object that fills its hemisphere
@@ -82,19 +91,87 @@ pub struct NearField {
     grids: Vec<(Shape, u32, Vec<DVec3>)>,
 }
 
+/// The points of the room's patches at which the field is read: per
+/// patch, the points of the pixels that show it and no object.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ReadPoints {
+    /// Per room patch, its points' range in `points` (None: every point
+    /// of every patch is read).
+    start: Option<Vec<u32>>,
+    points: Vec<Vec3>,
+    patch_count: usize,
+}
+
+impl ReadPoints {
+    /// Every point of each of `patch_count` room patches.
+    pub fn everywhere(patch_count: usize) -> ReadPoints {
+        ReadPoints {
+            start: None,
+            points: Vec::new(),
+            patch_count,
+        }
+    }
+
+    /// The points `points` yields (room patch, point), over `patch_count`
+    /// patches. `points` is called twice and must yield the same both times
+    /// (a count per patch, then the points in place: no list of pairs).
+    pub fn of<I: Iterator<Item = (u32, Vec3)>>(
+        patch_count: usize,
+        points: impl Fn() -> I,
+    ) -> ReadPoints {
+        let mut start = vec![0u32; patch_count + 1];
+        for (k, _) in points() {
+            if let Some(c) = start.get_mut(k as usize + 1) {
+                *c += 1;
+            }
+        }
+        for k in 0..patch_count {
+            start[k + 1] += start[k];
+        }
+        let mut next = start.clone();
+        let mut held = vec![Vec3::ZERO; start[patch_count] as usize];
+        for (k, x) in points() {
+            if let Some(at) = next
+                .get_mut(k as usize)
+                .filter(|_| (k as usize) < patch_count)
+            {
+                held[*at as usize] = x;
+                *at += 1;
+            }
+        }
+        ReadPoints {
+            start: Some(start),
+            points: held,
+            patch_count,
+        }
+    }
+
+    /// Patch `k`'s points (None: all of them).
+    fn on(&self, k: usize) -> Option<&[Vec3]> {
+        let start = self.start.as_ref()?;
+        Some(&self.points[start[k] as usize..start[k + 1] as usize])
+    }
+
+    /// Whether any point of patch `k` is read.
+    fn any(&self, k: usize) -> bool {
+        self.on(k).is_none_or(|p| !p.is_empty())
+    }
+}
+
 impl NearView {
-    /// Grids on the room's patches (the first of `patches`) marked in
-    /// `wanted` that lie within twice an object's radius of its bounding
-    /// sphere, points `cell` apart (no finer than the patch, at most
-    /// 32 cells a side).
+    /// Grids on the room's patches (the first of `patches`) where `read`
+    /// holds a point, that lie within twice an object's radius of its
+    /// bounding sphere, points `cell` apart (no finer than the patch, at
+    /// most 32 cells a side); traced at the points whose cells hold one
+    /// of `read`'s.
     pub fn trace(
         patches: &Patches,
-        wanted: &[bool],
+        read: &ReadPoints,
         tracer: &Tracer,
         objects: &VirtualBounds,
         cell: f64,
     ) -> NearView {
-        NearView::trace_keeping(patches, wanted, tracer, (objects, cell), None)
+        NearView::trace_keeping(patches, read, tracer, (objects, cell), None)
     }
 
     /// [`NearView::trace`] (`objects` and `cell` as there), keeping from
@@ -102,27 +179,33 @@ impl NearView {
     /// fresh trace would give again.
     pub fn trace_keeping(
         patches: &Patches,
-        wanted: &[bool],
+        read: &ReadPoints,
         tracer: &Tracer,
         (objects, cell): (&VirtualBounds, f64),
         last: Option<(&NearView, &StillSurfaces)>,
     ) -> NearView {
         let targets = targets(objects);
-        let mut last_grid = vec![u32::MAX; wanted.len()];
+        let near = Near {
+            patches,
+            targets: &targets,
+            tracer,
+            cell,
+        };
+        let mut last_grid = vec![u32::MAX; read.patch_count];
         for (g, grid) in last.iter().flat_map(|(v, _)| v.grids.iter().enumerate()) {
             if let Some(slot) = last_grid.get_mut(grid.patch as usize) {
                 *slot = g as u32;
             }
         }
-        let grids: Vec<(Grid, Vec<Seen>, (u64, u64))> = (0..wanted.len())
+        let grids: Vec<(Grid, Vec<Seen>, (u64, u64))> = (0..read.patch_count)
             .into_par_iter()
-            .filter(|&k| wanted[k])
+            .filter(|&k| read.any(k))
             .filter_map(|k| {
                 let kept = last.and_then(|(view, still)| {
                     let grid = view.grids.get(last_grid[k] as usize)?;
                     Some(Kept { view, grid, still })
                 });
-                grid_of(patches, k, &targets, tracer, cell, kept)
+                grid_of(&near, k, read.on(k), kept)
             })
             .collect();
         let mut view = NearView::default();
@@ -205,14 +288,7 @@ impl NearField {
     pub fn at(&self, patch: u32, x: DVec3) -> Option<DVec3> {
         let g = *self.index.get(patch as usize)?;
         let (shape, n, values) = self.grids.get(g as usize)?;
-        // A sliver patch's parameters may not be finite: no correction there.
-        let st = Some(shape.params(x)).filter(|st| st.is_finite())?;
-        let st = st.clamp(DVec2::ZERO, DVec2::ONE) * *n as f64;
-        let (i, j) = (
-            (st.x.floor() as u32).min(n - 1),
-            (st.y.floor() as u32).min(n - 1),
-        );
-        let (fs, ft) = (st.x - i as f64, st.y - j as f64);
+        let ((i, j), (fs, ft)) = cell_at(shape, *n, x)?;
         let at = |i: u32, j: u32| values[(j * (n + 1) + i) as usize];
         Some(
             (at(i, j) * (1.0 - fs) + at(i + 1, j) * fs) * (1.0 - ft)
@@ -231,6 +307,34 @@ impl NearField {
                 .map(|g| g.2.len() * std::mem::size_of::<DVec3>())
                 .sum::<usize>()
     }
+}
+
+/// The cell of a grid of `n` cells a side over `shape` that holds point
+/// `x` (its lower corner's column and row) and where in it; None where a
+/// sliver patch's parameters are not finite (no correction there). One
+/// function for the reading and for which points are traced.
+fn cell_at(shape: &Shape, n: u32, x: DVec3) -> Option<((u32, u32), (f64, f64))> {
+    let st = Some(shape.params(x)).filter(|st| st.is_finite())?;
+    let st = st.clamp(DVec2::ZERO, DVec2::ONE) * n as f64;
+    let (i, j) = (
+        (st.x.floor() as u32).min(n - 1),
+        (st.y.floor() as u32).min(n - 1),
+    );
+    Some(((i, j), (st.x - i as f64, st.y - j as f64)))
+}
+
+/// Which of the (n + 1)² points of a grid of `n` cells a side over `shape`
+/// are read at `read`'s points: the corners of the cells that hold one.
+fn read_corners(shape: &Shape, n: u32, read: &[Vec3]) -> Vec<bool> {
+    let mut used = vec![false; ((n + 1) * (n + 1)) as usize];
+    for x in read {
+        if let Some(((i, j), _)) = cell_at(shape, n, x.as_dvec3()) {
+            for (a, b) in [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)] {
+                used[(b * (n + 1) + a) as usize] = true;
+            }
+        }
+    }
+    used
 }
 
 /// Point `i`'s parameters on a grid of `n` cells a side over `shape`
@@ -286,17 +390,32 @@ struct Kept<'a> {
     still: &'a StillSurfaces,
 }
 
-/// Patch `k`'s grid, its rays' hits and the rays traced; None where no
-/// target is near enough or the patch is no larger than a cell. Bundles
-/// `kept` says are unchanged are copied rather than traced.
-fn grid_of(
-    patches: &Patches,
-    k: usize,
-    targets: &[Target],
-    tracer: &Tracer,
+/// What every patch's grid reads: the patches, the objects' targets, the
+/// tracer and the finest cell.
+struct Near<'a> {
+    patches: &'a Patches,
+    targets: &'a [Target],
+    tracer: &'a Tracer,
     cell: f64,
+}
+
+/// Patch `k`'s grid, its rays' hits and the rays traced; None where no
+/// target is near enough or the patch is no larger than a cell. Traced at
+/// the points whose cells hold one of `read` (None: at every point); the
+/// others hold nothing (taper 0). Bundles `kept` says are unchanged are
+/// copied rather than traced.
+fn grid_of(
+    near_input: &Near,
+    k: usize,
+    read: Option<&[Vec3]>,
     kept: Option<Kept>,
 ) -> Option<(Grid, Vec<Seen>, (u64, u64))> {
+    let Near {
+        patches,
+        targets,
+        tracer,
+        cell,
+    } = *near_input;
     let el = patches.patch(k);
     let h = (el.shape.corners().iter())
         .map(|c| (*c - el.centre).length())
@@ -319,6 +438,7 @@ fn grid_of(
     if cells < 2 {
         return None;
     }
+    let used = read.map(|read| read_corners(&el.shape, cells, read));
     // The last grid on this patch, when it has the same points.
     let kept = kept.filter(|kept| kept.grid.cells == cells);
     let (mut seen, mut bundles, mut bundle_start) = (Vec::new(), Vec::new(), Vec::new());
@@ -326,7 +446,10 @@ fn grid_of(
     let points = (0..(cells + 1) * (cells + 1))
         .map(|i| {
             let x = shape_point(&el.shape, grid_params(i, cells, &el.shape));
-            let w = taper(x, targets);
+            let w = match used.as_ref().is_none_or(|u| u[i as usize]) {
+                true => taper(x, targets),
+                false => 0.0,
+            };
             let a = seen.len() as u32;
             bundle_start.push(bundles.len() as u32);
             if w > 0.0 {

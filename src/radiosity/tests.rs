@@ -621,7 +621,7 @@ fn near_a_box_the_change_is_held_at_points_finer_than_the_patches() {
     let view = ObjectView::trace(&w.with, room_count, &w.tracer_with, &bounds);
     let near = NearView::trace(
         &w.with,
-        &vec![true; room_count],
+        &ReadPoints::everywhere(room_count),
         &w.tracer_with,
         &bounds,
         0.05,
@@ -634,17 +634,43 @@ fn near_a_box_the_change_is_held_at_points_finer_than_the_patches() {
     let field = near.field(&w.with, &radiosity, &radiosity[..room_count], &coarse);
     assert!(field.patch_count() > 0, "no patch holds a grid");
     let normal = -DVec3::X;
-    let (mut worst_near, mut worst_coarse, mut deepest) = (0.0f64, 0.0f64, 0.0f64);
-    for (y, z) in [
+    let points: Vec<(usize, DVec3)> = [
         (0.9, 0.9),
         (1.05, 0.9),
         (1.2, 1.0),
         (1.3, 0.8),
         (0.6, 0.6),
         (1.1, 1.25),
-    ] {
+    ]
+    .map(|(y, z)| {
         let x = DVec3::new(2.0, y, z);
-        let k = right_wall_patch(&w, x);
+        (right_wall_patch(&w, x), x)
+    })
+    .to_vec();
+    // Traced only where these points read it: the same values there, bit
+    // for bit, for a fraction of the rays.
+    let read = ReadPoints::of(room_count, || {
+        points.iter().map(|&(k, x)| (k as u32, x.as_vec3()))
+    });
+    let sparse = NearView::trace(&w.with, &read, &w.tracer_with, &bounds, 0.05);
+    let sparse_field = sparse.field(&w.with, &radiosity, &radiosity[..room_count], &coarse);
+    for &(k, x) in &points {
+        // Read where a pixel's point is held (in f32), as the composite does.
+        let x = x.as_vec3().as_dvec3();
+        let (a, b) = (field.at(k as u32, x), sparse_field.at(k as u32, x));
+        assert_eq!(
+            a.map(|a| a.to_array().map(f64::to_bits)),
+            b.map(|b| b.to_array().map(f64::to_bits))
+        );
+    }
+    println!(
+        "rays: {} at every point, {} where read",
+        near.rays, sparse.rays
+    );
+    assert!(sparse.rays > 0 && 4 * sparse.rays < near.rays);
+    let (mut worst_near, mut worst_coarse, mut deepest) = (0.0f64, 0.0f64, 0.0f64);
+    for &(k, x) in &points {
+        let (y, z) = (x.y, x.z);
         let el = w.room.patch(k);
         let st = el.shape.params(x);
         let corners = w.room.patch_vertices[k].map(|v| coarse[v as usize].x);

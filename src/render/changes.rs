@@ -145,9 +145,9 @@ pub(super) struct NearSource {
 }
 
 /// The objects' change near them, finer than the room's patches
-/// ([`crate::radiosity::NearField`]), on the room patches that hold one of
-/// the pixel data's real points (the only ones a composite reads): an
-/// update pays for what the camera sees near the objects.
+/// ([`crate::radiosity::NearField`]), traced where the pixel data's plain
+/// real points read it (see [`read_points`]): an update pays for what the
+/// camera sees near the objects.
 /// `kept`: the pose's rays from an earlier composite (traced and kept when None).
 pub(super) fn near_field(
     input: &ChangeInput,
@@ -156,8 +156,8 @@ pub(super) fn near_field(
     pda: &crate::pda::PixelDataArray,
     kept: &mut Option<crate::radiosity::NearView>,
 ) -> crate::radiosity::NearField {
-    let view = kept
-        .get_or_insert_with(|| near_rays(input, objects, &seen_patches(input.model, pda), None));
+    let view =
+        kept.get_or_insert_with(|| near_rays(input, objects, &read_points(input.model, pda), None));
     view.field(
         objects,
         &source.radiosity,
@@ -166,23 +166,33 @@ pub(super) fn near_field(
     )
 }
 
-/// The room patches that hold one of the pixel data's real points.
-pub(super) fn seen_patches(model: &Model, pda: &crate::pda::PixelDataArray) -> Vec<bool> {
-    let mut shown = vec![false; model.patches.patch_count()];
-    for p in &pda.real.points {
-        if let Some(s) = shown.get_mut(p.location.patch as usize) {
-            *s = true;
-        }
-    }
-    shown
+/// The real points at which a composite of `pda` reads the near field, by
+/// room patch: those of the pixels that show no object (a pixel that does
+/// reads the object's light; see [`crate::composite`]'s near pass).
+pub(super) fn read_points(
+    model: &Model,
+    pda: &crate::pda::PixelDataArray,
+) -> crate::radiosity::ReadPoints {
+    let room_count = model.patches.patch_count();
+    let shown = || {
+        (pda.real_index.iter().enumerate())
+            .filter(|&(i, &k)| {
+                k != u32::MAX && pda.virtual_index.get(i).is_none_or(|&v| v == u32::MAX)
+            })
+            .map(|(_, &k)| {
+                let p = &pda.real.points[k as usize];
+                (p.location.patch, p.position)
+            })
+    };
+    crate::radiosity::ReadPoints::of(room_count, shown)
 }
 
-/// The rays of the grid near the objects on the room patches `shown`
+/// The rays of the grid near the objects at the room points `read`
 /// (geometry only: any radiosity reads them).
 pub(super) fn near_rays(
     input: &ChangeInput,
     objects: &Patches,
-    shown: &[bool],
+    read: &crate::radiosity::ReadPoints,
     last: Option<(
         &crate::radiosity::NearView,
         &crate::radiosity::StillSurfaces,
@@ -190,7 +200,7 @@ pub(super) fn near_rays(
 ) -> crate::radiosity::NearView {
     let cell = input.settings.virtual_patch_size;
     let bounds = (input.bounds, cell);
-    crate::radiosity::NearView::trace_keeping(objects, shown, input.tracer, bounds, last)
+    crate::radiosity::NearView::trace_keeping(objects, read, input.tracer, bounds, last)
 }
 
 /// What the room's patches see of the objects, keeping the last pose's

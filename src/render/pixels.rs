@@ -21,7 +21,7 @@ impl PixelUpdate<'_> {
     /// pixels whose shafts to a light may meet the objects' old or new
     /// bounds: the pixels touched (sorted), the rays cast, the pixels re-traced.
     pub(super) fn run(
-        self,
+        &mut self,
         changes: &ChangeInput,
         objects: Option<&Patches>,
         times: &mut StageTimes,
@@ -40,7 +40,7 @@ impl PixelUpdate<'_> {
             band: None,
             shaded_per_pixel: &shaded,
         };
-        let pda = self.pda;
+        let pda = &mut *self.pda;
         let (mut rays, retraced) = times.time("re-trace objects and edges", || {
             pda.rebuild_virtual(&input, self.movers)
         });
@@ -50,7 +50,7 @@ impl PixelUpdate<'_> {
         let (traversals, now) = times.time("pixel-block traversal", || {
             traverse(&input, self.blocks, self.reached, self.block_shafts)
         });
-        let stats = self.stats;
+        let stats = &mut *self.stats;
         let touched = times.time("recompute pixels", || {
             let mut touched: Vec<u32> = Vec::new();
             for (l, t) in traversals.into_iter().enumerate() {
