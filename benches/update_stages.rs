@@ -52,7 +52,7 @@ fn main() -> anyhow::Result<()> {
     session.prepare_updates(&mut StageTimes::default());
     session.image_only();
     let (mut stages, mut totals): (BTreeMap<String, Vec<f64>>, Vec<f64>) = Default::default();
-    let mut kept = Vec::new();
+    let (mut kept, mut pixels) = (Vec::new(), Vec::new());
     for i in 0..updates {
         let mut times = StageTimes::default();
         let t0 = std::time::Instant::now();
@@ -63,6 +63,7 @@ fn main() -> anyhow::Result<()> {
             stats.gathers_partly_kept,
             stats.shaded_kept,
         ));
+        pixels.push((stats.pixels_recomputed, stats.pixels_retraced));
         totals.push(t0.elapsed().as_secs_f64() * 1e3);
         let mut per: BTreeMap<String, f64> = BTreeMap::new();
         for (stage, d) in times.0 {
@@ -89,6 +90,9 @@ fn main() -> anyhow::Result<()> {
     println!(
         "  kept of the last pose: {bundles} bundles, {gathers} vertices' gathers ({partly} more in part), {shaded} shaded points"
     );
+    pixels.sort();
+    let (recomputed, retraced) = pixels[pixels.len() / 2];
+    println!("  pixels: {recomputed} real ones' light recomputed, {retraced} re-traced");
     for (stage, v) in stages.iter_mut() {
         println!("  {stage:<28} {:>6.2} ms", median(v));
     }

@@ -403,16 +403,16 @@ impl PixelDataArray {
 
     /// Recomputes the light terms of the real points at `pixels` for
     /// `light` (after the virtual objects moved), exactly as [`build`]
-    /// computes them; returns rays cast. `now` (sorted): those of them
+    /// computes them; returns rays cast. `now` (sorted lists): the pixels
     /// whose shafts to the light may meet the objects where they are now,
-    /// as the pixel-block traversal found them.
+    /// as the pixel-block traversals found them.
     ///
     /// [`build`]: PixelDataArray::build
     pub(crate) fn recompute_real_terms(
         &mut self,
         input: &PdaInput,
         pixels: &[u32],
-        now: &[u32],
+        now: &[&[u32]],
         light: usize,
     ) -> u64 {
         if !input.active[light] {
@@ -450,7 +450,10 @@ impl PixelDataArray {
                         own: None,
                         seed: hash2(seed, light as u64),
                     };
-                    let before = (terms[at].unoccluded, now.binary_search(&pixel).is_ok());
+                    let before = (
+                        terms[at].unoccluded,
+                        now.iter().any(|n| n.binary_search(&pixel).is_ok()),
+                    );
                     let (term, rays) = light_term(query, point, Some(before), mask.as_mut());
                     (at, term, mask, rays)
                 })

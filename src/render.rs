@@ -236,10 +236,10 @@ struct Pose {
     room_per_light: Option<Vec<Option<Solution>>>,
     /// The objects' gather directions, for the next pose.
     gather_directions: GatherDirections,
-    /// Per light, the pixels the last traversal (an update's, or the
-    /// preparation's) reached against the objects where it left them: the
-    /// next update's old bounds (empty for a light switched off), sorted.
-    reached: Vec<Vec<u32>>,
+    /// Per light, the pixels the traversals (an update's, or the
+    /// preparation's) reached against the objects where they left them: the
+    /// next update's old bounds (empty for a light switched off).
+    reached: Vec<pixels::Reached>,
     /// Per light, the blocks' shafts the traversals built so far.
     block_shafts: Vec<crate::blocks::BlockShafts>,
     /// The objects' shaded samples, for the next update.
@@ -561,11 +561,11 @@ impl Session {
     /// not asked for before).
     pub fn prepare_updates(&mut self, times: &mut StageTimes) {
         if self.pose.blocks.is_none() {
-            let (pda, lights, active, objects) = (
+            let (pda, lights, active, bounds) = (
                 &self.pose.pda,
                 &self.prepared.model.lights,
                 &self.pose.active,
-                &self.pose.bounds.objects,
+                &self.pose.bounds,
             );
             let (blocks, (reached, shafts)) = times.time("pixel blocks", || {
                 use rayon::prelude::*;
@@ -574,14 +574,9 @@ impl Session {
                 let reached = lights
                     .par_iter()
                     .zip(active)
-                    .map(|(light, &on)| {
-                        if !on {
-                            return Default::default();
-                        }
-                        let mut shafts = blocks.no_shafts();
-                        let mut pixels = blocks.traverse(light, objects, &mut shafts).pixels;
-                        pixels.sort_unstable();
-                        (pixels, shafts)
+                    .map(|(light, &on)| match on {
+                        true => pixels::Reached::prepared(&blocks, light, bounds),
+                        false => Default::default(),
                     })
                     .unzip();
                 (blocks, reached)

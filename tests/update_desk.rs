@@ -160,9 +160,11 @@ fn an_object_standing_still_keeps_its_rays_and_updates_equal_full_renders() {
         Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
     let poses = base.motion("box_slide").unwrap().translations.len();
     let mut partly = 0;
+    let mut recomputed = Vec::new();
     for pose in 1..poses {
         let scene = base.with_motion_pose("box_slide", pose).unwrap();
         let stats = session.update(&scene, &mut StageTimes::default()).unwrap();
+        recomputed.push(stats.pixels_recomputed);
         let full = render(&scene, &photo, &settings, &mut StageTimes::default()).unwrap();
         let d = differing(&session.composite.image, &full.composite.image);
         let indirect = differing(&session.composite.indirect, &full.composite.indirect);
@@ -179,4 +181,25 @@ fn an_object_standing_still_keeps_its_rays_and_updates_equal_full_renders() {
     }
     // Vertices whose rays partly see the moving box keep the others.
     assert!(partly > 0, "no gather kept in part");
+    // The real pixels whose light is recomputed are the moving box's alone,
+    // as in a room without the crate, once the first update has set the
+    // crate's apart.
+    let plain = common::Desk::new();
+    let base = arlux::scene::Scene::load(plain.scene()).unwrap();
+    let first = base.with_motion_pose("box_slide", 0).unwrap();
+    let mut session =
+        Session::start(&first, &photo, &settings, &mut StageTimes::default()).unwrap();
+    let alone: Vec<usize> = (1..poses)
+        .map(|pose| {
+            let scene = base.with_motion_pose("box_slide", pose).unwrap();
+            let stats = session.update(&scene, &mut StageTimes::default()).unwrap();
+            stats.pixels_recomputed
+        })
+        .collect();
+    println!("real pixels recomputed: {recomputed:?} beside the crate, {alone:?} alone");
+    assert!(
+        recomputed[0] > alone[0],
+        "the first update sets the crate apart"
+    );
+    assert_eq!(recomputed[1..], alone[1..]);
 }
