@@ -27,6 +27,7 @@ use crate::patches::Patches;
 use crate::shaft::Shaft;
 use crate::trace::{Hit, Layer, TraceRay, Tracer};
 use crate::util::rng::hash2;
+pub use by_patch::RealByPatch;
 
 /// Ray budget of the visibility oracle and the edge supersampling.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -208,6 +209,9 @@ pub struct PixelDataArray {
     /// The pixels the last update re-traced (sorted), and whether every
     /// pixel was a candidate for an edge then; None before the first.
     pub examined: Option<(Vec<u32>, bool)>,
+    /// The real points by patch, made when first asked for
+    /// ([`PixelDataArray::real_by_patch`]).
+    by_patch: by_patch::ByPatchCache,
 }
 
 const NONE: u32 = u32::MAX;
@@ -570,12 +574,14 @@ impl PixelDataArray {
             * 4
             + samples(&self.real)
             + self.real_masks.len() * std::mem::size_of::<RealMask>()
+            + self.by_patch.memory_bytes()
             + samples(&self.virtual_samples)
             + samples(&self.edge_samples)
             + self.edges.len() * std::mem::size_of::<EdgePixel>()
     }
 }
 
+mod by_patch;
 mod edges;
 mod rows;
 mod terms;

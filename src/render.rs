@@ -717,7 +717,7 @@ impl Session {
                 let last = last_rays.near.as_ref().zip(still);
                 let near = objects_ref.map(|o| {
                     times.time("rays near the objects", || {
-                        let read = changes::read_points(input.model, pixels.pda);
+                        let read = changes::read_points(&input, pixels.pda);
                         changes::near_rays(&input, o, &read, last)
                     })
                 });

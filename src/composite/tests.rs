@@ -129,28 +129,19 @@ fn a_seam_pixel_takes_the_change_of_the_side_it_shows_in_the_photo() {
             },
         })
         .collect();
-    let pda = PixelDataArray {
-        width: w,
-        height: h,
-        light_count: 0,
-        supersample: 4,
-        own: crate::image_io::PixelRect::full(w, h),
-        rows: (0, h),
-        real_index: (0..n as u32).collect(),
-        real_t: vec![1.0; n],
-        real: Samples {
-            points,
-            terms: Vec::new(),
-        },
-        real_masks: Vec::new(),
-        virtual_index: vec![u32::MAX; n],
-        virtual_pixels: Vec::new(),
-        virtual_samples: Samples::default(),
-        edges: Vec::new(),
-        edge_samples: Samples::default(),
-        rays: 0,
-        examined: None,
+    let mut pda = PixelDataArray::default();
+    pda.width = w;
+    pda.height = h;
+    pda.supersample = 4;
+    pda.own = crate::image_io::PixelRect::full(w, h);
+    pda.rows = (0, h);
+    pda.real_index = (0..n as u32).collect();
+    pda.real_t = vec![1.0; n];
+    pda.real = Samples {
+        points,
+        terms: Vec::new(),
     };
+    pda.virtual_index = vec![u32::MAX; n];
     let shows_one = |i: usize| i as u32 % w <= 8;
     let mut photo = Image::new(w, h);
     for (i, p) in photo.pixels.iter_mut().enumerate() {

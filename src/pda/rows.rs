@@ -139,6 +139,7 @@ impl PixelDataArray {
             edge_samples: Samples::default(),
             rays: 0,
             examined: None,
+            by_patch: Default::default(),
         };
         let first = pda.first_pixel();
         for r in rows {

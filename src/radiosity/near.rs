@@ -225,6 +225,19 @@ impl NearView {
         view
     }
 
+    /// Which of the first `room_count` of `patches` may hold a grid near
+    /// `objects` (no other patch's points are read).
+    pub fn patches_near(
+        patches: &Patches,
+        room_count: usize,
+        objects: &VirtualBounds,
+    ) -> Vec<bool> {
+        let targets = targets(objects);
+        (0..room_count)
+            .map(|k| targets.iter().any(|t| reaches(patches.patch(k), t)))
+            .collect()
+    }
+
     pub fn memory_bytes(&self) -> usize {
         self.grids
             .iter()
@@ -337,6 +350,19 @@ fn read_corners(shape: &Shape, n: u32, read: &[Vec3]) -> Vec<bool> {
     used
 }
 
+/// How far patch `el`'s nearest point may be from target `t`'s sphere.
+fn gap(el: &crate::patches::Element, t: &Target) -> f64 {
+    let h = (el.shape.corners().iter())
+        .map(|c| (*c - el.centre).length())
+        .fold(0.0, f64::max);
+    ((t.centre - el.centre).length() - h - t.radius).max(0.0)
+}
+
+/// Whether target `t` is near enough patch `el` for a grid there.
+fn reaches(el: &crate::patches::Element, t: &Target) -> bool {
+    gap(el, t) < 2.0 * t.radius
+}
+
 /// Point `i`'s parameters on a grid of `n` cells a side over `shape`
 /// (a triangle's points beyond its hypotenuse moved onto it).
 fn grid_params(i: u32, n: u32, shape: &Shape) -> DVec2 {
@@ -417,12 +443,7 @@ fn grid_of(
         cell,
     } = *near_input;
     let el = patches.patch(k);
-    let h = (el.shape.corners().iter())
-        .map(|c| (*c - el.centre).length())
-        .fold(0.0, f64::max);
-    // How far the patch's nearest point may be from each target's sphere.
-    let gap = |t: &Target| ((t.centre - el.centre).length() - h - t.radius).max(0.0);
-    let near = |t: &Target| gap(t) < 2.0 * t.radius;
+    let near = |t: &Target| reaches(el, t);
     if !targets.iter().any(near) {
         return None;
     }
@@ -432,7 +453,9 @@ fn grid_of(
     };
     // The change varies over distances like the patch's from the object:
     // farther patches take coarser cells.
-    let from = (targets.iter().filter(|t| near(t)).map(gap)).fold(f64::INFINITY, f64::min);
+    let from = (targets.iter().filter(|t| near(t)))
+        .map(|t| gap(el, t))
+        .fold(f64::INFINITY, f64::min);
     let cell = cell.max(DISTANCE_CELL * from);
     let cells = ((side / cell).ceil() as u32).min(MAX_CELLS);
     if cells < 2 {

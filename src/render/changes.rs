@@ -157,7 +157,7 @@ pub(super) fn near_field(
     kept: &mut Option<crate::radiosity::NearView>,
 ) -> crate::radiosity::NearField {
     let view =
-        kept.get_or_insert_with(|| near_rays(input, objects, &read_points(input.model, pda), None));
+        kept.get_or_insert_with(|| near_rays(input, objects, &read_points(input, pda), None));
     view.field(
         objects,
         &source.radiosity,
@@ -168,21 +168,26 @@ pub(super) fn near_field(
 
 /// The real points at which a composite of `pda` reads the near field, by
 /// room patch: those of the pixels that show no object (a pixel that does
-/// reads the object's light; see [`crate::composite`]'s near pass).
+/// reads the object's light; see [`crate::composite`]'s near pass), on the
+/// patches near the objects (no other holds a grid).
 pub(super) fn read_points(
-    model: &Model,
+    input: &ChangeInput,
     pda: &crate::pda::PixelDataArray,
 ) -> crate::radiosity::ReadPoints {
-    let room_count = model.patches.patch_count();
+    let patches = &input.model.patches;
+    let room_count = patches.patch_count();
+    let near = crate::radiosity::NearView::patches_near(patches, room_count, input.bounds);
+    let by_patch = pda.real_by_patch(room_count);
     let shown = || {
-        (pda.real_index.iter().enumerate())
-            .filter(|&(i, &k)| {
-                k != u32::MAX && pda.virtual_index.get(i).is_none_or(|&v| v == u32::MAX)
-            })
-            .map(|(_, &k)| {
-                let p = &pda.real.points[k as usize];
-                (p.location.patch, p.position)
-            })
+        (0..room_count).filter(|&k| near[k]).flat_map(move |k| {
+            (by_patch.of(k).iter())
+                .filter(|&&(i, _)| {
+                    pda.virtual_index
+                        .get(i as usize)
+                        .is_none_or(|&v| v == u32::MAX)
+                })
+                .map(move |&(_, p)| (k as u32, pda.real.points[p as usize].position))
+        })
     };
     crate::radiosity::ReadPoints::of(room_count, shown)
 }
