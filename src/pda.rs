@@ -210,7 +210,7 @@ pub struct PixelDataArray {
     /// pixel was a candidate for an edge then; None before the first.
     pub examined: Option<(Vec<u32>, bool)>,
     /// The real points by patch, made when first asked for
-    /// ([`PixelDataArray::real_by_patch`]).
+    /// ([`PixelDataArray::real_by_patch`]; derived, so equality ignores it).
     by_patch: by_patch::ByPatchCache,
 }
 

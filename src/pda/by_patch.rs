@@ -48,31 +48,86 @@ impl ByPatchCache {
 }
 
 impl PixelDataArray {
-    /// The real points by patch, over `patch_count` room patches (made on
-    /// the first call; a point on a patch beyond is left out).
-    pub fn real_by_patch(&self, patch_count: usize) -> &RealByPatch {
+    /// The real points by patch (made on the first call, over the patches
+    /// the points lie on: a patch beyond them holds none).
+    pub fn real_by_patch(&self) -> &RealByPatch {
         self.by_patch.0.get_or_init(|| {
-            let mut start = vec![0u32; patch_count + 1];
             let patch_of = |k: u32| self.real.points[k as usize].location.patch as usize;
-            for &k in self.real_index.iter().filter(|&&k| k != NONE) {
-                if let Some(c) = start.get_mut(patch_of(k) + 1) {
-                    *c += 1;
-                }
+            let held = || {
+                self.real_index
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, k)| **k != NONE)
+            };
+            let patch_count = held().map(|(_, &k)| patch_of(k) + 1).max().unwrap_or(0);
+            let mut start = vec![0u32; patch_count + 1];
+            for (_, &k) in held() {
+                start[patch_of(k) + 1] += 1;
             }
             for k in 0..patch_count {
                 start[k + 1] += start[k];
             }
             let mut next = start.clone();
             let mut entries = vec![(0, 0); start[patch_count] as usize];
-            for (i, &k) in self.real_index.iter().enumerate() {
-                if k == NONE || patch_of(k) >= patch_count {
-                    continue;
-                }
+            for (i, &k) in held() {
                 let at = &mut next[patch_of(k)];
                 entries[*at as usize] = (i as u32, k);
                 *at += 1;
             }
             RealByPatch { start, entries }
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pda::{PatchPoint, SurfacePoint};
+    use glam::Vec3;
+
+    #[test]
+    fn each_patch_lists_its_real_points_in_pixel_order() {
+        // Pixels 0..8: no real point at 2 and 5; patches 3, 0, -, 3, 1, -, 0, 3.
+        let patches = [
+            Some(3),
+            Some(0),
+            None,
+            Some(3),
+            Some(1),
+            None,
+            Some(0),
+            Some(3),
+        ];
+        let mut pda = PixelDataArray::default();
+        for p in patches {
+            match p {
+                Some(patch) => {
+                    pda.real_index.push(pda.real.points.len() as u32);
+                    pda.real.points.push(SurfacePoint {
+                        position: Vec3::ZERO,
+                        normal: Vec3::Z,
+                        surface: 0,
+                        is_virtual: false,
+                        pixel_terms: false,
+                        clear_of_own: false,
+                        location: PatchPoint {
+                            patch,
+                            weights: [1.0, 0.0, 0.0, 0.0],
+                        },
+                    });
+                }
+                None => pda.real_index.push(NONE),
+            }
+        }
+        let unmade = pda.clone();
+        let by = pda.real_by_patch();
+        // (pixel, point): points are numbered in pixel order, skipping 2 and 5.
+        assert_eq!(by.of(0), &[(1, 1), (6, 4)]);
+        assert_eq!(by.of(1), &[(4, 3)]);
+        assert_eq!(by.of(2), &[]);
+        assert_eq!(by.of(3), &[(0, 0), (3, 2), (7, 5)]);
+        assert_eq!(by.of(4), &[]);
+        // Derived: equality ignores whether it was made.
+        assert_eq!(pda, unmade);
     }
 }

@@ -177,7 +177,7 @@ pub(super) fn read_points(
     let patches = &input.model.patches;
     let room_count = patches.patch_count();
     let near = crate::radiosity::NearView::patches_near(patches, room_count, input.bounds);
-    let by_patch = pda.real_by_patch(room_count);
+    let by_patch = pda.real_by_patch();
     let shown = || {
         (0..room_count).filter(|&k| near[k]).flat_map(move |k| {
             (by_patch.of(k).iter())
