@@ -2,12 +2,13 @@
 //! randomness, content-hashed caches, the temporary files a signal must
 //! remove, who is told which stage runs, the figures' font, and
 //! containing a third-party parser's panic, pause points for work made
-//! ahead, and a fast map.
+//! ahead, a fast map and a grid of items by place.
 
 pub mod cache;
 pub mod cleanup;
 pub mod figure;
 pub mod guard;
+pub mod near_lists;
 pub mod pause;
 pub mod rng;
 pub mod stages;
