@@ -317,29 +317,47 @@ pub(super) fn cone_towards(from: DVec3, h: f64, t: &Target) -> (DVec3, Option<f6
     )
 }
 
-/// Ray `i` of `count` from the receiver towards a cone (`cone`: its axis
-/// and the cosine of its half-angle) or over the hemisphere about `n`, at
-/// Sobol parameters (`u1`, `u2`): its direction and the irradiance it
-/// stands for per unit radiance.
-pub(super) fn towards(
+/// A receiver's `count` rays towards a cone (`cone`: its axis and the
+/// cosine of its half-angle) or over the hemisphere about `n`, the frame
+/// about the axis made once for the bundle (made per ray, it was a third
+/// of making the rays an update mostly only tests against what moved).
+#[derive(Clone, Copy)]
+pub(super) struct Towards {
     n: DVec3,
-    (axis, cone): (DVec3, Option<f64>),
+    axis: DVec3,
+    frame: (DVec3, DVec3),
+    cone: Option<f64>,
     count: u32,
-    u1: f64,
-    u2: f64,
-) -> (DVec3, f64) {
-    match cone {
-        Some(cos_max) => {
-            let solid = std::f64::consts::TAU * (1.0 - cos_max);
-            let d = cone_direction(axis, cos_max, u1, u2);
-            // Cone rays weigh Ω / count × cos.
-            (d, solid / count as f64 * d.dot(n).max(0.0))
+}
+
+impl Towards {
+    pub(super) fn new(n: DVec3, (axis, cone): (DVec3, Option<f64>), count: u32) -> Towards {
+        let axis = if cone.is_some() { axis } else { n };
+        Towards {
+            n,
+            axis,
+            frame: frame(axis),
+            cone,
+            count,
         }
-        // Cosine-distributed rays weigh π / count.
-        None => (
-            cosine_direction(n, u1, u2),
-            std::f64::consts::PI / count as f64,
-        ),
+    }
+
+    /// The ray at Sobol parameters (`u1`, `u2`): its direction and the
+    /// irradiance it stands for per unit radiance.
+    pub(super) fn at(&self, u1: f64, u2: f64) -> (DVec3, f64) {
+        match self.cone {
+            Some(cos_max) => {
+                let solid = std::f64::consts::TAU * (1.0 - cos_max);
+                let d = cone_direction_in(self.frame, self.axis, cos_max, u1, u2);
+                // Cone rays weigh Ω / count × cos.
+                (d, solid / self.count as f64 * d.dot(self.n).max(0.0))
+            }
+            // Cosine-distributed rays weigh π / count.
+            None => (
+                cosine_direction_in(self.frame, self.axis, u1, u2),
+                std::f64::consts::PI / self.count as f64,
+            ),
+        }
     }
 }
 
@@ -366,10 +384,11 @@ fn view_rays(patches: &Patches, k: usize, t: &Target) -> Option<Bundle> {
     let cone = cone_towards(el.centre, h, t);
     let count = rays_for(cone.1, MAX_RAYS);
     let seed = crate::util::rng::hash2(k as u64, t.surface as u64) as u32;
+    let towards = Towards::new(n, cone, count);
     let rays = (0..count)
         .map(|i| {
             let [s, v, u1, u2] = sobol_burley::sample_4d(i, 0, seed).map(f64::from);
-            let (d, w) = towards(n, cone, count, u1, u2);
+            let (d, w) = towards.at(u1, u2);
             (point_on(el, s, v), d, w)
         })
         .collect();
@@ -532,8 +551,7 @@ fn frame(axis: DVec3) -> (DVec3, DVec3) {
 
 /// The direction at (`u1`, `u2`) ∈ \[0, 1)² of the uniform distribution over
 /// the cone of half-angle acos(`cos_max`) about unit `axis`.
-fn cone_direction(axis: DVec3, cos_max: f64, u1: f64, u2: f64) -> DVec3 {
-    let (t, b) = frame(axis);
+fn cone_direction_in((t, b): (DVec3, DVec3), axis: DVec3, cos_max: f64, u1: f64, u2: f64) -> DVec3 {
     let cos = 1.0 - u1 * (1.0 - cos_max);
     let sin = (1.0 - cos * cos).max(0.0).sqrt();
     let phi = std::f64::consts::TAU * u2;
@@ -542,7 +560,11 @@ fn cone_direction(axis: DVec3, cos_max: f64, u1: f64, u2: f64) -> DVec3 {
 
 /// The direction at (`u1`, `u2`) of the cosine distribution about unit `n`.
 pub fn cosine_direction(n: DVec3, u1: f64, u2: f64) -> DVec3 {
-    let (t, b) = frame(n);
+    cosine_direction_in(frame(n), n, u1, u2)
+}
+
+/// [`cosine_direction`] in the frame `(t, b)` made about `n`.
+fn cosine_direction_in((t, b): (DVec3, DVec3), n: DVec3, u1: f64, u2: f64) -> DVec3 {
     let (r, phi) = (u1.sqrt(), std::f64::consts::TAU * u2);
     t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt()
 }

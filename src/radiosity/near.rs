@@ -22,7 +22,7 @@
 //! others are traced.
 
 use super::change::{
-    Bundle, cone_towards, rays_for, receiving_side, targets, towards, trace_bundle,
+    Bundle, Towards, cone_towards, rays_for, receiving_side, targets, trace_bundle,
 };
 use super::change::{Seen, Target};
 use super::still::StillSurfaces;
@@ -529,10 +529,11 @@ fn point_rays(patches: &Patches, (k, i): (usize, u32), x: DVec3, t: &Target) -> 
         crate::util::rng::hash2(k as u64, i as u64),
         t.surface as u64,
     ) as u32;
+    let towards = Towards::new(n, cone, count);
     let rays = (0..count)
         .map(|r| {
             let [u1, u2, _, _] = sobol_burley::sample_4d(r, 0, seed).map(f64::from);
-            let (d, w) = towards(n, cone, count, u1, u2);
+            let (d, w) = towards.at(u1, u2);
             (x, d, w)
         })
         .collect();

@@ -3,7 +3,7 @@
 //! pixel's own point, which [`crate::residual`] averages over rounds.
 
 use super::change::{
-    Target, cone_towards, meet_target, rays_for, receiving_side, targets, towards,
+    Target, Towards, cone_towards, meet_target, rays_for, receiving_side, targets,
 };
 use super::near::taper;
 use crate::light::offset_origin;
@@ -83,11 +83,12 @@ impl<'a> ChangeSampler<'a> {
         let mut traced = 0;
         for &(t, n, cone, count) in &cones {
             let key = crate::util::rng::hash2(seed, t.surface as u64) as u32;
+            let towards = Towards::new(n, cone, count);
             let dirs: Vec<(DVec3, f64)> = (0..count)
                 .map(|r| {
                     let [u1, u2, _, _] =
                         sobol_burley::sample_4d(round * count + r, 0, key).map(f64::from);
-                    towards(n, cone, count, u1, u2)
+                    towards.at(u1, u2)
                 })
                 .collect();
             let rays: Vec<TraceRay> = (dirs.iter())
