@@ -1,10 +1,11 @@
 //! Items found by place: a uniform grid over the box of a set of points,
 //! each cell listing, in the order they were added, the items added near
 //! it. Written here rather than taken from a crate: the spatial-index
-//! crates (kiddo, rstar) answer nearest-neighbour and radius queries over
-//! a fixed set, where final gathering's choice of vertices adds items one
-//! by one while it queries, and reads each cell's items in the order they
-//! came.
+//! crates (kiddo, rstar) descend a tree per radius query and give what
+//! they find in their tree's order, where final gathering's choice of
+//! vertices adds items one by one between queries and sums what it finds
+//! in the order the items came (so the sums are the same bit for bit
+//! however the index is laid out).
 
 use glam::DVec3;
 
