@@ -41,14 +41,22 @@ impl NearLists {
         };
         let extent = hi - lo;
         let volume = extent.max(DVec3::splat(within)).element_product();
-        let size = within.max((volume / MOST_CELLS as f64).cbrt()).max(1e-9);
+        let mut size = within.max((volume / MOST_CELLS as f64).cbrt()).max(1e-9);
         // A cell of margin on every side: the 27 cells around any point of
         // the box are in the grid.
-        let dims = (extent / size)
-            .floor()
-            .as_uvec3()
-            .to_array()
-            .map(|d| d as usize + 3);
+        let dims_at = |size: f64| {
+            (extent / size)
+                .floor()
+                .as_uvec3()
+                .to_array()
+                .map(|d| d as usize + 3)
+        };
+        // A flat or thin box has fewer cells than its volume says, and more
+        // of margin: grown until the grid holds no more than it may.
+        while dims_at(size).iter().product::<usize>() > MOST_CELLS {
+            size *= 2.0;
+        }
+        let dims = dims_at(size);
         let cells = dims[0] * dims[1] * dims[2];
         NearLists {
             origin: lo - DVec3::splat(size),
@@ -120,13 +128,25 @@ mod tests {
         let points: Vec<DVec3> = (0..2000)
             .map(|_| DVec3::new(next() * 2.0, next() * 0.1, next() * 0.7 - 0.3))
             .collect();
-        for within in [0.01, 0.05, 0.3, 5.0] {
+        // A box 2 × 0.1 × 0.7 m, and a flat one 100 m wide (its cells grow
+        // to keep the grid within bounds).
+        let flat: Vec<DVec3> = (points.iter())
+            .map(|p| DVec3::new(p.x * 50.0, 0.0, p.z * 140.0))
+            .collect();
+        for (points, within) in [
+            (&points, 0.01),
+            (&points, 0.05),
+            (&points, 0.3),
+            (&points, 5.0),
+            (&flat, 0.01),
+        ] {
             let mut lists = NearLists::new(points.iter().copied(), within);
+            assert!(lists.first.len() <= MOST_CELLS, "{}", lists.first.len());
             let added: Vec<usize> = (0..points.len()).step_by(3).collect();
             for &i in &added {
                 lists.add_near(points[i], i as u32);
             }
-            for p in &points {
+            for p in points.iter() {
                 let listed: Vec<u32> = lists.near(*p).collect();
                 assert!(listed.windows(2).all(|w| w[0] < w[1]));
                 for &i in &added {
