@@ -41,33 +41,44 @@ pub(super) fn refine(
     for (at, &(k, _)) in edges.iter().enumerate() {
         edge_of[k as usize] = at as u32;
     }
-    let redone: Vec<(usize, PixelShade)> = (0..out.image.pixels.len())
-        .into_par_iter()
-        .filter_map(|local| {
-            let i = first + local;
-            let k = pda.real_at(i);
-            if k == u32::MAX {
-                return None;
-            }
-            let p = &pda.real.points[k as usize];
-            // The pixel's own samples where rounds ran, else the grid's.
-            let own = residual.and_then(|r| r.room_correction.get(k as usize).copied().flatten());
-            let c = own.or_else(|| {
-                let f = field?.at(p.location.patch, p.position.as_dvec3())?;
-                Some(f.as_vec3())
-            });
-            let terms = (edge_of.get(k as usize).copied())
-                .filter(|&at| at != u32::MAX)
-                .map(|at| footprint_terms(pda, &edges[at as usize]));
-            if c.is_none() && terms.is_none() {
-                return None;
-            }
-            let s = shader.plain_with(i, h_with, c.map(Vec3A::from), terms.as_deref())?;
-            Some((local, s))
-        })
+    // The pixel's own samples where rounds ran, else the grid's; and its
+    // footprint's terms where it lies on a shadow edge.
+    let shade = |local: usize, k: u32| {
+        let i = first + local;
+        let p = &pda.real.points[k as usize];
+        let own = residual.and_then(|r| r.room_correction.get(k as usize).copied().flatten());
+        let c = own.or_else(|| {
+            let f = field?.at(p.location.patch, p.position.as_dvec3())?;
+            Some(f.as_vec3())
+        });
+        let terms = (edge_of.get(k as usize).copied())
+            .filter(|&at| at != u32::MAX)
+            .map(|at| footprint_terms(pda, &edges[at as usize]));
+        if c.is_none() && terms.is_none() {
+            return None;
+        }
+        shader.plain_with(i, h_with, c.map(Vec3A::from), terms.as_deref())
+    };
+    let rounds = residual.is_some_and(|r| r.room_correction.iter().any(Option::is_some));
+    // Rounds may correct any pixel: each is asked. Else only the points of
+    // the patches that hold a grid or a shadow edge's point can change (a
+    // pass over every pixel to find them cost the desk's update as much as
+    // shading them).
+    let listed: Vec<(usize, u32)> = match rounds {
+        true => (0..out.image.pixels.len())
+            .map(|local| (local, pda.real_at(first + local)))
+            .filter(|(_, k)| *k != u32::MAX)
+            .collect(),
+        false => listed_points(pda, field, edges, first),
+    };
+    // Shaded into a list as long as the points (collecting only those
+    // shaded, in pieces that are then appended, cost as much again).
+    let shaded: Vec<Option<PixelShade>> = (listed.par_iter())
+        .map(|&(local, k)| shade(local, k))
         .collect();
     let layers = out.direct.pixels.len() == out.image.pixels.len();
-    for (local, s) in redone {
+    for (&(local, _), s) in listed.iter().zip(&shaded) {
+        let Some(s) = s else { continue };
         out.image.pixels[local] = s.value;
         out.alpha[local] = s.alpha;
         if layers {
@@ -77,6 +88,30 @@ pub(super) fn refine(
             out.object.pixels[local] = s.object;
         }
     }
+}
+
+/// The real points (composite pixel, point) on the room patches that hold
+/// a grid of `field` or one of `edges`' points, patch by patch.
+fn listed_points(
+    pda: &PixelDataArray,
+    field: Option<&NearField>,
+    edges: &[(u32, Vec<(u8, f32)>)],
+    first: usize,
+) -> Vec<(usize, u32)> {
+    let by_patch = pda.real_by_patch();
+    let mut patches: Vec<usize> = field.map_or(Vec::new(), |f| f.patches().collect());
+    patches.extend(
+        edges
+            .iter()
+            .map(|(k, _)| pda.real.points[*k as usize].location.patch as usize),
+    );
+    patches.sort_unstable();
+    patches.dedup();
+    let held = pda.first_pixel();
+    (patches.iter())
+        .flat_map(|&p| by_patch.of(p))
+        .filter_map(|&(i, k)| Some(((held + i as usize).checked_sub(first)?, k)))
+        .collect()
 }
 
 /// A real point's light terms with the objects' shadow averaged over its

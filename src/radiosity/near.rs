@@ -309,6 +309,13 @@ impl NearField {
         )
     }
 
+    /// The room patches that hold a grid.
+    pub fn patches(&self) -> impl Iterator<Item = usize> + '_ {
+        (self.index.iter().enumerate())
+            .filter(|(_, g)| **g != u32::MAX)
+            .map(|(k, _)| k)
+    }
+
     /// Room patches that hold a grid.
     pub fn patch_count(&self) -> usize {
         self.grids.len()
