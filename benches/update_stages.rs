@@ -8,6 +8,10 @@
 //! report, not criterion; `cargo test --benches` runs nothing). SCENE
 //! `assets` is the `update` bench's lounge with generated real-looking
 //! assets (motions `prop_walk`, `wide_walk`, `stool_walk`).
+//!
+//! Built with `--features ray-timing`, it also gives per update the rays
+//! traced by kind and the CPU time spent in Embree tracing them: the part
+//! of an update no bookkeeping can remove with the rays it casts.
 
 #[path = "../tests/common/asset.rs"]
 mod asset;
@@ -53,6 +57,8 @@ fn main() -> anyhow::Result<()> {
     session.image_only();
     let (mut stages, mut totals): (BTreeMap<String, Vec<f64>>, Vec<f64>) = Default::default();
     let (mut kept, mut pixels) = (Vec::new(), Vec::new());
+    let mut traced = Vec::new();
+    arlux::trace::timing::take();
     for i in 0..updates {
         let mut times = StageTimes::default();
         let t0 = std::time::Instant::now();
@@ -65,6 +71,7 @@ fn main() -> anyhow::Result<()> {
         ));
         pixels.push((stats.pixels_recomputed, stats.pixels_retraced));
         totals.push(t0.elapsed().as_secs_f64() * 1e3);
+        traced.extend(arlux::trace::timing::take());
         let mut per: BTreeMap<String, f64> = BTreeMap::new();
         for (stage, d) in times.0 {
             *per.entry(stage.to_string()).or_default() += d.as_secs_f64() * 1e3;
@@ -96,5 +103,36 @@ fn main() -> anyhow::Result<()> {
     for (stage, v) in stages.iter_mut() {
         println!("  {stage:<28} {:>6.2} ms", median(v));
     }
+    report_rays(&traced, median(&mut totals));
     Ok(())
+}
+
+/// Rays per update by kind and their CPU time in Embree (means over the
+/// updates), against the update's wall time on this machine's cores.
+fn report_rays(traced: &[arlux::trace::timing::Totals], wall_ms: f64) {
+    use arlux::trace::timing::Kind;
+    if traced.is_empty() {
+        return;
+    }
+    let n = traced.len() as f64;
+    let mut cpu_ms = 0.0;
+    println!("  rays per update (means), and their CPU time in Embree:");
+    for (k, kind) in Kind::ALL.iter().enumerate() {
+        let rays = traced.iter().map(|t| t[k].0).sum::<u64>() as f64 / n;
+        let ms = traced.iter().map(|t| t[k].1.as_secs_f64()).sum::<f64>() * 1e3 / n;
+        cpu_ms += ms;
+        println!(
+            "    {:<26} {:>9.0} rays {:>8.2} ms ({:.0} ns a ray)",
+            kind.name(),
+            rays,
+            ms,
+            ms * 1e6 / rays.max(1.0)
+        );
+    }
+    let cores = std::thread::available_parallelism().map_or(1, |c| c.get()) as f64;
+    println!(
+        "    all: {cpu_ms:.2} ms of CPU, {:.2} ms on {cores} cores ({:.0}% of the update's {wall_ms:.2} ms)",
+        cpu_ms / cores,
+        100.0 * cpu_ms / cores / wall_ms
+    );
 }

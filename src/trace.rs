@@ -21,6 +21,7 @@ use crate::geometry::Triangle;
 
 #[allow(non_camel_case_types)]
 mod ffi;
+pub mod timing;
 
 /// A failure inside Embree (out of memory, unsupported CPU, bad geometry).
 #[derive(Debug, Clone, thiserror::Error)]
@@ -363,6 +364,7 @@ impl Geometry {
 
     /// The closest hit along the ray, if any.
     pub fn intersect(&self, ray: &TraceRay) -> Option<Hit> {
+        let _timed = timing::start(timing::Kind::Intersect1, 1);
         ensure_flush_denormals();
         let mut rh = ffi::RTCRayHit {
             ray: ffi::RTCRay {
@@ -397,6 +399,7 @@ impl Geometry {
 
     /// Whether anything lies on the ray between tnear and tfar.
     pub fn occluded(&self, ray: &TraceRay) -> bool {
+        let _timed = timing::start(timing::Kind::Occluded1, 1);
         ensure_flush_denormals();
         let mut r = ffi::RTCRay {
             org: ray.origin.to_array(),
@@ -439,6 +442,7 @@ impl Geometry {
 
     /// Closest hits of many rays, traced in packets of 16 (write one result per ray).
     pub fn intersect_batch(&self, rays: &[TraceRay], out: &mut [Option<Hit>]) {
+        let _timed = timing::start(timing::Kind::IntersectPacket, rays.len());
         assert_eq!(rays.len(), out.len());
         ensure_flush_denormals();
         let mut ctx = ffi::RTCIntersectContext::new();
@@ -474,6 +478,7 @@ impl Geometry {
     /// Occlusion of many rays, traced in packets of 16 (four or fewer in
     /// one packet of 4: a light term's first rays, a short visibility test).
     pub fn occluded_batch(&self, rays: &[TraceRay], out: &mut [bool]) {
+        let _timed = timing::start(timing::Kind::OccludedPacket, rays.len());
         assert_eq!(rays.len(), out.len());
         ensure_flush_denormals();
         let mut ctx = ffi::RTCIntersectContext::new();
