@@ -126,3 +126,58 @@ fn footprint_terms(pda: &PixelDataArray, edge: &(u32, Vec<(u8, f32)>)) -> Vec<Li
     }
     terms
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pda::{PatchPoint, SurfacePoint};
+
+    #[test]
+    fn only_points_on_a_grids_patch_or_an_edges_patch_are_listed() {
+        // Rows 1..3 of a 4-wide frame held: pixels 4..12, one without a
+        // real point; the points' patches in pixel order.
+        let patches = [
+            Some(2),
+            Some(0),
+            None,
+            Some(5),
+            Some(2),
+            Some(1),
+            Some(5),
+            Some(3),
+        ];
+        let mut pda = PixelDataArray::default();
+        (pda.width, pda.height, pda.rows) = (4, 3, (1, 3));
+        for p in patches {
+            let Some(patch) = p else {
+                pda.real_index.push(u32::MAX);
+                continue;
+            };
+            pda.real_index.push(pda.real.points.len() as u32);
+            pda.real.points.push(SurfacePoint {
+                position: Vec3::ZERO,
+                normal: Vec3::Z,
+                surface: 0,
+                is_virtual: false,
+                pixel_terms: false,
+                clear_of_own: false,
+                location: PatchPoint {
+                    patch,
+                    weights: [1.0, 0.0, 0.0, 0.0],
+                },
+            });
+        }
+        // Grids on patches 2 and 4 (patch 4 holds no point); a shadow edge
+        // at point 4 (pixel 5 of those held, on patch 1).
+        let field = NearField::zero_on(6, &[2, 4]);
+        let edges = vec![(4, vec![(0, 0.5)])];
+        let first = pda.first_pixel();
+        let mut listed = listed_points(&pda, Some(&field), &edges, first);
+        listed.sort_unstable();
+        // (composite pixel, point): patch 2's points at pixels 0 and 4,
+        // patch 1's at pixel 5; patches 0, 3 and 5 hold neither.
+        assert_eq!(listed, [(0, 0), (4, 3), (5, 4)]);
+        // Without a field, only the edge's patch.
+        assert_eq!(listed_points(&pda, None, &edges, first), [(5, 4)]);
+    }
+}

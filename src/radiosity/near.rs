@@ -309,6 +309,25 @@ impl NearField {
         )
     }
 
+    /// A field of `room_count` patches whose grids (one cell, zero
+    /// everywhere) lie on `patches`: for tests of who reads it.
+    #[cfg(test)]
+    pub(crate) fn zero_on(room_count: usize, patches: &[usize]) -> NearField {
+        let mut index = vec![u32::MAX; room_count];
+        let square = Shape::Quad {
+            origin: DVec3::ZERO,
+            u: DVec3::X,
+            v: DVec3::Y,
+        };
+        let grids = (patches.iter().enumerate())
+            .map(|(g, &k)| {
+                index[k] = g as u32;
+                (square, 1, vec![DVec3::ZERO; 4])
+            })
+            .collect();
+        NearField { index, grids }
+    }
+
     /// The room patches that hold a grid.
     pub fn patches(&self) -> impl Iterator<Item = usize> + '_ {
         (self.index.iter().enumerate())
@@ -316,7 +335,7 @@ impl NearField {
             .map(|(k, _)| k)
     }
 
-    /// Room patches that hold a grid.
+    /// How many room patches hold a grid.
     pub fn patch_count(&self) -> usize {
         self.grids.len()
     }
